@@ -1,0 +1,133 @@
+"""The planar bias-extension test with the continuum model (seed 000 §2, eq. 7; DESIGN §4).
+
+Specimen [0, length] × [0, width] (mm), fibres at ±45° to the load (x). Clamps of seed 000
+eq. (7): u = 0 at x = 0 and u = ū e_x at x = length, with zero normal derivative on both
+(weakly, by Nitsche) when the model has second-gradient terms. The reaction is the virtual work
+of the residual at the grip; shear angles are evaluated at A and B of seed 000 Fig. 4.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from dolfinx import fem
+
+from fabricsurf.energy import has_second_gradient
+from fabricsurf.evaluation import eval_points, interpolate_expression
+from fabricsurf.output import FieldWriter, StepLog, rank0_print, write_json
+from fabricsurf.problem import FabricProblem
+from fabricsurf.solver import LoadStepper
+from fabricsurf.terms import FibreStretch, GeodesicBending, Shear, Term
+from geometry.specimen import bias_specimen
+
+
+def default_model() -> list[Term]:
+    """fibre_stretch + shear + geodesic_bending with moduli of a stiff-fibre, soft-pivot fabric
+    (N/mm, N/mm, N·mm)."""
+    return [FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5), GeodesicBending(A_g=40.0)]
+
+
+@dataclass
+class BiasResult:
+    """Per-step results (scalars reduced over ranks)."""
+
+    ubar: list = field(default_factory=list)
+    force: list = field(default_factory=list)
+    angle_A_deg: list = field(default_factory=list)
+    angle_B_deg: list = field(default_factory=list)
+    newton: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {k: v for k, v in self.__dict__.items()}
+
+
+class BiasExtension:
+    """Set-up and load stepping of the continuum bias-extension test."""
+
+    def __init__(self, model: list[Term] | None = None, length: float = 187.0,
+                 width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
+                 fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None) -> None:
+        if clamp not in ("gradient", "position"):
+            raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
+        self.model = model if model is not None else default_model()
+        self.specimen = bias_specimen(length, width, h)
+        p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
+                          snes_options=snes_options, prefix="fabricsurf_bias_")
+        p.fix("clamp", (0.0, 0.0))
+        self.grip_ux, _ = p.fix("grip", (0.0, 0.0))
+        if clamp == "gradient" and has_second_gradient(self.model):
+            p.clamp_gradient("clamp")
+            p.clamp_gradient("grip")
+        self.problem = p
+        self.solver = p.solver()
+        kin = p.energy.kin
+        self.DG = fem.FunctionSpace(p.msh, ("DG", 2))
+        self._gamma_expr = kin.gamma
+        self.points = np.array([self.specimen.points["A"], self.specimen.points["B"]])
+
+    def set_load(self, ubar: float) -> None:
+        self.grip_ux.value = ubar
+
+    def angles_deg(self) -> np.ndarray:
+        g = interpolate_expression(self._gamma_expr, self.DG)
+        return np.degrees(eval_points(g, self.points)[:, 0])
+
+    def run(self, ubar_max: float, steps: int, out: Path | None = None,
+            verbose: bool = True) -> BiasResult:
+        """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``."""
+        comm = self.problem.msh.comm
+        res, t0 = BiasResult(), time.perf_counter()
+        writer = FieldWriter(Path(out) / "bias.xdmf", self.problem.u,
+                             self.problem.energy.kin) if out else None
+        log = StepLog(comm, Path(out), "bias_steps") if out else None
+
+        def converged(k: int, ubar: float, its: int) -> None:
+            f = self.problem.reaction("grip", 0)
+            a = self.angles_deg()
+            for lst, v in ((res.ubar, ubar), (res.force, f), (res.angle_A_deg, a[0]),
+                           (res.angle_B_deg, a[1]), (res.newton, its)):
+                lst.append(float(v))
+            if writer:
+                writer.write(ubar)
+                log.add(step=k + 1, ubar=ubar, force=f, angle_A_deg=a[0], angle_B_deg=a[1],
+                        newton_iterations=its)
+            if verbose:
+                rank0_print(comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
+                            f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
+                            f"  Newton {its}")
+
+        stepper = LoadStepper(self.solver, self.set_load, converged,
+                              log=lambda m: rank0_print(comm, "  " + m) if verbose else None)
+        try:
+            stepper.run(np.linspace(ubar_max / steps, ubar_max, steps))
+        finally:
+            res.seconds = time.perf_counter() - t0
+            if writer:
+                writer.close()
+            if out:
+                write_json(comm, Path(out) / "bias_curve.json", res.as_dict())
+        return res
+
+
+def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:
+    """Force and shear angles at A and B against ū (PNG; call on rank 0)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    ax[0].plot(res.ubar, res.force, "o-", label=label)
+    ax[0].set(xlabel="grip displacement ū (mm)", ylabel="reaction force (N)")
+    ax[1].plot(res.ubar, res.angle_A_deg, "o-")
+    ax[1].set(xlabel="ū (mm)", ylabel="shear angle at A (deg)")
+    ax[2].plot(res.ubar, res.angle_B_deg, "o-")
+    ax[2].set(xlabel="ū (mm)", ylabel="shear angle at B (deg)")
+    ax[0].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

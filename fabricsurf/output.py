@@ -1,0 +1,115 @@
+"""Output: XDMF time series of u and derived fields, step logs (CSV/JSON), rank-0 printing."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem, io
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from fabricsurf.kinematics import Kinematics
+
+
+def rank0_print(comm: MPI.Comm, *args) -> None:
+    if comm.rank == 0:
+        print(*args, flush=True)
+
+
+def derived_fields(kin: Kinematics) -> dict:
+    """Named scalar fields for ParaView: λ, μ, γ, J and, in 3D, K_L, K_M, T."""
+    fields = {"lambda": kin.lam, "mu": kin.mu, "gamma": kin.gamma, "J": kin.J}
+    if kin.d == 3 and kin.H is not None:
+        fields.update({"K_L": kin.K_L, "K_M": kin.K_M, "T": kin.T})
+    return fields
+
+
+class FieldWriter:
+    """Writes u and the derived fields on P1 to ``path`` (XDMF + h5), one time per call.
+
+    Derived fields are lumped L2 projections onto P1, f_i = ∫ f φ_i / ∫ φ_i, computed with one
+    compiled form for all fields (XDMF in dolfinx 0.5.2 holds P1 data only).
+    """
+
+    def __init__(self, path: Path, u: fem.Function, kin: Kinematics, qdeg: int = 2) -> None:
+        msh = u.function_space.mesh
+        self.comm, self.u = msh.comm, u
+        d = u.function_space.dofmap.index_map_bs
+        self.V1 = fem.VectorFunctionSpace(msh, ("CG", 1), dim=d)
+        self.u1 = fem.Function(self.V1, name="u")
+        exprs = derived_fields(kin)
+        self.names = list(exprs)
+        k = len(self.names)
+        self.Vk = fem.VectorFunctionSpace(msh, ("CG", 1), dim=k)
+        self.S1 = fem.FunctionSpace(msh, ("CG", 1))
+        self.scalars = [fem.Function(self.S1, name=n) for n in self.names]
+        v = ufl.TestFunction(self.Vk)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": qdeg})
+        self.rhs = fem.form(ufl.inner(ufl.as_vector(list(exprs.values())), v) * dx)
+        lumped = fem_petsc.assemble_vector(fem.form(ufl.inner(ufl.as_vector([1.0] * k), v) * dx))
+        lumped.ghostUpdate(addv=PETSc.InsertMode.ADD,
+                           mode=PETSc.ScatterMode.REVERSE)
+        self.lumped = lumped
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.file = io.XDMFFile(self.comm, str(path), "w")
+        self.file.write_mesh(msh)
+
+    def project(self) -> None:
+        b = fem_petsc.assemble_vector(self.rhs)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD,
+                      mode=PETSc.ScatterMode.REVERSE)
+        b.pointwiseDivide(b, self.lumped)
+        vals = fem.Function(self.Vk)
+        b.copy(vals.vector)
+        vals.x.scatter_forward()
+        arr = vals.x.array.reshape(-1, len(self.names))
+        for i, f in enumerate(self.scalars):
+            f.x.array[:] = arr[:, i]
+
+    def write(self, t: float) -> None:
+        self.u1.interpolate(self.u)
+        self.project()
+        self.file.write_function(self.u1, t)
+        for f in self.scalars:
+            self.file.write_function(f, t)
+
+    def close(self) -> None:
+        self.file.close()
+
+
+class StepLog:
+    """Rows of per-step scalars (already reduced over ranks), saved as CSV and JSON on rank 0."""
+
+    def __init__(self, comm: MPI.Comm, out: Path, stem: str = "steps") -> None:
+        self.comm, self.out, self.stem = comm, Path(out), stem
+        self.rows: list[dict] = []
+
+    def add(self, **row) -> None:
+        self.rows.append({k: (float(v) if isinstance(v, (np.floating, float)) else v)
+                          for k, v in row.items()})
+        self.save()
+
+    def save(self) -> None:
+        if self.comm.rank != 0 or not self.rows:
+            return
+        self.out.mkdir(parents=True, exist_ok=True)
+        with open(self.out / f"{self.stem}.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
+            w.writeheader()
+            w.writerows(self.rows)
+        (self.out / f"{self.stem}.json").write_text(json.dumps(self.rows, indent=1))
+
+
+def write_json(comm: MPI.Comm, path: Path, data: dict) -> None:
+    """Write JSON on rank 0 (atomically: a temporary file, then rename)."""
+    if comm.rank == 0:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(data, indent=1, default=float))
+        tmp.replace(path)

@@ -1,0 +1,132 @@
+"""A fabric boundary-value problem: space, model, boundary data, solver and reactions."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from fabricsurf.energy import DEFAULT_PENALTY, EnergyForm
+from fabricsurf.kinematics import fibre_directions
+from fabricsurf.solver import SNESSolver
+from fabricsurf.terms import Term
+
+
+class FabricProblem:
+    """Displacement u = r − X in a degree-2 vector Lagrange space of dimension d on a specimen.
+
+    Boundary data are added with :meth:`fix` (positions), :meth:`clamp_gradient` (zero normal
+    derivative, weakly), :meth:`add_traction` and :meth:`add_point_force`; then
+    :meth:`solver` builds the SNES solver. Prescribed values are fem.Constants, so they can be
+    changed during load stepping without recompiling.
+    """
+
+    def __init__(self, specimen, model: list[Term], d: int = 2, degree: int = 2,
+                 fibre_angles: tuple[float, float] = (45.0, -45.0),
+                 penalty: float = DEFAULT_PENALTY, snes_options: dict | None = None,
+                 prefix: str | None = None) -> None:
+        if d not in (2, 3):
+            raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
+        self.specimen, self.model, self.d = specimen, list(model), d
+        self.msh = specimen.mesh
+        self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)
+        self.u = fem.Function(self.V, name="u")
+        self.L, self.M = fibre_directions(*fibre_angles)
+        self.penalty, self.snes_options, self.prefix = penalty, snes_options or {}, prefix
+        self.bcs: list = []
+        self.normal_derivative: dict = {}
+        self.tractions: dict = {}
+        self._point_forces: list = []
+        self._solver: SNESSolver | None = None
+        self.energy: EnergyForm | None = None
+
+    # -- boundary data -------------------------------------------------------------------
+    def edge_facets(self, edge: str) -> np.ndarray:
+        tag = self.specimen.edge_tags[edge]
+        return self.specimen.facet_tags.find(tag)
+
+    def component_dofs(self, edge: str, i: int) -> np.ndarray:
+        return fem.locate_dofs_topological(self.V.sub(i), 1, self.edge_facets(edge))
+
+    def fix(self, edge: str, values: Sequence[float | None]) -> list[fem.Constant]:
+        """Prescribe displacement components on an edge (None leaves a component free).
+
+        Returns the fem.Constants holding the values (one per prescribed component).
+        """
+        consts = []
+        for i, val in enumerate(values):
+            if val is None:
+                continue
+            c = fem.Constant(self.msh, float(val))
+            self.bcs.append(fem.dirichletbc(c, self.component_dofs(edge, i), self.V.sub(i)))
+            consts.append(c)
+        return consts
+
+    def fix_function(self, edge_or_facets, g: fem.Function) -> None:
+        """Prescribe u = g (a Function in V) on an edge name or an array of facets."""
+        facets = (self.edge_facets(edge_or_facets) if isinstance(edge_or_facets, str)
+                  else edge_or_facets)
+        self.bcs.append(fem.dirichletbc(g, fem.locate_dofs_topological(self.V, 1, facets)))
+
+    def clamp_gradient(self, edge: str, g=None) -> None:
+        """Prescribe ∂_n u = g (default 0: the clamp of seed 000 eq. 7) weakly on an edge."""
+        zero = ufl.as_vector([0.0] * self.d)
+        self.normal_derivative[self.specimen.edge_tags[edge]] = zero if g is None else g
+
+    def add_traction(self, edge: str, t) -> None:
+        """Dead load t (UFL d-vector, force per reference length) on an edge."""
+        self.tractions[self.specimen.edge_tags[edge]] = t
+
+    def add_point_force(self, point: Sequence[float], f: Sequence[float] | fem.Constant) -> None:
+        """Dead point force f at a mesh vertex (e.g. a corner force f_i of seed 001 eq. 94)."""
+        x = np.asarray(point, dtype=float)
+        Vc, parent = self.V.sub(0).collapse()
+        local = fem.locate_dofs_geometrical(
+            Vc, lambda X: np.isclose(X[0], x[0]) & np.isclose(X[1], x[1]))
+        bs = self.V.dofmap.index_map_bs
+        nodes = np.asarray(parent)[local] // bs
+        owned = nodes[nodes < self.V.dofmap.index_map.size_local]
+        if self.msh.comm.allreduce(len(owned)) != 1:
+            raise ValueError(f"point force at {tuple(x)}: not exactly one mesh vertex there")
+        self._point_forces.append((owned, f, bs))
+
+    def _nodal_forces(self):
+        dofs, vals = [], []
+        for nodes, f, bs in self._point_forces:
+            fv = np.asarray(f.value if isinstance(f, fem.Constant) else f, dtype=float)
+            for i in range(self.d):
+                dofs.append(nodes * bs + i)
+                vals.append(np.full(len(nodes), fv[i]))
+        return np.concatenate(dofs).astype(np.int32), np.concatenate(vals)
+
+    # -- solving -------------------------------------------------------------------------
+    def solver(self) -> SNESSolver:
+        """The SNES solver of Π_h (built once)."""
+        if self._solver is None:
+            self.energy = EnergyForm(self.model, self.u, self.L, self.M, self.specimen.facet_tags,
+                                     self.normal_derivative, self.tractions, self.penalty)
+            v, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
+            self._solver = SNESSolver(
+                self.energy.residual(v), self.energy.jacobian(du, v), self.u, self.bcs,
+                self.prefix, self.snes_options,
+                self._nodal_forces if self._point_forces else None)
+        return self._solver
+
+    def solve(self) -> tuple[int, int]:
+        return self.solver().solve()
+
+    def reaction(self, edge: str, component: int = 0) -> float:
+        """Total reaction on an edge along a component: R·v with v = 1 on its dofs (virtual
+        work), so forces carried by edge and corner dofs are included. Reduced over ranks."""
+        R = self.solver().internal_force()
+        w = fem.Function(self.V)
+        w.x.array[self.component_dofs(edge, component)] = 1.0
+        return float(R.dot(w.vector))
+
+
+def boundary_facets(msh) -> np.ndarray:
+    """All exterior facets of a mesh."""
+    return dmesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))

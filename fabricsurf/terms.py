@@ -1,0 +1,206 @@
+"""Energy terms: the public vocabulary of physical effects (DESIGN §3, seed 001 eq. 60).
+
+Each term is a small dataclass with validated moduli and a ``density(kin)`` method giving its
+strain energy per unit reference area. A model is a list of terms::
+
+    model = [FibreStretch(k_l=30.0), Shear(k_s=0.5), GeodesicBending(A_g=40.0)]
+
+Units (lengths in mm, forces in N): first-gradient moduli are energy per area, N/mm;
+second-gradient moduli are energy per area times length², N·mm.
+
+Once a term is bound to a mesh (:meth:`Term.bind`) its moduli live in ``fem.Constant``\\ s, so
+:meth:`Term.set` changes them without recompiling any form.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import ClassVar
+
+import ufl
+from dolfinx import fem
+
+from fabricsurf.kinematics import Kinematics
+
+
+@dataclass
+class Term:
+    """Base class: a named energy density with non-negative, finite moduli."""
+
+    name: ClassVar[str] = ""
+    order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
+    units: ClassVar[dict[str, str]] = {}
+    _const: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for p in self.parameters():
+            self._check(p, getattr(self, p))
+
+    @classmethod
+    def parameters(cls) -> list[str]:
+        return [f.name for f in fields(cls) if not f.name.startswith("_")]
+
+    def _check(self, p: str, value: float) -> None:
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"term '{self.name}': parameter {p} = {value!r} is not a number")
+        if not math.isfinite(v) or v < 0.0:
+            raise ValueError(
+                f"term '{self.name}': parameter {p} = {value!r} must be finite and >= 0"
+                f" ({self.units.get(p, '')})"
+            )
+
+    def bind(self, msh) -> Term:
+        """Create the fem.Constant of each modulus on mesh ``msh`` (idempotent)."""
+        if not self._const or next(iter(self._const.values())).ufl_domain() != msh.ufl_domain():
+            self._const = {p: fem.Constant(msh, float(getattr(self, p))) for p in self.parameters()}
+        return self
+
+    def set(self, **values: float) -> None:
+        """Change moduli; bound constants are updated in place (no recompilation)."""
+        for p, v in values.items():
+            if p not in self.parameters():
+                raise ValueError(f"term '{self.name}' has no parameter '{p}'; it has {self.parameters()}")
+            self._check(p, v)
+            setattr(self, p, float(v))
+            if p in self._const:
+                self._const[p].value = float(v)
+
+    def p(self, name: str):
+        """The modulus as a UFL object (its fem.Constant when bound, else the float)."""
+        return self._const.get(name, getattr(self, name))
+
+    def values(self) -> dict[str, float]:
+        return {p: float(getattr(self, p)) for p in self.parameters()}
+
+    def stiffness_scale(self):
+        """Scale S of the second-gradient moduli, used by the interior penalty (zero if order 1)."""
+        return sum(self.p(q) for q in self.parameters()) if self.order == 2 else 0.0
+
+    def density(self, kin: Kinematics):
+        raise NotImplementedError
+
+
+@dataclass
+class FibreStretch(Term):
+    """½k_l(λ−1)² + ½k_m(μ−1)²: fibre extension (crimp/decrimp)."""
+
+    k_l: float = 1.0
+    k_m: float = 1.0
+    name: ClassVar[str] = "fibre_stretch"
+    units: ClassVar[dict[str, str]] = {"k_l": "N/mm", "k_m": "N/mm"}
+
+    def density(self, kin: Kinematics):
+        return 0.5 * self.p("k_l") * (kin.lam - 1) ** 2 + 0.5 * self.p("k_m") * (kin.mu - 1) ** 2
+
+
+@dataclass
+class Shear(Term):
+    """½k_s γ²: in-plane shear resistance between the fibre families (pivots)."""
+
+    k_s: float = 1.0
+    name: ClassVar[str] = "shear"
+    units: ClassVar[dict[str, str]] = {"k_s": "N/mm"}
+
+    def density(self, kin: Kinematics):
+        return 0.5 * self.p("k_s") * kin.gamma**2
+
+
+@dataclass
+class GeodesicBending(Term):
+    """½A_g[(λ²η_l)² + (μ²η_m)²]: in-plane fibre bending (seed 001 §1, eqs. 23, 58)."""
+
+    A_g: float = 1.0
+    name: ClassVar[str] = "geodesic_bending"
+    order: ClassVar[int] = 2
+    units: ClassVar[dict[str, str]] = {"A_g": "N·mm"}
+
+    def density(self, kin: Kinematics):
+        return 0.5 * self.p("A_g") * (kin.geodesic_l**2 + kin.geodesic_m**2)
+
+
+@dataclass
+class StretchGradient(Term):
+    """½A_s[(∂_Lλ)² + (∂_Mμ)²]: tangential stretch gradients (seed 001 §3, eq. 58)."""
+
+    A_s: float = 1.0
+    name: ClassVar[str] = "stretch_gradient"
+    order: ClassVar[int] = 2
+    units: ClassVar[dict[str, str]] = {"A_s": "N·mm"}
+
+    def density(self, kin: Kinematics):
+        return 0.5 * self.p("A_s") * (kin.dlam_dL**2 + kin.dmu_dM**2)
+
+
+@dataclass
+class ShearGradient(Term):
+    """½A_Γ|Γ|²: cross derivatives / shear-angle gradient (seed 001 eq. 60)."""
+
+    A_Gamma: float = 1.0
+    name: ClassVar[str] = "shear_gradient"
+    order: ClassVar[int] = 2
+    units: ClassVar[dict[str, str]] = {"A_Gamma": "N·mm"}
+
+    def density(self, kin: Kinematics):
+        G = kin.Gamma
+        return 0.5 * self.p("A_Gamma") * ufl.dot(G, G)
+
+
+@dataclass
+class NormalBending(Term):
+    """½k_b(K_L² + K_M²): out-of-plane fibre bending (seed 001 eqs. 60, 61); 3D only."""
+
+    k_b: float = 1.0
+    name: ClassVar[str] = "normal_bending"
+    order: ClassVar[int] = 2
+    units: ClassVar[dict[str, str]] = {"k_b": "N·mm"}
+
+    def density(self, kin: Kinematics):
+        return 0.5 * self.p("k_b") * (kin.K_L**2 + kin.K_M**2)
+
+
+@dataclass
+class Twist(Term):
+    """½k_t T²: fibre twist (seed 001 eqs. 60, 61; k̄ there); 3D only."""
+
+    k_t: float = 1.0
+    name: ClassVar[str] = "twist"
+    order: ClassVar[int] = 2
+    units: ClassVar[dict[str, str]] = {"k_t": "N·mm"}
+
+    def density(self, kin: Kinematics):
+        return 0.5 * self.p("k_t") * kin.T**2
+
+
+EFFECTS: dict[str, type[Term]] = {
+    cls.name: cls
+    for cls in (FibreStretch, Shear, GeodesicBending, StretchGradient, ShearGradient,
+                NormalBending, Twist)
+}
+"""The vocabulary of effects, by exact name (DESIGN §3)."""
+
+IN_PLANE_INVISIBLE = ("normal_bending", "twist")
+"""Effects that planar (2D) data cannot see."""
+
+
+def make_term(name: str, **params: float) -> Term:
+    """The term called ``name`` with the given moduli; unknown names list the valid ones."""
+    if name not in EFFECTS:
+        raise ValueError(f"unknown term '{name}'; valid terms are: {', '.join(EFFECTS)}")
+    cls = EFFECTS[name]
+    unknown = set(params) - set(cls.parameters())
+    if unknown:
+        raise ValueError(f"term '{name}' has no parameter(s) {sorted(unknown)}; "
+                         f"it has {cls.parameters()}")
+    return cls(**params)
+
+
+def parse_terms(spec: str, params: dict[str, dict[str, float]] | None = None) -> list[Term]:
+    """A model from a comma-separated list of effect names, e.g. ``"fibre_stretch,shear"``."""
+    names = [s.strip() for s in spec.split(",") if s.strip()]
+    if not names:
+        raise ValueError(f"empty term list '{spec}'; valid terms are: {', '.join(EFFECTS)}")
+    params = params or {}
+    return [make_term(n, **params.get(n, {})) for n in names]

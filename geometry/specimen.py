@@ -1,0 +1,136 @@
+"""gmsh builders for rectangular specimens (bias-extension test, seed 000 Fig. 4) and squares.
+
+gmsh runs on rank 0 only; the mesh is distributed with ``dolfinx.io.gmshio.model_to_mesh``.
+Physical groups are named: edges ``clamp`` (x = 0), ``grip`` (x = length), ``bottom`` (y = 0),
+``top`` (y = width); points ``corner_00``, ``corner_10``, ``corner_11``, ``corner_01`` and, for
+the specimen, ``A`` (centre of the square on the clamped short side) and ``B`` (centre of the
+specimen), which are embedded as mesh vertices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gmsh
+import numpy as np
+from dolfinx.io import gmshio
+from mpi4py import MPI
+
+EDGE_TAGS = {"clamp": 1, "grip": 2, "bottom": 3, "top": 4}
+
+
+@dataclass
+class Specimen:
+    """A meshed rectangle [0, length] × [0, width] with named edge tags and points."""
+
+    mesh: object
+    cell_tags: object
+    facet_tags: object
+    length: float
+    width: float
+    edge_tags: dict = field(default_factory=lambda: dict(EDGE_TAGS))
+    points: dict = field(default_factory=dict)
+
+
+def _check_positive(**kw: float) -> None:
+    for k, v in kw.items():
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"geometry: {k} = {v!r} must be a positive finite number")
+
+
+def _build_rectangle(length: float, width: float, h: float, extra_points: dict,
+                     structured: bool) -> None:
+    """The gmsh model (rank 0): rectangle, edge groups, embedded points."""
+    gmsh.model.add("rectangle")
+    occ = gmsh.model.occ
+    s = occ.addRectangle(0.0, 0.0, 0.0, length, width)
+    pts = {name: occ.addPoint(x, y, 0.0, h) for name, (x, y) in extra_points.items()}
+    occ.synchronize()
+    if pts:
+        gmsh.model.mesh.embed(0, list(pts.values()), 2, s)
+    gmsh.model.addPhysicalGroup(2, [s], 1)
+    gmsh.model.setPhysicalName(2, 1, "specimen")
+    for c in gmsh.model.getBoundary([(2, s)], oriented=False):
+        x, y, _ = occ.getCenterOfMass(1, c[1])
+        name = ("clamp" if np.isclose(x, 0) else "grip" if np.isclose(x, length)
+                else "bottom" if np.isclose(y, 0) else "top")
+        gmsh.model.addPhysicalGroup(1, [c[1]], EDGE_TAGS[name])
+        gmsh.model.setPhysicalName(1, EDGE_TAGS[name], name)
+    for tag, name in enumerate(extra_points, start=100):
+        gmsh.model.addPhysicalGroup(0, [pts[name]], tag)
+        gmsh.model.setPhysicalName(0, tag, name)
+    gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
+    gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h if not structured else h)
+    gmsh.option.setNumber("Mesh.Algorithm", 6 if not structured else 8)
+    gmsh.model.mesh.generate(2)
+
+
+def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_WORLD,
+              extra_points: dict | None = None, structured: bool = False) -> Specimen:
+    """Mesh the rectangle [0, length] × [0, width] with element size ``h``.
+
+    ``extra_points`` (name → (x, y)) are embedded as vertices and named physical points.
+    """
+    _check_positive(length=length, width=width, h=h)
+    corners = {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
+               "corner_11": (length, width), "corner_01": (0.0, width)}
+    extra = dict(extra_points or {})
+    if comm.rank == 0:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            _build_rectangle(length, width, h, extra, structured)
+            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
+        finally:
+            gmsh.finalize()
+    else:
+        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=2)
+    msh.topology.create_connectivity(1, 2)
+    return Specimen(msh, ct, ft, float(length), float(width), points={**corners, **extra})
+
+
+def bias_specimen(length: float = 187.0, width: float = 119.0, h: float = 8.0,
+                  comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
+    """The bias-extension specimen of seed 000 (187 mm × 119 mm) with points A and B (Fig. 4).
+
+    A is the centre of the square whose side is the clamped short side (x = 0): (w/2, w/2);
+    B is the centre of the specimen: (length/2, width/2).
+    """
+    _check_positive(length=length, width=width, h=h)
+    if width > length:
+        raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
+                         "has its long side along the load")
+    pts = {"A": (0.5 * width, 0.5 * width), "B": (0.5 * length, 0.5 * width)}
+    return rectangle(length, width, h, comm, extra_points=pts)
+
+
+def square(side: float = 1.0, h: float = 0.25, comm: MPI.Comm = MPI.COMM_WORLD,
+           structured: bool = False) -> Specimen:
+    """The square [0, side]²; edges tagged clamp/grip/bottom/top as for the rectangle."""
+    return rectangle(side, side, h, comm, structured=structured)
+
+
+def structured_rectangle(length: float, width: float, nx: int, ny: int,
+                         comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
+    """A structured triangulation of [0, length] × [0, width] (dolfinx built-in, no gmsh), with
+    the same edge tags as :func:`rectangle`; h halves exactly under refinement (convergence
+    studies)."""
+    from dolfinx import mesh as dmesh
+
+    _check_positive(length=length, width=width, nx=nx, ny=ny)
+    msh = dmesh.create_rectangle(comm, [np.zeros(2), np.array([length, width])], [nx, ny],
+                                 dmesh.CellType.triangle, diagonal=dmesh.DiagonalType.crossed)
+    where = {"clamp": lambda x: np.isclose(x[0], 0.0), "grip": lambda x: np.isclose(x[0], length),
+             "bottom": lambda x: np.isclose(x[1], 0.0), "top": lambda x: np.isclose(x[1], width)}
+    facets, values = [], []
+    for name, marker in where.items():
+        f = dmesh.locate_entities_boundary(msh, 1, marker)
+        facets.append(f)
+        values.append(np.full(len(f), EDGE_TAGS[name], dtype=np.int32))
+    facets, values = np.concatenate(facets), np.concatenate(values)
+    facets, first = np.unique(facets, return_index=True)
+    ft = dmesh.meshtags(msh, 1, facets, values[first])
+    msh.topology.create_connectivity(1, 2)
+    corners = {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
+               "corner_11": (length, width), "corner_01": (0.0, width)}
+    return Specimen(msh, None, ft, float(length), float(width), points=corners)

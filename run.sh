@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# fabricsurf set-up and entry point (idempotent).
+#   bash run.sh main [--out DIR]   install what is missing, then run the main job on 2 MPI ranks
+#   bash run.sh test               install what is missing, then the whole test suite: serial, then on 2 ranks
+set -euo pipefail
+cd "$(dirname "$0")"
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
+export MPLBACKEND=Agg
+DEBS="python3-dolfinx python3-petsc4py python3-mpi4py python3-gmsh python3-numpy python3-scipy
+      python3-matplotlib python3-h5py python3-venv"
+VENV=.venv
+PY=$VENV/bin/python
+
+ensure_debs() {
+  if /usr/bin/python3 -c "import dolfinx, gmsh, scipy, matplotlib, h5py" 2>/dev/null \
+     && [ -x /usr/bin/mpirun ]; then return; fi
+  echo "[run.sh] installing Debian packages"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $DEBS
+}
+
+ensure_venv() {
+  [ -x "$PY" ] || /usr/bin/python3 -m venv --system-site-packages "$VENV"
+  if ! "$PY" -c "import pytest, fabricsurf, geometry" 2>/dev/null || ! [ -x "$VENV/bin/ruff" ]; then
+    echo "[run.sh] installing fabricsurf (editable) and dev tools into $VENV"
+    "$PY" -m pip install -q --upgrade "pip>=23"
+    "$PY" -m pip install -q -e ".[dev]"
+  fi
+}
+
+# pytest exit 5 (no tests collected) is a failure here, as is any other non-zero code.
+run_pytest() {
+  local rc=0
+  "$@" || rc=$?
+  if [ "$rc" -eq 5 ]; then echo "[run.sh] pytest collected no tests: failing"; return 1; fi
+  return "$rc"
+}
+
+cmd=${1:-main}; shift || true
+ensure_debs
+ensure_venv
+case "$cmd" in
+  main)
+    mpirun -n 2 "$PY" demos/demo_main.py "$@" ;;
+  test)
+    echo "[run.sh] test suite, 1 rank"
+    run_pytest "$PY" -m pytest -q -ra tests "$@"
+    echo "[run.sh] test suite, 2 ranks"
+    run_pytest mpirun -n 2 "$PY" -m mpi4py -m pytest -q -ra -p no:cacheprovider tests "$@" ;;
+  *)
+    echo "usage: bash run.sh main [--out DIR] | bash run.sh test [pytest args]" >&2; exit 2 ;;
+esac
