@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from dolfinx import fem
+from mpi4py import MPI
 
 from fabricsurf.energy import has_second_gradient
 from fabricsurf.evaluation import eval_points, interpolate_expression
@@ -50,11 +51,12 @@ class BiasExtension:
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
                  width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
-                 fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None) -> None:
+                 fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         if clamp not in ("gradient", "position"):
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
         self.model = model if model is not None else default_model()
-        self.specimen = bias_specimen(length, width, h)
+        self.specimen = bias_specimen(length, width, h, comm)
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_")
         p.fix("clamp", (0.0, 0.0))

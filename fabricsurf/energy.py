@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import ufl
-
 from dolfinx import fem
 
 from fabricsurf.kinematics import Kinematics

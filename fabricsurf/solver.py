@@ -145,7 +145,8 @@ class LoadStepper:
                 dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
                 continue
             dt *= 0.5
-            self.log(f"step {k}: SNES reason {reason} at t = {t_next:.6g}; cutting step to {dt:.3g}")
+            self.log(f"step {k}: SNES reason {reason} at t = {t_next:.6g}; "
+                     f"cutting step to {dt:.3g}")
             if abs(dt) < self.min_fraction * abs(span):
                 self.set_load(self.t)
                 raise LoadStepError(

@@ -62,7 +62,8 @@ class Term:
         """Change moduli; bound constants are updated in place (no recompilation)."""
         for p, v in values.items():
             if p not in self.parameters():
-                raise ValueError(f"term '{self.name}' has no parameter '{p}'; it has {self.parameters()}")
+                raise ValueError(f"term '{self.name}' has no parameter '{p}'; "
+                                 f"it has {self.parameters()}")
             self._check(p, v)
             setattr(self, p, float(v))
             if p in self._const:

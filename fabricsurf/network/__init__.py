@@ -1,0 +1,16 @@
+"""Spring-network reference of seed 000 §3: engine, Hencky fabric lattice, bi-pantographic lattice.
+
+See ``docs/network.md`` for the micro-macro identification and the reconstruction notes.
+"""
+
+from fabricsurf.network.engine import SpringNetwork
+from fabricsurf.network.hencky import (
+    Lattice,
+    continuum_from_lattice,
+    hencky_lattice,
+    lattice_from_continuum,
+)
+from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, reaction, solve_steps
+
+__all__ = ["ConvergenceError", "Dirichlet", "Lattice", "SpringNetwork", "continuum_from_lattice",
+           "hencky_lattice", "lattice_from_continuum", "newton", "reaction", "solve_steps"]

@@ -1,0 +1,199 @@
+"""Spring-network engine: extensional and rotational springs in the plane [B §3].
+
+Notation follows seed 000 ([B], Barchiesi et al. 2020, §3). Nodes carry positions
+``x`` of shape ``(n, 2)`` (mm); the generalised coordinates q of [B (18)] are ``x.ravel()``
+(node-major: ``[x0, y0, x1, y1, ...]``), so dof ``2*a + c`` is component ``c`` of node ``a``.
+
+Extensional spring (i, j) with stiffness k (N/mm) and rest length l0 (mm) [B (8)-(11)]::
+
+    E_e = 1/2 k (l - l0)^2,   l = |x_j - x_i|
+
+Rotational spring (i, j, k) with stiffness kr (N mm / rad^2) and rest angle phi0 [B (12)-(17)]::
+
+    E_r = 1/2 kr (phi2 - phi1 - phi0)^2,
+    phi1 = atan2 of (x_j - x_i),  phi2 = atan2 of (x_k - x_j)        [B (14)]
+
+i.e. ``phi = phi2 - phi1`` is the *turning angle* at the middle node j (0 for three
+aligned nodes walked i -> j -> k, +pi/2 for a left turn).  Wrap-safety: the deviation
+``phi - phi0`` is evaluated as the signed angle between ``R(phi0) (x_j - x_i)`` and
+``x_k - x_j`` with ``atan2(cross, dot)``, which lies in (-pi, pi] and is smooth everywhere
+except at deviations of +-pi; so branch cuts of atan2 (the (-pi, pi] range noted under
+[B (15)]) never produce 2*pi jumps.
+
+All evaluations are vectorised over springs; the sparse Hessian pattern is computed
+once and values are scattered with ``numpy.bincount``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+_I2 = np.eye(2)
+
+
+def _perp(v: np.ndarray) -> np.ndarray:
+    """Rotate vectors by +90 degrees: (vx, vy) -> (-vy, vx)."""
+    return np.stack([-v[:, 1], v[:, 0]], axis=1)
+
+
+def _hess_theta(v: np.ndarray) -> np.ndarray:
+    """Hessian of atan2(vy, vx) with respect to v, shape (m, 2, 2)."""
+    x, y = v[:, 0], v[:, 1]
+    r4 = (x * x + y * y) ** 2
+    h = np.empty((len(v), 2, 2))
+    h[:, 0, 0] = 2 * x * y / r4
+    h[:, 1, 1] = -h[:, 0, 0]
+    h[:, 0, 1] = h[:, 1, 0] = (y * y - x * x) / r4
+    return h
+
+
+class SpringNetwork:
+    """A planar network of extensional and rotational springs [B (10), (16), (20)].
+
+    Parameters
+    ----------
+    X : (n, 2) array
+        Reference node coordinates (mm).
+    ext : (m_e, 2) int array
+        Node pairs (i, j) of the extensional springs.
+    k_ext, l0 : (m_e,) arrays or scalars
+        Stiffness (N/mm) and rest length (mm); ``l0=None`` takes the reference length.
+    rot : (m_r, 3) int array
+        Node triples (i, j, k) of the rotational springs, j the vertex.
+    k_rot, phi0 : (m_r,) arrays or scalars
+        Stiffness (N mm) and rest turning angle (rad), ``phi0 = phi2 - phi1`` of [B (16)];
+        ``phi0=None`` takes the reference turning angle.
+    """
+
+    def __init__(self, X, ext, k_ext, l0=None, rot=None, k_rot=0.0, phi0=None) -> None:
+        self.X = np.asarray(X, dtype=float).reshape(-1, 2)
+        self.ext = np.asarray(ext, dtype=np.int64).reshape(-1, 2)
+        self.rot = np.asarray(rot if rot is not None else [], dtype=np.int64).reshape(-1, 3)
+        me, mr = len(self.ext), len(self.rot)
+        self.k_ext = np.broadcast_to(np.asarray(k_ext, float), (me,)).copy()
+        self.k_rot = np.broadcast_to(np.asarray(k_rot, float), (mr,)).copy()
+        self.l0 = self.lengths(self.X) if l0 is None else np.broadcast_to(
+            np.asarray(l0, float), (me,)).copy()
+        self.phi0 = self.turning_angles(self.X) if phi0 is None else np.broadcast_to(
+            np.asarray(phi0, float), (mr,)).copy()
+        self._pattern = None
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_nodes(self) -> int:
+        return len(self.X)
+
+    @property
+    def n_dofs(self) -> int:
+        return 2 * len(self.X)
+
+    # ------------------------------------------------------------ kinematics
+    def lengths(self, x: np.ndarray) -> np.ndarray:
+        """Spring lengths l [B (8)], shape (m_e,)."""
+        d = x[self.ext[:, 1]] - x[self.ext[:, 0]]
+        return np.hypot(d[:, 0], d[:, 1])
+
+    def turning_angles(self, x: np.ndarray) -> np.ndarray:
+        """Turning angles phi2 - phi1 at the middle nodes [B (14)], in (-pi, pi]."""
+        a, b = self._arms(x)
+        return np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b))
+
+    def angle_deviations(self, x: np.ndarray) -> np.ndarray:
+        """Wrap-safe ``phi2 - phi1 - phi0`` in (-pi, pi] [B (16)]."""
+        a, b = self._arms(x)
+        c, s = np.cos(self.phi0), np.sin(self.phi0)
+        ra = np.stack([c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1]], axis=1)
+        return np.arctan2(ra[:, 0] * b[:, 1] - ra[:, 1] * b[:, 0], np.einsum("ij,ij->i", ra, b))
+
+    def _arms(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        i, j, k = self.rot.T
+        return x[j] - x[i], x[k] - x[j]
+
+    # ---------------------------------------------------------------- energy
+    def spring_energies(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-spring energies (N mm): extensional [B (10)] and rotational [B (16)]."""
+        x = np.asarray(x, float).reshape(-1, 2)
+        ee = 0.5 * self.k_ext * (self.lengths(x) - self.l0) ** 2
+        er = 0.5 * self.k_rot * self.angle_deviations(x) ** 2
+        return ee, er
+
+    def energy(self, x: np.ndarray) -> float:
+        """Total potential energy E(q) [B (20)] in N mm."""
+        ee, er = self.spring_energies(x)
+        return float(ee.sum() + er.sum())
+
+    def _ext_terms(self, x):
+        d = x[self.ext[:, 1]] - x[self.ext[:, 0]]
+        ell = np.hypot(d[:, 0], d[:, 1])
+        return d / ell[:, None], ell, self.k_ext * (ell - self.l0)
+
+    def _rot_terms(self, x):
+        a, b = self._arms(x)
+        ga = _perp(a) / np.einsum("ij,ij->i", a, a)[:, None]
+        gb = _perp(b) / np.einsum("ij,ij->i", b, b)[:, None]
+        dphi = np.concatenate([ga, -ga - gb, gb], axis=1)  # (m_r, 6), [B (15)]
+        return a, b, dphi, self.k_rot * self.angle_deviations(x)
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """Internal generalised forces f = dE/dq [B (11), (17), (22)], shape (n, 2) in N."""
+        x = np.asarray(x, float).reshape(-1, 2)
+        n = len(x)
+        e, _, t = self._ext_terms(x)
+        fe = t[:, None] * e  # force on node j; -fe on node i
+        _, _, dphi, m = self._rot_terms(x)
+        fr = m[:, None] * dphi
+        idx = np.concatenate([self.ext[:, 1], self.ext[:, 0], self.rot.T.ravel()])
+        g = np.empty((n, 2))
+        for c in range(2):
+            w = np.concatenate([fe[:, c], -fe[:, c], fr[:, c], fr[:, 2 + c], fr[:, 4 + c]])
+            g[:, c] = np.bincount(idx, weights=w, minlength=n)
+        return g
+
+    # --------------------------------------------------------------- hessian
+    def _element_dofs(self) -> tuple[np.ndarray, np.ndarray]:
+        de = np.stack([2 * self.ext[:, 0], 2 * self.ext[:, 0] + 1,
+                       2 * self.ext[:, 1], 2 * self.ext[:, 1] + 1], axis=1)
+        r = self.rot
+        dr = np.stack([2 * r[:, 0], 2 * r[:, 0] + 1, 2 * r[:, 1], 2 * r[:, 1] + 1,
+                       2 * r[:, 2], 2 * r[:, 2] + 1], axis=1)
+        return de, dr
+
+    def _build_pattern(self) -> None:
+        de, dr = self._element_dofs()
+        rows = np.concatenate([np.repeat(de, 4, axis=1).ravel(), np.repeat(dr, 6, axis=1).ravel()])
+        cols = np.concatenate([np.tile(de, (1, 4)).ravel(), np.tile(dr, (1, 6)).ravel()])
+        nd = self.n_dofs
+        keys, inv = np.unique(rows * nd + cols, return_inverse=True)
+        r, c = keys // nd, keys % nd
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=nd))])
+        self._pattern = (inv, c.astype(np.int32), indptr.astype(np.int32), len(keys))
+
+    def element_hessians(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Dense spring Hessians: (m_e, 4, 4) extensional and (m_r, 6, 6) rotational."""
+        x = np.asarray(x, float).reshape(-1, 2)
+        e, ell, t = self._ext_terms(x)
+        ee = np.einsum("mi,mj->mij", e, e)
+        K = self.k_ext[:, None, None] * ee + (t / ell)[:, None, None] * (_I2 - ee)
+        He = np.empty((len(K), 4, 4))
+        He[:, :2, :2] = He[:, 2:, 2:] = K
+        He[:, :2, 2:] = He[:, 2:, :2] = -K
+        a, b, dphi, m = self._rot_terms(x)
+        Ha, Hb = _hess_theta(a), _hess_theta(b)
+        d2 = np.zeros((len(Ha), 6, 6))  # second derivative of phi [B (15)]
+        d2[:, :2, :2] = d2[:, 2:4, 2:4] = -Ha
+        d2[:, :2, 2:4] = d2[:, 2:4, :2] = Ha
+        d2[:, 2:4, 2:4] += Hb
+        d2[:, 4:, 4:] = Hb
+        d2[:, 2:4, 4:] = d2[:, 4:, 2:4] = -Hb
+        Hr = self.k_rot[:, None, None] * np.einsum("mi,mj->mij", dphi, dphi) + m[:, None, None] * d2
+        return He, Hr
+
+    def hessian(self, x: np.ndarray) -> sp.csr_matrix:
+        """Sparse Hessian d2E/dq2 (scipy CSR, 2n x 2n, node-major dofs)."""
+        if self._pattern is None:
+            self._build_pattern()
+        inv, indices, indptr, nnz = self._pattern
+        He, Hr = self.element_hessians(x)
+        data = np.bincount(inv, weights=np.concatenate([He.ravel(), Hr.ravel()]), minlength=nnz)
+        return sp.csr_matrix((data, indices, indptr), shape=(self.n_dofs, self.n_dofs))

@@ -1,0 +1,185 @@
+"""Hencky-type fabric lattice on a rectangular specimen, and its micro-macro identification.
+
+Lattice
+-------
+Nodes sit at the fibre crossings ``X = origin + eps (a L + b M)`` (integers a, b) that lie
+in the specimen ``[0, length] x [0, width]`` (mm); for L, M at +-45 degrees this is a
+rotated square grid clipped to the rectangle. Springs (engine conventions, [B (10), (16)]):
+
+* extensional, along both fibre families between fibre neighbours: ``k_e`` (N/mm), l0 = eps;
+* bending, on every consecutive triple of a fibre, turning angle phi0 = 0: ``k_b`` (N mm);
+* shear, at each crossing: the four angles between consecutive fibre arms (quadrants
+  (+L,+M), (+M,-L), (-L,-M), (-M,+L)), each with stiffness ``k_sh / 4`` (N mm), so that
+  ``k_sh`` is the shear stiffness per crossing. Quadrants whose arm is missing (nodes on
+  the boundary) are dropped: each quadrant spring stands for a quarter of a lattice cell.
+
+Identification (derivation in ``docs/network.md``)
+--------------------------------------------------
+For a smooth placement r(X) evaluated at the nodes, Taylor expansion in eps gives the
+lattice energy per unit reference area (node area ``A = eps^2 |L x M|``, = eps^2 here)::
+
+    L spring:   1/2 k_e eps^2 (lam - 1)^2          + O(eps^4)   (at the spring midpoint)
+    L bending:  turning angle = eps (p . r_LL) / lam + O(eps^3)
+                -> 1/2 k_b eps^2 (p . r_LL)^2 / lam^2
+    shear:      mean of the 4 quadrant angle changes^2 = gamma^2 + O(eps^2)
+                -> 1/2 k_sh gamma^2
+
+so, for orthonormal L, M (sin(gamma) = l . m, p = l rotated +90 deg)::
+
+    k_l = k_m = k_e            (N/mm)       fibre_stretch
+    k_s       = k_sh / eps^2   (N/mm)       shear
+    A_g       = k_b            (N mm)       geodesic_bending   (exact only at lam ~ 1)
+
+The bending identification holds at lam = 1: the lattice density is
+``1/2 k_b (p . r_LL)^2 / lam^2`` versus ``1/2 A_g (p . r_LL)^2`` in the continuum, a relative
+difference ``2 (lam - 1)`` at small fibre strain. The energy-density error of smooth
+placements is O(eps^2) (measured in ``tests/test_network_lattices.py``).
+
+Clamps [B Table 1, (7)]
+-----------------------
+``u = 0`` and zero normal derivative are imposed by holding two node layers: the clamp set
+is every node with ``x <= x_min + w`` and the grip set every node with ``x >= x_max - w``,
+``w = eps max(|L_x|, |M_x|)`` the x-distance between fibre neighbours (for +-45 degrees the
+columns x = 0 and x = eps/sqrt(2); for 0/90 degrees the columns x = 0 and x = eps).
+Choose eps so that ``length`` is a multiple of ``w`` to have the outer layers on the
+specimen ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fabricsurf.network.engine import SpringNetwork
+from fabricsurf.network.solver import Dirichlet
+
+
+@dataclass
+class Lattice:
+    """A lattice on the specimen.
+
+    Attributes
+    ----------
+    net : SpringNetwork
+    grid : (na, nb) int array
+        Node id of fibre crossing (a, b) (a along L, b along M), -1 where absent; the
+        input of :mod:`fabricsurf.network.micromacro` (eqs. [B (3)-(6)]).
+    L, M : (2,) unit fibre directions; spacing : eps (mm)
+    clamp, grip : node ids of the two held layers at x = 0 and at x = length
+    spring_sets : dict of index arrays into ``net.ext`` / ``net.rot`` per spring kind
+    """
+
+    net: SpringNetwork
+    grid: np.ndarray
+    L: np.ndarray
+    M: np.ndarray
+    spacing: float
+    clamp: np.ndarray
+    grip: np.ndarray
+    spring_sets: dict
+
+    def bias_bcs(self, u_bar: float) -> list[Dirichlet]:
+        """Table 1 of [B]: clamp layers fixed, grip layers moved by ``u_bar`` e_x (mm)."""
+        return [Dirichlet(self.clamp), Dirichlet(self.grip, np.array([u_bar, 0.0]))]
+
+
+def fibre_directions(angles_deg: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors L, M at the given angles (degrees) from the x axis."""
+    t = np.radians(angles_deg)
+    return np.array([np.cos(t[0]), np.sin(t[0])]), np.array([np.cos(t[1]), np.sin(t[1])])
+
+
+def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
+                           angles_deg: tuple[float, float] = (45.0, -45.0)) -> dict:
+    """Lattice stiffnesses (k_e N/mm, k_sh N mm, k_b N mm) for continuum moduli.
+
+    ``k_l`` (N/mm, both families), ``k_s`` (N/mm), ``A_g`` (N mm); spacing eps (mm). For
+    non-orthogonal families the node area ``eps^2 |sin(a1 - a2)|`` scales all three.
+    """
+    s = abs(np.sin(np.radians(angles_deg[0] - angles_deg[1])))
+    return {"k_e": k_l * s, "k_sh": k_s * s * spacing**2, "k_b": A_g * s}
+
+
+def continuum_from_lattice(k_e: float, k_sh: float, k_b: float, spacing: float,
+                           angles_deg: tuple[float, float] = (45.0, -45.0)) -> dict:
+    """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g"}``."""
+    s = abs(np.sin(np.radians(angles_deg[0] - angles_deg[1])))
+    return {"k_l": k_e / s, "k_s": k_sh / (s * spacing**2), "A_g": k_b / s}
+
+
+def _crossings(length, width, eps, L, M, origin):
+    B = eps * np.column_stack([L, M])
+    corners = np.array([[0, 0], [length, 0], [0, width], [length, width]]) - origin
+    ab = np.linalg.solve(B, corners.T).T
+    lo, hi = np.floor(ab.min(0)).astype(int) - 1, np.ceil(ab.max(0)).astype(int) + 1
+    A, Bb = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1), indexing="ij")
+    X = origin + eps * (A[..., None] * L + Bb[..., None] * M)
+    tol = 1e-9 * max(length, width)
+    inside = ((X[..., 0] >= -tol) & (X[..., 0] <= length + tol)
+              & (X[..., 1] >= -tol) & (X[..., 1] <= width + tol))
+    ia, ib = np.nonzero(inside.any(1))[0], np.nonzero(inside.any(0))[0]
+    inside = inside[ia[0]:ia[-1] + 1, ib[0]:ib[-1] + 1]
+    X = X[ia[0]:ia[-1] + 1, ib[0]:ib[-1] + 1]
+    grid = -np.ones(inside.shape, np.int64)
+    grid[inside] = np.arange(inside.sum())
+    return grid, X[inside]
+
+
+def _pairs(grid, da, db):
+    """Node pairs (g[a,b], g[a+da,b+db]) present in the grid."""
+    na, nb = grid.shape
+    p = grid[: na - da, : nb - db]
+    q = grid[da:, db:]
+    ok = (p >= 0) & (q >= 0)
+    return np.stack([p[ok], q[ok]], 1)
+
+
+def _triples(grid, d1, d2):
+    """Triples (g[X+d1], g[X], g[X+d2]) present in the grid (d = (da, db) in {-1,0,1})."""
+    pad = np.pad(grid, 1, constant_values=-1)
+    na, nb = grid.shape
+    c = pad[1:na + 1, 1:nb + 1]
+    n1 = pad[1 + d1[0]:na + 1 + d1[0], 1 + d1[1]:nb + 1 + d1[1]]
+    n2 = pad[1 + d2[0]:na + 1 + d2[0], 1 + d2[1]:nb + 1 + d2[1]]
+    ok = (c >= 0) & (n1 >= 0) & (n2 >= 0)
+    return np.stack([n1[ok], c[ok], n2[ok]], 1)
+
+
+def hencky_lattice(length: float, width: float, spacing: float,
+                   angles_deg: tuple[float, float] = (45.0, -45.0), k_e: float = 1.0,
+                   k_sh: float = 1.0, k_b: float = 1.0,
+                   origin: tuple[float, float] = (0.0, 0.0)) -> Lattice:
+    """Build the Hencky-type fabric lattice of the module docstring.
+
+    Parameters
+    ----------
+    length, width : specimen size (mm), x = loading direction, origin at the lower left.
+    spacing : eps, node spacing along the fibres (mm).
+    angles_deg : fibre directions L, M from the x axis (degrees).
+    k_e : extensional stiffness per spring (N/mm).
+    k_sh : shear stiffness per crossing (N mm/rad^2), split over four quadrant springs.
+    k_b : bending stiffness per fibre triple (N mm/rad^2).
+    origin : one node position (mm), default the lower-left corner.
+    """
+    L, M = fibre_directions(angles_deg)
+    grid, X = _crossings(length, width, spacing, L, M, np.asarray(origin, float))
+    ext_l, ext_m = _pairs(grid, 1, 0), _pairs(grid, 0, 1)
+    bend = [_triples(grid, (-1, 0), (1, 0)), _triples(grid, (0, -1), (0, 1))]
+    quads = [((1, 0), (0, 1)), ((0, 1), (-1, 0)), ((-1, 0), (0, -1)), ((0, -1), (1, 0))]
+    shear = np.concatenate([_triples(grid, d1, d2) for d1, d2 in quads])
+    ext = np.concatenate([ext_l, ext_m])
+    rot = np.concatenate(bend + [shear])
+    nb = len(bend[0]) + len(bend[1])
+    k_rot = np.concatenate([np.full(nb, float(k_b)), np.full(len(shear), k_sh / 4.0)])
+    phi0 = np.concatenate([np.zeros(nb), np.full(len(shear), np.nan)])
+    net = SpringNetwork(X, ext, k_e, l0=spacing, rot=rot, k_rot=k_rot, phi0=phi0)
+    ref = net.turning_angles(X)
+    net.phi0[nb:] = ref[nb:]
+    w = spacing * max(abs(L[0]), abs(M[0]))
+    tol = 1e-6 * spacing
+    clamp = np.nonzero(X[:, 0] <= X[:, 0].min() + w + tol)[0]
+    grip = np.nonzero(X[:, 0] >= X[:, 0].max() - w - tol)[0]
+    sets = {"stretch_l": np.arange(len(ext_l)), "stretch_m": len(ext_l) + np.arange(len(ext_m)),
+            "bending": np.arange(nb), "shear": nb + np.arange(len(shear))}
+    return Lattice(net, grid, L, M, float(spacing), clamp, grip, sets)

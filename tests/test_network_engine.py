@@ -1,0 +1,130 @@
+"""Spring-network engine [B §3]: derivatives, invariance, analytic forces, Newton."""
+
+import numpy as np
+import pytest
+
+from fabricsurf.network.engine import SpringNetwork
+from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, reaction, solve_steps
+
+
+def random_network(seed=0, n=12):
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(0, 10, (n, 2))
+    ext = np.array([(i, (i + 1) % n) for i in range(n)] + [(i, (i + 5) % n) for i in range(n)])
+    rot = np.array([(i, (i + 1) % n, (i + 2) % n) for i in range(n)]
+                   + [(i, (i + 3) % n, (i + 7) % n) for i in range(n)])
+    net = SpringNetwork(X, ext, rng.uniform(1, 3, len(ext)), rot=rot,
+                        k_rot=rng.uniform(1, 3, len(rot)))
+    # rest state different from reference: springs are pre-stressed
+    net.l0 *= rng.uniform(0.8, 1.2, len(ext))
+    net.phi0 = rng.uniform(-np.pi, np.pi, len(rot))
+    x = X + rng.normal(0, 0.5, X.shape)
+    return net, x
+
+
+def test_gradient_matches_finite_differences():
+    net, x = random_network()
+    g = net.gradient(x).ravel()
+    h = 1e-6
+    fd = np.empty_like(g)
+    q = x.ravel()
+    for a in range(len(q)):
+        e = np.zeros_like(q)
+        e[a] = h
+        fd[a] = (net.energy(q + e) - net.energy(q - e)) / (2 * h)
+    err = np.abs(fd - g).max() / np.abs(g).max()
+    assert err < 1e-7, f"analytic gradient differs from central FD by {err:.2e} (relative)"
+
+
+def test_hessian_matches_finite_differences():
+    net, x = random_network(seed=1)
+    H = net.hessian(x).toarray()
+    assert np.allclose(H, H.T, atol=1e-12), "Hessian must be symmetric"
+    q = x.ravel()
+    h = 1e-6
+    fd = np.empty_like(H)
+    for a in range(len(q)):
+        e = np.zeros_like(q)
+        e[a] = h
+        fd[:, a] = (net.gradient(q + e).ravel() - net.gradient(q - e).ravel()) / (2 * h)
+    err = np.abs(fd - H).max() / np.abs(H).max()
+    assert err < 1e-6, f"sparse Hessian differs from FD of the gradient by {err:.2e} (relative)"
+
+
+def test_angles_are_wrap_safe():
+    # rest turning angle pi - 0.01, current turning angle -(pi - 0.01): the atan2 branch
+    # cut lies between them; the deviation must be +0.02, not -2 pi + 0.02.
+    X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.01]])
+    net = SpringNetwork(X, np.zeros((0, 2)), 1.0, rot=[[0, 1, 2]], k_rot=1.0)
+    y = X.copy()
+    y[2, 1] = -0.01
+    d = net.angle_deviations(y)[0]
+    assert abs(d - 0.02) < 1e-4, f"deviation across the atan2 cut must be ~0.02, got {d}"
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_rigid_motions_give_zero_force(seed):
+    net, _ = random_network(seed)
+    net.l0 = net.lengths(net.X)
+    net.phi0 = net.turning_angles(net.X)
+    c, s = np.cos(2.5), np.sin(2.5)  # a large rotation, past the atan2 cut for some arms
+    x = net.X @ np.array([[c, s], [-s, c]]) + np.array([3.0, -7.0])
+    f = np.abs(net.gradient(x)).max()
+    assert f < 1e-10, f"rigid motion of the rest state must give zero force, got {f:.2e} N"
+    assert net.energy(x) < 1e-20
+
+
+def chain(n=11, length=10.0):
+    X = np.stack([np.linspace(0, length, n), np.zeros(n)], axis=1)
+    ext = np.array([(i, i + 1) for i in range(n - 1)])
+    rot = np.array([(i, i + 1, i + 2) for i in range(n - 2)])
+    return SpringNetwork(X, ext, 2.0, rot=rot, k_rot=0.5)
+
+
+def test_homogeneous_stretch_gives_analytic_force():
+    # square grid, springs along x and y with k; stretch lam along x: force = rows * k * (lam-1) h
+    nx, ny, h, k = 6, 4, 2.0, 3.0
+    X = np.array([(i * h, j * h) for j in range(ny) for i in range(nx)], float)
+    nid = np.arange(nx * ny).reshape(ny, nx)
+    ext = np.concatenate([np.stack([nid[:, :-1].ravel(), nid[:, 1:].ravel()], 1),
+                          np.stack([nid[:-1].ravel(), nid[1:].ravel()], 1)])
+    # shear springs (right, node, up) keep the grid from being a mechanism; no shear here
+    rot = np.stack([nid[:-1, 1:].ravel(), nid[:-1, :-1].ravel(), nid[1:, :-1].ravel()], 1)
+    net = SpringNetwork(X, ext, k, rot=rot, k_rot=5.0)
+    lam = 1.3
+    bcs = [Dirichlet(nid[:, 0], [0.0, 0.0]),
+           Dirichlet(nid[:, -1], [(lam - 1) * (nx - 1) * h, 0.0])]
+    res = solve_steps(net, bcs, n_steps=2, reaction_sets={"grip": nid[:, -1]})
+    F = res[-1].reactions["grip"]
+    assert np.allclose(res[-1].x[:, 0], lam * X[:, 0]), "stretch must be homogeneous"
+    assert abs(F[0] - ny * k * (lam - 1) * h) < 1e-8, f"grip force {F[0]} != analytic"
+    assert abs(F[1]) < 1e-8
+
+
+def test_newton_bends_chain_and_reaction_balances():
+    net = chain()
+    bcs = [Dirichlet(np.array([0, 1])), Dirichlet(np.array([9, 10]), [-2.0, 3.0])]
+    res = solve_steps(net, bcs, n_steps=4, reaction_sets={"a": [0, 1], "b": [9, 10]})
+    last = res[-1]
+    assert all(r.iterations < 15 for r in res)
+    # equilibrium: reactions at both ends balance (no external load elsewhere)
+    assert np.allclose(last.reactions["a"], -last.reactions["b"], atol=1e-8)
+    free = np.arange(2, 9)
+    assert np.abs(net.gradient(last.x)[free]).max() < 1e-8
+    assert np.allclose(reaction(net, last.x, [9, 10]), last.reactions["b"])
+
+
+def test_newton_from_equilibrium_takes_no_iteration():
+    net = chain()
+    fixed = np.zeros(net.n_dofs, bool)
+    fixed[:4] = True
+    _, info = newton(net, net.X, fixed)
+    assert info.converged and info.iterations == 0
+
+
+def test_step_cutting_raises_clear_error():
+    net = chain()
+    # pulling the end through the clamp (end nodes swap order) cannot converge in one step
+    bcs = [Dirichlet(np.array([0, 1])), Dirichlet(np.array([9, 10]), [-30.0, 0.0])]
+    with pytest.raises(ConvergenceError, match="min_step"):
+        solve_steps(net, bcs, n_steps=1, min_step=0.2, newton_kw={"maxit": 3})

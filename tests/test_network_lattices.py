@@ -1,0 +1,214 @@
+"""Hencky fabric lattice: identification and convergence to the continuum; bi-pantographic cell.
+
+Rates are printed (``pytest -s``) and asserted with a stated margin.
+"""
+
+import numpy as np
+import pytest
+
+from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
+from fabricsurf.network.micromacro import grid_fields
+from fabricsurf.network.solver import Dirichlet, solve_steps
+
+K_L, K_S, A_G = 1.0, 0.3, 0.5  # N/mm, N/mm, N mm
+
+# ------------------------------------------------------------ smooth periodic placement
+P = 10.0  # period (mm) in both fibre coordinates s = X.L, t = X.M
+F0 = np.array([[1.05, 0.08], [-0.03, 0.97]])
+MODES = [((1, 0), (0.30, 0.10), 0.4), ((0, 1), (-0.10, 0.25), -0.7),
+         ((1, 1), (0.12, -0.15), 1.1), ((1, -2), (0.05, 0.06), 0.2)]
+
+
+def placement(s, t, L, M):
+    """r and its fibre derivatives r_L, r_M, r_LL, r_MM at fibre coordinates (s, t)."""
+    k = 2 * np.pi / P
+    X = s[:, None] * L + t[:, None] * M
+    r, rl, rm = X @ F0.T, np.tile(F0 @ L, (len(s), 1)), np.tile(F0 @ M, (len(s), 1))
+    rll, rmm = np.zeros_like(r), np.zeros_like(r)
+    for (p, q), c, th in MODES:
+        ph = k * (p * s + q * t) + th
+        c = np.asarray(c)
+        r += np.cos(ph)[:, None] * c
+        rl -= (k * p * np.sin(ph))[:, None] * c
+        rm -= (k * q * np.sin(ph))[:, None] * c
+        rll -= ((k * p) ** 2 * np.cos(ph))[:, None] * c
+        rmm -= ((k * q) ** 2 * np.cos(ph))[:, None] * c
+    return r, rl, rm, rll, rmm
+
+
+def continuum_density(rl, rm, rll, rmm, lattice_limit):
+    """fibre_stretch + shear + geodesic_bending (DESIGN §3); with ``lattice_limit`` the
+    bending terms carry the 1/lam^2, 1/mu^2 factors of the lattice's exact limit."""
+    lam, mu = np.linalg.norm(rl, axis=1), np.linalg.norm(rm, axis=1)
+    ul, um = rl / lam[:, None], rm / mu[:, None]
+    p, q = np.stack([-ul[:, 1], ul[:, 0]], 1), np.stack([-um[:, 1], um[:, 0]], 1)
+    gam = np.arcsin(np.einsum("ij,ij->i", ul, um))
+    bl, bm = np.einsum("ij,ij->i", p, rll), np.einsum("ij,ij->i", q, rmm)
+    if lattice_limit:
+        bl, bm = bl / lam, bm / mu
+    return (0.5 * K_L * ((lam - 1) ** 2 + (mu - 1) ** 2) + 0.5 * K_S * gam**2
+            + 0.5 * A_G * (bl**2 + bm**2))
+
+
+def continuum_mean(lattice_limit, L, M, nq=256):
+    s, t = np.meshgrid(np.arange(nq) * P / nq, np.arange(nq) * P / nq, indexing="ij")
+    _, rl, rm, rll, rmm = placement(s.ravel(), t.ravel(), L, M)
+    return continuum_density(rl, rm, rll, rmm, lattice_limit).mean()
+
+
+def lattice_mean(n):
+    eps = P / n
+    side = np.sqrt(2) * (P + 8 * eps)
+    k = lattice_from_continuum(K_L, K_S, A_G, eps)
+    lat = hencky_lattice(side, side, eps, k_e=k["k_e"], k_sh=k["k_sh"], k_b=k["k_b"],
+                         origin=(side / 2, side / 2))
+    net, L, M = lat.net, lat.L, lat.M
+    d = net.X - side / 2
+    s, t = d @ L, d @ M
+    x = placement(s, t, L, M)[0]
+    ee, er = net.spring_energies(x)
+    # one period of anchors (first node of extensional springs, vertex of rotational springs)
+    lo, hi = -P / 2 - 1e-9, P / 2 - eps / 2
+
+    def window(nodes):
+        return (s[nodes] >= lo) & (s[nodes] < hi) & (t[nodes] >= lo) & (t[nodes] < hi)
+
+    return (ee[window(net.ext[:, 0])].sum() + er[window(net.rot[:, 1])].sum()) / P**2, L, M
+
+
+def rates(hs, errs):
+    return np.diff(np.log(errs)) / np.diff(np.log(hs))
+
+
+def test_energy_density_of_smooth_placements_converges_as_eps_squared():
+    ns = [8, 16, 32, 64]
+    vals = [lattice_mean(n) for n in ns]
+    L, M = vals[0][1], vals[0][2]
+    w_lim, w_con = continuum_mean(True, L, M), continuum_mean(False, L, M)
+    err = np.abs([v[0] - w_lim for v in vals])
+    r = rates(P / np.array(ns), err)
+    print(f"\nenergy density: lattice {[f'{v[0]:.6e}' for v in vals]}, limit {w_lim:.6e}, "
+          f"continuum terms {w_con:.6e}\n  errors {err}, rates {r}")
+    assert np.all(r > 1.8), f"lattice energy density must converge as eps^2 (rates {r})"
+    assert err[-1] / w_lim < 2e-3, "relative error at eps = P/64"
+    # caveat of the bending identification: O(lam - 1), not O(eps)
+    assert abs(w_lim - w_con) / w_con < 0.05
+
+
+# ------------------------------------------------- transverse-shear strip (0/90 fibres)
+LX, WY, ELL = 20.0, 8.0, 2.0  # strip length, width, boundary-layer length sqrt(A/k_s) (mm)
+
+
+def strip_solution(x, delta, ks=1.0):
+    """Continuum v(x) of A v'''' = k_s v'', v(0)=v'(0)=0, v(LX)=delta, v'(LX)=0, and force."""
+    A = ks * ELL**2
+
+    def basis(z, d):
+        c, s = np.cosh(z / ELL), np.sinh(z / ELL)
+        return [np.ones_like(z), z, c, s] if d == 0 else [0 * z, 1 + 0 * z, s / ELL, c / ELL]
+
+    Mtx = np.array([basis(np.array(0.0), 0), basis(np.array(0.0), 1),
+                    basis(np.array(LX), 0), basis(np.array(LX), 1)], float)
+    c = np.linalg.solve(Mtx, [0, 0, delta, 0])
+    v = sum(ci * bi for ci, bi in zip(c, basis(x, 0), strict=True))
+    force = WY * ks * c[1]  # k_s v' - A v''' = k_s c1 (the cosh/sinh parts cancel)
+    return v, force, A
+
+
+def strip_error(eps, table1, delta=1e-3, ks=1.0):
+    """Max nodal error of v over the strip, relative to delta.
+
+    The long edges (two node rows each) carry the exact continuum v: with free long edges
+    the 2D continuum solution is not the 1D one (shear traction on y = 0, W). At the ends,
+    either the exact v on the two held layers (``table1=False``: O(eps^2) consistency) or
+    the Table-1 clamps v = 0 / v = delta on both layers (``table1=True``).
+    """
+    _, _, A = strip_solution(np.array(0.0), delta, ks)
+    lat = hencky_lattice(LX, WY, eps, angles_deg=(0, 90), k_e=10.0, k_sh=ks * eps**2, k_b=A)
+    X = lat.net.X
+    v = strip_solution(X[:, 0], delta, ks)[0]
+    ends = (X[:, 0] <= eps * 1.01) | (X[:, 0] >= LX - eps * 1.01)
+    held = ends | (X[:, 1] <= eps * 1.01) | (X[:, 1] >= WY - eps * 1.01)
+    vb = np.where(ends & table1, np.where(X[:, 0] > LX / 2, delta, 0.0), v)
+    nodes = np.nonzero(held)[0]
+    res = solve_steps(lat.net, [Dirichlet(nodes, np.stack([0 * vb, vb], 1)[nodes])], n_steps=1)
+    return np.abs(res[-1].x[:, 1] - X[:, 1] - v).max() / delta
+
+
+def test_strip_shear_bending_converges_to_continuum():
+    epss = np.array([0.5, 0.25, 0.125])
+    e_man = np.array([strip_error(e, False) for e in epss])
+    e_t1 = np.array([strip_error(e, True) for e in epss])
+    r_man, r_t1 = rates(epss, e_man), rates(epss, e_t1)
+    print(f"\nstrip: exact boundary layers: errors {e_man}, rates {r_man}"
+          f"\n       Table-1 clamp layers:  errors {e_t1}, rates {r_t1}")
+    assert np.all(r_man > 1.7), "interior response with exact boundary data must be O(eps^2)"
+    assert np.all(r_t1 > 0.8), "two held layers = gradient clamp up to an O(eps) offset"
+
+
+# ------------------------------------------------------------------------------ misc
+def test_hencky_clamps_hold_two_layers():
+    lat = hencky_lattice(17.0, 8.5, 17 / 10 * np.sqrt(2), k_e=1, k_sh=1, k_b=1)
+    xs = np.unique(np.round(lat.net.X[lat.clamp, 0], 9))
+    assert len(xs) == 2 and xs[0] == 0.0, "clamp = columns x=0 and x=eps/sqrt(2)"
+    xs = np.unique(np.round(lat.net.X[lat.grip, 0], 9))
+    assert len(xs) == 2 and xs[-1] == 17.0
+
+
+@pytest.mark.parametrize("angles", [(45.0, -45.0), (30.0, -60.0), (0.0, 90.0)])
+def test_affine_placement_is_equilibrium_and_micromacro_is_exact(angles):
+    lat = hencky_lattice(12.0, 7.0, 1.0, angles_deg=angles, k_e=2, k_sh=0.7, k_b=0.4)
+    F = np.array([[1.15, 0.2], [-0.05, 0.92]])
+    x = lat.net.X @ F.T
+    g = lat.net.gradient(x)
+    # interior nodes (all 4 fibre neighbours and 8 diagonal ones present) are in equilibrium
+    full = _interior(lat.grid)
+    assert np.abs(g[full]).max() < 1e-10, "affine placements are lattice equilibria"
+    f = grid_fields(lat.grid, lat.net.X, x, lat.spacing)
+    lam, mu = np.linalg.norm(F @ lat.L), np.linalg.norm(F @ lat.M)
+    gam = np.arcsin((F @ lat.L) @ (F @ lat.M) / (lam * mu))
+    # (corner nodes without a neighbour along a or b give NaN)
+    for key, val in [("rho_x", lam), ("rho_y", mu)]:
+        v = f[key][lat.grid >= 0]
+        assert np.isnan(v).sum() <= 4 and np.allclose(v[~np.isnan(v)], val), "eq. (4) of [B]"
+    ok = ~np.isnan(f["shear"])
+    assert ok.sum() > 0.8 * (lat.grid >= 0).sum()
+    assert np.allclose(f["shear"][ok], gam), "eq. (5) of [B] gives the shear angle gamma"
+
+
+def _interior(grid):
+    pad = np.pad(grid, 2, constant_values=-1)
+    na, nb = grid.shape
+    ok = grid >= 0
+    for da in range(-2, 3):
+        for db in range(-2, 3):
+            ok &= pad[2 + da:na + 2 + da, 2 + db:nb + 2 + db] >= 0
+    return grid[ok]
+
+
+# ------------------------------------------------------------- bi-pantographic lattice
+def test_bipantographic_cell_counts_and_reference_state():
+    from fabricsurf.network.bipantographic import bipantographic_lattice
+
+    lat = bipantographic_lattice()  # 11 x 7 cells, eps = 12.02 mm, Table 3
+    net = lat.net
+    assert net.n_nodes == 12 * 8 + 9 * 77, "[B (18)]: (N+1)(M+1) + 9NM nodes"
+    assert len(net.ext) == 16 * 77 and len(net.rot) == 12 * 77 + 4 * 10 * 6, "[B (20)]"
+    assert np.allclose(net.l0, 12.02 / np.sqrt(3)) and np.allclose(net.lengths(net.X), net.l0)
+    piv = net.phi0[lat.spring_sets["pivot"]]
+    assert np.allclose(np.abs(piv), np.pi / 3), "pivot rest angles +-pi/3"
+    assert np.abs(net.gradient(net.X)).max() < 1e-10, "reference state is stress free"
+    assert np.allclose(net.X.max(0), [11 * np.sqrt(2) * 12.02, 7 * np.sqrt(2) * 12.02])
+
+
+def test_bipantographic_bias_extension_runs_and_is_symmetric():
+    from fabricsurf.network.bipantographic import bipantographic_lattice
+
+    lat = bipantographic_lattice()
+    res = solve_steps(lat.net, lat.bias_bcs(20.0), n_steps=4, reaction_sets={"g": lat.grip})
+    F = np.array([r.reactions["g"] for r in res])
+    assert np.all(np.diff(F[:, 0]) > 0) and np.all(np.abs(F[:, 1]) < 1e-8 * F[-1, 0])
+    f = grid_fields(lat.grid, lat.net.X, res[-1].x, lat.spacing)
+    ok = ~np.isnan(f["rho_x"])
+    assert ok.sum() > 100 and np.nanmax(np.abs(f["shear"])) > 0.05, "bias test shears the beams"
+    print(f"\nbi-pantographic grip force (N) at u = {[20 * r.t for r in res]} mm: {F[:, 0]}")
