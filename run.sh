@@ -42,7 +42,7 @@ ensure_debs
 ensure_venv
 case "$cmd" in
   main)
-    mpirun -n 2 "$PY" demos/demo_main.py "$@" ;;
+    mpirun -n 2 "$PY" -m fabricsurf.bias_cli "$@" ;;
   test)
     echo "[run.sh] test suite, 1 rank"
     run_pytest "$PY" -m pytest -q -ra tests "$@"
