@@ -9,10 +9,12 @@ of the residual at the grip; shear angles are evaluated at A and B of seed 000 F
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -78,9 +80,27 @@ class BiasExtension:
         g = interpolate_expression(self._gamma_expr, self.DG)
         return np.degrees(eval_points(g, self.points)[:, 0])
 
+    def displacement_at(self, points: np.ndarray) -> np.ndarray:
+        """The continuum displacement u (P2) at reference points (n×2), (n×2) on every rank."""
+        return eval_points(self.problem.u, points)
+
+    def fibre_fields_at(self, points: np.ndarray) -> np.ndarray:
+        """(λ, μ, γ) at reference points (n×3, γ in rad), the same on every rank."""
+        if not hasattr(self, "_fibre_V"):
+            kin = self.problem.energy.kin
+            self._fibre_V = fem.VectorFunctionSpace(self.problem.msh, ("DG", 2), dim=3)
+            self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
+        f = interpolate_expression(self._fibre_expr, self._fibre_V)
+        return eval_points(f, points)
+
     def run(self, ubar_max: float, steps: int, out: Path | None = None,
-            verbose: bool = True) -> BiasResult:
-        """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``."""
+            verbose: bool = True,
+            on_step: Callable[[int, float], None] | None = None) -> BiasResult:
+        """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``.
+
+        ``on_step(k, ubar)`` is called on every rank after each converged requested step (e.g.
+        to sample :meth:`displacement_at`); collective calls are allowed there.
+        """
         comm = self.problem.msh.comm
         res, t0 = BiasResult(), time.perf_counter()
         writer = FieldWriter(Path(out) / "bias.xdmf", self.problem.u,
@@ -101,6 +121,8 @@ class BiasExtension:
                 rank0_print(comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
                             f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
                             f"  Newton {its}")
+            if on_step is not None:
+                on_step(k, ubar)
 
         stepper = LoadStepper(self.solver, self.set_load, converged,
                               log=lambda m: rank0_print(comm, "  " + m) if verbose else None)
