@@ -42,7 +42,7 @@ ensure_debs
 ensure_venv
 case "$cmd" in
   main)
-    mpirun -n 2 "$PY" -m fabricsurf.bias_cli "$@" ;;
+    mpirun -n 2 "$PY" demos/demo_hidden_effect.py "$@" ;;
   test)
     echo "[run.sh] test suite, 1 rank"
     run_pytest "$PY" -m pytest -q -ra tests "$@"

@@ -1,0 +1,127 @@
+"""Least-squares fit of the moduli (Levenberg–Marquardt in log-moduli) with tangent sensitivities.
+
+Each iteration is one forward run along the recorded load path that also returns
+du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.compare.ForwardModel`): the
+converged Jacobian's factorisation is reused, no finite differences of load paths. Moduli are
+parametrised as p = exp(θ) (positive); the step in θ is limited to ±``max_step`` per iteration.
+Uncertainties: Cov(θ) = (JᵀJ)⁻¹ — the residuals are already divided by the noise level — times
+the reduced χ² when the data give no ``noise_std``; σ_p = p σ_θ (first order).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fabricsurf.compare import ForwardModel, Prediction, misfit, residuals
+from fabricsurf.output import rank0_print
+from fabricsurf.solver import LoadStepError
+
+
+@dataclass
+class FitResult:
+    """Fitted moduli (by parameter name "term.param"), their standard deviations, misfits."""
+
+    names: list
+    values: np.ndarray
+    std: np.ndarray
+    chi2: float
+    misfit: dict
+    prediction: Prediction
+    iterations: int
+    forward_runs: int
+    history: list = field(default_factory=list)
+
+    def params(self) -> dict:
+        """{term: {param: value}} (the --params file format)."""
+        out: dict = {}
+        for n, v in zip(self.names, self.values):
+            t, p = n.split(".")
+            out.setdefault(t, {})[p] = float(v)
+        return out
+
+    def as_dict(self) -> dict:
+        m = {k: v for k, v in self.misfit.items() if k != "row_error"}
+        return {"terms": list(self.params()), "params": self.params(),
+                "std": {n: float(s) for n, s in zip(self.names, self.std)},
+                "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
+                "forward_runs": self.forward_runs, "history": self.history}
+
+
+def _try(fm: ForwardModel, free: list[int], vals: np.ndarray):
+    fm.set_values(vals)
+    try:
+        pred = fm.run(sens=free)
+    except LoadStepError:
+        return None, None, np.inf
+    r, Jr = residuals(fm.exp, pred)
+    if not np.isfinite(r).all():
+        return None, None, np.inf
+    return pred, (r, Jr), float(r @ r)
+
+
+def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
+    """(JᵀJ)⁻¹, scaled by the reduced χ² when the noise level is not known."""
+    n, P = Jt.shape
+    C = np.linalg.pinv(Jt.T @ Jt)
+    return C if noise_known else C * chi2 / max(n - P, 1)
+
+
+def fit(fm: ForwardModel, free: list[int] | None = None, max_iter: int = 20,
+        tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True) -> FitResult:
+    """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
+    values (which must be > 0); the other moduli stay fixed."""
+    free = list(range(len(fm.params))) if free is None else list(free)
+    vals = fm.values()
+    if np.any(vals[free] <= 0):
+        raise ValueError("fit: initial moduli must be > 0 (log-parametrisation): "
+                         f"{dict(zip(fm.names, vals))}")
+    runs0 = fm.forward_runs
+    pred, (r, Jr), chi2 = _try(fm, free, vals)
+    if pred is None:
+        raise LoadStepError("fit: the initial model does not follow the load path")
+    lam, hist, it = 1e-3, [], 0
+    for it in range(1, max_iter + 1):
+        Jt = Jr * vals[free]  # dr/dθ
+        g, JTJ = Jt.T @ r, Jt.T @ Jt
+        D = np.diag(np.diag(JTJ)) + 1e-12 * np.trace(JTJ) * np.eye(len(free))
+        accepted = False
+        while lam < 1e8:
+            step = np.linalg.solve(JTJ + lam * D, -g)
+            step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
+            trial = vals.copy()
+            trial[free] = vals[free] * np.exp(step)
+            p2, rj2, chi2_new = _try(fm, free, trial)
+            if chi2_new < chi2:
+                accepted, lam = True, max(lam / 5, 1e-7)
+                break
+            lam *= 8
+        if not accepted:
+            fm.set_values(vals)
+            break
+        rel = (chi2 - chi2_new) / max(chi2, 1e-300)
+        vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
+        hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
+        if verbose:
+            rank0_print(fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
+                        + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
+        if rel < tol or np.max(np.abs(step)) < 1e-5:
+            break
+    fm.set_values(vals)
+    Jt = Jr * vals[free]
+    C = covariance(Jt, chi2, fm.exp.noise_std is not None)
+    std = np.zeros(len(vals))
+    std[free] = vals[free] * np.sqrt(np.maximum(np.diag(C), 0.0))
+    return FitResult(list(fm.names), vals, std, chi2, misfit(fm.exp, pred), pred, it,
+                     fm.forward_runs - runs0, hist)
+
+
+def load_params(path: str | Path | None) -> dict:
+    """{term: {param: value}} from a JSON file: a plain mapping or a saved fit (key "params")."""
+    if not path:
+        return {}
+    data = json.loads(Path(path).read_text())
+    return data.get("params", data)
