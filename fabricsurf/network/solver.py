@@ -119,6 +119,18 @@ def reaction(net: SpringNetwork, x: np.ndarray, nodes: np.ndarray) -> np.ndarray
     return net.gradient(x)[np.asarray(nodes, np.int64)].sum(axis=0)
 
 
+def tangent_predictor(net: SpringNetwork, x: np.ndarray, fixed: np.ndarray,
+                      x_fixed_new: np.ndarray, linear: FreeDofSolver) -> np.ndarray:
+    """Linearised response to moving the constrained dofs: H_ff Δq_f = −H_fc Δq_c (at an
+    equilibrium x), the predictor of a load step that starts from rest; returns the guess."""
+    q = np.asarray(x, float).ravel()
+    dq = np.zeros_like(q)
+    dq[fixed] = np.asarray(x_fixed_new, float).ravel()[fixed] - q[fixed]
+    H = net.hessian(x)
+    dq[~fixed] = linear.solve(H, -(H @ dq)[~fixed])
+    return (q + dq).reshape(-1, 2)
+
+
 def solve_steps(net: SpringNetwork, bcs: list[Dirichlet], n_steps: int = 10,
                 x0: np.ndarray | None = None, reaction_sets: dict | None = None,
                 min_step: float = 1e-4, newton_kw: dict | None = None,
@@ -126,7 +138,8 @@ def solve_steps(net: SpringNetwork, bcs: list[Dirichlet], n_steps: int = 10,
     """Load stepping t: 0 -> 1 in ``n_steps`` equal steps with step cutting.
 
     Each step starts from the last converged state, with the prescribed nodes moved to
-    their new positions and the free nodes extrapolated linearly from the previous step.
+    their new positions and the free nodes predicted by the tangent (first step) or
+    extrapolated linearly from the previous step.
     A failed step is halved; below ``min_step`` (as a fraction of the total load) a
     :class:`ConvergenceError` is raised naming the load factor reached. Results are
     recorded at every converged step (cut steps included).
@@ -142,7 +155,10 @@ def solve_steps(net: SpringNetwork, bcs: list[Dirichlet], n_steps: int = 10,
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
         fixed, u = _constrained(bcs, net.n_nodes, t + dt)
-        guess = x.copy() if dx_prev is None else x + dx_prev * (dt / dx_prev_dt)
+        if dx_prev is None:
+            guess = tangent_predictor(net, x, fixed, net.X + u, newton_kw["linear"])
+        else:
+            guess = x + dx_prev * (dt / dx_prev_dt)
         fmask = fixed.reshape(-1, 2)
         guess[fmask] = (net.X + u)[fmask]
         xn, info = newton(net, guess, fixed, **newton_kw)
