@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
 from fabricsurf import kinematics as kn
 from fabricsurf.energy import double_force
@@ -113,7 +114,7 @@ def solve_dirichlet(specimen, hyp: Hypar) -> tuple[FabricProblem, float]:
     if reason <= 0:
         raise RuntimeError(f"hypar Dirichlet case: SNES diverged (reason {reason})")
     err = np.abs(p.u.x.array - g.x.array).max(initial=0.0)
-    return p, float(p.msh.comm.allreduce(err, op=_max()))
+    return p, float(p.msh.comm.allreduce(err, op=MPI.MAX))
 
 
 TIGHT = {"snes_rtol": 1e-14, "snes_atol": 1e-12}
@@ -166,7 +167,3 @@ def computed_corner_forces(p: FabricProblem) -> dict:
     vals = eval_points(qh, pts)
     return {c: CORNER_SIGNS[c] * vals[k] for k, c in enumerate(CORNER_SIGNS)}
 
-
-def _max():
-    from mpi4py import MPI
-    return MPI.MAX

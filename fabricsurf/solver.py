@@ -14,7 +14,6 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
-from mpi4py import MPI
 from petsc4py import PETSc
 
 SNES_DEFAULTS: dict[str, object] = {
@@ -163,6 +162,3 @@ class LoadStepper:
                 self.on_converged(k, float(target), its)
         return self.iterations
 
-
-def global_sum(comm: MPI.Comm, value: float) -> float:
-    return comm.allreduce(float(value), op=MPI.SUM)
