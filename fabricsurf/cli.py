@@ -18,6 +18,7 @@ from mpi4py import MPI
 from fabricsurf import bias_cli
 from fabricsurf.data import DataError, Experiment, load_experiment
 from fabricsurf.output import rank0_print, write_json
+from fabricsurf.solver import LoadStepError
 
 COMM = MPI.COMM_WORLD
 
@@ -167,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (DataError, ValueError) as e:
+    except (DataError, ValueError, OSError, LoadStepError) as e:
         rank0_print(COMM, f"fabricsurf {args.command}: error: {e}")
         return 2
 

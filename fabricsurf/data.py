@@ -13,6 +13,7 @@ noise of the force readings; it weights the force misfit (see :mod:`fabricsurf.c
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 import shutil
@@ -80,7 +81,7 @@ def _number(value, label: str, positive: bool = False) -> float:
 
 
 def _choice(value, label: str, allowed) -> str:
-    if value not in allowed:
+    if not isinstance(value, str) or value not in allowed:
         raise DataError(f"experiment.toml: {label} = {value!r} is not one of {list(allowed)}")
     return value
 
@@ -212,7 +213,8 @@ def load_experiment(directory: str | Path) -> Experiment:
 
 
 def _toml_text(exp: Experiment) -> str:
-    lines = [f'name = "{exp.name}"', "[units]", 'length = "mm"', 'force = "N"', "[specimen]",
+    lines = [f"name = {json.dumps(exp.name)}", "[units]", 'length = "mm"', 'force = "N"',
+             "[specimen]",
              f"length = {exp.length!r}", f"width = {exp.width!r}",
              f"fibre_angles_deg = [{exp.fibre_angles_deg[0]!r}, {exp.fibre_angles_deg[1]!r}]",
              "[loading]", f'test = "{exp.test}"', f'clamp = "{exp.clamp}"', "[data]",

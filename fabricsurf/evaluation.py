@@ -7,45 +7,43 @@ from dolfinx import fem, geometry
 from mpi4py import MPI
 
 
-def _owned_cells_at(msh, points3: np.ndarray) -> np.ndarray:
-    """For each point the local index of an owned cell containing it, or -1."""
+def _owned_cells_at(msh, points3: np.ndarray) -> list[list[int]]:
+    """For each point the local indices of the owned cells containing it (maybe none)."""
     tree = geometry.BoundingBoxTree(msh, msh.topology.dim)
     candidates = geometry.compute_collisions(tree, points3)
     colliding = geometry.compute_colliding_cells(msh, candidates, points3)
     n_owned = msh.topology.index_map(msh.topology.dim).size_local
-    cells = np.full(len(points3), -1, dtype=np.int32)
-    for i in range(len(points3)):
-        owned = [c for c in colliding.links(i) if c < n_owned]
-        if owned:
-            cells[i] = owned[0]
-    return cells
+    return [[c for c in colliding.links(i) if c < n_owned] for i in range(len(points3))]
 
 
 def eval_points(f: fem.Function, points: np.ndarray) -> np.ndarray:
     """Values of ``f`` at ``points`` (n×2), the same on every rank; NaN where outside the mesh.
 
-    A point on a facet shared by two ranks is taken from the lowest rank owning a cell there.
+    The value is the mean over all (owned) cells containing the point, over all ranks: for a
+    continuous f the same value, for a cellwise field (DG, or a gradient) at a vertex or on a
+    facet a partition-independent average, so 1 and P ranks agree.
     """
     msh = f.function_space.mesh
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"eval_points: points must be an (n, 2) array, got shape {pts.shape}")
     pts3 = np.zeros((len(pts), 3))
     pts3[:, :2] = pts
     cells = _owned_cells_at(msh, pts3)
     bs = f.function_space.dofmap.index_map_bs
-    local = np.full((len(pts), bs), np.nan)
-    found = cells >= 0
-    if found.any():
-        local[found] = f.eval(pts3[found], cells[found]).reshape(-1, bs)
-    comm = msh.comm
-    owner = np.where(found, comm.rank, comm.size).astype(np.int64)
-    first = np.empty_like(owner)
-    comm.Allreduce(owner, first, op=MPI.MIN)
-    mine = found & (first == comm.rank)
-    contrib = np.ascontiguousarray(np.where(mine[:, None], np.nan_to_num(local), 0.0))
-    values = np.empty_like(contrib)
-    comm.Allreduce(contrib, values, op=MPI.SUM)
-    values[first == comm.size] = np.nan
-    return values
+    sums = np.zeros((len(pts), bs))
+    counts = np.zeros(len(pts))
+    rows = [i for i, cs in enumerate(cells) for _ in cs]
+    if rows:
+        flat = np.array([c for cs in cells for c in cs], dtype=np.int32)
+        vals = f.eval(pts3[rows], flat).reshape(-1, bs)
+        np.add.at(sums, rows, vals)
+        np.add.at(counts, rows, 1.0)
+    total, n = np.empty_like(sums), np.empty_like(counts)
+    msh.comm.Allreduce(sums, total, op=MPI.SUM)
+    msh.comm.Allreduce(counts, n, op=MPI.SUM)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n[:, None] > 0, total / n[:, None], np.nan)
 
 
 def interpolate_expression(expr, V: fem.FunctionSpace, name: str = "") -> fem.Function:

@@ -80,9 +80,10 @@ def fit(fm: ForwardModel, free: list[int] | None = None, max_iter: int = 20,
         raise ValueError("fit: initial moduli must be > 0 (log-parametrisation): "
                          f"{dict(zip(fm.names, vals))}")
     runs0 = fm.forward_runs
-    pred, (r, Jr), chi2 = _try(fm, free, vals)
+    pred, rj, chi2 = _try(fm, free, vals)
     if pred is None:
         raise LoadStepError("fit: the initial model does not follow the load path")
+    r, Jr = rj
     lam, hist, it = 1e-3, [], 0
     for it in range(1, max_iter + 1):
         Jt = Jr * vals[free]  # dr/dθ

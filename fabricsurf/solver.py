@@ -14,6 +14,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
 from petsc4py import PETSc
 
 SNES_DEFAULTS: dict[str, object] = {
@@ -44,6 +45,7 @@ class SNESSolver:
                  nodal_forces: Callable | None = None) -> None:
         V = u.function_space
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
+        self.comm = V.mesh.comm
         self.L = fem.form(residual)
         self.a = fem.form(jacobian)
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
@@ -82,6 +84,7 @@ class SNESSolver:
         fem_petsc.set_bc(b, self.bcs, x, -1.0)
 
     def _J(self, snes, x, A, P) -> None:
+        self._update_u(x)
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, self.a, bcs=self.bcs)
         A.assemble()
@@ -125,7 +128,9 @@ class LoadStepper:
         backup = self.solver.u.vector.copy()
         self.set_load(t)
         reason, its = self.solver.solve()
-        ok = reason > 0 and np.isfinite(self.solver.u.x.array).all()
+        finite = bool(np.isfinite(self.solver.u.x.array).all())
+        comm = getattr(self.solver, "comm", MPI.COMM_SELF)
+        ok = reason > 0 and comm.allreduce(finite, op=MPI.LAND)
         if not ok:
             backup.copy(self.solver.u.vector)
             self.solver.u.x.scatter_forward()
@@ -143,7 +148,7 @@ class LoadStepper:
                 self.t = t_next
                 dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
                 continue
-            dt *= 0.5
+            dt = 0.5 * (t_next - self.t)
             self.log(f"step {k}: SNES reason {reason} at t = {t_next:.6g}; "
                      f"cutting step to {dt:.3g}")
             if abs(dt) < self.min_fraction * abs(span):
