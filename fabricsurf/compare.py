@@ -25,7 +25,7 @@ from fabricsurf.bias import BiasExtension
 from fabricsurf.data import Experiment
 from fabricsurf.evaluation import eval_points
 from fabricsurf.solver import LoadStepper
-from fabricsurf.terms import Term
+from fabricsurf.terms import EFFECTS, Term
 
 
 @dataclass
@@ -58,6 +58,11 @@ class ForwardModel:
 
     def __init__(self, exp: Experiment, model: list[Term], h: float | None = None,
                  comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False) -> None:
+        foreign = [t.name for t in model if t.name not in EFFECTS]
+        if foreign:
+            raise ValueError(f"compare/fit: terms {foreign} are not in the vocabulary "
+                             f"({', '.join(EFFECTS)}); the exact sensitivities assume an "
+                             "energy linear in each modulus")
         self.exp, self.model, self.verbose = exp, model, verbose
         self.h = float(h or default_h(exp))
         self.bias = BiasExtension(model, exp.length, exp.width, self.h, exp.clamp,

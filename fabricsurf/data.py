@@ -102,7 +102,7 @@ def _read_csv(path: Path, columns: tuple[str, ...], optional: tuple[str, ...] = 
     name = path.name
     if not path.is_file():
         raise DataError(f"{name}: file not found in {path.parent}")
-    with open(path, newline="") as fh:
+    with open(path, newline="", encoding="utf-8-sig") as fh:
         rows = list(csv.reader(fh))
     if not rows:
         raise DataError(f"{name}: file is empty (expected header {','.join(columns)})")

@@ -114,3 +114,21 @@ def test_atomic_write(tmp_path):
         write_experiment(d, bad, overwrite=True)
     assert load_experiment(d).name == "t"
     assert sorted(p.name for p in tmp_path.iterdir()) == [d.name]
+
+
+def test_spreadsheet_bom_and_unit_types(good):
+    """A UTF-8 byte-order mark (spreadsheet export) is accepted; a unit given as a list is a
+    DataError naming the key, not a crash."""
+    f = good / "field.csv"
+    f.write_bytes(b"\xef\xbb\xbf" + f.read_bytes())
+    assert len(load_experiment(good).X) == 6
+    edit(good / "experiment.toml", 'length = "mm"', 'length = ["mm"]')
+    reject(good, "experiment.toml", "length")
+
+
+def test_compare_rejects_terms_outside_vocabulary():
+    from fabricsurf.compare import ForwardModel
+    from fabricsurf.materials import bipantographic
+
+    with pytest.raises(ValueError, match="not in the vocabulary"):
+        ForwardModel(good_experiment(), bipantographic())
