@@ -8,12 +8,12 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 export MPLBACKEND=Agg
 DEBS="python3-dolfinx python3-petsc4py python3-mpi4py python3-gmsh python3-numpy python3-scipy
-      python3-matplotlib python3-h5py python3-venv"
+      python3-matplotlib python3-h5py python3-venv python3-pytest"
 VENV=.venv
 PY=$VENV/bin/python
 
 ensure_debs() {
-  if /usr/bin/python3 -c "import dolfinx, gmsh, scipy, matplotlib, h5py" 2>/dev/null \
+  if /usr/bin/python3 -c "import dolfinx, gmsh, scipy, matplotlib, h5py, pytest" 2>/dev/null \
      && [ -x /usr/bin/mpirun ]; then return; fi
   echo "[run.sh] installing Debian packages"
   apt-get update -qq
