@@ -69,16 +69,16 @@ class BiasExtension:
         self.problem = p
         self.solver = p.solver()
         kin = p.energy.kin
-        self.DG = fem.FunctionSpace(p.msh, ("DG", 2))
-        self._gamma_expr = kin.gamma
+        self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
+        self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
         self.points = np.array([self.specimen.points["A"], self.specimen.points["B"]])
 
     def set_load(self, ubar: float) -> None:
         self.grip_ux.value = ubar
 
     def angles_deg(self) -> np.ndarray:
-        g = interpolate_expression(self._gamma_expr, self.DG)
-        return np.degrees(eval_points(g, self.points)[:, 0])
+        """Shear angles γ at A and B in degrees."""
+        return np.degrees(self.fibre_fields_at(self.points)[:, 2])
 
     def displacement_at(self, points: np.ndarray) -> np.ndarray:
         """The continuum displacement u (P2) at reference points (n×2), (n×2) on every rank."""
@@ -86,10 +86,6 @@ class BiasExtension:
 
     def fibre_fields_at(self, points: np.ndarray) -> np.ndarray:
         """(λ, μ, γ) at reference points (n×3, γ in rad), the same on every rank."""
-        if not hasattr(self, "_fibre_V"):
-            kin = self.problem.energy.kin
-            self._fibre_V = fem.VectorFunctionSpace(self.problem.msh, ("DG", 2), dim=3)
-            self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
         f = interpolate_expression(self._fibre_expr, self._fibre_V)
         return eval_points(f, points)
 

@@ -84,20 +84,6 @@ class Hypar:
         return CORNER_SIGNS[tuple(corner)] * self.A_Gamma * self.a
 
 
-def _pin(problem: FabricProblem, point, values) -> list[fem.Constant]:
-    """Prescribe all components of u at a vertex (Constants, so they can be load-stepped)."""
-    consts = []
-    for i, val in enumerate(values):
-        Vc, _ = problem.V.sub(i).collapse()
-        dofs = fem.locate_dofs_geometrical(
-            (problem.V.sub(i), Vc),
-            lambda X: np.isclose(X[0], point[0]) & np.isclose(X[1], point[1]))[0]
-        c = fem.Constant(problem.msh, float(val))
-        problem.bcs.append(fem.dirichletbc(c, dofs, problem.V.sub(i)))
-        consts.append(c)
-    return consts
-
-
 def solve_dirichlet(specimen, hyp: Hypar) -> tuple[FabricProblem, float]:
     """u and ∂_n u prescribed on the whole boundary; returns the max nodal error."""
     p = FabricProblem(specimen, hyp.model(), d=3, fibre_angles=(0.0, 90.0),
@@ -136,7 +122,7 @@ def solve_natural(specimen, hyp: Hypar, steps: int = 3) -> FabricProblem:
         corner_f[corner] = fem.Constant(p.msh, np.zeros(3))
         p.add_point_force(corner, corner_f[corner])
     exact = {pt: hyp.displacement_np(np.array([pt]))[0] for pt in PINNED}
-    pins = {pt: _pin(p, pt, np.zeros(3)) for pt in PINNED}
+    pins = {pt: p.fix_point(pt, np.zeros(3)) for pt in PINNED}
 
     def set_load(t: float) -> None:
         s.value = t

@@ -80,18 +80,32 @@ class FabricProblem:
         """Dead load t (UFL d-vector, force per reference length) on an edge."""
         self.tractions[self.specimen.edge_tags[edge]] = t
 
-    def add_point_force(self, point: Sequence[float], f: Sequence[float] | fem.Constant) -> None:
-        """Dead point force f at a mesh vertex (e.g. a corner force f_i of seed 001 eq. 94)."""
+    def vertex_nodes(self, point: Sequence[float]) -> np.ndarray:
+        """Local (block) indices of the dof nodes at a mesh vertex, ghosts included."""
         x = np.asarray(point, dtype=float)
         Vc, parent = self.V.sub(0).collapse()
         local = fem.locate_dofs_geometrical(
             Vc, lambda X: np.isclose(X[0], x[0]) & np.isclose(X[1], x[1]))
-        bs = self.V.dofmap.index_map_bs
-        nodes = np.asarray(parent)[local] // bs
+        return np.asarray(parent)[local] // self.V.dofmap.index_map_bs
+
+    def fix_point(self, point: Sequence[float], values: Sequence[float]) -> list[fem.Constant]:
+        """Prescribe all components of u at a mesh vertex; returns their fem.Constants."""
+        nodes, bs = self.vertex_nodes(point), self.V.dofmap.index_map_bs
+        consts = []
+        for i, val in enumerate(values):
+            c = fem.Constant(self.msh, float(val))
+            dofs = (nodes * bs + i).astype(np.int32)
+            self.bcs.append(fem.dirichletbc(c, dofs, self.V.sub(i)))
+            consts.append(c)
+        return consts
+
+    def add_point_force(self, point: Sequence[float], f: Sequence[float] | fem.Constant) -> None:
+        """Dead point force f at a mesh vertex (e.g. a corner force f_i of seed 001 eq. 94)."""
+        nodes = self.vertex_nodes(point)
         owned = nodes[nodes < self.V.dofmap.index_map.size_local]
         if self.msh.comm.allreduce(len(owned)) != 1:
-            raise ValueError(f"point force at {tuple(x)}: not exactly one mesh vertex there")
-        self._point_forces.append((owned, f, bs))
+            raise ValueError(f"point force at {tuple(point)}: not exactly one mesh vertex there")
+        self._point_forces.append((owned, f, self.V.dofmap.index_map_bs))
 
     def _nodal_forces(self):
         dofs, vals = [], []
