@@ -29,8 +29,16 @@
 # K_S = 34 N/m, K_E = 0.33 J, K_F = 0.9 J of Table 3) against the 13-node-cell lattice of
 # seed 000 §3 with the Table 3 micro parameters (k_E = 335 N/m, k_S = 9.36, k_F = 46.2 N·mm).
 # The two parameter sets were fitted *independently* to the experiment in seed 000, so the
-# models are not an identification of each other: the comparison shows how close the two fits
-# are, not a convergence.
+# models are not an identification of each other. The numerical homogenisation of the lattice
+# (`fabricsurf.network.homogenize`: one pantographic beam, axis nodes on χ, side nodes relaxed)
+# measures what the micro set corresponds to: K_S = 0.0145 N/mm (Table 3: 0.034) and a
+# geodesic-bending coefficient a_θ(1) = 9.56 N·mm (Table 3's K_E K_F/(K_E + 18K_F) = 17.97):
+# the Table 3 continuum is about twice as stiff in both terms that carry the bias force. A
+# third run, **bipantographic_identified**, therefore gives eq. (2) the identified K_S and
+# a_θ (K_F = a_θ, K_E → ∞, which also makes a_θ independent of ρ as it is for the lattice,
+# within 4 %) against the same lattice. What eq. (2) cannot match is reported, not hidden: the
+# lattice's stretch-gradient coefficient a_ρ(1) ≈ 0.3 N·mm lies below eq. (2)'s lower bound
+# 3a_θ(1) = 28.7 N·mm for any positive K_E, K_F.
 #
 # Quantities (seed 000 Figs. 9–11): grip reaction force vs ū; shear angle γ at A (centre of the
 # square on the clamped side) and at B (specimen centre) vs ū; deformed configurations —
@@ -57,10 +65,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.bias import BiasExtension
+from fabricsurf.bias import BiasExtension, force_convergence
 from fabricsurf.materials import bipantographic
 from fabricsurf.network import hencky_lattice, lattice_from_continuum, solve_steps
 from fabricsurf.network.bipantographic import EPS_B, TABLE3, bipantographic_lattice
+from fabricsurf.network.homogenize import identify_macro
 from fabricsurf.network.micromacro import grid_fields
 from fabricsurf.output import rank0_print, write_json
 from fabricsurf.terms import FibreStretch, GeodesicBending, Shear
@@ -68,6 +77,7 @@ from fabricsurf.terms import FibreStretch, GeodesicBending, Shear
 LENGTH, WIDTH = 187.0, 119.0  # mm
 EPS_EXACT = LENGTH / (11 * math.sqrt(2))  # 12.0208 mm: 11 x 7 cells of side √2 ε = 17 mm tile
 # the 187 x 119 mm specimen exactly (seed 000 rounds it to ε = 12.02 mm)
+IDENTIFIED_K_E = 1e6  # N·mm: "K_E → ∞" (a_θ within 2e-5 of K_F)
 HENCKY_MODULI = {"k_l": 30.0, "k_s": 0.5, "A_g": 40.0}  # N/mm, N/mm, N·mm (bias.default_model)
 
 
@@ -83,16 +93,19 @@ def parse_args(argv=None):
                          "reaches its geometric limit ρ cos γ = 1 near 0.155, see materials.py)")
     ap.add_argument("--lattice-k", type=int, default=6,
                     help="Hencky lattice refinement: column pitch w = 8.5 mm / k, ε = √2 w")
-    ap.add_argument("--conv-h", type=str, default="16,8,4",
-                    help="mesh sizes (mm) of the force-convergence study")
+    ap.add_argument("--conv-levels", type=str, default="2,4,8",
+                    help="refinement levels of the force-convergence study: graded meshes of "
+                         "11·level × 7·level crossed squares (square side 17 mm / level)")
+    ap.add_argument("--conv-grading", type=float, default=0.6,
+                    help="edge grading of the convergence meshes (0: uniform)")
     ap.add_argument("--conv-steps", type=int, default=5)
     ap.add_argument("--skip-bip", action="store_true")
     ap.add_argument("--quick", action="store_true",
-                    help="coarse and fast (tests): h = 8, 4 steps, ū ≤ 10%%, k = 2, meshes 16,8,4")
+                    help="coarse and fast (tests): h = 8, 4 steps, ū ≤ 10%%, k = 2, levels 2,4,8")
     a = ap.parse_args(argv)
     if a.quick:
         a.h, a.steps, a.ubar_frac, a.bip_ubar_frac = 8.0, 4, 0.10, 0.10
-        a.lattice_k, a.conv_h, a.conv_steps = 2, "16,8,4", 2
+        a.lattice_k, a.conv_levels, a.conv_steps = 2, "2,4,8", 2
     return a
 
 
@@ -144,17 +157,18 @@ def node_shear_deg(lat, x: np.ndarray, ab: tuple[int, int]) -> float:
 # (`eval_points`, reduced over ranks).
 
 # %%
-def compare(name: str, model, lat, ubar_max: float, args,
-            comm: MPI.Comm) -> tuple[dict, dict]:
+def compare(name: str, model, lat, ubar_max: float, args, comm: MPI.Comm,
+            latres: dict | None = None) -> tuple[dict, dict]:
     out = args.out / name
     nodes = lat.grid[lat.grid >= 0]
     # node positions rounded onto the specimen (nodes on the edges can be 1e-13 mm outside)
     Xn = np.clip(lat.net.X[nodes], 0.0, [LENGTH, WIDTH])
     rank0_print(comm, f"[{name}] lattice: {lat.net.n_nodes} nodes, {len(nodes)} grid nodes, "
                       f"eps = {lat.spacing:.4f} mm")
-    latres = solve_lattice(lat, ubar_max, args.steps, comm)
-    rank0_print(comm, f"[{name}] lattice solved in {latres['seconds']:.1f} s; forces "
-                      + " ".join(f"{f:.3f}" for f in latres["force"]))
+    if latres is None:
+        latres = solve_lattice(lat, ubar_max, args.steps, comm)
+        rank0_print(comm, f"[{name}] lattice solved in {latres['seconds']:.1f} s; forces "
+                          + " ".join(f"{f:.3f}" for f in latres["force"]))
     bias = BiasExtension(model, LENGTH, WIDTH, h=args.h, comm=comm)
     samples = []
 
@@ -243,25 +257,48 @@ def zones_at(zones: dict, ubar: float) -> dict:
 # %% [markdown]
 # ## Mesh convergence of the grip force
 #
-# Continuum (a) on meshes h, h/2, h/4 at the same ū: with F_h the force, the observed rate is
-# log2(|F_h − F_{h/2}| / |F_{h/2} − F_{h/4}|) and the extrapolated error of the finest mesh is
-# |F_{h/2} − F_{h/4}| / (2^rate − 1).
+# Continuum (a) at ū_max on nested meshes of 11·n × 7·n crossed squares (n = 2, 4, 8: square
+# side 8.5, 4.25, 2.1 mm), graded towards the edges (`geometry.specimen.graded`, spacing 0.4×
+# nominal at the edges, 1.6× in the middle). Grading matters here: the gradient clamp makes a
+# fibre-bending boundary layer of width √(A_g/k_l) ≈ 1.2 mm, and the clamp corners (clamped
+# edge meets free edge) are singular points of the second-gradient solution. On uniform gmsh
+# meshes h = 16, 8, 4 mm the force differences changed sign (pre-asymptotic); on uniform
+# structured meshes they grew until h ≈ 2 mm, then fell at rate 0.63 (h = 2.1 → 1.06 mm,
+# 340 s on one rank). With F_n the force on level n and d_n = |F_n − F_2n|, the observed rate
+# is log2(d_n / d_2n) and the finest force's error is estimated as d / (2^rate − 1)
+# (`fabricsurf.bias.force_convergence`; benchmarks/bias_convergence.py adds level 16).
 
 # %%
-def force_convergence(hs, ubar: float, steps: int, comm: MPI.Comm) -> dict:
-    forces = []
-    for h in hs:
-        b = BiasExtension(hencky_model(), LENGTH, WIDTH, h=h, comm=comm)
-        r = b.run(ubar, steps, verbose=False)
-        forces.append(r.force[-1])
-        rank0_print(comm, f"[convergence] h = {h:5.2f} mm: force = {r.force[-1]:.6f} N "
-                          f"({r.seconds:.1f} s)")
-    diffs = [abs(forces[i] - forces[i + 1]) for i in range(len(forces) - 1)]
-    rates = [math.log(diffs[i] / diffs[i + 1]) / math.log(hs[i] / hs[i + 1])
-             for i in range(len(diffs) - 1) if diffs[i + 1] > 0]
-    extrap = (diffs[-1] / (2 ** rates[-1] - 1)) if rates and rates[-1] > 0 else None
-    return {"h": list(hs), "ubar": ubar, "force": forces, "differences": diffs, "rates": rates,
-            "finest_error_estimate": extrap}
+def identified_model(ident: dict) -> list:
+    """Eq. (2) with the lattice's K_S and a_θ(1): K_F = a_θ, K_E → ∞ (a_θ(ρ) ≡ K_F)."""
+    return bipantographic(K_S=ident["K_S"], K_E=IDENTIFIED_K_E, K_F=ident["a_theta"])
+
+
+def clamp_offset_bracket(ident: dict, latres: dict, args, comm: MPI.Comm) -> dict:
+    """The identified continuum on the free length between the held lattice strips.
+
+    The lattice clamps hold the vertex columns i = 0, 1 (and N − 1, N): a strip √2 ε = 17 mm
+    wide at each end, where the continuum clamps a line. With ε this large (11 cells along the
+    specimen) the clamp position is an O(1) effect; the continuum on [0, L] and on the free
+    length L − 2√2 ε bracket it. Run to 80 % of ū_max (the short specimen reaches eq. 2's
+    geometric limit ρ cos γ = 1 earlier).
+    """
+    n = max(1, int(0.8 * args.steps))
+    short = LENGTH - 2 * math.sqrt(2) * EPS_EXACT
+    b = BiasExtension(identified_model(ident), short, WIDTH, h=args.h, comm=comm)
+    r = b.run(latres["ubar"][n - 1], n, verbose=False)
+    rank0_print(comm, f"[bipantographic_identified] free length {short:.1f} mm: forces "
+                      + " ".join(f"{f:.3f}" for f in r.force))
+    return {"free_length_mm": short, "ubar": r.ubar, "force_free_length": r.force,
+            "force_lattice": latres["force"][:n]}
+
+
+def identification_summary(ident: dict) -> dict:
+    """The identification as JSON: NaN (no K_E, K_F fits eq. 2) becomes null."""
+    out = {k: (float(v) if math.isfinite(v) else None) for k, v in ident.items()
+           if k in ("K_S", "a_theta", "a_rho", "K_E", "K_F")}
+    return out | {"eq2_feasible": bool(ident["feasible"]), "K_E_used_Nmm": IDENTIFIED_K_E,
+                  "K_F_used_Nmm": float(ident["a_theta"])}
 
 
 def hencky_model():
@@ -355,11 +392,16 @@ def figures(out: Path, results: dict, extras: dict, conv: dict) -> None:
         fig.savefig(out / f"zones_{nm}.png", dpi=110)
         plt.close(fig)
 
-    if conv and len(conv["h"]) > 1:
+    if conv and len(conv["levels"]) > 2:
         fig, a = plt.subplots(figsize=(5, 4))
-        a.loglog(conv["h"][:-1], conv["differences"], "o-")
-        a.set(xlabel="h (mm)", ylabel="|F_h − F_{h/2}| (N)",
-              title="grip force, mesh convergence")
+        h = np.array(conv["h_nominal_mm"][:-1])
+        d = np.array(conv["differences"])
+        a.loglog(h, d, "o-", label="|F_h − F_{h/2}|")
+        for r, ls in ((1, ":"), (2, "--")):
+            a.loglog(h, d[-1] * (h / h[-1]) ** r, ls, color="grey", label=f"rate {r}")
+        a.set(xlabel="square side h (mm, graded)", ylabel="force difference (N)",
+              title=f"grip force at ū = {conv['ubar']:.1f} mm, mesh convergence")
+        a.legend()
         fig.tight_layout()
         fig.savefig(out / "force_convergence.png", dpi=110)
         plt.close(fig)
@@ -395,24 +437,41 @@ def main(argv=None) -> dict:
     rank0_print(comm, "[zones] " + ", ".join(f"{kk} = {v:.2f}"
                                              for kk, v in zones["check"].items()))
 
-    # (b) bi-pantographic: Table 3 macro (eq. 2) vs Table 3 micro (13-node cells)
+    # (b) bi-pantographic: Table 3 macro (eq. 2) vs Table 3 micro (13-node cells), then eq. (2)
+    # with the moduli identified from the micro set by numerical homogenisation
     if not args.skip_bip:
         blat = bipantographic_lattice(eps=EPS_EXACT)
         ubar_b = args.bip_ubar_frac * LENGTH
+        ident = identify_macro(eps=EPS_EXACT)
         rank0_print(comm, f"[bipantographic] macro K = 34 N/m, 0.33 J, 0.9 J; micro {TABLE3} "
-                          f"(N/mm, N mm), eps = {EPS_EXACT:.4f} mm (seed: {EPS_B})")
+                          f"(N/mm, N mm), eps = {EPS_EXACT:.4f} mm (seed: {EPS_B}); identified "
+                          f"K_S = {ident['K_S']:.5f} N/mm, a_theta(1) = {ident['a_theta']:.3f} "
+                          f"N mm, a_rho(1) = {ident['a_rho']:.3f} N mm")
         results["bipantographic"], extras["bipantographic"] = compare(
             "bipantographic", bipantographic(), blat, ubar_b, args, comm)
         extras["bipantographic"]["lat_obj"] = blat
+        results["bipantographic_identified"], extras["bipantographic_identified"] = compare(
+            "bipantographic_identified", identified_model(ident), blat, ubar_b, args, comm,
+            latres=extras["bipantographic"]["lat"])
+        extras["bipantographic_identified"]["lat_obj"] = blat
+        clamp_bracket = clamp_offset_bracket(ident, extras["bipantographic"]["lat"], args, comm)
 
     # mesh convergence of the grip force, continuum (a)
-    hs = [float(s) for s in args.conv_h.split(",")]
-    conv = force_convergence(hs, ubar_h, args.conv_steps, comm)
+    levels = [int(s) for s in args.conv_levels.split(",")]
+    conv = force_convergence(hencky_model(), levels, ubar_h, args.conv_steps,
+                             grading=args.conv_grading, comm=comm)
     rank0_print(comm, f"[convergence] differences {conv['differences']}, rates {conv['rates']}")
 
     summary = {nm: {kk: r[kk] for kk in ("force_rel_diff", "angle_A_max_diff_deg",
                                          "angle_B_max_diff_deg", "position_rms_diff", "curves")}
                for nm, r in results.items()}
+    for nm in ("bipantographic", "bipantographic_identified"):
+        if nm in results:
+            c = results[nm]["curves"]
+            summary[nm]["force_ratio_continuum_to_lattice"] = [
+                fc / fl for fc, fl in zip(c["force_continuum"], c["force_lattice"])]
+    if not args.skip_bip:
+        summary["bipantographic_identified"]["clamp_offset"] = clamp_bracket
     summary["three_zones"] = zones
     summary["force_convergence"] = conv
     summary["settings"] = {
@@ -424,7 +483,8 @@ def main(argv=None) -> dict:
             "continuum": {"K_S_N_per_mm": 0.034, "K_E_Nmm": 330.0, "K_F_Nmm": 900.0,
                           "gamma_rad": math.pi / 6},
             "lattice": TABLE3, "eps_mm": EPS_EXACT, "ubar_max_mm": args.bip_ubar_frac * LENGTH,
-            "max_fibre_stretch_continuum": extras["bipantographic"]["lam_max"]},
+            "max_fibre_stretch_continuum": extras["bipantographic"]["lam_max"],
+            "identified": identification_summary(ident)},
         "ranks": comm.size, "seconds": time.perf_counter() - t0,
     }
     write_json(comm, args.out / "summary.json", summary)
@@ -458,20 +518,38 @@ def check(summary: dict, args) -> None:
     z = summary["three_zones"]["check"]
     assert z["clamp_triangle"] < 0.15 * z["centre_B"], z
     assert 0.3 * z["centre_B"] < z["half_sheared"] < 0.7 * z["centre_B"], z
-    conv = summary["force_convergence"]
-    d, F = conv["differences"], conv["force"]
-    # every mesh within 1 % of the finest (measured spread: 0.2 % at ū = 18.7 mm on h = 16, 8,
-    # 4; 0.3 % at ū = 46.75 mm)
-    assert max(abs(f - F[-1]) for f in F) < 0.01 * abs(F[-1]), conv
-    if not args.quick:
-        # measured at ū = 46.75 mm on h = 16, 8, 4 (2 ranks): differences 0.519, 0.296 N,
-        # rate 0.81 (pre-asymptotic: F_h changes sign; see the report). Asserted: monotone
-        # decrease of the differences and a rate above 0.5.
-        assert all(d[i + 1] < d[i] for i in range(len(d) - 1)), conv
-        assert all(r > 0.5 for r in conv["rates"]), conv
+    check_convergence(summary["force_convergence"], args)
     if "bipantographic" in summary:
-        bp = summary["bipantographic"]
-        assert np.isfinite(bp["force_rel_diff"])
+        check_bipantographic(summary, args)
+
+
+def check_convergence(conv: dict, args) -> None:
+    """Differences fall monotonically at a rate near 1 or above (measured, 2 ranks, ū = 46.75
+    mm, levels 2, 4, 8: differences 0.892, 0.406 N, rate 1.14; benchmarks/bias_convergence.py
+    at ū = 18.7 mm, levels 2..16: rates 1.07, 1.43), and the finest force lies within 0.5 %
+    of the Richardson limit (measured 0.19 %)."""
+    d, F = conv["differences"], conv["force"]
+    assert all(d[i + 1] < d[i] for i in range(len(d) - 1)), conv
+    assert all(r > 0.8 for r in conv["rates"]), conv
+    assert conv["finest_error_estimate"] < 0.005 * abs(F[-1]), conv
+
+
+def check_bipantographic(summary: dict, args) -> None:
+    """Table 3 continuum vs lattice: kinematics agree (measured 2.78°, 4.54°, 0.91 mm), the
+    force does not (ratio 1.82–2.07). With the identified moduli the force ratio is
+    0.74–0.86 and the angles agree within 1.3°; the rest is the clamp offset, bracketed by
+    the continuum on the full and on the free length (measured at ū = 2.8 mm: 0.74 and
+    1.36 × the lattice force)."""
+    t3, idf = summary["bipantographic"], summary["bipantographic_identified"]
+    assert t3["angle_A_max_diff_deg"] < 3.5 and t3["angle_B_max_diff_deg"] < 5.5, t3
+    assert t3["position_rms_diff"] < 1.2 and idf["position_rms_diff"] < 1.2, idf
+    dev = [max(abs(r - 1) for r in x["force_ratio_continuum_to_lattice"]) for x in (t3, idf)]
+    assert dev[1] < 0.3 and dev[1] < dev[0] / 3, dev
+    assert idf["angle_A_max_diff_deg"] < 1.6 and idf["angle_B_max_diff_deg"] < 1.2, idf
+    br = idf["clamp_offset"]
+    full = idf["curves"]["force_continuum"]
+    for f_full, f_lat, f_short in zip(full, br["force_lattice"], br["force_free_length"]):
+        assert f_full < f_lat < f_short, br
 
 
 if __name__ == "__main__":

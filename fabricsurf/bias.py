@@ -8,6 +8,7 @@ of the residual at the grip; shear angles are evaluated at A and B of seed 000 F
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,7 +25,7 @@ from fabricsurf.output import FieldWriter, StepLog, rank0_print, write_json
 from fabricsurf.problem import FabricProblem
 from fabricsurf.solver import LoadStepper
 from fabricsurf.terms import FibreStretch, GeodesicBending, Shear, Term
-from geometry.specimen import bias_specimen
+from geometry.specimen import Specimen, bias_specimen, structured_rectangle
 
 
 def default_model() -> list[Term]:
@@ -49,16 +50,21 @@ class BiasResult:
 
 
 class BiasExtension:
-    """Set-up and load stepping of the continuum bias-extension test."""
+    """Set-up and load stepping of the continuum bias-extension test.
+
+    The mesh is the gmsh :func:`~geometry.specimen.bias_specimen` of size ``h`` unless a
+    ``specimen`` (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) is given;
+    its edges must carry the ``clamp`` / ``grip`` tags.
+    """
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
                  width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
                  fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+                 comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None) -> None:
         if clamp not in ("gradient", "position"):
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
         self.model = model if model is not None else default_model()
-        self.specimen = bias_specimen(length, width, h, comm)
+        self.specimen = specimen or bias_specimen(length, width, h, comm)
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_")
         p.fix("clamp", (0.0, 0.0))
@@ -71,7 +77,9 @@ class BiasExtension:
         kin = p.energy.kin
         self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
         self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
-        self.points = np.array([self.specimen.points["A"], self.specimen.points["B"]])
+        w, ell = self.specimen.width, self.specimen.length
+        pts = {"A": (0.5 * w, 0.5 * w), "B": (0.5 * ell, 0.5 * w), **self.specimen.points}
+        self.points = np.array([pts["A"], pts["B"]])
 
     def set_load(self, ubar: float) -> None:
         self.grip_ux.value = ubar
@@ -131,6 +139,46 @@ class BiasExtension:
             if out:
                 write_json(comm, Path(out) / "bias_curve.json", res.as_dict())
         return res
+
+
+def graded_specimen(level: int, grading: float = 0.6, length: float = 187.0,
+                    width: float = 119.0, comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
+    """Nested graded mesh of refinement ``level``: 11·level × 7·level crossed squares (17 mm /
+    level for the seed 000 specimen), refined towards the edges by ``grading``
+    (:func:`~geometry.specimen.graded`): the clamp boundary layers and the clamp corners,
+    where the second-gradient solution is least regular."""
+    return structured_rectangle(length, width, 11 * level, 7 * level, comm, grading=grading)
+
+
+def force_convergence(model: list[Term], levels: list[int], ubar: float, steps: int,
+                      grading: float = 0.6, length: float = 187.0, width: float = 119.0,
+                      comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """Grip force at ``ubar`` on the nested graded meshes of :func:`graded_specimen`.
+
+    With F_k the force on level k and d_k = |F_k − F_{k+1}| (levels doubling), the observed
+    rate is log2(d_k / d_{k+1}); the error of the finest force is estimated by Richardson
+    extrapolation, d_last / (2^rate − 1). Returns a JSON-ready dict; scalars are reduced.
+    """
+    forces, angles = [], []
+    for lev in levels:
+        b = BiasExtension(model, length, width, comm=comm,
+                          specimen=graded_specimen(lev, grading, length, width, comm))
+        r = b.run(ubar, steps, verbose=False)
+        forces.append(r.force[-1])
+        angles.append([r.angle_A_deg[-1], r.angle_B_deg[-1]])
+        rank0_print(comm, f"[convergence] level {lev} (square side {length / (11 * lev):.3g} mm): "
+                          f"force = {r.force[-1]:.6f} N ({r.seconds:.1f} s)")
+    diffs = [abs(forces[i] - forces[i + 1]) for i in range(len(forces) - 1)]
+    ratios = [levels[i + 1] / levels[i] for i in range(len(levels) - 1)]
+    rates = [math.log(diffs[i] / diffs[i + 1]) / math.log(ratios[i + 1])
+             for i in range(len(diffs) - 1) if diffs[i + 1] > 0]
+    err = diffs[-1] / (ratios[-1] ** rates[-1] - 1) if rates and rates[-1] > 0 else None
+    return {"levels": list(levels), "h_nominal_mm": [length / (11 * lev) for lev in levels],
+            "h_min_mm": [(1 - grading) * length / (11 * lev) for lev in levels],
+            "grading": grading, "ubar": ubar, "force": forces, "angles_AB_deg": angles,
+            "differences": diffs, "rates": rates, "finest_error_estimate": err,
+            "extrapolated_force": None if err is None else forces[-1] - math.copysign(
+                err, forces[-2] - forces[-1])}
 
 
 def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:

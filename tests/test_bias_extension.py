@@ -112,15 +112,16 @@ def test_demo_outputs(quick_run):
     _, summary, out = quick_run
     keys = {"force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
             "position_rms_diff", "curves"}
-    for name in ("hencky", "bipantographic"):
-        assert set(summary[name]) == keys
+    for name in ("hencky", "bipantographic", "bipantographic_identified"):
+        assert keys <= set(summary[name])
         assert len(summary[name]["curves"]["ubar"]) == 4
     if COMM.rank == 0:
         on_disk = json.loads((out / "summary.json").read_text())
         assert on_disk["hencky"]["force_rel_diff"] == summary["hencky"]["force_rel_diff"]
         for f in ("curves.png", "deformed_hencky.png", "rho_y_hencky.png", "zones_hencky.png",
                   "deformed_bipantographic.png", "rho_y_bipantographic.png",
-                  "hencky/bias.xdmf", "bipantographic/bias.xdmf"):
+                  "force_convergence.png", "hencky/bias.xdmf", "bipantographic/bias.xdmf",
+                  "bipantographic_identified/bias.xdmf"):
             assert (out / f).exists(), f
 
 
@@ -153,13 +154,34 @@ def test_three_zones(quick_run):
 
 
 def test_force_convergence(quick_run):
-    """Grip force at ū = 18.7 mm on h = 16, 8, 4 mm. Measured: 45.880, 45.858, 45.773 N
-    (also h = 10, 5, 2.5: 45.852, 45.827, 45.626 N): the changes are below 0.5 % but not yet
-    asymptotic (they grow on the finer meshes, so no rate > 0 is observed here; the default
-    demo at ū = 46.75 mm measures a rate of 0.81). Asserted: all meshes within 1 % of the
-    finest, and a finite observed rate reported."""
+    """Grip force at ū = 18.7 mm on nested edge-graded meshes, square side 8.5, 4.25, 2.1 mm
+    (min 3.4, 1.7, 0.85 mm at the edges). Measured (1 and 2 ranks): 45.7033, 45.4741,
+    45.3653 N, differences 0.229, 0.109 N, rate 1.07 (level 16 adds 45.3249 N, rate 1.43:
+    benchmarks/bias_convergence.py). The gradient-clamp boundary layer (√(A_g/k_l) ≈ 1.2 mm)
+    and the clamp corners limit the rate below the smooth-solution value; on uniform meshes
+    coarser than the layer the differences were not monotone at all."""
     conv = quick_run[1]["force_convergence"]
-    F = conv["force"]
-    assert len(F) == 3
-    assert max(abs(f - F[-1]) for f in F) < 0.01 * abs(F[-1])
-    assert len(conv["rates"]) == 1 and np.isfinite(conv["rates"][0])
+    d = conv["differences"]
+    assert conv["levels"] == [2, 4, 8]
+    assert d[1] < 0.6 * d[0]
+    assert 0.8 < conv["rates"][0] < 2.5
+    assert abs(conv["force"][-1] - conv["extrapolated_force"]) < 0.005 * conv["force"][-1]
+
+
+def test_bipantographic_factor_explained(quick_run):
+    """Table 3 continuum vs lattice: force ratio 1.9–2.1 (h = 8 mm) while the kinematics agree.
+    The numerical homogenisation of the lattice gives K_S and a_θ(1) at 0.43 and 0.53 × Table
+    3's; with them the ratio is 0.75–0.81, and the continuum on the full length (clamp lines)
+    and on the free length between the 17 mm held lattice strips brackets the lattice force
+    (0.75× and 1.38× at ū = 4.7 mm)."""
+    s = quick_run[1]
+    ident = s["settings"]["bipantographic"]["identified"]
+    assert ident["K_S"] == pytest.approx(0.01446, rel=1e-3)
+    assert ident["a_theta"] == pytest.approx(9.557, rel=1e-3)
+    r_t3 = s["bipantographic"]["force_ratio_continuum_to_lattice"]
+    r_id = s["bipantographic_identified"]["force_ratio_continuum_to_lattice"]
+    assert min(r_t3) > 1.5
+    assert max(abs(r - 1) for r in r_id) < 0.3
+    br = s["bipantographic_identified"]["clamp_offset"]
+    full = s["bipantographic_identified"]["curves"]["force_continuum"]
+    assert all(a < b < c for a, b, c in zip(full, br["force_lattice"], br["force_free_length"]))

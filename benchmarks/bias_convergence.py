@@ -1,0 +1,51 @@
+"""Mesh convergence of the bias-extension grip force, down to the clamp boundary layer.
+
+    mpirun -n 2 python benchmarks/bias_convergence.py [--levels 2,4,8,16] [--grading 0.6]
+                                                      [--ubar 18.7] [--steps 4]
+
+Continuum (a) of demos/demo_bias_extension.py (fibre_stretch k_l = 30, shear k_s = 0.5,
+geodesic_bending A_g = 40; gradient clamps) on nested meshes of 11·n × 7·n crossed squares,
+graded towards the edges (``--grading 0`` for uniform meshes). Prints, per level, the force,
+the shear angles at A and B, the time, and the observed rates log2(d_n / d_2n) of the force
+differences with the Richardson estimate of the limit. Level 16 (square side 1.06 mm) has
+about 320,000 DOFs and takes about 3.5 minutes on 2 ranks.
+"""
+
+import argparse
+import time
+
+from mpi4py import MPI
+
+from fabricsurf.bias import default_model, force_convergence
+from fabricsurf.output import rank0_print
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--levels", default="2,4,8,16")
+    ap.add_argument("--grading", type=float, default=0.6)
+    ap.add_argument("--ubar", type=float, default=18.7, help="grip displacement (mm)")
+    ap.add_argument("--steps", type=int, default=4)
+    a = ap.parse_args()
+    comm = MPI.COMM_WORLD
+    t0 = time.perf_counter()
+    levels = [int(s) for s in a.levels.split(",")]
+    conv = force_convergence(default_model(), levels, a.ubar, a.steps, grading=a.grading,
+                             comm=comm)
+    rank0_print(comm, f"\nū = {a.ubar} mm, grading {a.grading}, {comm.size} rank(s)")
+    rank0_print(comm, "level  square side (mm)  min side (mm)  force (N)     γ_A (deg)  γ_B (deg)")
+    for lev, h, hm, f, (ga, gb) in zip(conv["levels"], conv["h_nominal_mm"], conv["h_min_mm"],
+                                       conv["force"], conv["angles_AB_deg"]):
+        rank0_print(comm, f"{lev:5d}  {h:16.3f}  {hm:13.3f}  {f:12.6f}  {ga:9.4f}  {gb:9.4f}")
+    rank0_print(comm, "differences (N): " + ", ".join(f"{d:.4f}" for d in conv["differences"]))
+    rank0_print(comm, "rates: " + ", ".join(f"{r:.2f}" for r in conv["rates"]))
+    if conv["extrapolated_force"] is not None:
+        rank0_print(comm, f"Richardson limit {conv['extrapolated_force']:.4f} N; finest error "
+                          f"estimate {conv['finest_error_estimate']:.4f} N "
+                          f"({conv['finest_error_estimate'] / abs(conv['force'][-1]):.2e} rel.)")
+    rank0_print(comm, f"total {time.perf_counter() - t0:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
