@@ -328,6 +328,10 @@ def figures(out: Path, results: dict, extras: dict, conv: dict) -> None:
             a = ax[row, col]
             a.plot(c["ubar"], c[f"{key}_continuum{suf}"], "o-", label="continuum")
             a.plot(c["ubar"], c[f"{key}_lattice{suf}"], "s--", label="lattice")
+            br = extras.get(nm, {}).get("clamp_offset")
+            if key == "force" and br:
+                a.plot(br["ubar"], br["force_free_length"], "^:", label="continuum, free length "
+                       f"{br['free_length_mm']:.0f} mm")
             a.set(xlabel="ū (mm)", ylabel=lab, title=f"{nm}")
             a.legend()
     fig.tight_layout()
@@ -455,6 +459,7 @@ def main(argv=None) -> dict:
             latres=extras["bipantographic"]["lat"])
         extras["bipantographic_identified"]["lat_obj"] = blat
         clamp_bracket = clamp_offset_bracket(ident, extras["bipantographic"]["lat"], args, comm)
+        extras["bipantographic_identified"]["clamp_offset"] = clamp_bracket
 
     # mesh convergence of the grip force, continuum (a)
     levels = [int(s) for s in args.conv_levels.split(",")]

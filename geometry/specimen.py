@@ -75,16 +75,26 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
     corners = {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
                "corner_11": (length, width), "corner_01": (0.0, width)}
     extra = dict(extra_points or {})
+    error = None
     if comm.rank == 0:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         try:
             _build_rectangle(length, width, h, extra, structured)
-            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
-        finally:
+        except Exception as e:  # reported on every rank below, so no rank waits forever
+            error = f"{type(e).__name__}: {e}"
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        if comm.rank == 0:
             gmsh.finalize()
-    else:
-        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=2)
+        raise RuntimeError(f"geometry: gmsh failed to mesh the {length} × {width} rectangle "
+                           f"(h = {h}) on rank 0: {error}")
+    try:
+        msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
+                                           gdim=2)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
     msh.topology.create_connectivity(1, 2)
     return Specimen(msh, ct, ft, float(length), float(width), points={**corners, **extra})
 

@@ -48,3 +48,16 @@ def test_graded_rectangle_area_edges_and_nesting():
 def test_grading_rejected():
     with pytest.raises(ValueError, match="grading"):
         structured_rectangle(1.0, 1.0, 2, 2, COMM, grading=1.0)
+
+
+def test_gmsh_failure_on_rank0_raises_everywhere(monkeypatch):
+    """A gmsh error on rank 0 is broadcast: every rank raises instead of waiting in
+    model_to_mesh (on 2 ranks this test would hang without it)."""
+    import geometry.specimen as spec
+
+    def fail(*args):
+        raise ValueError("synthetic gmsh failure")
+
+    monkeypatch.setattr(spec, "_build_rectangle", fail)
+    with pytest.raises(RuntimeError, match="rank 0: ValueError: synthetic gmsh failure"):
+        spec.rectangle(2.0, 1.0, 0.5, COMM)

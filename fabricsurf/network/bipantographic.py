@@ -27,11 +27,11 @@ with all of it:
 
 Parameters ([B] Table 3, micro-model) in N, mm: k_e = k_E = 335 N/m = 0.335 N/mm;
 k_r1 = k_S = 9.36, k_r2 = k_r3 = k_F = 46.2, read as N mm (the table's "J" is taken as mJ:
-in J the grip force would be in kN, and K_S = 34 N/m of the macro model matches
-k_S / eps^2 ~ 9.36 N mm / (12.02 mm)^2 = 0.065 N/mm only within the mJ reading). This unit
-reading is an assumption. Clamps [B Table 1]: vertices of columns i = 0, 1 held, of
-columns i = N-1, N moved by u_bar e_x (the rigid "rhomboidal elements" of §4 join only
-vertex hinges, so internal cell nodes stay free).
+in J the grip force would be in kN, and the macro K_S = 34 N/m is of the order of the
+lattice's homogenised K_S = 0.0145 N/mm (:mod:`fabricsurf.network.homogenize`) only in the
+mJ reading). This unit reading is an assumption. Clamps [B Table 1]: vertices of columns
+i = 0, 1 held, of columns i = N-1, N moved by u_bar e_x (the rigid "rhomboidal elements" of
+§4 join only vertex hinges, so internal cell nodes stay free).
 
 Micro-macro grid: the beam crossings (vertices and centres) form a square grid of pitch eps
 along L = (1, 1)/sqrt(2) and M = (1, -1)/sqrt(2): ``Lattice.grid`` for
