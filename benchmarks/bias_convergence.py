@@ -34,12 +34,15 @@ def main() -> None:
     conv = force_convergence(default_model(), levels, a.ubar, a.steps, grading=a.grading,
                              comm=comm)
     rank0_print(comm, f"\nū = {a.ubar} mm, grading {a.grading}, {comm.size} rank(s)")
-    rank0_print(comm, "level  square side (mm)  min side (mm)  force (N)     γ_A (deg)  γ_B (deg)")
-    for lev, h, hm, f, (ga, gb) in zip(conv["levels"], conv["h_nominal_mm"], conv["h_min_mm"],
-                                       conv["force"], conv["angles_AB_deg"]):
-        rank0_print(comm, f"{lev:5d}  {h:16.3f}  {hm:13.3f}  {f:12.6f}  {ga:9.4f}  {gb:9.4f}")
+    rank0_print(comm, "level  square side (mm)  at the edges (mm)  force (N)     γ_A (deg)  "
+                      "γ_B (deg)")
+    for lev, h, f, (ga, gb) in zip(conv["levels"], conv["h_nominal_mm"], conv["force"],
+                                   conv["angles_AB_deg"]):
+        rank0_print(comm, f"{lev:5d}  {h:16.3f}  {(1 - a.grading) * h:17.3f}  {f:12.6f}  "
+                          f"{ga:9.4f}  {gb:9.4f}")
     rank0_print(comm, "differences (N): " + ", ".join(f"{d:.4f}" for d in conv["differences"]))
-    rank0_print(comm, "rates: " + ", ".join(f"{r:.2f}" for r in conv["rates"]))
+    rank0_print(comm, "rates: " + ", ".join("none (oscillating)" if r is None else f"{r:.2f}"
+                                            for r in conv["rates"]))
     if conv["extrapolated_force"] is not None:
         rank0_print(comm, f"Richardson limit {conv['extrapolated_force']:.4f} N; finest error "
                           f"estimate {conv['finest_error_estimate']:.4f} N "

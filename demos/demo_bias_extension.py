@@ -36,8 +36,9 @@
 # the Table 3 continuum is about twice as stiff in both terms that carry the bias force. A
 # third run, **bipantographic_identified**, therefore gives eq. (2) the identified K_S and
 # a_θ (K_F = a_θ, K_E → ∞, which also makes a_θ independent of ρ as it is for the lattice,
-# within 4 %) against the same lattice. What eq. (2) cannot match is reported, not hidden: the
-# lattice's stretch-gradient coefficient a_ρ(1) ≈ 0.3 N·mm lies below eq. (2)'s lower bound
+# within ~6 %) against the same lattice. What eq. (2) cannot match is reported, not hidden: the
+# lattice's stretch-gradient coefficient a_ρ(1) ≈ 0.3 N·mm (2.4 with another O(ε) sampling
+# convention) lies below eq. (2)'s lower bound
 # 3a_θ(1) = 28.7 N·mm for any positive K_E, K_F.
 #
 # Quantities (seed 000 Figs. 9–11): grip reaction force vs ū; shear angle γ at A (centre of the
@@ -49,7 +50,9 @@
 #
 # Checks: (1) continuum and Hencky lattice agree within the measured differences; (2) the
 # three zones of the bias test (near-rigid triangles at the clamps, half-sheared zones, fully
-# sheared centre); (3) the grip force converges under mesh refinement (rate reported).
+# sheared centre); (3) the grip force converges under mesh refinement (rate reported); (4)
+# bi-pantographic: kinematics agree with Table 3, the force factor is removed by the
+# identified moduli down to the clamp-offset effect, which brackets the lattice force.
 #
 # Run: `mpirun -n 2 python demos/demo_bias_extension.py --out DIR` (`--quick` for a coarse,
 # fast run).
@@ -77,7 +80,7 @@ from fabricsurf.terms import FibreStretch, GeodesicBending, Shear
 LENGTH, WIDTH = 187.0, 119.0  # mm
 EPS_EXACT = LENGTH / (11 * math.sqrt(2))  # 12.0208 mm: 11 x 7 cells of side √2 ε = 17 mm tile
 # the 187 x 119 mm specimen exactly (seed 000 rounds it to ε = 12.02 mm)
-IDENTIFIED_K_E = 1e6  # N·mm: "K_E → ∞" (a_θ within 2e-5 of K_F)
+IDENTIFIED_K_E = 1e6  # N·mm: "K_E → ∞" (a_θ(1) = K_F / (1 + 18 K_F/K_E): within 2e-4 of K_F)
 HENCKY_MODULI = {"k_l": 30.0, "k_s": 0.5, "A_g": 40.0}  # N/mm, N/mm, N·mm (bias.default_model)
 
 
@@ -446,7 +449,7 @@ def main(argv=None) -> dict:
     if not args.skip_bip:
         blat = bipantographic_lattice(eps=EPS_EXACT)
         ubar_b = args.bip_ubar_frac * LENGTH
-        ident = identify_macro(eps=EPS_EXACT)
+        ident = comm.bcast(identify_macro(eps=EPS_EXACT) if comm.rank == 0 else None, root=0)
         rank0_print(comm, f"[bipantographic] macro K = 34 N/m, 0.33 J, 0.9 J; micro {TABLE3} "
                           f"(N/mm, N mm), eps = {EPS_EXACT:.4f} mm (seed: {EPS_B}); identified "
                           f"K_S = {ident['K_S']:.5f} N/mm, a_theta(1) = {ident['a_theta']:.3f} "
@@ -523,23 +526,23 @@ def check(summary: dict, args) -> None:
     z = summary["three_zones"]["check"]
     assert z["clamp_triangle"] < 0.15 * z["centre_B"], z
     assert 0.3 * z["centre_B"] < z["half_sheared"] < 0.7 * z["centre_B"], z
-    check_convergence(summary["force_convergence"], args)
+    check_convergence(summary["force_convergence"])
     if "bipantographic" in summary:
-        check_bipantographic(summary, args)
+        check_bipantographic(summary)
 
 
-def check_convergence(conv: dict, args) -> None:
-    """Differences fall monotonically at a rate near 1 or above (measured, 2 ranks, ū = 46.75
-    mm, levels 2, 4, 8: differences 0.892, 0.406 N, rate 1.14; benchmarks/bias_convergence.py
-    at ū = 18.7 mm, levels 2..16: rates 1.07, 1.43), and the finest force lies within 0.5 %
-    of the Richardson limit (measured 0.19 %)."""
-    d, F = conv["differences"], conv["force"]
+def check_convergence(conv: dict) -> None:
+    """Differences fall monotonically, without changing sign, at a rate near 1 or above
+    (measured, 2 ranks, ū = 46.75 mm, levels 2, 4, 8: differences 0.892, 0.406 N, rate 1.14;
+    benchmarks/bias_convergence.py at ū = 18.7 mm, levels 2..16: rates 1.07, 1.43), and the
+    finest force lies within 0.5 % of the Richardson limit (measured 0.19 %)."""
+    d, F, rates = conv["differences"], conv["force"], conv["rates"]
+    assert rates and all(r is not None and r > 0.8 for r in rates), conv
     assert all(d[i + 1] < d[i] for i in range(len(d) - 1)), conv
-    assert all(r > 0.8 for r in conv["rates"]), conv
     assert conv["finest_error_estimate"] < 0.005 * abs(F[-1]), conv
 
 
-def check_bipantographic(summary: dict, args) -> None:
+def check_bipantographic(summary: dict) -> None:
     """Table 3 continuum vs lattice: kinematics agree (measured 2.78°, 4.54°, 0.91 mm), the
     force does not (ratio 1.82–2.07). With the identified moduli the force ratio is
     0.74–0.86 and the angles agree within 1.3°; the rest is the clamp offset, bracketed by

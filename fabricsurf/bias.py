@@ -8,7 +8,6 @@ of the residual at the grip; shear angles are evaluated at A and B of seed 000 F
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -25,6 +24,7 @@ from fabricsurf.output import FieldWriter, StepLog, rank0_print, write_json
 from fabricsurf.problem import FabricProblem
 from fabricsurf.solver import LoadStepper
 from fabricsurf.terms import FibreStretch, GeodesicBending, Shear, Term
+from fabricsurf.verification import richardson_summary
 from geometry.specimen import Specimen, bias_specimen, structured_rectangle
 
 
@@ -54,7 +54,8 @@ class BiasExtension:
 
     The mesh is the gmsh :func:`~geometry.specimen.bias_specimen` of size ``h`` unless a
     ``specimen`` (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) is given;
-    its edges must carry the ``clamp`` / ``grip`` tags.
+    its edges must carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h`` are
+    then unused (A and B follow ``specimen.length`` and ``specimen.width``).
     """
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
@@ -64,7 +65,8 @@ class BiasExtension:
         if clamp not in ("gradient", "position"):
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
         self.model = model if model is not None else default_model()
-        self.specimen = specimen or bias_specimen(length, width, h, comm)
+        self.specimen = (specimen if specimen is not None
+                         else bias_specimen(length, width, h, comm))
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_")
         p.fix("clamp", (0.0, 0.0))
@@ -142,43 +144,39 @@ class BiasExtension:
 
 
 def graded_specimen(level: int, grading: float = 0.6, length: float = 187.0,
-                    width: float = 119.0, comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
-    """Nested graded mesh of refinement ``level``: 11·level × 7·level crossed squares (17 mm /
-    level for the seed 000 specimen), refined towards the edges by ``grading``
-    (:func:`~geometry.specimen.graded`): the clamp boundary layers and the clamp corners,
-    where the second-gradient solution is least regular."""
-    return structured_rectangle(length, width, 11 * level, 7 * level, comm, grading=grading)
+                    width: float = 119.0, base: tuple[int, int] = (11, 7),
+                    comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
+    """Nested graded mesh of refinement ``level``: base[0]·level × base[1]·level crossed cells
+    (squares of 17 mm / level for the seed 000 specimen and the default base), refined
+    towards the edges by ``grading`` (:func:`~geometry.specimen.graded`): the clamp boundary
+    layers and the clamp corners, where the second-gradient solution is least regular."""
+    return structured_rectangle(length, width, base[0] * level, base[1] * level, comm,
+                                grading=grading)
 
 
 def force_convergence(model: list[Term], levels: list[int], ubar: float, steps: int,
                       grading: float = 0.6, length: float = 187.0, width: float = 119.0,
+                      base: tuple[int, int] = (11, 7),
                       comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
-    """Grip force at ``ubar`` on the nested graded meshes of :func:`graded_specimen`.
-
-    With F_k the force on level k and d_k = |F_k − F_{k+1}| (levels doubling), the observed
-    rate is log2(d_k / d_{k+1}); the error of the finest force is estimated by Richardson
-    extrapolation, d_last / (2^rate − 1). Returns a JSON-ready dict; scalars are reduced.
-    """
+    """Grip force at ``ubar`` on the nested graded meshes of :func:`graded_specimen`, with the
+    observed rates and Richardson limit of :func:`~fabricsurf.verification.richardson_summary`
+    (``levels`` grow by a constant ratio). Returns a JSON-ready dict; scalars are reduced."""
     forces, angles = [], []
     for lev in levels:
-        b = BiasExtension(model, length, width, comm=comm,
-                          specimen=graded_specimen(lev, grading, length, width, comm))
-        r = b.run(ubar, steps, verbose=False)
+        sp = graded_specimen(lev, grading, length, width, base, comm)
+        r = BiasExtension(model, length, width, comm=comm, specimen=sp).run(ubar, steps,
+                                                                             verbose=False)
         forces.append(r.force[-1])
         angles.append([r.angle_A_deg[-1], r.angle_B_deg[-1]])
-        rank0_print(comm, f"[convergence] level {lev} (square side {length / (11 * lev):.3g} mm): "
-                          f"force = {r.force[-1]:.6f} N ({r.seconds:.1f} s)")
-    diffs = [abs(forces[i] - forces[i + 1]) for i in range(len(forces) - 1)]
-    ratios = [levels[i + 1] / levels[i] for i in range(len(levels) - 1)]
-    rates = [math.log(diffs[i] / diffs[i + 1]) / math.log(ratios[i + 1])
-             for i in range(len(diffs) - 1) if diffs[i + 1] > 0]
-    err = diffs[-1] / (ratios[-1] ** rates[-1] - 1) if rates and rates[-1] > 0 else None
-    return {"levels": list(levels), "h_nominal_mm": [length / (11 * lev) for lev in levels],
-            "h_min_mm": [(1 - grading) * length / (11 * lev) for lev in levels],
+        rank0_print(comm, f"[convergence] level {lev} (cells {length / (base[0] * lev):.3g} × "
+                          f"{width / (base[1] * lev):.3g} mm nominal): force = "
+                          f"{r.force[-1]:.6f} N ({r.seconds:.1f} s)")
+    rs = richardson_summary(levels, forces)
+    return {"levels": list(levels), "h_nominal_mm": [length / (base[0] * lev) for lev in levels],
             "grading": grading, "ubar": ubar, "force": forces, "angles_AB_deg": angles,
-            "differences": diffs, "rates": rates, "finest_error_estimate": err,
-            "extrapolated_force": None if err is None else forces[-1] - math.copysign(
-                err, forces[-2] - forces[-1])}
+            "differences": rs["differences"], "rates": rs["rates"],
+            "finest_error_estimate": rs["finest_error_estimate"],
+            "extrapolated_force": rs["extrapolated"]}
 
 
 def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:

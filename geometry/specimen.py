@@ -77,9 +77,9 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
     extra = dict(extra_points or {})
     error = None
     if comm.rank == 0:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
         try:
+            gmsh.initialize()
+            gmsh.option.setNumber("General.Terminal", 0)
             _build_rectangle(length, width, h, extra, structured)
         except Exception as e:  # reported on every rank below, so no rank waits forever
             error = f"{type(e).__name__}: {e}"

@@ -104,6 +104,7 @@ def test_inversion_roundtrip_and_feasibility():
     assert (at, ar) == pytest.approx((17.97, 418.3), abs=0.05)
     assert moduli_from_coefficients(at, ar) == pytest.approx((330.0, 900.0), rel=1e-12)
     assert np.isnan(moduli_from_coefficients(10.0, 29.0)[0])  # a_rho < 3 a_theta
+    assert np.isnan(moduli_from_coefficients(1.0, 28.0)[1])  # a_rho > 27 a_theta
 
 
 def test_table3_micro_identification():
@@ -112,7 +113,6 @@ def test_table3_micro_identification():
     r = identify_macro()
     assert r["K_S"] == pytest.approx(k_s_series(K_E, K_R1, EPS), rel=1e-4)
     assert r["a_theta"] == pytest.approx(a_theta_series(K_E, K_R1, K_R2, EPS), rel=1e-5)
-    assert r["K_S"] / 0.034 == pytest.approx(0.425, abs=0.01)
-    assert r["a_theta"] / 17.97 == pytest.approx(0.532, abs=0.01)
     assert 0 < r["a_rho"] < 1.0
+    assert not r["feasible"] and np.isnan(r["K_E"])
     assert not r["feasible"]

@@ -103,7 +103,7 @@ def relax(ch: Chain, axis: np.ndarray) -> np.ndarray:
     x[n + 2::2] = mid - half[:, None] * nrm
     fixed = np.zeros((len(x), 2), bool)
     fixed[: n + 1] = True
-    scale = ch.net.k_ext.max() * ch.eps + ch.net.k_rot.max() / ch.eps  # force per mm, rad
+    scale = ch.net.k_ext.max() * ch.eps + ch.net.k_rot.max() / ch.eps  # force scale (N)
     x, info = newton(ch.net, x, fixed.ravel(), rtol=1e-12, atol=1e-12 * scale, maxit=50)
     if not info.converged:
         raise RuntimeError(f"chain relaxation failed (residual {info.residual:.2e} N)")
