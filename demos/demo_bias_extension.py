@@ -461,8 +461,8 @@ def main(argv=None) -> dict:
             "bipantographic_identified", identified_model(ident), blat, ubar_b, args, comm,
             latres=extras["bipantographic"]["lat"])
         extras["bipantographic_identified"]["lat_obj"] = blat
-        clamp_bracket = clamp_offset_bracket(ident, extras["bipantographic"]["lat"], args, comm)
-        extras["bipantographic_identified"]["clamp_offset"] = clamp_bracket
+        extras["bipantographic_identified"]["clamp_offset"] = clamp_offset_bracket(
+            ident, extras["bipantographic"]["lat"], args, comm)
 
     # mesh convergence of the grip force, continuum (a)
     levels = [int(s) for s in args.conv_levels.split(",")]
@@ -478,8 +478,8 @@ def main(argv=None) -> dict:
             c = results[nm]["curves"]
             summary[nm]["force_ratio_continuum_to_lattice"] = [
                 fc / fl for fc, fl in zip(c["force_continuum"], c["force_lattice"])]
-    if not args.skip_bip:
-        summary["bipantographic_identified"]["clamp_offset"] = clamp_bracket
+            if "clamp_offset" in extras[nm]:
+                summary[nm]["clamp_offset"] = extras[nm]["clamp_offset"]
     summary["three_zones"] = zones
     summary["force_convergence"] = conv
     summary["settings"] = {

@@ -25,7 +25,7 @@ from fabricsurf.problem import FabricProblem
 from fabricsurf.solver import LoadStepper
 from fabricsurf.terms import FibreStretch, GeodesicBending, Shear, Term
 from fabricsurf.verification import richardson_summary
-from geometry.specimen import Specimen, bias_specimen, structured_rectangle
+from geometry.specimen import Specimen, bias_points, bias_specimen, structured_rectangle
 
 
 def default_model() -> list[Term]:
@@ -79,8 +79,7 @@ class BiasExtension:
         kin = p.energy.kin
         self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
         self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
-        w, ell = self.specimen.width, self.specimen.length
-        pts = {"A": (0.5 * w, 0.5 * w), "B": (0.5 * ell, 0.5 * w), **self.specimen.points}
+        pts = {**bias_points(self.specimen.length, self.specimen.width), **self.specimen.points}
         self.points = np.array([pts["A"], pts["B"]])
 
     def set_load(self, ubar: float) -> None:

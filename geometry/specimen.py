@@ -38,6 +38,18 @@ def _check_positive(**kw: float) -> None:
             raise ValueError(f"geometry: {k} = {v!r} must be a positive finite number")
 
 
+def _corners(length: float, width: float) -> dict:
+    """The named corner points of [0, length] × [0, width]."""
+    return {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
+            "corner_11": (length, width), "corner_01": (0.0, width)}
+
+
+def bias_points(length: float, width: float) -> dict:
+    """Points A and B of seed 000 Fig. 4: A the centre of the square whose side is the clamped
+    short side (x = 0), B the centre of the specimen."""
+    return {"A": (0.5 * width, 0.5 * width), "B": (0.5 * length, 0.5 * width)}
+
+
 def _build_rectangle(length: float, width: float, h: float, extra_points: dict,
                      structured: bool) -> None:
     """The gmsh model (rank 0): rectangle, edge groups, embedded points."""
@@ -72,8 +84,6 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
     ``extra_points`` (name → (x, y)) are embedded as vertices and named physical points.
     """
     _check_positive(length=length, width=width, h=h)
-    corners = {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
-               "corner_11": (length, width), "corner_01": (0.0, width)}
     extra = dict(extra_points or {})
     error = None
     if comm.rank == 0:
@@ -96,22 +106,19 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
         if comm.rank == 0:
             gmsh.finalize()
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ct, ft, float(length), float(width), points={**corners, **extra})
+    return Specimen(msh, ct, ft, float(length), float(width),
+                    points={**_corners(length, width), **extra})
 
 
 def bias_specimen(length: float = 187.0, width: float = 119.0, h: float = 8.0,
                   comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
-    """The bias-extension specimen of seed 000 (187 mm × 119 mm) with points A and B (Fig. 4).
-
-    A is the centre of the square whose side is the clamped short side (x = 0): (w/2, w/2);
-    B is the centre of the specimen: (length/2, width/2).
-    """
+    """The bias-extension specimen of seed 000 (187 mm × 119 mm) with the points A and B of
+    :func:`bias_points` embedded as vertices."""
     _check_positive(length=length, width=width, h=h)
     if width > length:
         raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
                          "has its long side along the load")
-    pts = {"A": (0.5 * width, 0.5 * width), "B": (0.5 * length, 0.5 * width)}
-    return rectangle(length, width, h, comm, extra_points=pts)
+    return rectangle(length, width, h, comm, extra_points=bias_points(length, width))
 
 
 def square(side: float = 1.0, h: float = 0.25, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -127,15 +134,13 @@ def graded(xi: np.ndarray, grading: float) -> np.ndarray:
 
 
 def structured_rectangle(length: float, width: float, nx: int, ny: int,
-                         comm: MPI.Comm = MPI.COMM_WORLD, grading: float = 0.0,
-                         extra_points: dict | None = None) -> Specimen:
+                         comm: MPI.Comm = MPI.COMM_WORLD, grading: float = 0.0) -> Specimen:
     """A structured triangulation of [0, length] × [0, width] (dolfinx built-in, no gmsh), with
     the same edge tags as :func:`rectangle`; the vertex sets are nested when nx, ny double
     (convergence studies).
 
     ``grading`` ∈ [0, 1) maps both coordinates by :func:`graded`, refining towards all four
-    edges (boundary layers) and most at the corners. ``extra_points`` (name → (x, y)) are
-    recorded in ``points`` (not embedded as vertices).
+    edges (boundary layers) and most at the corners.
     """
     from dolfinx import mesh as dmesh
 
@@ -159,7 +164,5 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
     facets, first = np.unique(facets, return_index=True)
     ft = dmesh.meshtags(msh, 1, facets, values[first])
     msh.topology.create_connectivity(1, 2)
-    corners = {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
-               "corner_11": (length, width), "corner_01": (0.0, width)}
     return Specimen(msh, None, ft, float(length), float(width),
-                    points={**corners, **dict(extra_points or {})})
+                    points=_corners(length, width))
