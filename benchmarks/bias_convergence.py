@@ -16,8 +16,9 @@ import time
 
 from mpi4py import MPI
 
-from fabricsurf.bias import default_model, force_convergence
-from fabricsurf.output import rank0_print
+from fabricsurf.discretise.output import rank0_print
+from fabricsurf.experiments.bias_extension import default_model
+from fabricsurf.studies.bias_convergence import force_convergence
 
 
 def main() -> None:

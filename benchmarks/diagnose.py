@@ -18,9 +18,9 @@ import argparse
 
 from mpi4py import MPI
 
-from fabricsurf import synthetic as sy
-from fabricsurf.diagnose import diagnose, full_model
-from fabricsurf.output import rank0_print
+from fabricsurf.discretise.output import rank0_print
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.diagnose import diagnose, full_model
 
 
 def main() -> None:

@@ -15,8 +15,8 @@ import basix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.bias import BiasExtension
-from fabricsurf.energy import CELL_QUADRATURE_DEGREE, FACET_QUADRATURE_DEGREE
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, FACET_QUADRATURE_DEGREE
+from fabricsurf.experiments.bias_extension import BiasExtension
 
 
 def quadrature_points() -> dict:

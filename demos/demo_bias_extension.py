@@ -25,7 +25,7 @@
 # node columns tile the specimen (length = 22k·w, width = 14k·w) and the points A, B of seed
 # 000 Fig. 4 are nodes.
 #
-# **(b) Bi-pantographic.** The homogenised energy of seed 000 eq. (2) (`fabricsurf.materials`,
+# **(b) Bi-pantographic.** The homogenised energy of seed 000 eq. (2) (`fabricsurf.model.materials`,
 # K_S = 34 N/m, K_E = 0.33 J, K_F = 0.9 J of Table 3) against the 13-node-cell lattice of
 # seed 000 §3 with the Table 3 micro parameters (k_E = 335 N/m, k_S = 9.36, k_F = 46.2 N·mm).
 # The two parameter sets were fitted *independently* to the experiment in seed 000, so the
@@ -68,14 +68,15 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.bias import BiasExtension, force_convergence
-from fabricsurf.materials import bipantographic
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.model.materials import bipantographic
+from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear
 from fabricsurf.network import hencky_lattice, lattice_from_continuum, solve_steps
 from fabricsurf.network.bipantographic import EPS_B, TABLE3, bipantographic_lattice
 from fabricsurf.network.homogenize import identify_macro
 from fabricsurf.network.micromacro import grid_fields
-from fabricsurf.output import rank0_print, write_json
-from fabricsurf.terms import FibreStretch, GeodesicBending, Shear
+from fabricsurf.studies.bias_convergence import force_convergence
 
 LENGTH, WIDTH = 187.0, 119.0  # mm
 EPS_EXACT = LENGTH / (11 * math.sqrt(2))  # 12.0208 mm: 11 x 7 cells of side √2 ε = 17 mm tile
@@ -269,7 +270,8 @@ def zones_at(zones: dict, ubar: float) -> dict:
 # structured meshes they grew until h ≈ 2 mm, then fell at rate 0.63 (h = 2.1 → 1.06 mm,
 # 340 s on one rank). With F_n the force on level n and d_n = |F_n − F_2n|, the observed rate
 # is log2(d_n / d_2n) and the finest force's error is estimated as d / (2^rate − 1)
-# (`fabricsurf.bias.force_convergence`; benchmarks/bias_convergence.py adds level 16).
+# (`fabricsurf.studies.bias_convergence.force_convergence`; benchmarks/bias_convergence.py
+# adds level 16).
 
 # %%
 def identified_model(ident: dict) -> list:

@@ -66,7 +66,7 @@ import numpy as np
 from dolfinx import fem, io
 from mpi4py import MPI
 
-from fabricsurf import dispersion as dp
+from fabricsurf.studies import dispersion as dp
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -241,7 +241,7 @@ if comm.rank == 0:
 
 # %%
 eps, rho_f = 1.0, 1.0  # mm, mass per area (cancels in all ratios)
-k_l, k_s, A_g = 30.0, 0.5, 40.0  # N/mm, N/mm, N mm (example moduli of fabricsurf.terms)
+k_l, k_s, A_g = 30.0, 0.5, 40.0  # N/mm, N/mm, N mm (example moduli of fabricsurf.model.terms)
 beta = A_g / (k_s * eps**2)
 
 

@@ -32,13 +32,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf import synthetic as sy
 from fabricsurf.cli import main as cli
-from fabricsurf.compare import ForwardModel
-from fabricsurf.data import load_experiment, write_experiment
-from fabricsurf.fit import fit
-from fabricsurf.output import rank0_print, write_json
-from fabricsurf.terms import parse_terms
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.compare import ForwardModel
+from fabricsurf.inverse.data import load_experiment, write_experiment
+from fabricsurf.inverse.fit import fit
+from fabricsurf.model.terms import parse_terms
 
 comm = MPI.COMM_WORLD
 ap = argparse.ArgumentParser()

@@ -46,8 +46,9 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.evaluation import eval_points
-from fabricsurf.hypar import (
+from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
+from fabricsurf.verification.hypar import (
     CORNER_SIGNS,
     Hypar,
     computed_corner_forces,
@@ -55,8 +56,7 @@ from fabricsurf.hypar import (
     solve_dirichlet,
     solve_natural,
 )
-from fabricsurf.output import FieldWriter, rank0_print, write_json
-from fabricsurf.verification import rates
+from fabricsurf.verification.rates import rates
 from geometry.specimen import square
 
 comm = MPI.COMM_WORLD

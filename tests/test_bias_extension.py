@@ -16,8 +16,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fabricsurf.kinematics import Kinematics, fibre_directions
-from fabricsurf.materials import (
+from fabricsurf.model.kinematics import Kinematics, fibre_directions
+from fabricsurf.model.materials import (
     PantographBending,
     bipantographic,
     bipantographic_density_numpy,

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf import synthetic as sy
 from fabricsurf.cli import main
-from fabricsurf.compare import ForwardModel, misfit
-from fabricsurf.data import write_experiment
-from fabricsurf.diagnose import full_model
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.compare import ForwardModel, misfit
+from fabricsurf.inverse.data import write_experiment
+from fabricsurf.inverse.diagnose import full_model
 
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
          "geodesic_bending": {"A_g": 10.0}}

@@ -8,7 +8,7 @@ extra order in L2). Asserted with a margin of 0.2 on the rate between the two fi
 import pytest
 import ufl
 
-from fabricsurf.terms import (
+from fabricsurf.model.terms import (
     FibreStretch,
     GeodesicBending,
     NormalBending,
@@ -17,7 +17,8 @@ from fabricsurf.terms import (
     StretchGradient,
     Twist,
 )
-from fabricsurf.verification import manufactured_solve, rates
+from fabricsurf.verification.manufactured import manufactured_solve
+from fabricsurf.verification.rates import rates
 
 THEORY = {"L2": 2.0, "H1": 2.0, "H2": 1.0}
 MARGIN = 0.2

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fabricsurf.data import DataError, Experiment, load_experiment, write_experiment
+from fabricsurf.inverse.data import DataError, Experiment, load_experiment, write_experiment
 
 
 def good_experiment() -> Experiment:
@@ -127,8 +127,8 @@ def test_spreadsheet_bom_and_unit_types(good):
 
 
 def test_compare_rejects_terms_outside_vocabulary():
-    from fabricsurf.compare import ForwardModel
-    from fabricsurf.materials import bipantographic
+    from fabricsurf.inverse.compare import ForwardModel
+    from fabricsurf.model.materials import bipantographic
 
     with pytest.raises(ValueError, match="not in the vocabulary"):
         ForwardModel(good_experiment(), bipantographic())

@@ -2,7 +2,8 @@
 first and adding it brings the misfit to the noise level; a complete model gives verdict null.
 
 Noise-level criterion: the combined misfit (RMS of residuals divided by the noise std, see
-fabricsurf.compare) of the refit is ≤ 1.25, i.e. the residual RMS is within 25 % of the noise.
+fabricsurf.inverse.compare) of the refit is ≤ 1.25, i.e. the residual RMS is within 25 % of the
+noise.
 The data use specimen sizes, mesh/lattice spacings and noise seeds other than those used while
 developing the method (60 × 30 mm, data mesh h = 2.5 mm, lattice spacing 1.0 mm, seeds 1–5).
 Hidden effects: geodesic_bending (continuum via the CLI, lattice, other fibre angles), shear,
@@ -16,10 +17,10 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from fabricsurf import synthetic as sy
 from fabricsurf.cli import main
-from fabricsurf.data import write_experiment
-from fabricsurf.diagnose import diagnose, full_model
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.data import write_experiment
+from fabricsurf.inverse.diagnose import diagnose, full_model
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 NOISE_LEVEL = 1.25

@@ -11,8 +11,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fabricsurf.hypar import Hypar, computed_corner_forces, l2_error, solve_dirichlet, solve_natural
-from fabricsurf.verification import rates
+from fabricsurf.verification.hypar import (
+    Hypar,
+    computed_corner_forces,
+    l2_error,
+    solve_dirichlet,
+    solve_natural,
+)
+from fabricsurf.verification.rates import rates
 from geometry.specimen import square
 
 SIZES = (0.5, 0.35, 0.25)

@@ -11,8 +11,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fabricsurf import kinematics as kn
-from fabricsurf.kinematics import Kinematics, fibre_directions
+from fabricsurf.model import kinematics as kn
+from fabricsurf.model.kinematics import Kinematics, fibre_directions
 
 TOL = 1e-11
 REF_POINTS = np.array([[0.2, 0.3], [0.6, 0.1], [0.25, 0.5]])  # reference-cell points

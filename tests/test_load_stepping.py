@@ -4,7 +4,7 @@ the last converged load and the SNES reason once the minimum step is reached."""
 import numpy as np
 import pytest
 
-from fabricsurf.solver import LoadStepError, LoadStepper
+from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 
 
 class StubSolver:

@@ -11,7 +11,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.bias import BiasExtension
+from fabricsurf.experiments.bias_extension import BiasExtension
 
 
 def solve(comm):

@@ -1,8 +1,8 @@
-"""Observed rates and Richardson extrapolation (fabricsurf.verification.richardson_summary)."""
+"""Observed rates and Richardson extrapolation (verification.rates.richardson_summary)."""
 
 import pytest
 
-from fabricsurf.verification import richardson_summary
+from fabricsurf.verification.rates import richardson_summary
 
 
 def test_exact_power_law():

@@ -6,7 +6,14 @@ import pytest
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fabricsurf.terms import EFFECTS, FibreStretch, GeodesicBending, Shear, make_term, parse_terms
+from fabricsurf.model.terms import (
+    EFFECTS,
+    FibreStretch,
+    GeodesicBending,
+    Shear,
+    make_term,
+    parse_terms,
+)
 
 VOCABULARY = ["fibre_stretch", "shear", "geodesic_bending", "stretch_gradient",
               "shear_gradient", "normal_bending", "twist"]

@@ -1,7 +1,7 @@
 """Least-squares fit of the moduli (Levenberg–Marquardt in log-moduli) with tangent sensitivities.
 
 Each iteration is one forward run along the recorded load path that also returns
-du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.compare.ForwardModel`): the
+du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.inverse.compare.ForwardModel`): the
 converged Jacobian's factorisation is reused, no finite differences of load paths. Moduli are
 parametrised as p = exp(θ) (positive); the step in θ is limited to ±``max_step`` per iteration.
 Uncertainties: Cov(θ) = (JᵀJ)⁻¹ — the residuals are already divided by the noise level — times
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricsurf.compare import ForwardModel, Prediction, misfit, residuals
-from fabricsurf.output import rank0_print
-from fabricsurf.solver import LoadStepError
+from fabricsurf.discretise.output import rank0_print
+from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.inverse.compare import ForwardModel, Prediction, misfit, residuals
 
 
 @dataclass

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.data import Experiment
-from fabricsurf.terms import Term
+from fabricsurf.inverse.data import Experiment
+from fabricsurf.model.terms import Term
 
 
 def grid_points(length: float, width: float, nx: int, ny: int, margin: float = 0.05
@@ -46,7 +46,7 @@ def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: i
 def continuum_data(exp: Experiment, model: list[Term], h: float,
                    comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
     """Fill ``exp`` with the continuum solution of ``model`` on a mesh of size ``h``."""
-    from fabricsurf.compare import ForwardModel
+    from fabricsurf.inverse.compare import ForwardModel
 
     pred = ForwardModel(exp, model, h=h, comm=comm).run()
     if not np.isfinite(pred.u).all():

@@ -19,12 +19,12 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf import kinematics as kn
-from fabricsurf.energy import double_force
-from fabricsurf.evaluation import eval_points, interpolate_expression
-from fabricsurf.problem import FabricProblem
-from fabricsurf.solver import LoadStepper
-from fabricsurf.terms import (
+from fabricsurf.discretise.energy import double_force
+from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
+from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.model import kinematics as kn
+from fabricsurf.model.terms import (
     FibreStretch,
     GeodesicBending,
     NormalBending,

@@ -7,7 +7,7 @@ or key, and the problem. :func:`write_experiment` writes a directory atomically 
 directory, then a rename), so a reader never sees half-written data.
 
 Extension of the contract: the optional ``[data] force_noise_std`` (force units) gives the
-noise of the force readings; it weights the force misfit (see :mod:`fabricsurf.compare`).
+noise of the force readings; it weights the force misfit (see :mod:`fabricsurf.inverse.compare`).
 """
 
 from __future__ import annotations

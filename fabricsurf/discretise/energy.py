@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 import ufl
 from dolfinx import fem
 
-from fabricsurf.kinematics import Kinematics
-from fabricsurf.terms import Term
+from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.terms import Term
 
 DEFAULT_PENALTY = 8.0
 CELL_QUADRATURE_DEGREE = 4

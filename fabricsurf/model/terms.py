@@ -21,7 +21,7 @@ from typing import ClassVar
 import ufl
 from dolfinx import fem
 
-from fabricsurf.kinematics import Kinematics
+from fabricsurf.model.kinematics import Kinematics
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """Command line: ``fabricsurf compare|fit|diagnose DATA --terms T1,T2 --out OUT`` and
-``fabricsurf bias --out OUT`` (the continuum bias-extension test, :mod:`fabricsurf.bias_cli`).
+``fabricsurf bias --out OUT`` (the continuum bias-extension test, :mod:`fabricsurf.cli.bias`).
 
 Each subcommand is a small function ``cmd_<name>(args)``; :func:`build_parser` holds the
 parsers (add further subcommands with ``sub.add_parser``). Bad input ends with one message and
@@ -15,10 +15,10 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from fabricsurf import bias_cli
-from fabricsurf.data import DataError, Experiment, load_experiment
-from fabricsurf.output import rank0_print, write_json
-from fabricsurf.solver import LoadStepError
+from fabricsurf.cli import bias as bias_cli
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.inverse.data import DataError, Experiment, load_experiment
 
 COMM = MPI.COMM_WORLD
 
@@ -63,7 +63,7 @@ def cmd_bias(args) -> int:
 
 
 def _model(args, params: dict):
-    from fabricsurf.terms import parse_terms
+    from fabricsurf.model.terms import parse_terms
 
     terms = args.terms or ",".join(params)
     if not terms:
@@ -74,7 +74,7 @@ def _model(args, params: dict):
 def write_comparison(out: Path, exp: Experiment, preds: list, misfits: list,
                      steps: list[int] | None = None, stem: str = "") -> None:
     """misfit JSON, per-point CSV and the three figures (rank 0 writes)."""
-    from fabricsurf import figures
+    from fabricsurf.inverse import figures
 
     label, pred = preds[-1]
     m = misfits[-1][1]
@@ -100,8 +100,8 @@ def _summary(label: str, m: dict) -> str:
 
 
 def cmd_compare(args) -> int:
-    from fabricsurf.compare import ForwardModel, misfit
-    from fabricsurf.fit import load_params
+    from fabricsurf.inverse.compare import ForwardModel, misfit
+    from fabricsurf.inverse.fit import load_params
 
     exp, params = load_experiment(args.data), load_params(args.params)
     model = _model(args, params)
@@ -116,8 +116,8 @@ def cmd_compare(args) -> int:
 
 
 def cmd_fit(args) -> int:
-    from fabricsurf.compare import ForwardModel
-    from fabricsurf.fit import fit, load_params
+    from fabricsurf.inverse.compare import ForwardModel
+    from fabricsurf.inverse.fit import fit, load_params
 
     exp, params = load_experiment(args.data), load_params(args.params)
     model = _model(args, params)
@@ -134,8 +134,8 @@ def cmd_fit(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from fabricsurf.diagnose import diagnose
-    from fabricsurf.fit import load_params
+    from fabricsurf.inverse.diagnose import diagnose
+    from fabricsurf.inverse.fit import load_params
 
     exp, params = load_experiment(args.data), load_params(args.params)
     baseline = [t.name for t in _model(args, params)]

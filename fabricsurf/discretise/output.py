@@ -13,7 +13,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.kinematics import Kinematics
+from fabricsurf.model.kinematics import Kinematics
 
 
 def rank0_print(comm: MPI.Comm, *args) -> None:

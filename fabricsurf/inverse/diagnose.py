@@ -1,6 +1,6 @@
 """Which physical effect is missing? (DESIGN §7)
 
-1. Fit the baseline terms (:func:`fabricsurf.fit.fit`).
+1. Fit the baseline terms (:func:`fabricsurf.inverse.fit.fit`).
 2. Rank every vocabulary effect not in the baseline with one forward run: the model holds all
    in-plane effects (EFFECTS order, so one compiled form serves every diagnosis), candidates at
    modulus 0, so the state is the baseline fit; tangent solves give dr/dp for every modulus.
@@ -26,9 +26,9 @@ import numpy as np
 from mpi4py import MPI
 from scipy import stats
 
-from fabricsurf.compare import ForwardModel, Prediction, residuals
-from fabricsurf.fit import FitResult, fit
-from fabricsurf.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
+from fabricsurf.inverse.compare import ForwardModel, Prediction, residuals
+from fabricsurf.inverse.fit import FitResult, fit
+from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
 CHI2_CRIT = float(stats.chi2.ppf(0.999, 1))
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricsurf.data import Experiment
+from fabricsurf.inverse.data import Experiment
 
 
 def _plt():

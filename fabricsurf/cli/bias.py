@@ -16,9 +16,9 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from fabricsurf.bias import BiasExtension, default_model, plot_curves
-from fabricsurf.output import rank0_print, write_json
-from fabricsurf.terms import parse_terms
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.experiments.bias_extension import BiasExtension, default_model, plot_curves
+from fabricsurf.model.terms import parse_terms
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

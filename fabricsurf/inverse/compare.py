@@ -21,11 +21,11 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.bias import BiasExtension
-from fabricsurf.data import Experiment
-from fabricsurf.evaluation import eval_points
-from fabricsurf.solver import LoadStepper
-from fabricsurf.terms import EFFECTS, Term
+from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.inverse.data import Experiment
+from fabricsurf.model.terms import EFFECTS, Term
 
 
 @dataclass

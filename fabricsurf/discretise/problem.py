@@ -9,10 +9,10 @@ import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
-from fabricsurf.energy import DEFAULT_PENALTY, EnergyForm
-from fabricsurf.kinematics import fibre_directions
-from fabricsurf.solver import SNESSolver
-from fabricsurf.terms import Term
+from fabricsurf.discretise.energy import DEFAULT_PENALTY, EnergyForm
+from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.model.kinematics import fibre_directions
+from fabricsurf.model.terms import Term
 
 
 class FabricProblem:

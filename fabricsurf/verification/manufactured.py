@@ -15,10 +15,10 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from fabricsurf.energy import EnergyForm
-from fabricsurf.problem import boundary_facets
-from fabricsurf.solver import SNESSolver
-from fabricsurf.terms import Term
+from fabricsurf.discretise.energy import EnergyForm
+from fabricsurf.discretise.problem import boundary_facets
+from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.model.terms import Term
 from geometry.specimen import EDGE_TAGS, structured_rectangle
 
 
@@ -39,7 +39,7 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     u_h − u_e and the Newton iterations."""
     from mpi4py import MPI
 
-    from fabricsurf.kinematics import fibre_directions
+    from fabricsurf.model.kinematics import fibre_directions
 
     sp = structured_rectangle(1.0, 1.0, n, n, comm or MPI.COMM_WORLD)
     msh = sp.mesh
@@ -63,34 +63,3 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     if reason <= 0:
         raise RuntimeError(f"manufactured problem (n = {n}, d = {d}) did not converge: {reason}")
     return norms(u - ue, msh), its
-
-
-def rates(errors: list[float], hs: list[float]) -> list[float]:
-    """Observed orders log(e_i/e_{i+1}) / log(h_i/h_{i+1})."""
-    return [float(np.log(errors[i] / errors[i + 1]) / np.log(hs[i] / hs[i + 1]))
-            for i in range(len(errors) - 1)]
-
-
-def richardson_summary(levels: list[int], values: list[float]) -> dict:
-    """Observed rate and Richardson limit of a scalar computed on refinement levels.
-
-    ``levels`` must grow by one constant ratio r (e.g. 2, 4, 8): with d_k = F_{k+1} − F_k,
-    rate_k = log(|d_k| / |d_{k+1}|) / log r for each consecutive pair of differences (None
-    where a difference is 0 or the two differences change sign: oscillation, no rate). The
-    limit F_last + d_last / (r^rate − 1) and its error estimate |d_last| / (r^rate − 1) are
-    given only when the last rate exists and is positive; otherwise None.
-    """
-    if len(levels) != len(values) or len(levels) < 2:
-        raise ValueError(f"richardson_summary: need ≥ 2 levels with one value each, got "
-                         f"{len(levels)} levels and {len(values)} values")
-    ratios = {levels[i + 1] / levels[i] for i in range(len(levels) - 1)}
-    if len(ratios) != 1 or min(ratios) <= 1:
-        raise ValueError(f"richardson_summary: levels {levels} must grow by one constant ratio")
-    r = ratios.pop()
-    d = [values[i + 1] - values[i] for i in range(len(values) - 1)]
-    rates = [float(np.log(abs(d[i] / d[i + 1])) / np.log(r)) if d[i] * d[i + 1] > 0 else None
-             for i in range(len(d) - 1)]
-    last = rates[-1] if rates else None
-    err = abs(d[-1]) / (r**last - 1) if last is not None and last > 0 else None
-    return {"differences": [abs(x) for x in d], "rates": rates, "finest_error_estimate": err,
-            "extrapolated": None if err is None else values[-1] + d[-1] / (r**last - 1)}
