@@ -9,9 +9,10 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.compare import ForwardModel, misfit
 from fabricsurf.inverse.data import write_experiment
 from fabricsurf.inverse.diagnose import full_model
+from fabricsurf.inverse.forward import ForwardModel
+from fabricsurf.inverse.misfit import misfit
 
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
          "geodesic_bending": {"A_g": 10.0}}
@@ -61,7 +62,8 @@ def test_compare_cli(tmp_path):
                  "--out", str(root / "out"), "--h", "5"]) == 0
     comm.barrier()
     m = json.loads((root / "out" / "misfit.json").read_text())
-    assert 0.7 < m["combined"] < 1.3 and len(m["per_step"]) == 2
+    assert 0.7 < m["combined"] < 1.3 and len(m["experiments"][0]["per_step"]) == 2
+    assert m["provenance"]["params"]["geodesic_bending"] == TRUTH["geodesic_bending"]
     for f in ("error_map.png", "force.png", "error_vs_step.png", "per_point.csv"):
         assert (root / "out" / f).is_file()
     assert main(["compare", str(root / "nodata"), "--terms", "shear", "--out",

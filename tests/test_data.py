@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from fabricsurf.experiments.base import Setup
 from fabricsurf.inverse.data import DataError, Experiment, load_experiment, write_experiment
 
 
@@ -15,9 +16,9 @@ def good_experiment() -> Experiment:
     steps = np.array([1, 2])
     field_step = np.repeat(steps, len(X))
     u = np.column_stack([np.linspace(0, 1, 6), np.linspace(0, -0.1, 6)])
-    return Experiment("t", 40.0, 20.0, (45.0, -45.0), "gradient", steps,
-                      np.array([1.0, 2.0]), np.array([0.5, 1.1]), field_step,
-                      np.vstack([X, X]), u, noise_std=0.01)
+    setup = Setup("bias_extension", 40.0, 20.0, (45.0, -45.0), {"clamp": "gradient"})
+    return Experiment("t", setup, steps, np.array([1.0, 2.0]), np.array([0.5, 1.1]),
+                      field_step, np.vstack([X, X]), u, noise_std=0.01)
 
 
 @pytest.fixture
@@ -50,9 +51,11 @@ def test_roundtrip_and_units(good):
     edit(good / "experiment.toml", "length = 40.0", "length = 0.04")
     edit(good / "experiment.toml", "width = 20.0", "width = 0.02")
     (good / "field.csv").write_text("step,X,Y,ux,uy\n1,0.01,0.005,0.001,0\n")
+    (good / "force.csv").write_text("step,displacement,force\n1,0.001,0.5\n2,0.002,1.1\n")
     exp = load_experiment(good)
     assert np.isclose(exp.length, 40.0) and np.allclose(exp.X, [[10.0, 5.0]])
     assert np.allclose(exp.u, [[1.0, 0.0]]) and np.isclose(exp.force[1], 1100.0)
+    assert np.allclose(exp.path, [1.0, 2.0])
     assert np.isclose(exp.noise_std, 10.0)
 
 
@@ -127,7 +130,7 @@ def test_spreadsheet_bom_and_unit_types(good):
 
 
 def test_compare_rejects_terms_outside_vocabulary():
-    from fabricsurf.inverse.compare import ForwardModel
+    from fabricsurf.inverse.forward import ForwardModel
     from fabricsurf.model.materials import bipantographic
 
     with pytest.raises(ValueError, match="not in the vocabulary"):

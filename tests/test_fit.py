@@ -9,10 +9,10 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.compare import ForwardModel
 from fabricsurf.inverse.data import write_experiment
 from fabricsurf.inverse.diagnose import full_model
 from fabricsurf.inverse.fit import fit
+from fabricsurf.inverse.forward import ForwardModel
 
 TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
          "geodesic_bending": {"A_g": 12.0}}

@@ -152,6 +152,56 @@ def test_2d_quantities_reject_3d_only():
         _ = k.K_L
 
 
-def test_non_orthogonal_fibres_rejected():
-    with pytest.raises(ValueError, match="not orthogonal"):
-        fibre_directions(0.0, 60.0)
+def test_parallel_or_non_finite_fibres_rejected():
+    with pytest.raises(ValueError, match="parallel fibre families"):
+        fibre_directions(30.0, 210.0)
+    with pytest.raises(ValueError, match="family M = nan is not a finite number"):
+        fibre_directions(30.0, float("nan"))
+
+
+# ---------------------------------------------------- non-orthogonal reference fibres
+def fibre_quantities(k):
+    """(λ, μ, γ, J) as one UFL vector: one compiled expression per placement."""
+    return ufl.as_vector([k.lam, k.mu, k.gamma, k.J])
+
+
+def test_stretch_along_a_skew_fibre(msh):
+    """L = e_x, M at 60°; r = (a x, y): λ = a, FM = (a/2, √3/2), θ = atan2(√3/2, a/2),
+    γ = 60° − θ, and J = det F = a (λ μ sin θ = |FL × FM| = det F sin θ0 in 2D)."""
+    a = 1.3
+    k = kin_of(msh, lambda x: ufl.as_vector((a * x[0], x[1])), (0.0, 60.0))
+    fm = np.array([a / 2, np.sqrt(3) / 2])
+    check(msh, fibre_quantities(k), lambda x, y: [a, np.linalg.norm(fm),
+                                                  np.pi / 3 - np.arctan2(fm[1], fm[0]), a])
+
+
+def test_simple_shear_of_skew_fibres(msh):
+    """L = e_x, M at 60°; r = (x + s y, y): λ = 1, FM = (1/2 + s√3/2, √3/2), γ = 60° − θ
+    (positive: the fibre angle closes), J = 1. For s < 0 the angle opens: γ < 0."""
+    for s in (0.7, -0.4):
+        k = kin_of(msh, lambda x, s=s: ufl.as_vector((x[0] + s * x[1], x[1])), (0.0, 60.0))
+        fm = np.array([0.5 + s * np.sqrt(3) / 2, np.sqrt(3) / 2])
+        gam = np.pi / 3 - np.arctan2(fm[1], fm[0])
+        assert np.sign(gam) == np.sign(s)
+        check(msh, fibre_quantities(k), lambda x, y, fm=fm, g=gam: [1.0, np.linalg.norm(fm), g, 1])
+
+
+def test_pure_shear_of_fibre_pairs_with_angles_as_constants(msh):
+    """Pure shear F = diag(a, 1/a) of fibres at ±α: λ = μ = √(a² cos²α + sin²α/a²),
+    l at atan(tan α/a²) from x, so γ = 2α − 2 atan(tan α/a²); J = 1. With the fibre directions
+    as fem.Constants one compiled expression serves ±30° (braid) and ±40° (bias cut)."""
+    a = 1.25
+    L, M = fibre_directions(40.0, -40.0, msh)
+    assert isinstance(L, fem.Constant) and isinstance(M, fem.Constant)
+    x = ufl.SpatialCoordinate(msh)
+    r = ufl.as_vector((a * x[0], x[1] / a))
+    k = Kinematics(ufl.grad(r), None, L, M)
+    expr = fem.Expression(fibre_quantities(k), REF_POINTS)
+    cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    for alpha in (40.0, 30.0):
+        L.value[:], M.value[:] = kn.fibre_vectors(alpha, -alpha)
+        t = np.radians(alpha)
+        lam = np.hypot(a * np.cos(t), np.sin(t) / a)
+        exact = [lam, lam, 2 * t - 2 * np.arctan(np.tan(t) / a**2), 1.0]
+        vals = expr.eval(cells).reshape(-1, 4)
+        assert np.abs(vals - exact).max(initial=0.0) < TOL, f"±{alpha}°"

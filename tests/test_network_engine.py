@@ -7,14 +7,16 @@ from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, reaction, solve_steps
 
 
-def random_network(seed=0, n=12):
+def random_network(seed=0, n=12, locking=False):
+    """Random pre-stressed network; ``locking`` adds quartic and sextic rotational terms."""
     rng = np.random.default_rng(seed)
     X = rng.uniform(0, 10, (n, 2))
     ext = np.array([(i, (i + 1) % n) for i in range(n)] + [(i, (i + 5) % n) for i in range(n)])
     rot = np.array([(i, (i + 1) % n, (i + 2) % n) for i in range(n)]
                    + [(i, (i + 3) % n, (i + 7) % n) for i in range(n)])
+    k4, k6 = (rng.uniform(1, 3, (2, len(rot))) if locking else (0.0, 0.0))
     net = SpringNetwork(X, ext, rng.uniform(1, 3, len(ext)), rot=rot,
-                        k_rot=rng.uniform(1, 3, len(rot)))
+                        k_rot=rng.uniform(1, 3, len(rot)), k_rot4=k4, k_rot6=k6)
     # rest state different from reference: springs are pre-stressed
     net.l0 *= rng.uniform(0.8, 1.2, len(ext))
     net.phi0 = rng.uniform(-np.pi, np.pi, len(rot))
@@ -22,8 +24,9 @@ def random_network(seed=0, n=12):
     return net, x
 
 
-def test_gradient_matches_finite_differences():
-    net, x = random_network()
+@pytest.mark.parametrize("locking", [False, True])
+def test_gradient_matches_finite_differences(locking):
+    net, x = random_network(locking=locking)
     g = net.gradient(x).ravel()
     h = 1e-6
     fd = np.empty_like(g)
@@ -36,8 +39,9 @@ def test_gradient_matches_finite_differences():
     assert err < 1e-7, f"analytic gradient differs from central FD by {err:.2e} (relative)"
 
 
-def test_hessian_matches_finite_differences():
-    net, x = random_network(seed=1)
+@pytest.mark.parametrize("locking", [False, True])
+def test_hessian_matches_finite_differences(locking):
+    net, x = random_network(seed=1, locking=locking)
     H = net.hessian(x).toarray()
     assert np.allclose(H, H.T, atol=1e-12), "Hessian must be symmetric"
     q = x.ravel()
@@ -72,6 +76,21 @@ def test_rigid_motions_give_zero_force(seed):
     f = np.abs(net.gradient(x)).max()
     assert f < 1e-10, f"rigid motion of the rest state must give zero force, got {f:.2e} N"
     assert net.energy(x) < 1e-20
+
+
+def test_nonlinear_rotational_spring_energy_is_the_polynomial():
+    """One spring turned by d: E = ½k d² + ¼k₄ d⁴ + ⅙k₆ d⁶, moment E' = k d + k₄ d³ + k₆ d⁵
+    (lever arm 1 mm: the force on the free node is E' in N)."""
+    k, k4, k6, d = 2.0, 3.0, 5.0, 0.6
+    X = np.array([[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]])
+    net = SpringNetwork(X, np.zeros((0, 2)), 1.0, rot=[[0, 1, 2]], k_rot=k, k_rot4=k4,
+                        k_rot6=k6)
+    x = X.copy()
+    x[2] = [np.cos(d), np.sin(d)]
+    assert abs(net.energy(x) - (k * d**2 / 2 + k4 * d**4 / 4 + k6 * d**6 / 6)) < 1e-14
+    f = net.gradient(x)[2]  # dE/dx_k = E'(d) (perpendicular to the arm, |arm| = 1)
+    assert np.allclose(f, (k * d + k4 * d**3 + k6 * d**5) * np.array([-np.sin(d), np.cos(d)]),
+                       rtol=1e-13, atol=0)
 
 
 def chain(n=11, length=10.0):

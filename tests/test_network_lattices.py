@@ -5,15 +5,28 @@ Rates are printed (``pytest -s``) and asserted with a stated margin.
 
 import numpy as np
 import pytest
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
-from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
+from fabricsurf.model import kinematics as kn
+from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.terms import FibreStretch, Shear, ShearLocking
+from fabricsurf.network.hencky import (
+    continuum_from_lattice,
+    fibre_directions,
+    hencky_lattice,
+    lattice_from_continuum,
+)
 from fabricsurf.network.micromacro import grid_fields
 from fabricsurf.network.solver import Dirichlet, solve_steps
 
 K_L, K_S, A_G = 1.0, 0.3, 0.5  # N/mm, N/mm, N mm
+K4, K6 = 0.4, 0.2  # shear_locking moduli, N/mm
 
 # ------------------------------------------------------------ smooth periodic placement
-P = 10.0  # period (mm) in both fibre coordinates s = X.L, t = X.M
+P = 10.0  # period (mm) in both skew fibre coordinates (s, t), X = s L + t M
 F0 = np.array([[1.05, 0.08], [-0.03, 0.97]])
 MODES = [((1, 0), (0.30, 0.10), 0.4), ((0, 1), (-0.10, 0.25), -0.7),
          ((1, 1), (0.12, -0.15), 1.1), ((1, -2), (0.05, 0.06), 0.2)]
@@ -36,35 +49,36 @@ def placement(s, t, L, M):
     return r, rl, rm, rll, rmm
 
 
-def continuum_density(rl, rm, rll, rmm, lattice_limit):
-    """fibre_stretch + shear + geodesic_bending (DESIGN §3); with ``lattice_limit`` the
-    bending terms carry the 1/lam^2, 1/mu^2 factors of the lattice's exact limit."""
+def continuum_density(rl, rm, rll, rmm, lattice_limit, L, M):
+    """fibre_stretch + shear + shear_locking + geodesic_bending (DESIGN §3), γ = θ0 − θ; with
+    ``lattice_limit`` the bending terms carry the 1/lam^2, 1/mu^2 factors of the lattice's
+    exact limit."""
     lam, mu = np.linalg.norm(rl, axis=1), np.linalg.norm(rm, axis=1)
     ul, um = rl / lam[:, None], rm / mu[:, None]
     p, q = np.stack([-ul[:, 1], ul[:, 0]], 1), np.stack([-um[:, 1], um[:, 0]], 1)
-    gam = np.arcsin(np.einsum("ij,ij->i", ul, um))
+    gam = np.arccos(L @ M) - np.arccos(np.einsum("ij,ij->i", ul, um))
     bl, bm = np.einsum("ij,ij->i", p, rll), np.einsum("ij,ij->i", q, rmm)
     if lattice_limit:
         bl, bm = bl / lam, bm / mu
     return (0.5 * K_L * ((lam - 1) ** 2 + (mu - 1) ** 2) + 0.5 * K_S * gam**2
-            + 0.5 * A_G * (bl**2 + bm**2))
+            + 0.25 * K4 * gam**4 + K6 / 6 * gam**6 + 0.5 * A_G * (bl**2 + bm**2))
 
 
 def continuum_mean(lattice_limit, L, M, nq=256):
     s, t = np.meshgrid(np.arange(nq) * P / nq, np.arange(nq) * P / nq, indexing="ij")
     _, rl, rm, rll, rmm = placement(s.ravel(), t.ravel(), L, M)
-    return continuum_density(rl, rm, rll, rmm, lattice_limit).mean()
+    return continuum_density(rl, rm, rll, rmm, lattice_limit, L, M).mean()
 
 
-def lattice_mean(n):
+def lattice_mean(n, angles):
+    """Lattice energy of one period (the skew cell P L x P M) per reference area."""
     eps = P / n
-    side = np.sqrt(2) * (P + 8 * eps)
-    k = lattice_from_continuum(K_L, K_S, A_G, eps)
-    lat = hencky_lattice(side, side, eps, k_e=k["k_e"], k_sh=k["k_sh"], k_b=k["k_b"],
-                         origin=(side / 2, side / 2))
-    net, L, M = lat.net, lat.L, lat.M
-    d = net.X - side / 2
-    s, t = d @ L, d @ M
+    k = lattice_from_continuum(K_L, K_S, A_G, eps, angles, k4=K4, k6=K6)
+    L, M = fibre_directions(angles)
+    half = (P / 2 + 8 * eps) * (np.abs(L) + np.abs(M))  # half-extent covering the period
+    lat = hencky_lattice(2 * half[0], 2 * half[1], eps, angles, origin=tuple(half), **k)
+    net = lat.net
+    s, t = np.linalg.solve(np.column_stack([L, M]), (net.X - half).T)
     x = placement(s, t, L, M)[0]
     ee, er = net.spring_energies(x)
     # one period of anchors (first node of extensional springs, vertex of rotational springs)
@@ -73,26 +87,63 @@ def lattice_mean(n):
     def window(nodes):
         return (s[nodes] >= lo) & (s[nodes] < hi) & (t[nodes] >= lo) & (t[nodes] < hi)
 
-    return (ee[window(net.ext[:, 0])].sum() + er[window(net.rot[:, 1])].sum()) / P**2, L, M
+    area = P**2 * abs(L[0] * M[1] - L[1] * M[0])
+    return (ee[window(net.ext[:, 0])].sum() + er[window(net.rot[:, 1])].sum()) / area, L, M
 
 
 def rates(hs, errs):
     return np.diff(np.log(errs)) / np.diff(np.log(hs))
 
 
-def test_energy_density_of_smooth_placements_converges_as_eps_squared():
+@pytest.mark.parametrize("angles", [(45.0, -45.0), (40.0, -40.0)])
+def test_energy_density_of_smooth_placements_converges_as_eps_squared(angles):
+    """Orthogonal (±45°) and skew (±40°, node area eps² sin 80°) lattices, with locking."""
     ns = [8, 16, 32, 64]
-    vals = [lattice_mean(n) for n in ns]
+    vals = [lattice_mean(n, angles) for n in ns]
     L, M = vals[0][1], vals[0][2]
     w_lim, w_con = continuum_mean(True, L, M), continuum_mean(False, L, M)
     err = np.abs([v[0] - w_lim for v in vals])
     r = rates(P / np.array(ns), err)
-    print(f"\nenergy density: lattice {[f'{v[0]:.6e}' for v in vals]}, limit {w_lim:.6e}, "
-          f"continuum terms {w_con:.6e}\n  errors {err}, rates {r}")
+    print(f"\n{angles}: energy density: lattice {[f'{v[0]:.6e}' for v in vals]}, limit "
+          f"{w_lim:.6e}, continuum terms {w_con:.6e}\n  errors {err}, rates {r}")
     assert np.all(r > 1.8), f"lattice energy density must converge as eps^2 (rates {r})"
     assert err[-1] / w_lim < 2e-3, "relative error at eps = P/64"
     # caveat of the bending identification: O(lam - 1), not O(eps)
     assert abs(w_lim - w_con) / w_con < 0.05
+
+
+@pytest.mark.parametrize("angles", [(40.0, -40.0), (30.0, -30.0)])
+def test_large_homogeneous_shear_matches_continuum_shear_and_locking(angles):
+    """Affine placement with γ = 0.75 rad (±40°), 0.59 rad (±30°): the energy of each
+    interior node (its L and M springs, four quadrant springs) equals the density of
+    fibre_stretch + shear + shear_locking (the UFL terms, γ = θ0 − θ) times the node area
+    eps² sin θ0, exactly."""
+    eps, F = 0.5, np.array([[1.5, 0.0], [0.0, 0.6]])  # pure shear plus fibre stretch
+    k = lattice_from_continuum(K_L, K_S, A_G, eps, angles, k4=K4, k6=K6)
+    back = continuum_from_lattice(spacing=eps, angles_deg=angles, **k)
+    assert np.allclose([back[n] for n in ("k_l", "k_s", "A_g", "k4", "k6")],
+                       [K_L, K_S, A_G, K4, K6], rtol=1e-14), "identification round trip"
+    lat = hencky_lattice(8.0, 6.0, eps, angles, **k)
+    net = lat.net
+    ee, er = net.spring_energies(net.X @ F.T)
+    inner = _interior(lat.grid)
+    node_energy = (np.bincount(net.ext[:, 0], ee, net.n_nodes)
+                   + np.bincount(net.rot[:, 1], er, net.n_nodes))[inner]
+
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
+    x = ufl.SpatialCoordinate(msh)
+    kin = Kinematics(ufl.grad(ufl.as_matrix(F.tolist()) * x), None,
+                     *kn.fibre_directions(*angles))
+    model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), ShearLocking(k4=K4, k6=K6)]
+    dens = fem.Expression(ufl.as_vector([kin.gamma, sum(t.density(kin) for t in model)]),
+                          np.array([[1 / 3, 1 / 3]]))
+    gam, w = dens.eval(np.arange(msh.topology.index_map(2).size_local, dtype=np.int32))[0]
+    s0 = np.sin(np.radians(angles[0] - angles[1]))
+    assert abs(gam) > 0.5, f"large shear wanted, gamma = {gam}"
+    assert len(inner) > 50
+    assert np.allclose(node_energy, w * eps**2 * s0, rtol=1e-12, atol=0)
+    # the quartic and sextic springs carry a sizeable part of it
+    assert 0.25 * K4 * gam**4 + K6 / 6 * gam**6 > 0.1 * 0.5 * K_S * gam**2
 
 
 # ------------------------------------------------- transverse-shear strip (0/90 fibres)
@@ -174,6 +225,16 @@ def test_affine_placement_is_equilibrium_and_micromacro_is_exact(angles):
     ok = ~np.isnan(f["shear"])
     assert ok.sum() > 0.8 * (lat.grid >= 0).sum()
     assert np.allclose(f["shear"][ok], gam), "eq. (5) of [B] gives the shear angle gamma"
+
+
+@pytest.mark.parametrize("angles", [(40.0, -40.0), (30.0, -30.0)])
+def test_affine_placement_of_skew_lattice_is_equilibrium(angles):
+    """Skew lattices (braid, bias cut) with locking springs: affine placements are equilibria
+    of the interior nodes, as for orthogonal fibres."""
+    k = lattice_from_continuum(K_L, K_S, A_G, 1.0, angles, k4=K4, k6=K6)
+    lat = hencky_lattice(12.0, 7.0, 1.0, angles_deg=angles, **k)
+    x = lat.net.X @ np.array([[1.15, 0.2], [-0.05, 0.92]]).T
+    assert np.abs(lat.net.gradient(x)[_interior(lat.grid)]).max() < 1e-10
 
 
 def _interior(grid):

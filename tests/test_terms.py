@@ -2,20 +2,25 @@
 
 import math
 
+import numpy as np
 import pytest
+import ufl
+from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from fabricsurf.model.kinematics import Kinematics, fibre_directions
 from fabricsurf.model.terms import (
     EFFECTS,
     FibreStretch,
     GeodesicBending,
     Shear,
+    ShearLocking,
     make_term,
     parse_terms,
 )
 
-VOCABULARY = ["fibre_stretch", "shear", "geodesic_bending", "stretch_gradient",
+VOCABULARY = ["fibre_stretch", "shear", "shear_locking", "geodesic_bending", "stretch_gradient",
               "shear_gradient", "normal_bending", "twist"]
 
 
@@ -31,6 +36,8 @@ def test_bad_modulus_names_term_and_parameter(bad):
     with pytest.raises(ValueError, match=r"term 'geodesic_bending': parameter A_g"):
         t.set(A_g=bad)
     assert t.A_g == 1.0
+    with pytest.raises(ValueError, match=r"term 'shear_locking': parameter k6"):
+        ShearLocking(k4=1.0, k6=bad)
 
 
 def test_unknown_term_lists_valid_names():
@@ -52,3 +59,20 @@ def test_set_updates_bound_constant_in_place():
     c = t.p("k_l")
     t.set(k_l=7.0)
     assert t.p("k_l") is c and float(c.value) == 7.0
+
+
+def test_shear_locking_density_is_the_quartic_sextic_polynomial():
+    """Simple shear r = (x + s y, y) of 0/90° fibres has γ = atan s: the density is
+    ¼k₄γ⁴ + ⅙k₆γ⁶, and one compiled expression serves all moduli (bound constants)."""
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 1, 1)
+    s = 0.8
+    x = ufl.SpatialCoordinate(msh)
+    r = ufl.as_vector((x[0] + s * x[1], x[1]))
+    term = ShearLocking(k4=2.0, k6=3.0).bind(msh)
+    expr = fem.Expression(term.density(Kinematics(ufl.grad(r), None, *fibre_directions(0, 90))),
+                          np.array([[1 / 3, 1 / 3]]))
+    cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    g = math.atan(s)
+    for k4, k6 in [(2.0, 3.0), (0.0, 1.0), (5.0, 0.0)]:
+        term.set(k4=k4, k6=k6)
+        assert np.allclose(expr.eval(cells), k4 * g**4 / 4 + k6 * g**6 / 6, rtol=1e-14, atol=0)

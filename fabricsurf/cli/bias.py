@@ -11,14 +11,16 @@ OUT/force.png and OUT/summary.json.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.cli.outdir import OutputDir
+from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.errors import InputError
 from fabricsurf.experiments.bias_extension import BiasExtension, default_model, plot_curves
-from fabricsurf.model.terms import parse_terms
+from fabricsurf.inverse.params import load_params, parse_model, provenance
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,51 +29,65 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--width", type=float, default=119.0, help="specimen width (mm)")
     p.add_argument("--h", type=float, default=6.0, help="mesh size (mm)")
     p.add_argument("--ubar", type=float, default=None,
-                   help="final grip displacement (mm); default 25%% of the length")
+                   help="final grip displacement (mm); default: 25%% of the length")
     p.add_argument("--steps", type=int, default=10, help="number of requested load steps")
     p.add_argument("--terms", default=None,
                    help="comma-separated effects (default fibre_stretch,shear,geodesic_bending)")
     p.add_argument("--params", type=Path, default=None,
-                   help='JSON file {"term": {"parameter": value}}')
-    p.add_argument("--clamp", choices=("gradient", "position"), default="gradient")
+                   help='JSON moduli {"term": {"parameter": value}} (N/mm, N·mm; see '
+                   "`fabricsurf terms`) or a saved fit.json")
+    p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
+                   help="gradient: u and its normal derivative held; position: u only")
 
 
-def load_params(path: Path | None) -> dict:
-    if path is None:
-        return {}
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise SystemExit(f"--params {path}: cannot read JSON ({e})")
-    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
-        raise SystemExit(f'--params {path}: expected {{"term": {{"parameter": value}}}}')
-    return data
+def _model(args) -> list:
+    defaults = [t.name for t in default_model()]
+    params = load_params(args.params, args.terms.split(",") if args.terms else defaults)
+    if args.terms:
+        return parse_model(args.terms, params)
+    model = default_model()
+    for t in model:
+        t.set(**params.get(t.name, {}))
+    return model
 
 
-def run(args: argparse.Namespace) -> dict:
-    comm = MPI.COMM_WORLD
-    params = load_params(args.params)
-    try:
-        model = parse_terms(args.terms, params) if args.terms else default_model()
-    except ValueError as e:
-        raise SystemExit(f"--terms/--params: {e}")
-    if args.steps < 1:
-        raise SystemExit(f"--steps {args.steps}: must be at least 1")
+def _check(args) -> float:
+    if not (args.length > 0 and args.width > 0):
+        raise InputError(f"--length {args.length}, --width {args.width}: must be positive (mm)")
+    if not 0 < args.h <= 0.5 * min(args.length, args.width):
+        raise InputError(f"--h {args.h}: must lie in (0, {0.5 * min(args.length, args.width):g}]"
+                         " mm (at least two elements across the width)")
+    if not 1 <= args.steps <= 1000:
+        raise InputError(f"--steps {args.steps}: must lie in [1, 1000]")
     ubar = 0.25 * args.length if args.ubar is None else args.ubar
+    if not 0 < ubar < args.length:
+        raise InputError(f"--ubar {ubar}: must lie in (0, {args.length:g}) mm")
+    return ubar
+
+
+def run(args: argparse.Namespace) -> int:
+    """The ``bias`` command; a solver failure keeps the converged steps and exits with 2."""
+    comm = MPI.COMM_WORLD
+    ubar = _check(args)
+    model = _model(args)
     rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
                       f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
                       f"on {comm.size} rank(s)")
-    test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
-    res = test.run(ubar, args.steps, out=args.out)
-    summary = {"terms": {t.name: t.values() for t in model}, "ubar": res.ubar,
-               "force": res.force, "angle_A_deg": res.angle_A_deg,
-               "angle_B_deg": res.angle_B_deg, "newton_iterations": res.newton,
-               "seconds": res.seconds, "ranks": comm.size}
-    write_json(comm, args.out / "summary.json", summary)
-    if comm.rank == 0:
-        plot_curves(res, args.out / "force.png")
+    with OutputDir(args.out, comm, keep_on_error=True) as stage:
+        test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
+        summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp}
+        try:
+            res = test.run(ubar, args.steps, out=stage)
+        except LoadStepError as e:
+            write_json(comm, stage / "failure.json", summary | {"error": str(e)})
+            raise RuntimeError(f"{e}; the converged steps are in {args.out}") from None
+        summary |= {"ubar": res.ubar, "force": res.force, "angle_A_deg": res.angle_A_deg,
+                    "angle_B_deg": res.angle_B_deg, "newton_iterations": res.newton,
+                    "seconds": res.seconds, "ranks": comm.size}
+        write_json(comm, stage / "summary.json", summary)
+        on_rank0(comm, plot_curves, res, stage / "force.png")
     rank0_print(comm, f"done in {res.seconds:.1f} s; XDMF, force curve and summary in {args.out}")
-    return summary
+    return 0
 
 
 def main(argv: list[str] | None = None) -> None:

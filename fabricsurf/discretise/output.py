@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabricsurf.errors import InputError
 from fabricsurf.model.kinematics import Kinematics
 
 
@@ -95,8 +97,11 @@ class StepLog:
         self.save()
 
     def save(self) -> None:
-        if self.comm.rank != 0 or not self.rows:
-            return
+        """Write the rows (rank 0; a failure there is raised on every rank)."""
+        if self.rows:
+            on_rank0(self.comm, self._save)
+
+    def _save(self) -> None:
         self.out.mkdir(parents=True, exist_ok=True)
         with open(self.out / f"{self.stem}.csv", "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
@@ -105,11 +110,31 @@ class StepLog:
         (self.out / f"{self.stem}.json").write_text(json.dumps(self.rows, indent=1))
 
 
-def write_json(comm: MPI.Comm, path: Path, data: dict) -> None:
-    """Write JSON on rank 0 (atomically: a temporary file, then rename)."""
+def on_rank0(comm: MPI.Comm, fn: Callable, *args, **kwargs):
+    """Run ``fn`` on rank 0 only; an exception there is raised on every rank (an InputError as
+    itself, anything else as OSError naming it), so no rank waits forever in the next
+    collective call. Returns fn's result on rank 0 (None elsewhere)."""
+    result, error = None, None
     if comm.rank == 0:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(data, indent=1, default=float))
-        tmp.replace(path)
+        try:
+            result = fn(*args, **kwargs)
+        except InputError as e:
+            error = (True, str(e))
+        except Exception as e:  # re-raised below on every rank
+            error = (False, f"{type(e).__name__}: {e}")
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise InputError(error[1]) if error[0] else OSError(error[1])
+    return result
+
+
+def _write_json_file(path: Path, data: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=float))
+    tmp.replace(path)
+
+
+def write_json(comm: MPI.Comm, path: Path, data: dict) -> None:
+    """Write JSON on rank 0, atomically (a temporary file, then rename); collective-safe."""
+    on_rank0(comm, _write_json_file, Path(path), data)

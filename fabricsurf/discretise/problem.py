@@ -34,7 +34,7 @@ class FabricProblem:
         self.msh = specimen.mesh
         self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)
         self.u = fem.Function(self.V, name="u")
-        self.L, self.M = fibre_directions(*fibre_angles)
+        self.L, self.M = fibre_directions(*fibre_angles, msh=self.msh)
         self.penalty, self.snes_options, self.prefix = penalty, snes_options or {}, prefix
         self.bcs: list = []
         self.normal_derivative: dict = {}

@@ -23,8 +23,12 @@ from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, write_json
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.errors import DataError
+from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
 from geometry.specimen import Specimen, bias_points, bias_specimen
+
+CLAMPS = ("gradient", "position")
 
 
 def default_model() -> list[Term]:
@@ -61,7 +65,7 @@ class BiasExtension:
                  width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
                  fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
                  comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None) -> None:
-        if clamp not in ("gradient", "position"):
+        if clamp not in CLAMPS:
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
         self.model = model if model is not None else default_model()
         self.specimen = (specimen if specimen is not None
@@ -159,3 +163,42 @@ def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+class BiasExtensionTest(ExperimentSetup):
+    """The bias-extension test as an experiment plug-in: rectangle length × width (x along the
+    load), grips at x = 0 and x = length; load path: grip displacement along +x (mm); reaction:
+    total grip reaction along x (N). Option ``[loading] clamp``: "gradient" (u = 0 and zero
+    normal derivative at both grips, Barchiesi et al. 2020 eq. 7) or "position" (u only)."""
+
+    name = "bias_extension"
+    path_label = "grip displacement (mm)"
+    reaction_label = "grip force (N)"
+    keys = {"loading": {"clamp": "gradient | position (default gradient)"}}
+
+    def __init__(self, setup: Setup, model: list[Term], h: float,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+        super().__init__(setup, model, h, comm)
+        self.bias = BiasExtension(model, setup.length, setup.width, h,
+                                  setup.options.get("clamp", "gradient"),
+                                  tuple(setup.fibre_angles_deg), comm=comm)
+        self.problem, self.solver = self.bias.problem, self.bias.solver
+        self._w = fem.Function(self.problem.V)
+        self._w.x.array[self.problem.component_dofs("grip", 0)] = 1.0
+
+    @classmethod
+    def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
+        return {"clamp": choice_option(tables, "loading", "clamp", CLAMPS, "gradient", where)}
+
+    @classmethod
+    def check_specimen(cls, setup: Setup, where: str) -> None:
+        if setup.width > setup.length:
+            raise DataError(f"{where}: [specimen] width {setup.width:g} mm exceeds length "
+                            f"{setup.length:g} mm; the bias specimen has its long side along "
+                            "the load (x)")
+
+    def set_load(self, t: float) -> None:
+        self.bias.set_load(t)
+
+    def reaction_weight(self) -> fem.Function:
+        return self._w

@@ -1,73 +1,57 @@
-"""Which physical effect is missing? (DESIGN §7)
+"""Which physical effect is missing? Stepwise diagnosis (docs/diagnosis.md).
 
-1. Fit the baseline terms (:func:`fabricsurf.inverse.fit.fit`).
-2. Rank every vocabulary effect not in the baseline with one forward run: the model holds all
-   in-plane effects (EFFECTS order, so one compiled form serves every diagnosis), candidates at
-   modulus 0, so the state is the baseline fit; tangent solves give dr/dp for every modulus.
-   The score of candidate c is the χ² reduction predicted by linearising about the baseline
-   with c's modulus (in the modulus itself, ≥ 0) as an extra parameter, the baseline moduli
-   free: with s⊥ = dr/dp_c projected off the baseline sensitivities, score = (s⊥·r)²/|s⊥|²
-   if the estimated modulus −(s⊥·r)/|s⊥|² is positive, else 0.
-3. Confirm the ``confirm`` best-scored candidates by refitting baseline + candidate.
-4. Significance against the noise (residuals are normalised by the noise level):
-   Δχ² = χ²_baseline − χ²_refit > 10.83 (the 0.999 quantile of χ²₁) and the baseline itself
-   fails at the noise level, χ²_baseline/ν > 1 + 3√(2/ν). Without ``noise_std`` an F-test at
-   0.999 replaces both. The verdict is the significant confirmed candidate with the lowest
-   refit χ², or None; significant candidates whose refit χ² is within 10.83 of the verdict's
-   are listed as indistinguishable from it by these data. Effects planar data cannot see are
-   reported as not identifiable.
+1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fit.fit`).
+2. Rank every vocabulary effect the data can see and the model lacks with one forward run:
+   the model holds all those effects (vocabulary order, so one compiled form serves every
+   diagnosis), candidates at modulus 0, so the state is the current fit; tangent solves give
+   dr/dp for every modulus. The score of candidate c is the χ² reduction predicted by
+   linearising about the fit with c's moduli (together, ≥ 0) as an extra parameter, the fitted
+   moduli free: with s⊥ = dr/dp_c projected off the fitted sensitivities,
+   score = (s⊥·r)²/|s⊥|² if the estimated modulus −(s⊥·r)/|s⊥|² is positive, else 0.
+3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts from the current
+   optimum (the candidate at its linearised estimate, or near zero if that starts worse), so a
+   refit is never worse than the model it extends.
+4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
+   from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
+
+The verdict is the first effect added (None if none); ``adequate`` tells whether the final model
+explains the data at the noise level, allowing for the discretisation error measured at h/2.
+A final model that is not adequate with nothing left to add is reported as unexplained misfit,
+with the steps and regions where it remains (:func:`~.report.where_unexplained`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from mpi4py import MPI
-from scipy import stats
 
-from fabricsurf.inverse.compare import ForwardModel, Prediction, residuals
+from fabricsurf.discretise.output import rank0_print
+from fabricsurf.inverse import significance as sg
+from fabricsurf.inverse.experiment import Experiment
 from fabricsurf.inverse.fit import FitResult, fit
+from fabricsurf.inverse.forward import ForwardSet
+from fabricsurf.inverse.report import Diagnosis, discretisation_chi2, where_unexplained
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
-CHI2_CRIT = float(stats.chi2.ppf(0.999, 1))
+
+def visible_effects(exps: list[Experiment]) -> list[str]:
+    """The vocabulary effects these data can see: out-of-plane ones only with 3D data."""
+    from fabricsurf.experiments import get_test
+
+    three_d = any(get_test(e.test).d == 3 and e.has_field and e.u.shape[1] == 3 for e in exps)
+    return [n for n in EFFECTS if three_d or n not in IN_PLANE_INVISIBLE]
 
 
-@dataclass
-class Diagnosis:
-    """The diagnosis.json content (:meth:`as_dict`) plus the fits behind it."""
-
-    baseline: list
-    base_fit: FitResult
-    ranking: list
-    verdict: str | None
-    alternatives: list
-    not_identifiable: list
-    refits: dict
-    rank_seconds: float
-    forward_seconds: float
-
-    def as_dict(self) -> dict:
-        b = self.base_fit
-        return {"baseline": {"terms": self.baseline, "misfit": b.misfit["combined"],
-                             "chi2": b.chi2, "n": b.misfit["n"], "params": b.params(),
-                             "std": b.as_dict()["std"]},
-                "ranking": self.ranking, "verdict": self.verdict,
-                "indistinguishable_from_verdict": self.alternatives,
-                "not_identifiable": self.not_identifiable,
-                "significance": {"chi2_critical": CHI2_CRIT, "rule": __doc__.split("4.")[1]
-                                 .split("The verdict")[0].strip()},
-                "cost": {"rank_seconds": self.rank_seconds,
-                         "forward_seconds": self.forward_seconds,
-                         "rank_over_forward": self.rank_seconds / self.forward_seconds}}
-
-
-def full_model(baseline: list[str], params: dict | None = None) -> list:
-    """Baseline + every identifiable in-plane effect, in EFFECTS order; candidates at 0."""
+def full_model(baseline: list[str], params: dict | None = None,
+               visible: list[str] | None = None) -> list:
+    """Baseline + every visible effect, in vocabulary order; the candidates at modulus 0."""
     params = params or {}
-    names = [n for n in EFFECTS if n in baseline or n not in IN_PLANE_INVISIBLE]
+    visible = visible if visible is not None else [
+        n for n in EFFECTS if n not in IN_PLANE_INVISIBLE]
     model = []
-    for n in names:
+    for n in EFFECTS:
+        if n not in baseline and n not in visible:
+            continue
         t = make_term(n, **params.get(n, {}))
         if n not in baseline:
             t.set(**{p: 0.0 for p in t.parameters()})
@@ -81,7 +65,7 @@ def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
     Q, _ = np.linalg.qr(Jr[:, base] * vals[base])
     out = {}
     for name, idx in cand.items():
-        s = Jr[:, idx].sum(axis=1)  # all moduli of the candidate together (k_l = k_m style)
+        s = Jr[:, idx].sum(axis=1)
         s = s - Q @ (Q.T @ s)
         ss = float(s @ s)
         est = -float(s @ r) / ss if ss > 0 else 0.0
@@ -89,72 +73,106 @@ def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
     return out
 
 
-def significant(chi2_base: float, chi2_new: float, n: int, p_new: int,
-                noise_known: bool) -> bool:
-    """The significance rule of the module docstring."""
-    d = chi2_base - chi2_new
-    if noise_known:
-        nu = max(n - p_new + 1, 1)
-        return bool(d > CHI2_CRIT and chi2_base / nu > 1 + 3 * np.sqrt(2 / nu))
-    dof = max(n - p_new, 1)
-    return bool(d / (chi2_new / dof) > stats.f.ppf(0.999, 1, dof))
-
-
-def _rank(fm: ForwardModel, base_idx: list[int], cand: dict) -> tuple[dict, float, Prediction]:
-    t0 = MPI.Wtime()
-    pred = fm.run(sens=True)
-    r, Jr = residuals(fm.exp, pred)
-    return scores(r, Jr, fm.values(), base_idx, cand), MPI.Wtime() - t0, pred
-
-
-def _refit(fm: ForwardModel, base_vals: np.ndarray, base_idx: list[int], idx: list[int],
-           estimate: float, verbose: bool) -> FitResult:
-    v = base_vals.copy()
-    v[idx] = max(estimate, 1e-3 * float(np.max(base_vals[base_idx])))
-    fm.set_values(v)
-    res = fit(fm, base_idx + idx, verbose=verbose)
-    fm.set_values(base_vals)
+def _refit(fs: ForwardSet, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
+           verbose: bool) -> FitResult:
+    """Nested refit from the current optimum; the better of two starts for the candidate."""
+    floor = 1e-6 * float(np.max(cur[free]))
+    best, best_chi2 = None, np.inf
+    for start in (max(estimate, floor), floor):
+        v = cur.copy()
+        v[idx] = start
+        fs.set_values(v)
+        try:
+            r, _ = fs.residuals(fs.run())
+        except RuntimeError:
+            continue
+        if float(r @ r) < best_chi2:
+            best, best_chi2 = v, float(r @ r)
+    if best is None:
+        raise RuntimeError("diagnose: the refit cannot start (load path not followed)")
+    fs.set_values(best)
+    res = fit(fs, free + idx, verbose=verbose)
+    fs.set_values(cur)
     return res
 
 
-def diagnose(exp, baseline: list[str], h: float | None = None, params: dict | None = None,
-             confirm: int = 2, comm: MPI.Comm = MPI.COMM_WORLD,
-             verbose: bool = True) -> Diagnosis:
-    """Fit ``baseline``, rank the missing effects, confirm the best ``confirm`` by refitting."""
-    for n in baseline:
-        make_term(n)  # validates the names
-    fm = ForwardModel(exp, full_model(baseline, params), h=h, comm=comm)
-    idx_of = {n: [i for i, (t, _) in enumerate(fm.params) if t.name == n] for n in EFFECTS}
-    base_idx = sorted(i for n in baseline for i in idx_of[n])
-    cand = {n: idx_of[n] for n in EFFECTS if n not in baseline and n not in IN_PLANE_INVISIBLE}
-    base = fit(fm, base_idx, verbose=verbose)
-    t0 = MPI.Wtime()
-    fm.run()
-    t_fwd = MPI.Wtime() - t0
-    sc, t_rank, _ = _rank(fm, base_idx, cand)
+def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, verbose: bool):
+    fs.set_values(cur.values)
+    r, Jr = fs.residuals(fs.run(sens=True))
+    sc = scores(r, Jr, cur.values, free, cand)
     order = sorted(cand, key=lambda c: -sc[c][0])
-    refits, noise = {}, exp.noise_std is not None
+    refits, rows = {}, []
+    n = cur.misfit["n"]
     for c in order[:confirm]:
-        refits[c] = _refit(fm, base.values, base_idx, cand[c], sc[c][1], verbose)
-    ranking = []
+        refits[c] = _refit(fs, cur.values, free, cand[c], sc[c][1], verbose)
     for c in order:
         row = {"effect": c, "score": sc[c][0], "linearised_modulus": sc[c][1],
                "refit_misfit": None, "significant": None}
         if c in refits:
             rf = refits[c]
             row.update(refit_misfit=rf.misfit["combined"], refit_chi2=rf.chi2,
-                       refit_params=rf.params()[c], refit_std={
-                           n: float(s) for n, s in zip(rf.names, rf.std) if n.startswith(c)},
-                       significant=significant(base.chi2, rf.chi2, rf.misfit["n"],
-                                               len(base_idx) + len(cand[c]), noise))
-        ranking.append(row)
-    ranking.sort(key=lambda r: (1, -r["score"]) if r["refit_misfit"] is None
-                 else (0, r["refit_misfit"]))
-    sig = [r for r in ranking if r["significant"]]
-    verdict = sig[0]["effect"] if sig else None
-    alternatives = [r["effect"] for r in sig[1:]
-                    if r["refit_chi2"] - sig[0]["refit_chi2"] < CHI2_CRIT]
+                       refit_params=rf.params()[c],
+                       refit_std={k: float(s) for k, s in zip(rf.names, rf.std)
+                                  if k.startswith(c + ".")},
+                       significant=sg.significant(cur.chi2, len(free), rf.chi2,
+                                                  len(free) + len(cand[c]), n))
+        rows.append(row)
+    rows.sort(key=lambda q: (1, -q["score"]) if q["refit_misfit"] is None
+              else (0, q["refit_misfit"]))
+    return rows, refits
+
+
+def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float | None = None,
+             params: dict | None = None, confirm: int = 2, max_effects: int = 2,
+             check_discretisation: bool = True, comm: MPI.Comm = MPI.COMM_WORLD,
+             verbose: bool = True) -> Diagnosis:
+    """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring)."""
+    exps = exps if isinstance(exps, list) else [exps]
+    for name in baseline:
+        make_term(name)
+    if confirm < 1 or max_effects < 0:
+        raise ValueError(f"diagnose: confirm = {confirm} must be ≥ 1 and max_effects = "
+                         f"{max_effects} ≥ 0")
+    visible = visible_effects(exps)
+    fs = ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm)
+    idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
+    free = sorted(i for n in baseline for i in idx_of[n])
+    say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
+    t0 = MPI.Wtime()
+    cur = base = fit(fs, free, verbose=verbose)
+    t_fit = MPI.Wtime() - t0
+    terms, path, rankings, added, alternatives = list(baseline), [], [], [], []
+    path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})
+    say(f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
+    while True:
+        cand = {n: idx_of[n] for n in visible if n not in terms and idx_of[n]}
+        ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
+        if not cand or (ok and rankings) or len(added) >= max_effects:
+            break
+        rows, refits = _rank_round(fs, cur, free, cand, confirm, verbose)
+        rankings.append(rows)
+        sig = [q for q in rows if q["significant"]]
+        if ok or not sig:
+            break
+        c = sig[0]["effect"]
+        if not added:
+            s2 = max(1.0, sg.reduced(sig[0]["refit_chi2"], cur.misfit["n"], len(free) + 1))
+            alternatives = [q["effect"] for q in sig[1:]
+                            if q["refit_chi2"] - sig[0]["refit_chi2"] < sg.CHI2_CRIT * s2]
+        cur, free = refits[c], sorted(free + cand[c])
+        terms.append(c)
+        added.append(c)
+        path.append({"added": c, "misfit": cur.misfit["combined"], "chi2": cur.chi2})
+        say(f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
+    fs.set_values(cur.values)
+    chi2_h = discretisation_chi2(fs, exps, h, comm) if check_discretisation else None
+    ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
     invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
-                 for n in IN_PLANE_INVISIBLE if n not in baseline]
-    return Diagnosis(list(baseline), base, ranking, verdict, alternatives, invisible, refits,
-                     t_rank, t_fwd)
+                 for n in EFFECTS if n not in visible and n not in baseline]
+    return Diagnosis(
+        baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
+        ranking=rankings[0] if rankings else [], rounds=rankings,
+        verdict=added[0] if added else None, alternatives=alternatives, adequate=ok, path=path,
+        not_identifiable=invisible, discretisation_chi2=chi2_h,
+        unexplained=None if ok else where_unexplained(exps, cur),
+        fit_seconds=t_fit, noise_known=fs.noise_known)

@@ -1,4 +1,8 @@
-"""Figures of model vs measurement (matplotlib, Agg; call on rank 0 only)."""
+"""Figures of model vs measurement (matplotlib, Agg; call on rank 0 only).
+
+Every function takes one experiment and a list of (label, prediction) pairs, and draws only what
+the experiment measured (field, force or both).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricsurf.inverse.data import Experiment
+from fabricsurf.experiments import get_test
+from fabricsurf.inverse.experiment import Experiment
 
 
 def _plt():
@@ -22,7 +27,7 @@ def error_map(exp: Experiment, preds: list[tuple[str, object]], steps: list[int]
               path: Path) -> None:
     """|u_model − u_meas| (mm) over the specimen: one row per model, one column per step."""
     plt = _plt()
-    errs = [np.linalg.norm(p.u - exp.u[:, :2], axis=1) for _, p in preds]
+    errs = [np.linalg.norm(p.u - exp.u[:, : p.u.shape[1]], axis=1) for _, p in preds]
     vmax = max(float(np.nanmax(e)) for e in errs) or 1.0
     fig, axes = plt.subplots(len(preds), len(steps), squeeze=False,
                              figsize=(4.2 * len(steps), 2.6 * len(preds) + 0.6))
@@ -41,35 +46,55 @@ def error_map(exp: Experiment, preds: list[tuple[str, object]], steps: list[int]
 
 
 def force_curves(exp: Experiment, preds: list[tuple[str, object]], path: Path) -> None:
-    """Measured and model grip force against the grip displacement."""
+    """Measured and model reaction against the load path."""
     plt = _plt()
+    plugin = get_test(exp.test)
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    ax.plot(exp.displacement, exp.force, "ko", label="measured")
+    ax.plot(exp.path, exp.force, "ko", ms=4, label="measured")
     for label, p in preds:
-        ax.plot(exp.displacement, p.force, "-", label=label)
-    ax.set(xlabel="grip displacement (mm)", ylabel="force (N)")
+        ax.plot(exp.path, p.force, "-", label=label)
+    ax.set(xlabel=plugin.path_label, ylabel=plugin.reaction_label, title=exp.name)
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def error_vs_step(exp: Experiment, misfits: list[tuple[str, dict]], path: Path,
-                  noise: float | None = None) -> None:
-    """Field RMS error (mm) and |force error| (N) per step."""
+def error_vs_step(exp: Experiment, misfits: list[tuple[str, dict]], path: Path) -> None:
+    """Field RMS error (mm) and |force error| (N) per step, with the noise levels."""
     plt = _plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
-    for label, m in misfits:
-        ax[0].semilogy(exp.steps, [s["field_rms"] for s in m["per_step"]], "o-", label=label)
-        ax[1].semilogy(exp.steps, [abs(s["force_error"]) for s in m["per_step"]], "o-",
-                       label=label)
-    if noise:
-        ax[0].axhline(noise, color="k", ls="--", label="noise_std")
-    ax[0].set(xlabel="step", ylabel="field RMS error (mm)")
-    ax[1].set(xlabel="step", ylabel="|force error| (N)")
-    ax[0].legend()
+    panels = [k for k, has in (("field", exp.has_field), ("force", exp.has_force)) if has]
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 3.8), squeeze=False)
+    for ax, kind in zip(axes[0], panels):
+        for label, m in misfits:
+            if kind == "field":
+                y = [s["field_rms"] or np.nan for s in m["per_step"]]
+            else:
+                y = [abs(s["force_error"]) for s in m["per_step"]]
+            ax.semilogy(exp.steps, y, "o-", label=label)
+        noise = exp.noise_std if kind == "field" else exp.force_noise_std
+        if noise:
+            ax.axhline(noise, color="k", ls="--", label="noise std")
+        ax.set(xlabel="step", ylabel="field RMS error (mm)" if kind == "field"
+               else "|force error| (N)")
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def misfit_path(path_rows: list[dict], out: Path) -> None:
+    """The combined misfit after each step of a stepwise diagnosis (noise level = 1)."""
+    plt = _plt()
+    labels = ["+".join(path_rows[0]["terms"])] + ["+ " + r["added"] for r in path_rows[1:]]
+    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    ax.plot(range(len(path_rows)), [r["misfit"] for r in path_rows], "o-")
+    ax.axhline(1.0, color="k", ls="--", label="noise level")
+    ax.set_xticks(range(len(path_rows)), labels, rotation=15, fontsize=8)
+    ax.set(ylabel="combined misfit (noise units)", title="error falling step by step")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
     plt.close(fig)
 
 

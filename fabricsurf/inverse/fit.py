@@ -18,7 +18,7 @@ import numpy as np
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import LoadStepError
-from fabricsurf.inverse.compare import ForwardModel, Prediction, misfit, residuals
+from fabricsurf.inverse.forward import ForwardModel, ForwardSet, Prediction
 
 
 @dataclass
@@ -30,7 +30,7 @@ class FitResult:
     std: np.ndarray
     chi2: float
     misfit: dict
-    prediction: Prediction
+    prediction: Prediction | list[Prediction]
     iterations: int
     forward_runs: int
     history: list = field(default_factory=list)
@@ -44,20 +44,23 @@ class FitResult:
         return out
 
     def as_dict(self) -> dict:
-        m = {k: v for k, v in self.misfit.items() if k != "row_error"}
+        m = strip_rows(self.misfit)
         return {"terms": list(self.params()), "params": self.params(),
                 "std": {n: float(s) for n, s in zip(self.names, self.std)},
                 "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
                 "forward_runs": self.forward_runs, "history": self.history}
 
 
-def _try(fm: ForwardModel, free: list[int], vals: np.ndarray):
+Forward = ForwardModel | ForwardSet
+
+
+def _try(fm: Forward, free: list[int], vals: np.ndarray):
     fm.set_values(vals)
     try:
         pred = fm.run(sens=free)
     except LoadStepError:
         return None, None, np.inf
-    r, Jr = residuals(fm.exp, pred)
+    r, Jr = fm.residuals(pred)
     if not np.isfinite(r).all():
         return None, None, np.inf
     return pred, (r, Jr), float(r @ r)
@@ -70,7 +73,7 @@ def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
     return C if noise_known else C * chi2 / max(n - P, 1)
 
 
-def fit(fm: ForwardModel, free: list[int] | None = None, max_iter: int = 20,
+def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0); the other moduli stay fixed."""
@@ -113,11 +116,19 @@ def fit(fm: ForwardModel, free: list[int] | None = None, max_iter: int = 20,
             break
     fm.set_values(vals)
     Jt = Jr * vals[free]
-    C = covariance(Jt, chi2, fm.exp.noise_std is not None)
+    C = covariance(Jt, chi2, fm.noise_known)
     std = np.zeros(len(vals))
     std[free] = vals[free] * np.sqrt(np.maximum(np.diag(C), 0.0))
-    return FitResult(list(fm.names), vals, std, chi2, misfit(fm.exp, pred), pred, it,
+    return FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it,
                      fm.forward_runs - runs0, hist)
+
+
+def strip_rows(m: dict) -> dict:
+    """A misfit dict without the per-row error arrays (for JSON)."""
+    out = {k: v for k, v in m.items() if k != "row_error"}
+    if "experiments" in out:
+        out["experiments"] = [strip_rows(e) for e in out["experiments"]]
+    return out
 
 
 def load_params(path: str | Path | None) -> dict:

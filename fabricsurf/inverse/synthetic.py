@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.inverse.data import Experiment
+from fabricsurf.experiments.base import Setup
+from fabricsurf.inverse.experiment import Experiment
 from fabricsurf.model.terms import Term
 
 
@@ -24,13 +25,20 @@ def grid_points(length: float, width: float, nx: int, ny: int, margin: float = 0
 
 def template(length: float, width: float, displacements, points: np.ndarray,
              angles: tuple[float, float] = (45.0, -45.0), clamp: str = "gradient",
-             name: str = "synthetic") -> Experiment:
-    """An Experiment with the geometry and loading filled in and zero measurements."""
+             name: str = "synthetic", test: str = "bias_extension",
+             options: dict | None = None, force: bool = True) -> Experiment:
+    """An Experiment with the geometry and loading filled in and zero measurements.
+
+    ``displacements``: the load path (one value per step); ``points``: field points (may be
+    empty: force only); ``force``: whether the test's reaction is measured."""
     d = np.asarray(displacements, float)
     steps = np.arange(1, len(d) + 1)
-    return Experiment(name, float(length), float(width), tuple(angles), clamp, steps, d,
-                      np.zeros(len(d)), np.repeat(steps, len(points)),
-                      np.tile(points, (len(d), 1)), np.zeros((len(d) * len(points), 2)))
+    opts = {"clamp": clamp} if options is None else dict(options)
+    setup = Setup(test, float(length), float(width), tuple(angles), opts)
+    pts = np.asarray(points, float).reshape(-1, 2)
+    return Experiment(name, setup, steps, d, np.zeros(len(d)) if force else None,
+                      np.repeat(steps, len(pts)), np.tile(pts, (len(d), 1)),
+                      np.zeros((len(d) * len(pts), 2)))
 
 
 def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: int
@@ -38,20 +46,27 @@ def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: i
     """Gaussian noise on every displacement component and force (same draw on every rank)."""
     rng = np.random.default_rng(seed)
     exp.u = exp.u + rng.normal(0.0, noise_std, exp.u.shape)
-    exp.force = exp.force + rng.normal(0.0, force_noise_std, exp.force.shape)
-    exp.noise_std, exp.force_noise_std = float(noise_std), float(force_noise_std)
+    if exp.has_force:
+        exp.force = exp.force + rng.normal(0.0, force_noise_std, exp.force.shape)
+        exp.force_noise_std = float(force_noise_std)
+    if exp.has_field:
+        exp.noise_std = float(noise_std)
     return exp
 
 
 def continuum_data(exp: Experiment, model: list[Term], h: float,
                    comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
     """Fill ``exp`` with the continuum solution of ``model`` on a mesh of size ``h``."""
-    from fabricsurf.inverse.compare import ForwardModel
+    from fabricsurf.experiments import get_test
+    from fabricsurf.inverse.forward import ForwardModel
 
+    exp.u = np.zeros((len(exp.field_step), get_test(exp.test).d))
     pred = ForwardModel(exp, model, h=h, comm=comm).run()
     if not np.isfinite(pred.u).all():
         raise RuntimeError("synthetic data: a measurement point lies outside the mesh")
-    exp.u, exp.force = pred.u.copy(), pred.force.copy()
+    exp.u = pred.u.copy()
+    if exp.has_force:
+        exp.force = pred.force.copy()
     return exp
 
 
@@ -73,7 +88,7 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
     held[np.concatenate([lat.clamp, lat.grip])] = True
     nodes = np.flatnonzero(~held)[::every]
     u, force = [], []
-    for d in exp.displacement:
+    for d in exp.path:
         res = solve_steps(lat.net, lat.bias_bcs(float(d)), n_steps=4,
                           reaction_sets={"grip": lat.grip})[-1]
         u.append((res.x - X)[nodes])

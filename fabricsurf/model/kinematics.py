@@ -1,16 +1,22 @@
-"""Kinematics of a fabric surface with straight orthogonal fibres (DESIGN §2, seed 001 §2-3).
+"""Kinematics of a fabric surface with two families of straight fibres (DESIGN §2, seed 001 §2-3).
 
 The placement is r: Ω ⊂ R² → R^d (d = 2 or 3), F = ∇r (d×2) and H = ∇∇r (d×2×2), with
-H[i, a, b] = ∂²r_i/∂X_a∂X_b. L and M are the constant unit reference fibre directions.
-Every function takes UFL expressions (or numpy-like arrays via UFL constants) and returns
-UFL expressions; equation numbers refer to seed 001 (Steigmann & dell'Isola 2015).
+H[i, a, b] = ∂²r_i/∂X_a∂X_b. L and M are the constant unit reference fibre directions; they
+need not be orthogonal (braids at ±30°, bias cuts at ±40°): θ0 = ∠(L, M) is the reference
+angle between the fibres, θ = ∠(l, m) the current one, and the shear angle is γ = θ0 − θ
+(Steigmann & dell'Isola 2015 eq. 8 for θ0 = 90°, where sin γ = l·m). Every function takes UFL
+expressions (UFL or fem.Constant vectors for L, M) and returns UFL expressions; equation
+numbers refer to Steigmann & dell'Isola 2015.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numpy as np
 import ufl
+from dolfinx import fem
 
 
 def value_dim(F: ufl.core.expr.Expr) -> int:
@@ -38,19 +44,35 @@ def m_dir(F, M):
     return F * M / mu(F, M)
 
 
-def sin_gamma(F, L, M):
-    """sin γ = l·m (eq. 8)."""
+def cos_theta(F, L, M):
+    """cos θ = l·m, θ the current angle between the fibres."""
     return ufl.dot(F * L, F * M) / (lam(F, L) * mu(F, M))
 
 
+def theta0(L, M):
+    """Reference angle θ0 = acos(L·M) between the fibre families (π/2 when orthogonal)."""
+    return ufl.acos(ufl.dot(L, M))
+
+
 def gamma(F, L, M):
-    """Shear angle γ = asin(l·m) (eq. 8); zero in the reference state."""
-    return ufl.asin(sin_gamma(F, L, M))
+    """Shear angle γ = θ0 − θ = acos(L·M) − acos(l·m): the closing of the fibre angle.
+
+    Zero in the reference state; for orthogonal fibres γ = asin(l·m) (eq. 8). The derivative
+    dγ = d(l·m)/sin θ is regular until the fibres become parallel.
+    """
+    return theta0(L, M) - ufl.acos(cos_theta(F, L, M))
+
+
+def sin_gamma(F, L, M):
+    """sin γ (= l·m for orthogonal reference fibres, eq. 8)."""
+    return ufl.sin(gamma(F, L, M))
 
 
 def J(F, L, M):
-    """Areal stretch J = λ μ |cos γ| (eq. 15)."""
-    return lam(F, L) * mu(F, M) * ufl.sqrt(1 - sin_gamma(F, L, M) ** 2)
+    """Areal stretch J = λ μ sin θ / sin θ0 (eq. 15 for θ0 = 90°; = det F in 2D)."""
+    sin_t = ufl.sqrt(1 - cos_theta(F, L, M) ** 2)
+    sin_t0 = ufl.sqrt(1 - ufl.dot(L, M) ** 2)
+    return lam(F, L) * mu(F, M) * sin_t / sin_t0
 
 
 def normal(F, L, M):
@@ -136,7 +158,7 @@ class Kinematics:
     """The kinematic quantities of one placement, as read by the energy terms' `density(kin)`.
 
     F = ∇r (d×2), H = ∇∇r (d×2×2, may be None for first-gradient use), L, M unit reference
-    fibre directions (UFL 2-vectors).
+    fibre directions (UFL or fem.Constant 2-vectors, not necessarily orthogonal).
     """
 
     F: ufl.core.expr.Expr
@@ -216,21 +238,49 @@ class Kinematics:
         return dmu_dM(self.F, self.H, self.M)
 
 
-def fibre_directions(angle_L_deg: float, angle_M_deg: float | None = None):
-    """Unit reference fibre directions (UFL constants) at the given angles from the x axis.
+MIN_SIN_THETA0 = 1e-6
+"""Fibre families with |sin θ0| below this are rejected as parallel."""
 
-    M defaults to L rotated by -90° (DESIGN §2 assumes orthonormal families).
+
+def _finite_angle(family: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not math.isfinite(v):
+        raise ValueError(f"fibre angle of family {family} = {value!r} is not a finite number "
+                         "(degrees from the x axis)")
+    return v
+
+
+def fibre_vectors(angle_L_deg: float, angle_M_deg: float | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Unit reference fibre directions (numpy 2-vectors) at the given angles from the x axis.
+
+    M defaults to L rotated by −90°. Any two distinct directions are accepted; parallel
+    families (no shear angle) and non-finite angles are rejected.
     """
-    import math
-
     if angle_M_deg is None:
-        angle_M_deg = angle_L_deg - 90.0
+        angle_M_deg = _finite_angle("L", angle_L_deg) - 90.0
+    angle_L_deg, angle_M_deg = _finite_angle("L", angle_L_deg), _finite_angle("M", angle_M_deg)
     a, b = math.radians(angle_L_deg), math.radians(angle_M_deg)
-    if abs(math.cos(a - b)) > 1e-12:
+    if abs(math.sin(a - b)) < MIN_SIN_THETA0:
         raise ValueError(
-            f"fibre angles {angle_L_deg}° and {angle_M_deg}° are not orthogonal "
-            "(the model of seed 001 §3 assumes orthogonal reference fibres)"
+            f"fibre angles {angle_L_deg}° and {angle_M_deg}° give parallel fibre families: "
+            "the two families must cross at a non-zero angle to define the shear angle"
         )
-    L = ufl.as_vector((math.cos(a), math.sin(a)))
-    M = ufl.as_vector((math.cos(b), math.sin(b)))
-    return L, M
+    return np.array([math.cos(a), math.sin(a)]), np.array([math.cos(b), math.sin(b)])
+
+
+def fibre_directions(angle_L_deg: float, angle_M_deg: float | None = None, msh=None):
+    """Unit reference fibre directions L, M at the given angles (degrees) from the x axis.
+
+    Without ``msh``: UFL constant vectors (the angles are compiled into the forms). With a
+    mesh: fem.Constant 2-vectors on it, so problems with different fibre angles share one
+    compiled form; assign ``L.value[:] = ...`` (see :func:`fibre_vectors`) to change them
+    in place. M defaults to L rotated by −90°; the families need not be orthogonal.
+    """
+    L, M = fibre_vectors(angle_L_deg, angle_M_deg)
+    if msh is not None:
+        return fem.Constant(msh, L), fem.Constant(msh, M)
+    return ufl.as_vector(tuple(L)), ufl.as_vector(tuple(M))

@@ -32,6 +32,7 @@ class Term:
     order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
     units: ClassVar[dict[str, str]] = {}
     _const: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _bound: list = field(default_factory=list, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for p in self.parameters():
@@ -53,9 +54,18 @@ class Term:
             )
 
     def bind(self, msh) -> Term:
-        """Create the fem.Constant of each modulus on mesh ``msh`` (idempotent)."""
-        if not self._const or next(iter(self._const.values())).ufl_domain() != msh.ufl_domain():
-            self._const = {p: fem.Constant(msh, float(getattr(self, p))) for p in self.parameters()}
+        """Make the fem.Constants of the moduli on mesh ``msh`` the current ones (idempotent).
+
+        A term may be bound to several meshes (one model, several experiments): each mesh gets
+        its own constants, :meth:`set` updates all of them, and :meth:`p` returns those of the
+        mesh bound last (the one whose forms are being built).
+        """
+        for consts in self._bound:
+            if next(iter(consts.values())).ufl_domain() == msh.ufl_domain():
+                self._const = consts
+                return self
+        self._const = {p: fem.Constant(msh, float(getattr(self, p))) for p in self.parameters()}
+        self._bound.append(self._const)
         return self
 
     def set(self, **values: float) -> None:
@@ -66,8 +76,8 @@ class Term:
                                  f"it has {self.parameters()}")
             self._check(p, v)
             setattr(self, p, float(v))
-            if p in self._const:
-                self._const[p].value = float(v)
+            for consts in self._bound:
+                consts[p].value = float(v)
 
     def p(self, name: str):
         """The modulus as a UFL object (its fem.Constant when bound, else the float)."""
@@ -107,6 +117,24 @@ class Shear(Term):
 
     def density(self, kin: Kinematics):
         return 0.5 * self.p("k_s") * kin.gamma**2
+
+
+@dataclass
+class ShearLocking(Term):
+    """¼k₄γ⁴ + ⅙k₆γ⁶: shear stiffening as the yarns jam towards the locking angle.
+
+    The polynomial beyond the quadratic of :class:`Shear` (woven fabrics lock at ~40–55°,
+    Cao et al. 2008); linear in its moduli, so the exact sensitivities of the fit still hold.
+    """
+
+    k4: float = 1.0
+    k6: float = 1.0
+    name: ClassVar[str] = "shear_locking"
+    units: ClassVar[dict[str, str]] = {"k4": "N/mm", "k6": "N/mm"}
+
+    def density(self, kin: Kinematics):
+        g2 = kin.gamma**2
+        return (0.25 * self.p("k4") + self.p("k6") / 6.0 * g2) * g2**2
 
 
 @dataclass
@@ -177,8 +205,8 @@ class Twist(Term):
 
 EFFECTS: dict[str, type[Term]] = {
     cls.name: cls
-    for cls in (FibreStretch, Shear, GeodesicBending, StretchGradient, ShearGradient,
-                NormalBending, Twist)
+    for cls in (FibreStretch, Shear, ShearLocking, GeodesicBending, StretchGradient,
+                ShearGradient, NormalBending, Twist)
 }
 """The vocabulary of effects, by exact name (DESIGN §3)."""
 

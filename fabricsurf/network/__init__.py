@@ -1,6 +1,7 @@
 """Spring-network reference of seed 000 §3: engine, Hencky fabric lattice, bi-pantographic lattice.
 
-See ``docs/network.md`` for the micro-macro identification and the reconstruction notes.
+See ``docs/network.md`` for the micro-macro identification and the reconstruction notes, and
+``docs/vocabulary.md`` for the identification with skew fibre cells and shear-locking springs.
 """
 
 from fabricsurf.network.engine import SpringNetwork

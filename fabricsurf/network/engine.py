@@ -10,8 +10,14 @@ Extensional spring (i, j) with stiffness k (N/mm) and rest length l0 (mm) [B (8)
 
 Rotational spring (i, j, k) with stiffness kr (N mm / rad^2) and rest angle phi0 [B (12)-(17)]::
 
-    E_r = 1/2 kr (phi2 - phi1 - phi0)^2,
+    E_r = 1/2 kr d^2 + 1/4 kr4 d^4 + 1/6 kr6 d^6,   d = phi2 - phi1 - phi0,
     phi1 = atan2 of (x_j - x_i),  phi2 = atan2 of (x_k - x_j)        [B (14)]
+
+The quartic and sextic parts (kr4, kr6 in N mm, default 0) make a nonlinear shear spring that
+stiffens as the angle change grows: the discrete counterpart of the ``shear_locking`` effect
+(yarn jamming, Cao et al. 2008). With ``E_r'(d) = kr d + kr4 d^3 + kr6 d^5`` and
+``E_r''(d) = kr + 3 kr4 d^2 + 5 kr6 d^4`` the gradient is ``E_r' dphi`` and the Hessian
+``E_r'' dphi dphi^T + E_r' d2phi``.
 
 i.e. ``phi = phi2 - phi1`` is the *turning angle* at the middle node j (0 for three
 aligned nodes walked i -> j -> k, +pi/2 for a left turn).  Wrap-safety: the deviation
@@ -64,15 +70,20 @@ class SpringNetwork:
     k_rot, phi0 : (m_r,) arrays or scalars
         Stiffness (N mm) and rest turning angle (rad), ``phi0 = phi2 - phi1`` of [B (16)];
         ``phi0=None`` takes the reference turning angle.
+    k_rot4, k_rot6 : (m_r,) arrays or scalars
+        Quartic and sextic coefficients (N mm) of the rotational springs (default 0: linear).
     """
 
-    def __init__(self, X, ext, k_ext, l0=None, rot=None, k_rot=0.0, phi0=None) -> None:
+    def __init__(self, X, ext, k_ext, l0=None, rot=None, k_rot=0.0, phi0=None,
+                 k_rot4=0.0, k_rot6=0.0) -> None:
         self.X = np.asarray(X, dtype=float).reshape(-1, 2)
         self.ext = np.asarray(ext, dtype=np.int64).reshape(-1, 2)
         self.rot = np.asarray(rot if rot is not None else [], dtype=np.int64).reshape(-1, 3)
         me, mr = len(self.ext), len(self.rot)
         self.k_ext = np.broadcast_to(np.asarray(k_ext, float), (me,)).copy()
         self.k_rot = np.broadcast_to(np.asarray(k_rot, float), (mr,)).copy()
+        self.k_rot4 = np.broadcast_to(np.asarray(k_rot4, float), (mr,)).copy()
+        self.k_rot6 = np.broadcast_to(np.asarray(k_rot6, float), (mr,)).copy()
         self.l0 = self.lengths(self.X) if l0 is None else np.broadcast_to(
             np.asarray(l0, float), (me,)).copy()
         self.phi0 = self.turning_angles(self.X) if phi0 is None else np.broadcast_to(
@@ -115,7 +126,8 @@ class SpringNetwork:
         """Per-spring energies (N mm): extensional [B (10)] and rotational [B (16)]."""
         x = np.asarray(x, float).reshape(-1, 2)
         ee = 0.5 * self.k_ext * (self.lengths(x) - self.l0) ** 2
-        er = 0.5 * self.k_rot * self.angle_deviations(x) ** 2
+        d2 = self.angle_deviations(x) ** 2
+        er = (0.5 * self.k_rot + (0.25 * self.k_rot4 + self.k_rot6 / 6.0 * d2) * d2) * d2
         return ee, er
 
     def energy(self, x: np.ndarray) -> float:
@@ -133,7 +145,11 @@ class SpringNetwork:
         ga = _perp(a) / np.einsum("ij,ij->i", a, a)[:, None]
         gb = _perp(b) / np.einsum("ij,ij->i", b, b)[:, None]
         dphi = np.concatenate([ga, -ga - gb, gb], axis=1)  # (m_r, 6), [B (15)]
-        return a, b, dphi, self.k_rot * self.angle_deviations(x)
+        d = self.angle_deviations(x)
+        d2 = d * d
+        moment = (self.k_rot + (self.k_rot4 + self.k_rot6 * d2) * d2) * d  # E_r'(d)
+        stiff = self.k_rot + (3.0 * self.k_rot4 + 5.0 * self.k_rot6 * d2) * d2  # E_r''(d)
+        return a, b, dphi, moment, stiff
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """Internal generalised forces f = dE/dq [B (11), (17), (22)], shape (n, 2) in N."""
@@ -141,7 +157,7 @@ class SpringNetwork:
         n = len(x)
         e, _, t = self._ext_terms(x)
         fe = t[:, None] * e  # force on node j; -fe on node i
-        _, _, dphi, m = self._rot_terms(x)
+        _, _, dphi, m, _ = self._rot_terms(x)
         fr = m[:, None] * dphi
         idx = np.concatenate([self.ext[:, 1], self.ext[:, 0], self.rot.T.ravel()])
         g = np.empty((n, 2))
@@ -178,7 +194,7 @@ class SpringNetwork:
         He = np.empty((len(K), 4, 4))
         He[:, :2, :2] = He[:, 2:, 2:] = K
         He[:, :2, 2:] = He[:, 2:, :2] = -K
-        a, b, dphi, m = self._rot_terms(x)
+        a, b, dphi, m, kappa = self._rot_terms(x)
         Ha, Hb = _hess_theta(a), _hess_theta(b)
         d2 = np.zeros((len(Ha), 6, 6))  # second derivative of phi [B (15)]
         d2[:, :2, :2] = d2[:, 2:4, 2:4] = -Ha
@@ -186,7 +202,7 @@ class SpringNetwork:
         d2[:, 2:4, 2:4] += Hb
         d2[:, 4:, 4:] = Hb
         d2[:, 2:4, 4:] = d2[:, 4:, 2:4] = -Hb
-        Hr = self.k_rot[:, None, None] * np.einsum("mi,mj->mij", dphi, dphi) + m[:, None, None] * d2
+        Hr = kappa[:, None, None] * np.einsum("mi,mj->mij", dphi, dphi) + m[:, None, None] * d2
         return He, Hr
 
     def hessian(self, x: np.ndarray) -> sp.csr_matrix:

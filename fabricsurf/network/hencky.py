@@ -4,31 +4,41 @@ Lattice
 -------
 Nodes sit at the fibre crossings ``X = origin + eps (a L + b M)`` (integers a, b) that lie
 in the specimen ``[0, length] x [0, width]`` (mm); for L, M at +-45 degrees this is a
-rotated square grid clipped to the rectangle. Springs (engine conventions, [B (10), (16)]):
+rotated square grid clipped to the rectangle, for other pairs (braids at +-30, bias cuts at
++-40 degrees) a skew grid. Springs (engine conventions, [B (10), (16)]):
 
 * extensional, along both fibre families between fibre neighbours: ``k_e`` (N/mm), l0 = eps;
 * bending, on every consecutive triple of a fibre, turning angle phi0 = 0: ``k_b`` (N mm);
 * shear, at each crossing: the four angles between consecutive fibre arms (quadrants
-  (+L,+M), (+M,-L), (-L,-M), (-M,+L)), each with stiffness ``k_sh / 4`` (N mm), so that
-  ``k_sh`` is the shear stiffness per crossing. Quadrants whose arm is missing (nodes on
-  the boundary) are dropped: each quadrant spring stands for a quarter of a lattice cell.
+  (+L,+M), (+M,-L), (-L,-M), (-M,+L); rest angles theta0, pi - theta0, theta0, pi - theta0),
+  each a nonlinear rotational spring ``1/2 k d^2 + 1/4 k4 d^4 + 1/6 k6 d^6`` with
+  ``(k, k4, k6) = (k_sh, k_sh4, k_sh6) / 4`` (N mm), so that ``k_sh`` (and ``k_sh4``,
+  ``k_sh6``) are the shear stiffnesses per crossing. Quadrants whose arm is missing (nodes
+  on the boundary) are dropped: each quadrant spring stands for a quarter of a lattice cell.
 
-Identification (derivation in ``docs/network.md``)
---------------------------------------------------
-For a smooth placement r(X) evaluated at the nodes, Taylor expansion in eps gives the
-lattice energy per unit reference area (node area ``A = eps^2 |L x M|``, = eps^2 here)::
+Identification (derivation in ``docs/network.md`` and ``docs/vocabulary.md``)
+----------------------------------------------------------------------------
+θ0 is the reference angle between L and M and ``s0 = sin θ0``; a node stands for the skew
+cell ``eps L x eps M`` of area ``A = eps^2 s0``. For a smooth placement r(X) evaluated at
+the nodes, Taylor expansion in eps gives, per node (one spring of each family, one bending
+triple per fibre, four quadrant springs)::
 
     L spring:   1/2 k_e eps^2 (lam - 1)^2          + O(eps^4)   (at the spring midpoint)
     L bending:  turning angle = eps (p . r_LL) / lam + O(eps^3)
                 -> 1/2 k_b eps^2 (p . r_LL)^2 / lam^2
-    shear:      mean of the 4 quadrant angle changes^2 = gamma^2 + O(eps^2)
-                -> 1/2 k_sh gamma^2
+    shear:      each quadrant angle changes by -+gamma + O(eps), the O(eps) parts of opposite
+                quadrants cancelling; gamma = θ0 - θ, θ the angle between l and m
+                -> 1/2 k_sh gamma^2 + 1/4 k_sh4 gamma^4 + 1/6 k_sh6 gamma^6   + O(eps^2)
 
-so, for orthonormal L, M (sin(gamma) = l . m, p = l rotated +90 deg)::
+and dividing by A (p = l rotated +90 deg)::
 
-    k_l = k_m = k_e            (N/mm)       fibre_stretch
-    k_s       = k_sh / eps^2   (N/mm)       shear
-    A_g       = k_b            (N mm)       geodesic_bending   (exact only at lam ~ 1)
+    k_l = k_m = k_e / s0            (N/mm)   fibre_stretch
+    k_s       = k_sh / (eps^2 s0)   (N/mm)   shear
+    k4, k6    = k_sh4, k_sh6 / (eps^2 s0)  (N/mm)   shear_locking
+    A_g       = k_b / s0            (N mm)   geodesic_bending   (exact only at lam ~ 1)
+
+For an affine placement the quadrant changes are exactly -+gamma, so the shear identification
+is exact at any gamma (tested with a large shear in ``tests/test_network_lattices.py``).
 
 The bending identification holds at lam = 1: the lattice density is
 ``1/2 k_b (p . r_LL)^2 / lam^2`` versus ``1/2 A_g (p . r_LL)^2`` in the continuum, a relative
@@ -85,27 +95,43 @@ class Lattice:
 
 
 def fibre_directions(angles_deg: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors L, M at the given angles (degrees) from the x axis."""
-    t = np.radians(angles_deg)
-    return np.array([np.cos(t[0]), np.sin(t[0])]), np.array([np.cos(t[1]), np.sin(t[1])])
+    """Unit vectors L, M at the given angles (degrees) from the x axis (need not be orthogonal;
+    parallel families are rejected)."""
+    return _sin_theta0(angles_deg)[1:]
+
+
+def _sin_theta0(angles_deg):
+    t = np.radians(np.asarray(angles_deg, float))
+    s0 = abs(np.sin(t[0] - t[1]))
+    if not np.all(np.isfinite(t)) or s0 < 1e-6:
+        raise ValueError(f"fibre angles {tuple(angles_deg)} deg: the two families must be finite "
+                         "and not parallel")
+    return s0, np.array([np.cos(t[0]), np.sin(t[0])]), np.array([np.cos(t[1]), np.sin(t[1])])
 
 
 def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
-                           angles_deg: tuple[float, float] = (45.0, -45.0)) -> dict:
-    """Lattice stiffnesses (k_e N/mm, k_sh N mm, k_b N mm) for continuum moduli.
+                           angles_deg: tuple[float, float] = (45.0, -45.0),
+                           k4: float = 0.0, k6: float = 0.0) -> dict:
+    """Lattice stiffnesses for continuum moduli (module docstring), ready for
+    :func:`hencky_lattice`: ``k_e`` (N/mm), ``k_sh``, ``k_sh4``, ``k_sh6``, ``k_b`` (N mm).
 
-    ``k_l`` (N/mm, both families), ``k_s`` (N/mm), ``A_g`` (N mm); spacing eps (mm). For
-    non-orthogonal families the node area ``eps^2 |sin(a1 - a2)|`` scales all three.
+    ``k_l`` (N/mm, both families), ``k_s`` and the ``shear_locking`` moduli ``k4``, ``k6``
+    (N/mm), ``A_g`` (N mm); spacing eps (mm). The node area ``eps^2 sin θ0`` scales all.
     """
-    s = abs(np.sin(np.radians(angles_deg[0] - angles_deg[1])))
-    return {"k_e": k_l * s, "k_sh": k_s * s * spacing**2, "k_b": A_g * s}
+    s0 = _sin_theta0(angles_deg)[0]
+    cell = s0 * spacing**2
+    return {"k_e": k_l * s0, "k_sh": k_s * cell, "k_b": A_g * s0,
+            "k_sh4": k4 * cell, "k_sh6": k6 * cell}
 
 
 def continuum_from_lattice(k_e: float, k_sh: float, k_b: float, spacing: float,
-                           angles_deg: tuple[float, float] = (45.0, -45.0)) -> dict:
-    """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g"}``."""
-    s = abs(np.sin(np.radians(angles_deg[0] - angles_deg[1])))
-    return {"k_l": k_e / s, "k_s": k_sh / (s * spacing**2), "A_g": k_b / s}
+                           angles_deg: tuple[float, float] = (45.0, -45.0),
+                           k_sh4: float = 0.0, k_sh6: float = 0.0) -> dict:
+    """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g", "k4", "k6"}``."""
+    s0 = _sin_theta0(angles_deg)[0]
+    cell = s0 * spacing**2
+    return {"k_l": k_e / s0, "k_s": k_sh / cell, "A_g": k_b / s0,
+            "k4": k_sh4 / cell, "k6": k_sh6 / cell}
 
 
 def _crossings(length, width, eps, L, M, origin):
@@ -149,7 +175,8 @@ def _triples(grid, d1, d2):
 def hencky_lattice(length: float, width: float, spacing: float,
                    angles_deg: tuple[float, float] = (45.0, -45.0), k_e: float = 1.0,
                    k_sh: float = 1.0, k_b: float = 1.0,
-                   origin: tuple[float, float] = (0.0, 0.0)) -> Lattice:
+                   origin: tuple[float, float] = (0.0, 0.0),
+                   k_sh4: float = 0.0, k_sh6: float = 0.0) -> Lattice:
     """Build the Hencky-type fabric lattice of the module docstring.
 
     Parameters
@@ -161,6 +188,8 @@ def hencky_lattice(length: float, width: float, spacing: float,
     k_sh : shear stiffness per crossing (N mm/rad^2), split over four quadrant springs.
     k_b : bending stiffness per fibre triple (N mm/rad^2).
     origin : one node position (mm), default the lower-left corner.
+    k_sh4, k_sh6 : quartic and sextic shear (locking) stiffnesses per crossing (N mm/rad^4,
+        N mm/rad^6), split like ``k_sh``.
     """
     L, M = fibre_directions(angles_deg)
     grid, X = _crossings(length, width, spacing, L, M, np.asarray(origin, float))
@@ -172,8 +201,11 @@ def hencky_lattice(length: float, width: float, spacing: float,
     rot = np.concatenate(bend + [shear])
     nb = len(bend[0]) + len(bend[1])
     k_rot = np.concatenate([np.full(nb, float(k_b)), np.full(len(shear), k_sh / 4.0)])
+    k_rot4, k_rot6 = (np.concatenate([np.zeros(nb), np.full(len(shear), k / 4.0)])
+                      for k in (k_sh4, k_sh6))
     phi0 = np.concatenate([np.zeros(nb), np.full(len(shear), np.nan)])
-    net = SpringNetwork(X, ext, k_e, l0=spacing, rot=rot, k_rot=k_rot, phi0=phi0)
+    net = SpringNetwork(X, ext, k_e, l0=spacing, rot=rot, k_rot=k_rot, phi0=phi0,
+                        k_rot4=k_rot4, k_rot6=k_rot6)
     ref = net.turning_angles(X)
     net.phi0[nb:] = ref[nb:]
     w = spacing * max(abs(L[0]), abs(M[0]))

@@ -1,0 +1,165 @@
+"""``fabricsurf compare|fit|diagnose DATA [DATA …]``: model against measurements.
+
+Every command takes one or more measurement directories (contract version 2); with several,
+one set of moduli serves all of them (one material, several tests) and misfits are reported per
+experiment and overall. Outputs go to ``--out`` (checked before any computation, written
+atomically) and record the terms, moduli, mesh sizes, inputs and software versions used.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from mpi4py import MPI
+
+from fabricsurf.cli.outdir import OutputDir
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.inverse.data import load_experiment
+from fabricsurf.inverse.params import load_params, parse_model, provenance
+
+COMM = MPI.COMM_WORLD
+
+
+def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
+    p.add_argument("data", nargs="+", help="measurement directories (experiment.toml + CSV)")
+    p.add_argument("--terms", required=terms_required, default=None,
+                   help="comma-separated effects, e.g. fibre_stretch,shear (see "
+                   "`fabricsurf terms`)")
+    p.add_argument("--params", default=None, help='JSON moduli {"term": {"param": value}} '
+                   "(N/mm, N·mm; see `fabricsurf terms`) or a saved fit.json")
+    p.add_argument("--out", required=True, help="output directory (created; must be writable)")
+    p.add_argument("--h", type=float, default=None,
+                   help="element size in mm (default: the test's own, e.g. width/10)")
+
+
+def check_h(h: float | None) -> None:
+    from fabricsurf.errors import InputError
+
+    if h is not None and not (h > 0 and h < 1e6):
+        raise InputError(f"--h {h}: must be a positive element size in mm")
+
+
+def _setup(args):
+    check_h(args.h)
+    params = load_params(args.params, args.terms.split(",") if args.terms else None)
+    model = parse_model(args.terms, params)
+    exps = [load_experiment(d) for d in args.data]
+    names = [e.name for e in exps]
+    if len(set(names)) != len(names):
+        from fabricsurf.errors import InputError
+
+        raise InputError(f"experiments must have distinct names, got {names}")
+    return exps, model
+
+
+def _summary(label: str, m: dict) -> str:
+    parts = [f"{label}: combined misfit {m['combined']:.4g} (noise units), chi2 "
+             f"{m['chi2']:.5g} over {m['n']} data"]
+    for e in m["experiments"]:
+        bits = [f"field RMS {e['field_rms']:.4g} mm" if e["field_rms"] is not None else "",
+                f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else ""]
+        parts.append(f"  {e['experiment']}: misfit {e['combined']:.4g}; "
+                     + ", ".join(b for b in bits if b)
+                     + (f"; points outside the mesh: {e['points_outside']}"
+                        if e["points_outside"] else ""))
+    return "\n".join(parts)
+
+
+def _prov(model, fs, args) -> dict:
+    return {"provenance": provenance(model, [str(d) for d in args.data],
+                                     [m.h for m in fs.models])}
+
+
+def cmd_compare(args) -> int:
+    from fabricsurf.inverse.forward import ForwardSet
+    from fabricsurf.inverse.outputs import write_comparison
+
+    exps, model = _setup(args)
+    steps = [int(s) for s in args.steps.split(",")] if args.steps else None
+    with OutputDir(args.out, COMM) as stage:
+        fs = ForwardSet(exps, model, h=args.h, comm=COMM)
+        preds = fs.run()
+        m = fs.misfit(preds)
+        label = "+".join(t.name for t in model)
+        write_comparison(stage, exps, [(label, preds)], [(label, m)], steps,
+                         extra=_prov(model, fs, args))
+    rank0_print(COMM, _summary(label, m))
+    return 0
+
+
+def cmd_fit(args) -> int:
+    from fabricsurf.inverse.fit import fit
+    from fabricsurf.inverse.forward import ForwardSet
+    from fabricsurf.inverse.outputs import write_comparison
+
+    exps, model = _setup(args)
+    with OutputDir(args.out, COMM) as stage:
+        fs = ForwardSet(exps, model, h=args.h, comm=COMM)
+        res = fit(fs, verbose=True)
+        write_json(COMM, stage / "fit.json", res.as_dict() | _prov(model, fs, args))
+        label = "fit: " + "+".join(t.name for t in model)
+        write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
+    for n, v, s in zip(res.names, res.values, res.std):
+        rank0_print(COMM, f"  {n} = {v:.5g} ± {s:.2g}")
+    rank0_print(COMM, _summary(label, res.misfit))
+    return 0
+
+
+def cmd_diagnose(args) -> int:
+    from fabricsurf.inverse import figures
+    from fabricsurf.inverse.diagnose import diagnose
+    from fabricsurf.inverse.outputs import write_comparison
+
+    if args.confirm < 1:
+        from fabricsurf.errors import InputError
+
+        raise InputError(f"--confirm {args.confirm}: must be at least 1")
+    exps, model = _setup(args)
+    params = {t.name: t.values() for t in model}
+    with OutputDir(args.out, COMM) as stage:
+        d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
+                     confirm=args.confirm, max_effects=args.max_effects, comm=COMM)
+        out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
+                                                      args.h and [args.h])}
+        write_json(COMM, stage / "diagnosis.json", out)
+        b, f = d.base_fit, d.final_fit
+        preds, mfs = [("baseline", b.prediction)], [("baseline", b.misfit)]
+        write_comparison(stage, exps, preds, mfs, stem="baseline_")
+        if d.verdict is not None:
+            label = "+".join(d.terms)
+            write_comparison(stage, exps, preds + [(label, f.prediction)],
+                             mfs + [(label, f.misfit)], stem="before_after_")
+            if args.add_best:
+                write_json(COMM, stage / "model_best.json", f.as_dict())
+        if COMM.rank == 0:
+            figures.misfit_path(d.path, stage / "misfit_path.png")
+    rank0_print(COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
+    for r in d.ranking:
+        rank0_print(COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
+                    f"{r['refit_misfit']}  significant {r['significant']}")
+    rank0_print(COMM, f"verdict: {d.verdict}; final {'+'.join(d.terms)} misfit "
+                f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}")
+    return 0
+
+
+def add_parsers(sub, formatter) -> None:
+    p = sub.add_parser("compare", formatter_class=formatter,
+                       help="misfit of a model against the data, with figures")
+    add_common(p, terms_required=False)
+    p.add_argument("--steps", default=None, help="comma-separated steps for the error map "
+                   "(default: middle and last)")
+    p.set_defaults(func=cmd_compare)
+    p = sub.add_parser("fit", formatter_class=formatter,
+                       help="least-squares fit of the moduli (log-parametrised)")
+    add_common(p)
+    p.set_defaults(func=cmd_fit)
+    p = sub.add_parser("diagnose", formatter_class=formatter,
+                       help="which effect is missing: rank, confirm, add (stepwise)")
+    add_common(p)
+    p.add_argument("--confirm", type=int, default=2,
+                   help="candidates confirmed by refitting in each round")
+    p.add_argument("--max-effects", type=int, default=2,
+                   help="at most this many effects added, one per round")
+    p.add_argument("--add-best", action="store_true",
+                   help="also save the final model as model_best.json (a --params file)")
+    p.set_defaults(func=cmd_diagnose)

@@ -1,0 +1,11 @@
+"""Errors that name what the user gave wrong (the lowest layer: any layer may raise them)."""
+
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Bad user input; the message names the file, row or key, and the problem."""
+
+
+class DataError(InputError):
+    """Bad measurement input (DESIGN §6); the message names file, row or key, and the problem."""

@@ -1,0 +1,127 @@
+"""The experiment protocol: what a test must provide so that compare, fit and diagnose can use it.
+
+An experiment plug-in is one class derived from :class:`ExperimentSetup` (one file in
+``fabricsurf/experiments/``) and one entry in the registry of :mod:`fabricsurf.experiments`.
+From the experiment description (specimen, fibre angles, plug-in options) it builds the mesh,
+the boundary conditions and the solver; :meth:`~ExperimentSetup.set_load` applies one value of
+the load path (one value per measured step); at a converged state the generic forward model
+(:mod:`fabricsurf.inverse.forward`) observes
+
+* displacements at points: the d components of u (d = :attr:`~ExperimentSetup.d`),
+* the measured reaction as a virtual-work functional R(u)·w, with w =
+  :meth:`~ExperimentSetup.reaction_weight` the derivative of the prescribed boundary motion
+  with respect to the load-path value (so edge and corner forces are included, and the
+  sensitivity of the reaction is (∂R/∂p + K du/dp)·w).
+
+Each plug-in validates its own keys of ``experiment.toml`` (:attr:`~ExperimentSetup.keys`,
+:meth:`~ExperimentSetup.parse_options`); keys it does not declare are rejected by the loader.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from dolfinx import fem
+from mpi4py import MPI
+
+from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.errors import DataError
+from fabricsurf.model.terms import Term
+
+
+@dataclass
+class Setup:
+    """What a plug-in needs to build its boundary-value problem (lengths in mm).
+
+    ``options`` holds the plug-in's own validated keys (e.g. ``clamp``), already in mm and N.
+    """
+
+    test: str
+    length: float
+    width: float
+    fibre_angles_deg: tuple[float, float]
+    options: dict = field(default_factory=dict)
+
+
+class ExperimentSetup(ABC):
+    """Base class of the experiment plug-ins (module docstring).
+
+    Class attributes: ``name`` (the ``[loading] test`` value), ``d`` (2: planar, 3: out of
+    plane), ``path_unit`` ("length": the load path is a displacement converted with the length
+    unit; "1": a dimensionless factor), ``has_reaction`` (whether a force column may be given),
+    ``path_label``/``reaction_label`` (axis labels), ``keys`` ({table: {key: help}}: the
+    plug-in's own keys of experiment.toml).
+    """
+
+    name: ClassVar[str] = ""
+    d: ClassVar[int] = 2
+    path_unit: ClassVar[str] = "length"
+    has_reaction: ClassVar[bool] = True
+    path_label: ClassVar[str] = "load path"
+    reaction_label: ClassVar[str] = "reaction (N)"
+    keys: ClassVar[dict[str, dict[str, str]]] = {}
+
+    problem: FabricProblem
+    solver: SNESSolver
+
+    def __init__(self, setup: Setup, model: list[Term], h: float,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+        self.setup, self.model, self.h, self.comm = setup, list(model), float(h), comm
+
+    @classmethod
+    def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
+        """Validate the plug-in's keys (``tables``: the TOML tables) into an options dict."""
+        return {}
+
+    @classmethod
+    def check_specimen(cls, setup: Setup, where: str) -> None:
+        """Reject specimens the test cannot have (e.g. a non-square picture frame)."""
+
+    @classmethod
+    def default_h(cls, setup: Setup) -> float:
+        """Default element size (mm)."""
+        return min(setup.length, setup.width) / 10.0
+
+    @abstractmethod
+    def set_load(self, t: float) -> None:
+        """Apply the load-path value t (Constants / boundary values only: no recompilation)."""
+
+    def reaction_weight(self) -> fem.Function | None:
+        """w with reaction = R(u)·w (None when the test measures no reaction)."""
+        return None
+
+    def reaction(self) -> float:
+        """The measured reaction at the current state (reduced over ranks)."""
+        w = self.reaction_weight()
+        if w is None:
+            raise ValueError(f"experiment '{self.name}' has no reaction")
+        return float(self.solver.internal_force().dot(w.vector))
+
+
+def choice_option(tables: dict, table: str, key: str, allowed: tuple[str, ...], default: str,
+                  where: str) -> str:
+    """A string option that must be one of ``allowed`` (default when absent)."""
+    value = tables.get(table, {}).get(key, default)
+    if not isinstance(value, str) or value not in allowed:
+        raise DataError(f"{where}: [{table}] {key} = {value!r} is not one of {list(allowed)}")
+    return value
+
+
+def number_option(tables: dict, table: str, key: str, where: str, default: float | None = None,
+                  positive: bool = True) -> float:
+    """A finite (positive) number option; required when ``default`` is None."""
+    t = tables.get(table, {})
+    if key not in t:
+        if default is None:
+            raise DataError(f"{where}: missing key [{table}] {key}")
+        return float(default)
+    v = t[key]
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    if not ok or (positive and v <= 0):
+        need = "a positive finite number" if positive else "a finite number"
+        raise DataError(f"{where}: [{table}] {key} = {v!r} must be {need}")
+    return float(v)

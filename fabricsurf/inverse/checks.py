@@ -1,0 +1,105 @@
+"""Validation and plausibility checks of measurement data (mm, N), each with a message naming
+the file, line or key and what to check (unit mix-ups are the common cause of absurd values)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fabricsurf.errors import DataError
+
+MAX_SPECIMEN_MM = 5000.0
+MIN_SPECIMEN_MM = 0.5
+MAX_FORCE_N = 1e7
+MIN_FIELD_EXTENT = 0.02
+
+
+def fibre_angles(angles: tuple[float, float]) -> None:
+    """The two fibre families must not be parallel."""
+    if abs(math.sin(math.radians(angles[0] - angles[1]))) < 1e-6:
+        raise DataError(f"experiment.toml: [specimen] fibre_angles_deg = {list(angles)}: the "
+                        "two fibre families are parallel")
+
+
+def steps(values: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
+    """Step numbers must be integers ≥ 1."""
+    bad = np.flatnonzero((values != np.round(values)) | (values < 1))
+    if len(bad):
+        raise DataError(f"{name} line {lines[bad[0]]}: step {values[bad[0]]!r} is not an "
+                        "integer ≥ 1")
+    return values.astype(np.int64)
+
+
+def _first_duplicate(keys: np.ndarray) -> tuple[int, int] | None:
+    seen: dict = {}
+    for i, k in enumerate(map(tuple, keys)):
+        if k in seen:
+            return seen[k], i
+        seen[k] = i
+    return None
+
+
+def unique_steps(st: np.ndarray, lines: np.ndarray, name: str) -> None:
+    dup = _first_duplicate(st[:, None])
+    if dup:
+        raise DataError(f"{name} line {lines[dup[1]]}: duplicate step {st[dup[1]]} (also on "
+                        f"line {lines[dup[0]]})")
+
+
+def field_rows(f: dict, known_steps: np.ndarray, length: float, width: float, name: str,
+               steps_source: str) -> None:
+    """Points inside the specimen, no duplicate rows, steps known to the load path."""
+    tol = 1e-9 * max(length, width)
+    X, Y, lines = f["X"], f["Y"], f["_line"]
+    out = np.flatnonzero((X < -tol) | (X > length + tol) | (Y < -tol) | (Y > width + tol))
+    if len(out):
+        i = out[0]
+        raise DataError(f"{name} line {lines[i]}: point (X, Y) = ({X[i]:g}, {Y[i]:g}) mm is "
+                        f"outside the specimen [0, {length:g}] x [0, {width:g}] mm (check the "
+                        "origin and [units] length)")
+    dup = _first_duplicate(np.column_stack([f["step"], X, Y]))
+    if dup:
+        raise DataError(f"{name} line {lines[dup[1]]}: duplicate row (same step, X, Y as line "
+                        f"{lines[dup[0]]})")
+    unknown = np.flatnonzero(~np.isin(f["step"], known_steps))
+    if len(unknown):
+        i = unknown[0]
+        raise DataError(f"{name} line {lines[i]}: step {int(f['step'][i])} does not appear in "
+                        f"{steps_source}")
+    ex, ey = np.ptp(X), np.ptp(Y)
+    if len(np.unique(np.column_stack([X, Y]), axis=0)) >= 4 and (
+            ex < MIN_FIELD_EXTENT * length and ey < MIN_FIELD_EXTENT * width):
+        raise DataError(f"{name}: all points lie in a {ex:.3g} x {ey:.3g} mm patch of the "
+                        f"{length:g} x {width:g} mm specimen: are the field coordinates in "
+                        "another unit than [units] length?")
+
+
+def magnitudes(exp, length_unit: str) -> None:
+    """Absurd magnitudes (unit mix-ups) rejected with what was found."""
+    size = max(exp.length, exp.width)
+    if size > MAX_SPECIMEN_MM or min(exp.length, exp.width) < MIN_SPECIMEN_MM:
+        raise DataError(f"experiment.toml: [specimen] {exp.length:g} x {exp.width:g} mm is not "
+                        f"a plausible specimen (from [units] length = \"{length_unit}\"): are "
+                        "the sizes in another unit?")
+    if np.abs(exp.path).max() > 10 * size:
+        k = int(np.argmax(np.abs(exp.path)))
+        raise DataError(f"load path: step {exp.steps[k]} has the value {exp.path[k]:.3g}, more "
+                        "than ten times the specimen size")
+
+
+def field_displacements(u: np.ndarray, lines: np.ndarray, size: float, name: str) -> None:
+    """Displacements larger than ten times the specimen are a unit or column mix-up."""
+    big = np.flatnonzero(np.abs(u).max(axis=1) > 10 * size)
+    if len(big):
+        raise DataError(f"{name} line {lines[big[0]]}: displacement of "
+                        f"{np.abs(u[big[0]]).max():.3g} mm, more than ten times the specimen "
+                        f"size ({size:g} mm): check [units] length and the columns")
+
+
+def forces(f: np.ndarray, lines: np.ndarray, name: str) -> None:
+    """Forces beyond any fabric test machine are a unit mix-up."""
+    big = np.flatnonzero(np.abs(f) > MAX_FORCE_N)
+    if len(big):
+        raise DataError(f"{name} line {lines[big[0]]}: force {f[big[0]]:.3g} N is not plausible "
+                        "for a fabric test (check [units] force)")

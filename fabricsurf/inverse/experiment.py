@@ -1,0 +1,60 @@
+"""An experiment in memory: its set-up and its measurements, in mm and N."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fabricsurf.experiments.base import Setup
+
+
+@dataclass
+class Experiment:
+    """One experiment in mm and N.
+
+    ``steps``, ``path`` (load-path value: a displacement in mm, or a factor), ``force`` (the
+    measured reaction, or None): one entry per load step, sorted by step number.
+    ``field_step``, ``X`` (n×2), ``u`` (n×2 or n×3): the full-field rows (n = 0: force only).
+    """
+
+    name: str
+    setup: Setup
+    steps: np.ndarray
+    path: np.ndarray
+    force: np.ndarray | None = None
+    field_step: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    X: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    u: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    noise_std: float | None = None
+    force_noise_std: float | None = None
+    source: dict = field(default_factory=dict)
+    directory: str | None = None
+
+    @property
+    def test(self) -> str:
+        return self.setup.test
+
+    @property
+    def length(self) -> float:
+        return self.setup.length
+
+    @property
+    def width(self) -> float:
+        return self.setup.width
+
+    @property
+    def fibre_angles_deg(self) -> tuple[float, float]:
+        return self.setup.fibre_angles_deg
+
+    @property
+    def has_field(self) -> bool:
+        return len(self.field_step) > 0
+
+    @property
+    def has_force(self) -> bool:
+        return self.force is not None
+
+    def step_rows(self, step: int) -> np.ndarray:
+        """Indices of the field rows of one step."""
+        return np.flatnonzero(self.field_step == step)

@@ -1,0 +1,206 @@
+"""The forward model of one or several experiments, with exact sensitivities to the moduli.
+
+:class:`ForwardModel` runs one experiment's plug-in (:mod:`fabricsurf.experiments`) along the
+recorded load path from the reference state and observes, at every converged step, the
+displacements at the measured points and the measured reaction. With ``sens`` it also returns
+du/dp = −K⁻¹ ∂R/∂p at each step, using the converged Jacobian's factorisation: Π_h (cell energy,
+C0-IP consistency and penalty terms) is linear in the vector of moduli, so ∂R/∂p is the
+assembled residual with that modulus 1 and all others 0; the reaction R·w then has the
+sensitivity (∂R/∂p + K du/dp)·w. :class:`ForwardSet` runs several experiments with one set of
+moduli (the same term objects, bound to each experiment's mesh): one material, several tests.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.experiments import get_test
+from fabricsurf.inverse import misfit as mf
+from fabricsurf.inverse.experiment import Experiment
+from fabricsurf.model.terms import EFFECTS, Term
+
+
+@dataclass
+class Prediction:
+    """Model values at the data: ``u`` (rows×c, NaN outside the mesh; c compared components),
+    ``force`` (steps, or None); sensitivities ``du`` (rows×c×P), ``dforce`` (steps×P)."""
+
+    u: np.ndarray
+    force: np.ndarray | None
+    du: np.ndarray | None = None
+    dforce: np.ndarray | None = None
+    newton: int = 0
+    seconds: float = 0.0
+
+
+class ForwardModel:
+    """One experiment with a given model (list of vocabulary terms); see the module docstring.
+
+    ``params`` lists every modulus of every term in model order; ``names`` "term.param".
+    """
+
+    def __init__(self, exp: Experiment, model: list[Term], h: float | None = None,
+                 comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False) -> None:
+        foreign = [t.name for t in model if t.name not in EFFECTS]
+        if foreign:
+            raise ValueError(f"compare/fit: terms {foreign} are not in the vocabulary "
+                             f"({', '.join(EFFECTS)}); the exact sensitivities assume an "
+                             "energy linear in each modulus")
+        plugin = get_test(exp.test)
+        self.exp, self.model, self.verbose, self.comm = exp, model, verbose, comm
+        self.h = float(h or plugin.default_h(exp.setup))
+        self.test = plugin(exp.setup, model, self.h, comm)
+        self.components = min(exp.u.shape[1], plugin.d)
+        self.ignored = (["uz (the planar test cannot predict it)"]
+                        if exp.u.shape[1] > plugin.d and exp.has_field else [])
+        self.params = [(t, p) for t in model for p in t.parameters()]
+        self.names = [f"{t.name}.{p}" for t, p in self.params]
+        self._bc_dofs = np.concatenate(
+            [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
+        self.forward_runs = 0
+
+    # -- parameters ----------------------------------------------------------------------
+    def values(self) -> np.ndarray:
+        return np.array([getattr(t, p) for t, p in self.params])
+
+    def set_values(self, vals) -> None:
+        for (t, p), v in zip(self.params, vals):
+            t.set(**{p: float(v)})
+
+    @property
+    def experiments(self) -> list[Experiment]:
+        return [self.exp]
+
+    @property
+    def noise_known(self) -> bool:
+        return mf.noise_known(self.exp)
+
+    # -- solves --------------------------------------------------------------------------
+    def _dR_dp(self, k: int) -> PETSc.Vec:
+        """∂R/∂p_k at the current u (no boundary conditions)."""
+        vals = self.values()
+        self.set_values(np.eye(len(vals))[k])
+        try:
+            b = self.test.solver.internal_force()
+        finally:
+            self.set_values(vals)
+        return b
+
+    def _sensitivities(self, which: list[int], w) -> list[tuple[fem.Function, float]]:
+        """(du/dp_k, dF/dp_k) for k in ``which`` at the converged state."""
+        s = self.test.solver
+        ksp = s.snes.getKSP()
+        A_full = fem_petsc.assemble_matrix(s.a)
+        A_full.assemble()
+        out, x, Kdu = [], s.x.duplicate(), s.x.duplicate()
+        for k in which:
+            b = self._dR_dp(k)
+            dF = b.dot(w.vector) if w is not None else 0.0
+            b.scale(-1.0)
+            with b.localForm() as loc:
+                loc.array[self._bc_dofs] = 0.0
+            ksp.solve(b, x)
+            if w is not None:
+                A_full.mult(x, Kdu)
+                dF += Kdu.dot(w.vector)
+            du = fem.Function(self.test.problem.V)
+            x.copy(du.vector)
+            du.x.scatter_forward()
+            out.append((du, dF))
+        for v in (A_full, x, Kdu):
+            v.destroy()
+        return out
+
+    def run(self, sens: bool | list[int] = False) -> Prediction:
+        """Follow the recorded load path; sensitivities for ``sens`` (True: all moduli)."""
+        exp, t0, c = self.exp, time.perf_counter(), self.components
+        which = list(range(len(self.params))) if sens is True else list(sens or [])
+        P, n, with_force = len(which), len(exp.field_step), exp.has_force
+        u = np.full((n, c), np.nan)
+        force = np.zeros(len(exp.steps)) if with_force else None
+        du = np.zeros((n, c, P)) if which else None
+        dF = np.zeros((len(exp.steps), P)) if which and with_force else None
+        sol = self.test.solver
+        sol.u.x.array[:] = 0.0
+        self.test.set_load(0.0)
+
+        def converged(k: int, t: float, its: int) -> None:
+            rows = exp.step_rows(exp.steps[k])
+            pts = exp.X[rows]
+            if len(rows):
+                u[rows] = eval_points(sol.u, pts)[:, :c]
+            w = self.test.reaction_weight() if with_force else None
+            if w is not None:
+                force[k] = float(sol.internal_force().dot(w.vector))
+            for j, (duj, dfj) in enumerate(self._sensitivities(which, w)):
+                if len(rows):
+                    du[rows, :, j] = eval_points(duj, pts)[:, :c]
+                if dF is not None:
+                    dF[k, j] = dfj
+
+        iters = LoadStepper(sol, self.test.set_load, converged).run(exp.path)
+        self.forward_runs += 1
+        return Prediction(u, force, du, dF, int(sum(iters)), time.perf_counter() - t0)
+
+    def residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
+        return mf.residuals(self.exp, pred)
+
+    def misfit(self, pred: Prediction) -> dict:
+        return mf.misfit(self.exp, pred) | ({"ignored": self.ignored} if self.ignored else {})
+
+
+class ForwardSet:
+    """Several experiments, one set of moduli: runs, stacked residuals, joint misfit."""
+
+    def __init__(self, exps: list[Experiment], model: list[Term], h: float | None = None,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+        if not exps:
+            raise ValueError("no experiments given")
+        self.models = [ForwardModel(e, model, h, comm) for e in exps]
+        first = self.models[0]
+        self.model, self.comm, self.params, self.names = model, comm, first.params, first.names
+
+    def values(self) -> np.ndarray:
+        return self.models[0].values()
+
+    def set_values(self, vals) -> None:
+        """The terms are shared: setting them once updates every experiment's constants."""
+        self.models[0].set_values(vals)
+
+    @property
+    def experiments(self) -> list[Experiment]:
+        return [m.exp for m in self.models]
+
+    @property
+    def forward_runs(self) -> int:
+        return sum(m.forward_runs for m in self.models)
+
+    @property
+    def noise_known(self) -> bool:
+        return all(m.noise_known for m in self.models)
+
+    def run(self, sens: bool | list[int] = False) -> list[Prediction]:
+        return [m.run(sens) for m in self.models]
+
+    def residuals(self, preds: list[Prediction]) -> tuple[np.ndarray, np.ndarray | None]:
+        parts = [m.residuals(p) for m, p in zip(self.models, preds)]
+        r = np.concatenate([a for a, _ in parts])
+        if any(J is None for _, J in parts):
+            return r, None
+        return r, np.vstack([J for _, J in parts])
+
+    def misfit(self, preds: list[Prediction]) -> dict:
+        """Overall misfit and one entry per experiment (its own misfit dict and name)."""
+        per = [{"experiment": m.exp.name} | m.misfit(p) for m, p in zip(self.models, preds)]
+        r, _ = self.residuals(preds)
+        return {"combined": float(np.sqrt(np.mean(r**2))), "chi2": float(r @ r), "n": int(r.size),
+                "experiments": per}

@@ -1,0 +1,82 @@
+"""Misfit between model and measurements, in noise units (docs/contracts.md).
+
+Each datum gets a normalised residual
+    field: r = (u_model − u_meas)/s_u  for every field row and compared component,
+    force: r = (F_model − F_meas)/s_F  for every step,
+with s_u = ``noise_std`` and s_F = ``force_noise_std`` when the data give them, otherwise
+s_u = 1 % of the largest measured displacement magnitude and s_F = 1 % of the largest |force|.
+The combined misfit is sqrt(mean r²) over all data (≈ 1 at the noise level when the noise is
+given), χ² = Σ r². Field RMS (length) and force RMS (N) are reported unweighted. Rows whose
+point lies outside the mesh are reported and left out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fabricsurf.inverse.experiment import Experiment
+
+
+def noise_known(exp: Experiment) -> bool:
+    """Whether the data state the noise of every kind of measurement they contain."""
+    return ((not exp.has_field or exp.noise_std is not None)
+            and (not exp.has_force or exp.force_noise_std is not None))
+
+
+def scales(exp: Experiment) -> tuple[float, float]:
+    """(s_u, s_F): the noise levels, or 1 % of the largest measured value (module docstring)."""
+    umax = float(np.max(np.linalg.norm(exp.u, axis=1))) if exp.has_field else 0.0
+    fmax = float(np.max(np.abs(exp.force))) if exp.has_force else 0.0
+    s_u = exp.noise_std or 0.01 * umax
+    s_F = exp.force_noise_std or 0.01 * fmax
+    return max(s_u, 1e-300), max(s_F, 1e-300)
+
+
+def residuals(exp: Experiment, pred) -> tuple[np.ndarray, np.ndarray | None]:
+    """Normalised residual vector r (field rows inside the mesh, then forces) and dr/dp."""
+    s_u, s_F = scales(exp)
+    c = pred.u.shape[1]
+    inside = np.isfinite(pred.u).all(axis=1)
+    parts = [((pred.u - exp.u[:, :c])[inside] / s_u).ravel()]
+    if exp.has_force:
+        parts.append((pred.force - exp.force) / s_F)
+    r = np.concatenate(parts)
+    if pred.du is None:
+        return r, None
+    P = pred.du.shape[2]
+    J = [(pred.du[inside] / s_u).reshape(-1, P)]
+    if exp.has_force:
+        J.append(pred.dforce / s_F)
+    return r, np.vstack(J)
+
+
+def misfit(exp: Experiment, pred) -> dict:
+    """Overall and per-step misfits (module docstring) and per-row errors (length units)."""
+    s_u, s_F = scales(exp)
+    c = pred.u.shape[1]
+    inside = np.isfinite(pred.u).all(axis=1)
+    err = np.linalg.norm(pred.u - exp.u[:, :c], axis=1)
+    dF = pred.force - exp.force if exp.has_force else None
+    r, _ = residuals(exp, pred)
+    per_step = []
+    for k, s in enumerate(exp.steps):
+        rows = exp.step_rows(s)
+        rows = rows[inside[rows]]
+        e2 = float(np.sum((pred.u[rows] - exp.u[rows, :c]) ** 2))
+        fk = float(dF[k]) if dF is not None else 0.0
+        n = c * len(rows) + (1 if dF is not None else 0)
+        row = {"step": int(s), "load": float(exp.path[k]),
+               "field_rms": float(np.sqrt(e2 / max(c * len(rows), 1))) if len(rows) else None,
+               "combined": float(np.sqrt((e2 / s_u**2 + (fk / s_F) ** 2) / max(n, 1)))}
+        if dF is not None:
+            row |= {"force_model": float(pred.force[k]), "force_meas": float(exp.force[k]),
+                    "force_error": fk}
+        per_step.append(row)
+    field_rms = float(np.sqrt(np.mean(err[inside] ** 2) / c)) if inside.any() else None
+    return {
+        "field_rms": field_rms,
+        "force_rms": float(np.sqrt(np.mean(dF**2))) if dF is not None else None,
+        "combined": float(np.sqrt(np.mean(r**2))), "chi2": float(np.sum(r**2)), "n": int(r.size),
+        "s_u": s_u if exp.has_field else None, "s_F": s_F if exp.has_force else None,
+        "points_outside": int(np.count_nonzero(~inside)), "per_step": per_step,
+        "row_error": err}

@@ -1,0 +1,56 @@
+"""Writing comparisons: misfit JSON, per-point CSV and figures for each experiment."""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+from mpi4py import MPI
+
+from fabricsurf.discretise.output import on_rank0, write_json
+from fabricsurf.inverse import figures
+from fabricsurf.inverse.fit import strip_rows
+
+
+def slug(name: str) -> str:
+    """A file-name-safe form of an experiment name."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "experiment"
+
+
+def _per_point(path: Path, exp, pred, err) -> None:
+    c = pred.u.shape[1]
+    comps = ["ux", "uy", "uz"][:c]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["step", "X", "Y", *(f"{k}_meas" for k in comps),
+                    *(f"{k}_model" for k in comps), "error"])
+        for s, x, um, up, e in zip(exp.field_step, exp.X, exp.u, pred.u, err):
+            w.writerow([int(s), *x, *um[:c], *up, e])
+
+
+def _figures(out: Path, exp, preds: list, misfits: list, steps, stem: str) -> None:
+    pred = preds[-1][1]
+    if exp.has_field:
+        _per_point(out / f"{stem}per_point.csv", exp, pred, misfits[-1][1]["row_error"])
+        figures.error_map(exp, preds, steps or figures.default_steps(exp),
+                          out / f"{stem}error_map.png")
+    if exp.has_force:
+        figures.force_curves(exp, preds, out / f"{stem}force.png")
+    figures.error_vs_step(exp, misfits, out / f"{stem}error_vs_step.png")
+
+
+def write_comparison(out: Path, exps: list, preds: list[tuple[str, list]],
+                     misfits: list[tuple[str, dict]], steps: list[int] | None = None,
+                     stem: str = "", extra: dict | None = None,
+                     comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """``preds``/``misfits``: (label, per-experiment list / joint misfit dict) per model; the
+    last one is the model reported in ``{stem}misfit.json``. One experiment: files
+    ``{stem}error_map.png`` etc.; several: prefixed by each experiment's name."""
+    label, m = misfits[-1]
+    write_json(comm, out / f"{stem}misfit.json", strip_rows(m) | {"model": label} | (extra or {}))
+    for i, exp in enumerate(exps):
+        pre = stem + ("" if len(exps) == 1 else f"{slug(exp.name)}_")
+        per_m = [(lab, mm["experiments"][i]) for lab, mm in misfits]
+        per_p = [(lab, pp[i]) for lab, pp in preds]
+        on_rank0(comm, _figures, out, exp, per_p, per_m, steps, pre)

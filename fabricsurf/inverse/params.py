@@ -1,0 +1,81 @@
+"""Moduli files (``--params``): {"term": {"parameter": value}} or a saved fit/diagnosis JSON
+(its "params"), validated against the vocabulary and the model's terms; provenance records."""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+from pathlib import Path
+
+from fabricsurf.errors import InputError
+from fabricsurf.model.terms import EFFECTS, Term
+
+
+def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict:
+    """{term: {param: value}} from a JSON file, every name and value checked. ``terms``: the
+    model's terms (a term in the file but not in the model is an error, not ignored)."""
+    if not path:
+        return {}
+    name = str(path)
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+    except OSError as e:
+        raise InputError(f"--params {name}: cannot read ({e.strerror})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise InputError(f"--params {name}: not valid JSON ({e})") from None
+    if isinstance(data, dict) and isinstance(data.get("params"), dict):
+        data = data["params"]
+    if not isinstance(data, dict) or not data:
+        raise InputError(f'--params {name}: expected {{"term": {{"parameter": value}}}}, got '
+                         f"{type(data).__name__}")
+    for term, vals in data.items():
+        if term not in EFFECTS:
+            raise InputError(f"--params {name}: unknown term '{term}' (valid: "
+                             f"{', '.join(EFFECTS)})")
+        if terms is not None and term not in terms:
+            raise InputError(f"--params {name}: term '{term}' is not in the model "
+                             f"({','.join(terms)}); add it to --terms or remove it")
+        if not isinstance(vals, dict):
+            raise InputError(f'--params {name}: "{term}" must map parameters to values, e.g. '
+                             f'{{"{term}": {{"{EFFECTS[term].parameters()[0]}": 1.0}}}}')
+        for p, v in vals.items():
+            if p not in EFFECTS[term].parameters():
+                raise InputError(f"--params {name}: term '{term}' has no parameter '{p}' (it "
+                                 f"has {', '.join(EFFECTS[term].parameters())})")
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            if not ok or v < 0:
+                raise InputError(f"--params {name}: {term}.{p} = {v!r} must be a finite "
+                                 f"number ≥ 0 ({EFFECTS[term].units.get(p, '')})")
+    return data
+
+
+def parse_model(spec: str | None, params: dict) -> list[Term]:
+    """The model of ``--terms`` (default: the terms of the params file); duplicates rejected."""
+    from fabricsurf.model.terms import parse_terms
+
+    spec = spec or ",".join(params)
+    if not spec:
+        raise InputError("--terms: no terms given (and no --params file naming them)")
+    names = [s.strip() for s in spec.split(",") if s.strip()]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"--terms: '{dup[0]}' is given twice")
+    try:
+        return parse_terms(spec, params)
+    except ValueError as e:
+        raise InputError(f"--terms: {e}") from None
+
+
+def provenance(model: list[Term], inputs: list[str], h: list[float] | None = None) -> dict:
+    """What produced an output: terms and moduli, mesh sizes, inputs, software versions."""
+    import dolfinx
+    import petsc4py
+    from mpi4py import MPI
+
+    from fabricsurf import __version__
+
+    return {"terms": [t.name for t in model], "params": {t.name: t.values() for t in model},
+            "h_mm": h, "inputs": inputs, "ranks": MPI.COMM_WORLD.size,
+            "versions": {"fabricsurf": __version__, "dolfinx": dolfinx.__version__,
+                         "petsc4py": petsc4py.__version__, "python": platform.python_version()}}

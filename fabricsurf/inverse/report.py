@@ -1,0 +1,121 @@
+"""The diagnosis result (diagnosis.json, contract version 2) and where a model still fails."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.inverse import significance as sg
+from fabricsurf.inverse.fit import FitResult, strip_rows
+from fabricsurf.inverse.forward import ForwardModel, ForwardSet
+
+
+@dataclass
+class Diagnosis:
+    """Everything diagnose found; :meth:`as_dict` is the diagnosis.json content."""
+
+    baseline: list
+    base_fit: FitResult
+    final_fit: FitResult
+    terms: list
+    ranking: list
+    rounds: list
+    verdict: str | None
+    alternatives: list
+    adequate: bool
+    path: list
+    not_identifiable: list
+    discretisation_chi2: float | None
+    unexplained: dict | None
+    fit_seconds: float
+    noise_known: bool
+
+    def outcome(self) -> str:
+        if self.verdict is not None:
+            return f"add {self.verdict}" + ("" if self.adequate else " (still not adequate)")
+        return "nothing missing" if self.adequate else "unexplained misfit"
+
+    def as_dict(self) -> dict:
+        b, f = self.base_fit, self.final_fit
+        n = f.misfit["n"]
+        return {
+            "contract_version": 2,
+            "baseline": {"terms": self.baseline, "misfit": b.misfit["combined"], "chi2": b.chi2,
+                         "n": b.misfit["n"], "params": b.params(), "std": b.as_dict()["std"]},
+            "ranking": self.ranking, "rounds": self.rounds, "verdict": self.verdict,
+            "indistinguishable_from_verdict": self.alternatives, "adequate": self.adequate,
+            "outcome": self.outcome(), "path": self.path,
+            "final": {"terms": self.terms, "params": f.params(), "std": f.as_dict()["std"],
+                      "misfit": strip_rows(f.misfit)},
+            "not_identifiable": self.not_identifiable, "unexplained": self.unexplained,
+            "discretisation": {
+                "chi2_h_vs_h2": self.discretisation_chi2,
+                "misfit": (None if self.discretisation_chi2 is None
+                           else float(np.sqrt(self.discretisation_chi2 / max(n, 1))))},
+            "significance": {"level": sg.LEVEL, "fraction_of_excess": sg.FRACTION_OF_EXCESS,
+                             "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
+                             "noise_known": self.noise_known,
+                             "rule": sg.__doc__.split("*Adequate*")[1].strip()},
+            "seconds": {"baseline_fit": self.fit_seconds}}
+
+
+def discretisation_chi2(fs: ForwardSet, exps: list, h: float | None, comm: MPI.Comm) -> float:
+    """Σ((prediction at h − prediction at h/2)/noise)² at the current moduli: the part of the
+    misfit the mesh explains (every experiment's plug-in mesh refined by 2)."""
+    total = 0.0
+    for m in fs.models:
+        fine = ForwardModel(m.exp, fs.model, h=m.h / 2, comm=comm)
+        r_h, _ = m.residuals(m.run())
+        r_f, _ = fine.residuals(fine.run())
+        if r_h.shape == r_f.shape:
+            total += float(np.sum((r_h - r_f) ** 2))
+    return total
+
+
+def _force_ranges(exp, per_step: list, s_F: float) -> list:
+    """Load-path ranges where the force error exceeds three noise levels."""
+    bad = [abs(q.get("force_error", 0.0)) > 3 * s_F for q in per_step]
+    ranges, start = [], None
+    for k, b in enumerate(bad + [False]):
+        if b and start is None:
+            start = k
+        if not b and start is not None:
+            ranges.append([float(exp.path[start]), float(exp.path[k - 1])])
+            start = None
+    return ranges
+
+
+def _regions(exp, err: np.ndarray, s_u: float, blocks: int = 3) -> list:
+    """RMS field error (noise units) over a blocks × blocks grid of the specimen, worst first."""
+    ix = np.minimum((exp.X[:, 0] / exp.length * blocks).astype(int), blocks - 1)
+    iy = np.minimum((exp.X[:, 1] / exp.width * blocks).astype(int), blocks - 1)
+    out = []
+    for i in range(blocks):
+        for j in range(blocks):
+            sel = (ix == i) & (iy == j) & np.isfinite(err)
+            if sel.any():
+                out.append({"x_mm": [exp.length * i / blocks, exp.length * (i + 1) / blocks],
+                            "y_mm": [exp.width * j / blocks, exp.width * (j + 1) / blocks],
+                            "rms_noise_units": float(np.sqrt(np.mean(err[sel] ** 2)) / s_u)})
+    return sorted(out, key=lambda q: -q["rms_noise_units"])
+
+
+def where_unexplained(exps: list, res: FitResult) -> dict:
+    """Per experiment: the worst steps, the load ranges with force errors beyond 3σ, the worst
+    regions of the specimen."""
+    per = res.misfit["experiments"] if "experiments" in res.misfit else [res.misfit]
+    out = []
+    for exp, m in zip(exps, per):
+        steps = sorted(m["per_step"], key=lambda q: -q["combined"])[:3]
+        item = {"experiment": exp.name,
+                "worst_steps": [{"step": q["step"], "load": q["load"],
+                                 "misfit": q["combined"]} for q in steps]}
+        if exp.has_force:
+            item["force_error_ranges"] = _force_ranges(exp, m["per_step"], m["s_F"])
+        if exp.has_field:
+            item["worst_regions"] = _regions(exp, m["row_error"], m["s_u"])[:3]
+        out.append(item)
+    return {"experiments": out,
+            "figure": "error_vs_step.png and error_map.png of the final model"}

@@ -1,0 +1,59 @@
+"""When is a model adequate, and when does an added effect matter? (docs/diagnosis.md)
+
+Residuals are divided by the noise level, so at the truth χ² ≈ ν = n − p.
+
+*Adequate*: the misfit left is what noise and the forward model's own discretisation error
+explain: (χ² − χ²_h)/ν ≤ 1 + 3√(2/ν), with χ²_h the squared difference, in noise units, between
+the predictions at h and at h/2 (0 when not measured). The 3σ band of χ²/ν keeps the false-alarm
+rate of "inadequate" at the 0.1 % level for Gaussian noise.
+
+*Significant* (nested models, k added moduli): both
+1. an F-test at the 0.999 level against the residual variance actually left,
+   F = (Δχ²/k) / s² with s² = max(1, χ²_new/ν_new) (the noise, inflated by the model-form error
+   still present — with known noise and an adequate refit this is the χ²_k test Δχ² > 10.83);
+2. the effect removes at least a quarter of the baseline's excess misfit,
+   Δχ² ≥ ¼ (χ²_base − ν_base). Model-form error (a lattice against a continuum, grips of finite
+   depth, large shear) leaves spatially correlated residuals: many points, few independent
+   ones. Any extra modulus then fits a little of that error, and the F-test, which assumes
+   independent residuals, calls it significant. An effect that is really missing removes most
+   of the excess; one that only absorbs model-form error removes a small part.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+LEVEL = 0.999
+CHI2_CRIT = float(stats.chi2.ppf(LEVEL, 1))
+FRACTION_OF_EXCESS = 0.25
+
+
+def reduced(chi2: float, n: int, p: int) -> float:
+    return chi2 / max(n - p, 1)
+
+
+def adequacy_bound(n: int, p: int) -> float:
+    """1 + 3√(2/ν): the upper 3σ bound of χ²/ν at the noise level."""
+    return 1.0 + 3.0 * np.sqrt(2.0 / max(n - p, 1))
+
+
+def adequate(chi2: float, n: int, p: int, chi2_h: float = 0.0, noise_known: bool = True
+             ) -> bool:
+    """The model explains the data at the noise level (module docstring). Without a stated
+    noise level the scale was guessed (1 % of the largest value), so this is only indicative."""
+    return bool((chi2 - chi2_h) / max(n - p, 1) <= adequacy_bound(n, p)) if noise_known else \
+        bool(reduced(chi2, n, p) <= adequacy_bound(n, p))
+
+
+def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
+    """The two-part rule of the module docstring."""
+    k = max(p_new - p_base, 1)
+    d = chi2_base - chi2_new
+    if d <= 0:
+        return False
+    nu_new = max(n - p_new, 1)
+    s2 = max(1.0, chi2_new / nu_new)
+    f_ok = (d / k) / s2 > stats.f.ppf(LEVEL, k, nu_new)
+    excess = chi2_base - max(n - p_base, 1)
+    return bool(f_ok and d >= FRACTION_OF_EXCESS * max(excess, 0.0))

@@ -1,0 +1,94 @@
+"""Reading the files of a measurement directory: TOML and numeric CSV, with messages that name
+the file, the line (header = line 1) or key, and the problem.
+
+CSV dialects: comma-separated with a decimal point (the contract), and the semicolon-separated
+exports of European spreadsheet and DIC software, whose decimal separator may be a comma; the
+delimiter is read off the header line. UTF-8 with or without a byte-order mark; any other
+encoding is named with the offending byte's line. Blank lines (e.g. a trailing one) are skipped.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from fabricsurf.errors import DataError
+
+
+def read_toml(path: Path) -> dict:
+    """The TOML file as a dict (a UTF-8 byte-order mark is accepted)."""
+    name = path.name
+    if not path.is_file():
+        raise DataError(f"{name}: file not found in {path.parent}")
+    text = _decode(path)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise DataError(f"{name}: not valid TOML ({e})") from None
+
+
+def _decode(path: Path) -> str:
+    raw = path.read_bytes()
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[: e.start].count(b"\n") + 1
+        raise DataError(f"{path.name} line {line}: byte 0x{raw[e.start]:02x} is not UTF-8 "
+                        "(save the file as UTF-8)") from None
+
+
+def _number(cell: str, decimal_comma: bool) -> float:
+    if decimal_comma:
+        cell = cell.replace(",", ".")
+    try:
+        return float(cell)
+    except ValueError:
+        return math.nan
+
+
+def read_csv(path: Path, columns: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+    """Numeric columns of a CSV file as arrays, plus ``"_line"``: each row's line number."""
+    name = path.name
+    if not path.is_file():
+        raise DataError(f"{name}: file not found in {path.parent}")
+    lines = _decode(path).splitlines()
+    numbered = [(i + 1, s) for i, s in enumerate(lines) if s.strip()]
+    if not numbered:
+        raise DataError(f"{name}: file is empty (expected header {','.join(columns)})")
+    head = numbered[0][1]
+    delimiter = ";" if head.count(";") > head.count(",") else ","
+    if delimiter == "," and "\t" in head and "," not in head:
+        raise DataError(f"{name} line 1: tab-separated header; expected comma- (or "
+                        f"semicolon-) separated columns {','.join(columns)}")
+    rows = list(csv.reader(io.StringIO("\n".join(s for _, s in numbered)), delimiter=delimiter))
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise DataError(f"{name}: missing column(s) {', '.join(missing)}; header is "
+                        f"{delimiter.join(header)}")
+    dup = [c for c in set(header) if header.count(c) > 1 and c in (*columns, *optional)]
+    if dup:
+        raise DataError(f"{name} line 1: column {dup[0]} appears twice")
+    if len(rows) < 2:
+        raise DataError(f"{name}: no data rows")
+    wanted = list(columns) + [c for c in optional if c in header]
+    out = {c: np.empty(len(rows) - 1) for c in wanted}
+    out["_line"] = np.array([n for n, _ in numbered[1:]])
+    comma = delimiter == ";"
+    for i, row in enumerate(rows[1:]):
+        line = numbered[i + 1][0]
+        if len(row) != len(header):
+            raise DataError(f"{name} line {line}: {len(row)} fields, header has {len(header)}")
+        for c in wanted:
+            cell = row[header.index(c)].strip()
+            v = _number(cell, comma)
+            if not math.isfinite(v):
+                raise DataError(f"{name} line {line}: column {c} = {cell!r} is not a finite "
+                                "number")
+            out[c][i] = v
+    return out

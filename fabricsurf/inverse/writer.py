@@ -1,0 +1,90 @@
+"""Writing an experiment as a measurement directory (contract version 2), atomically."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from fabricsurf.experiments import get_test
+from fabricsurf.inverse.experiment import Experiment
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(float(v)) if isinstance(v, float) else repr(v)
+
+
+def toml_text(exp: Experiment) -> str:
+    """experiment.toml of ``exp`` (units mm and N; the plug-in's options in their tables)."""
+    plugin = get_test(exp.test)
+    tables: dict[str, dict] = {
+        "units": {"length": "mm", "force": "N"},
+        "specimen": {"length": exp.length, "width": exp.width,
+                     "fibre_angles_deg": [float(a) for a in exp.fibre_angles_deg]},
+        "loading": {"test": exp.test}, "data": {}}
+    for table, keys in plugin.keys.items():
+        for k in keys:
+            if k in exp.setup.options:
+                tables.setdefault(table, {})[k] = exp.setup.options[k]
+    if not exp.has_force:
+        tables["loading"]["path"] = [float(p) for p in exp.path]
+    if exp.has_field:
+        tables["data"]["field"] = "field.csv"
+    if exp.has_force:
+        tables["data"]["force"] = "force.csv"
+    for key in ("noise_std", "force_noise_std"):
+        if getattr(exp, key) is not None:
+            tables["data"][key] = float(getattr(exp, key))
+    if exp.source:
+        tables["source"] = dict(exp.source)
+    lines = [f"name = {json.dumps(exp.name)}"]
+    for table, kv in tables.items():
+        lines.append(f"[{table}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in kv.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _write_files(tmp: Path, exp: Experiment) -> None:
+    (tmp / "experiment.toml").write_text(toml_text(exp))
+    if exp.has_force:
+        with open(tmp / "force.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(("step", "displacement", "force"))
+            for s, p, f in zip(exp.steps, exp.path, exp.force):
+                w.writerow([int(s), repr(float(p)), repr(float(f))])
+    if exp.has_field:
+        comps = ["ux", "uy", "uz"][: exp.u.shape[1]]
+        with open(tmp / "field.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["step", "X", "Y", *comps])
+            for s, x, u in zip(exp.field_step, exp.X, exp.u):
+                w.writerow([int(s), *(repr(float(v)) for v in (*x, *u))])
+
+
+def write_experiment(directory: str | Path, exp: Experiment, overwrite: bool = False) -> Path:
+    """Write ``exp`` (mm, N) as a measurement directory, atomically. Call on one rank only."""
+    d = Path(directory)
+    if d.exists() and not overwrite:
+        raise FileExistsError(f"{d}: exists (pass overwrite=True to replace it)")
+    d.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{d.name}.", dir=d.parent))
+    try:
+        _write_files(tmp, exp)
+        if d.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{d.name}.old.", dir=d.parent))
+            os.replace(d, old / "x")
+            os.replace(tmp, d)
+            shutil.rmtree(old)
+        else:
+            os.replace(tmp, d)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return d
