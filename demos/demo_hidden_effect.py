@@ -35,7 +35,7 @@ from mpi4py import MPI
 from fabricsurf.cli import main as cli
 from fabricsurf.discretise.output import rank0_print, write_json
 from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.compare import ForwardModel
+from fabricsurf.inverse.forward import ForwardModel
 from fabricsurf.inverse.data import load_experiment, write_experiment
 from fabricsurf.inverse.fit import fit
 from fabricsurf.model.terms import parse_terms
@@ -45,6 +45,8 @@ ap = argparse.ArgumentParser()
 ap.add_argument("--out", default="out/hidden_effect")
 ap.add_argument("--spacing", type=float, default=1.0, help="lattice spacing (mm)")
 ap.add_argument("--noise", type=float, default=0.01, help="displacement noise std (mm)")
+ap.add_argument("--h", type=float, default=3.0, help="element size of the fitted model (mm)")
+ap.add_argument("--quick", action="store_true", help="smaller lattice data (test suite)")
 args, _ = ap.parse_known_args()
 out = Path(args.out)
 say = lambda *a: rank0_print(comm, *a)  # noqa: E731
@@ -75,14 +77,15 @@ say(f"data: {len(exp.X)} field rows, {len(exp.steps)} steps, force {np.round(exp
 guess = out / "guess.json"
 write_json(comm, guess, {"fibre_stretch": {"k_l": 20.0, "k_m": 20.0}, "shear": {"k_s": 1.0}})
 comm.barrier()
-cli(["compare", str(data), "--params", str(guess), "--out", str(out / "compare")])
+cli(["compare", str(data), "--params", str(guess), "--h", str(args.h), "--out",
+     str(out / "compare")])
 
 # %% [markdown]
 # ## 3. Diagnose: fit the baseline, rank the missing effects, confirm, add the best
 
 # %%
-cli(["diagnose", str(data), "--terms", "fibre_stretch,shear", "--out", str(out / "diagnose"),
-     "--add-best"])
+cli(["diagnose", str(data), "--terms", "fibre_stretch,shear", "--h", str(args.h), "--out",
+     str(out / "diagnose"), "--add-best"])
 diag = json.loads((out / "diagnose" / "diagnosis.json").read_text()) if comm.rank == 0 else None
 diag = comm.bcast(diag)
 
@@ -93,7 +96,7 @@ diag = comm.bcast(diag)
 verdict = diag["verdict"]
 terms = "fibre_stretch,shear" + (f",{verdict}" if verdict else "")
 start = {**diag["baseline"]["params"], **({verdict: {"A_g": 1.0}} if verdict else {})}
-fm = ForwardModel(exp, parse_terms(terms, start))
+fm = ForwardModel(exp, parse_terms(terms, start), h=args.h)
 refit = fit(fm, verbose=False)
 write_json(comm, out / "refit.json", refit.as_dict())
 
@@ -115,7 +118,8 @@ for n, v, s in zip(refit.names, refit.values, refit.std):
 summary = {"truth": TRUTH, "baseline_misfit": b["misfit"], "verdict": verdict,
            "ranking": [(r["effect"], r["score"], r["refit_misfit"]) for r in diag["ranking"]],
            "refit_misfit": a["combined"], "refit_params": refit.params(),
-           "refit_std": refit.as_dict()["std"], "cost": diag["cost"],
+           "refit_std": refit.as_dict()["std"], "adequate": diag["adequate"],
+           "path": diag["path"],
            "seconds": time.perf_counter() - t_start}
 write_json(comm, out / "summary.json", summary)
 say(f"figures in {out}/compare, {out}/diagnose; summary in {out / 'summary.json'} "

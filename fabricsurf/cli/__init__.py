@@ -1,16 +1,20 @@
 """The command line: ``fabricsurf terms|bias|compare|fit|diagnose`` (also ``python -m
 fabricsurf``; every command runs under ``mpirun -n P``).
 
-Bad input ends with one message naming the file, key or option and exit status 2 on every rank;
-an unexpected failure on one rank aborts all ranks instead of leaving the others waiting. The
-JIT compiler's messages are hidden unless ``--verbose``.
+Bad input ends with one message naming the file, key or option and exit status 2 on every rank
+(usage errors too); an unexpected failure on one rank aborts all ranks instead of leaving the
+others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
+through the root logger) are hidden unless ``--verbose``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import logging
 import sys
+from collections.abc import Iterator
 
 from mpi4py import MPI
 
@@ -20,13 +24,25 @@ from fabricsurf.discretise.output import rank0_print
 from fabricsurf.errors import InputError
 
 COMM = MPI.COMM_WORLD
-FORMATTER = argparse.ArgumentDefaultsHelpFormatter
+JIT_LOGGERS = ("ffcx", "UFL", "UFL_LEGACY", "dolfinx")
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows "(default: …)" for every option that has a default not already in its help."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.default is None or action.default is False or "default" in text:
+            return text
+        return super()._get_help_string(action)
 
 
 def cmd_terms(args) -> int:
-    """Print the vocabulary: names, formulas, moduli and units."""
+    """Print the vocabulary: names, moduli with units, and energy densities."""
     from fabricsurf.model.terms import EFFECTS
 
+    rank0_print(COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
+                      "docs/vocabulary.md). Use the names in --terms and --params.")
     for name, cls in EFFECTS.items():
         units = ", ".join(f"{p} ({cls.units.get(p, '?')})" for p in cls.parameters())
         doc = (cls.__doc__ or "").strip().splitlines()[0]
@@ -35,37 +51,72 @@ def cmd_terms(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="fabricsurf", formatter_class=FORMATTER,
+    ap = argparse.ArgumentParser(prog="fabricsurf", formatter_class=HelpFormatter,
                                  description="Fabric surface models vs measurements: solve, "
                                  "compare, fit, diagnose the missing effect. Lengths in mm, "
                                  "forces in N; moduli N/mm (first gradient) and N·mm (second).")
-    ap.add_argument("--verbose", action="store_true", help="show the JIT compiler's messages")
+    _verbose(ap, False)
     sub = ap.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("terms", help="list the effects: names, moduli, units, formulas")
+    p = sub.add_parser("terms", formatter_class=HelpFormatter,
+                       help="list the effects: names, moduli, units, formulas")
     p.set_defaults(func=cmd_terms)
-    p = sub.add_parser("bias", formatter_class=FORMATTER,
+    p = sub.add_parser("bias", formatter_class=HelpFormatter,
                        help="continuum bias-extension test: XDMF, force curve, log")
     bias_cli.add_arguments(p)
     p.set_defaults(func=bias_cli.run)
-    measure.add_parsers(sub, FORMATTER)
+    measure.add_parsers(sub, HelpFormatter)
+    for p in sub.choices.values():
+        _verbose(p, argparse.SUPPRESS)
     return ap
 
 
-def _quiet(verbose: bool) -> None:
-    level = logging.INFO if verbose else logging.WARNING
-    for name in ("ffcx", "UFL", "UFL_LEGACY", "dolfinx"):
-        logging.getLogger(name).setLevel(level)
+def _verbose(p: argparse.ArgumentParser, default) -> None:
+    """``--verbose`` before or after the command (SUPPRESS: the command's copy does not
+    overwrite the value given before it)."""
+    p.add_argument("--verbose", action="store_true", default=default,
+                   help="show the JIT compiler's messages (FFCx, UFL, C compiler)")
+
+
+@contextlib.contextmanager
+def compiler_messages(verbose: bool) -> Iterator[None]:
+    """Hide INFO messages (default) or show the JIT loggers' INFO (``verbose``), then restore.
+
+    Quiet uses ``logging.disable``: cffi resets the root logger to INFO on every compilation
+    (distutils' set_threshold), so a level set beforehand would not hold."""
+    disabled = logging.root.manager.disable
+    levels = {n: logging.getLogger(n).level for n in JIT_LOGGERS}
+    logging.disable(logging.NOTSET if verbose else logging.INFO)
+    for n in JIT_LOGGERS:
+        logging.getLogger(n).setLevel(logging.INFO if verbose else logging.WARNING)
+    try:
+        yield
+    finally:
+        logging.disable(disabled)
+        for n, level in levels.items():
+            logging.getLogger(n).setLevel(level)
+
+
+def _parse(argv: list[str] | None) -> argparse.Namespace | int:
+    """The arguments, or the exit status of --help / a usage error (printed by rank 0 only)."""
+    quiet = contextlib.ExitStack()
+    if COMM.rank > 0:
+        quiet.enter_context(contextlib.redirect_stdout(io.StringIO()))
+        quiet.enter_context(contextlib.redirect_stderr(io.StringIO()))
+    with quiet:
+        try:
+            return build_parser().parse_args(argv)
+        except SystemExit as e:
+            return e.code if isinstance(e.code, int) else 2
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``fabricsurf`` command; returns the exit status (same on all ranks)."""
+    args = _parse(argv)
+    if isinstance(args, int):
+        return args
     try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as e:
-        return int(e.code or 0) if isinstance(e.code, int) else 2
-    _quiet(args.verbose)
-    try:
-        return args.func(args)
+        with compiler_messages(args.verbose):
+            return args.func(args)
     except (InputError, OSError) as e:
         rank0_print(COMM, f"fabricsurf {args.command}: error: {e}")
         return 2

@@ -21,21 +21,35 @@ from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.bias_extension import BiasExtension, default_model, plot_curves
 from fabricsurf.inverse.params import load_params, parse_model, provenance
+from fabricsurf.model.terms import EFFECTS
+
+OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
+           "force.png", "summary.json", "failure.json")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=Path("out/bias"), help="output directory")
+    p.add_argument("--out", type=Path, default=Path("out/bias"),
+                   help="output directory (created if missing; must be writable)")
     p.add_argument("--length", type=float, default=187.0, help="specimen length along x (mm)")
     p.add_argument("--width", type=float, default=119.0, help="specimen width (mm)")
-    p.add_argument("--h", type=float, default=6.0, help="mesh size (mm)")
+    p.add_argument("--h", type=float, default=6.0,
+                   help="mesh size (mm), at most half the width")
     p.add_argument("--ubar", type=float, default=None,
-                   help="final grip displacement (mm); default: 25%% of the length")
-    p.add_argument("--steps", type=int, default=10, help="number of requested load steps")
+                   help="final grip displacement (mm), in (0, length) (default: 25%% of the "
+                   "length)")
+    p.add_argument("--steps", type=int, default=10,
+                   help="number of equal requested load steps, 1 to 1000")
     p.add_argument("--terms", default=None,
-                   help="comma-separated effects (default fibre_stretch,shear,geodesic_bending)")
+                   help="comma-separated effects, each once, from: " + ", ".join(EFFECTS)
+                   + " (default: " + "; ".join(
+                       t.name + " " + ", ".join(f"{k} = {v:g} {t.units[k]}"
+                                                for k, v in t.values().items())
+                       for t in default_model()) + ")")
     p.add_argument("--params", type=Path, default=None,
-                   help='JSON moduli {"term": {"parameter": value}} (N/mm, N·mm; see '
-                   "`fabricsurf terms`) or a saved fit.json")
+                   help='JSON moduli {"term": {"parameter": value}}, first-gradient moduli in '
+                   "N/mm, second-gradient in N·mm (see `fabricsurf terms`), or a saved "
+                   "fit.json; only terms of the model (default: the moduli of --terms' default, or "
+                   "1.0 for every modulus of terms given by --terms)")
     p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
                    help="gradient: u and its normal derivative held; position: u only")
 
@@ -70,10 +84,11 @@ def run(args: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     ubar = _check(args)
     model = _model(args)
+    od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS)
     rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
                       f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
                       f"on {comm.size} rank(s)")
-    with OutputDir(args.out, comm, keep_on_error=True) as stage:
+    with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
         summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp}
         try:

@@ -9,13 +9,18 @@ atomically) and record the terms, moduli, mesh sizes, inputs and software versio
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Iterator
 
 from mpi4py import MPI
 
 from fabricsurf.cli.outdir import OutputDir
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.errors import InputError
 from fabricsurf.inverse.data import load_experiment
 from fabricsurf.inverse.params import load_params, parse_model, provenance
+from fabricsurf.model.terms import EFFECTS
 
 COMM = MPI.COMM_WORLD
 
@@ -23,20 +28,29 @@ COMM = MPI.COMM_WORLD
 def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
     p.add_argument("data", nargs="+", help="measurement directories (experiment.toml + CSV)")
     p.add_argument("--terms", required=terms_required, default=None,
-                   help="comma-separated effects, e.g. fibre_stretch,shear (see "
-                   "`fabricsurf terms`)")
-    p.add_argument("--params", default=None, help='JSON moduli {"term": {"param": value}} '
-                   "(N/mm, N·mm; see `fabricsurf terms`) or a saved fit.json")
-    p.add_argument("--out", required=True, help="output directory (created; must be writable)")
+                   help="comma-separated effects, each once, from: " + ", ".join(EFFECTS)
+                   + (" (required)" if terms_required else
+                      " (default: the terms named in --params)"))
+    p.add_argument("--params", default=None, help='JSON moduli {"term": {"parameter": value}}, '
+                   "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
+                   "terms`), or a saved fit.json; only terms of --terms (default: every modulus "
+                   "1.0)")
+    p.add_argument("--out", required=True, help="output directory (created if missing; must be "
+                   "writable; results replace files of the same name)")
     p.add_argument("--h", type=float, default=None,
-                   help="element size in mm (default: the test's own, e.g. width/10)")
+                   help="element size in mm (default: the test's own: min(length, width)/10 "
+                   "for bias_extension, length/8 for picture_frame)")
 
 
-def check_h(h: float | None) -> None:
-    from fabricsurf.errors import InputError
-
-    if h is not None and not (h > 0 and h < 1e6):
-        raise InputError(f"--h {h}: must be a positive element size in mm")
+def check_h(h: float | None, exps: list | None = None) -> None:
+    """``--h`` positive and at most half the smallest specimen side (two elements across)."""
+    if h is None:
+        return
+    limit = 0.5 * min(min(e.length, e.width) for e in exps) if exps else float("inf")
+    if not 0 < h <= limit:
+        raise InputError(f"--h {h:g}: must be a positive element size in mm"
+                         + (f", at most {limit:g} (two elements across the narrowest specimen)"
+                            if exps else ""))
 
 
 def _setup(args):
@@ -46,10 +60,51 @@ def _setup(args):
     exps = [load_experiment(d) for d in args.data]
     names = [e.name for e in exps]
     if len(set(names)) != len(names):
-        from fabricsurf.errors import InputError
-
-        raise InputError(f"experiments must have distinct names, got {names}")
+        raise InputError(f"experiments must have distinct names (experiment.toml: name), got "
+                         f"{names} from {', '.join(map(str, args.data))}")
+    check_h(args.h, exps)
     return exps, model
+
+
+def _positive_start(model, args) -> None:
+    """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move."""
+    for t in model:
+        for p, v in t.values().items():
+            if v <= 0:
+                raise InputError(f"--params {args.params}: {t.name}.{p} = {v:g}: fit and "
+                                 "diagnose start from these moduli in log scale; give a "
+                                 "positive starting value")
+
+
+def _error_map_steps(spec: str | None, exps: list) -> list[int] | None:
+    if spec is None:
+        return None
+    try:
+        steps = [int(s) for s in spec.split(",")]
+    except ValueError:
+        raise InputError(f"--steps {spec}: expected comma-separated step numbers, e.g. 1,3"
+                         ) from None
+    for e in exps:
+        bad = [s for s in steps if s not in set(int(k) for k in e.steps)]
+        if bad:
+            raise InputError(f"--steps {spec}: step {bad[0]} is not a step of experiment "
+                             f"'{e.name}' (steps {int(e.steps[0])}..{int(e.steps[-1])})")
+    return steps
+
+
+@contextlib.contextmanager
+def _failure_report(od: OutputDir, stage, model, args) -> Iterator[None]:
+    """A solver failure writes failure.json (the message and what was used), publishes it and
+    ends with a message that names it."""
+    try:
+        yield
+    except LoadStepError as e:
+        write_json(COMM, stage / "failure.json",
+                   {"error": str(e)} | {"provenance": provenance(
+                       model, [str(d) for d in args.data], args.h and [args.h])})
+        od.keep = True
+        raise RuntimeError(f"{e}; the failure report is in {od.out / 'failure.json'}"
+                           ) from None
 
 
 def _summary(label: str, m: dict) -> str:
@@ -75,8 +130,9 @@ def cmd_compare(args) -> int:
     from fabricsurf.inverse.outputs import write_comparison
 
     exps, model = _setup(args)
-    steps = [int(s) for s in args.steps.split(",")] if args.steps else None
-    with OutputDir(args.out, COMM) as stage:
+    steps = _error_map_steps(args.steps, exps)
+    od = OutputDir(args.out, COMM, files=("misfit.json",))
+    with od as stage, _failure_report(od, stage, model, args):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         preds = fs.run()
         m = fs.misfit(preds)
@@ -93,7 +149,9 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.outputs import write_comparison
 
     exps, model = _setup(args)
-    with OutputDir(args.out, COMM) as stage:
+    _positive_start(model, args)
+    od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"))
+    with od as stage, _failure_report(od, stage, model, args):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         res = fit(fs, verbose=True)
         write_json(COMM, stage / "fit.json", res.as_dict() | _prov(model, fs, args))
@@ -111,12 +169,14 @@ def cmd_diagnose(args) -> int:
     from fabricsurf.inverse.outputs import write_comparison
 
     if args.confirm < 1:
-        from fabricsurf.errors import InputError
-
         raise InputError(f"--confirm {args.confirm}: must be at least 1")
+    if args.max_effects < 0:
+        raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
     exps, model = _setup(args)
+    _positive_start(model, args)
     params = {t.name: t.values() for t in model}
-    with OutputDir(args.out, COMM) as stage:
+    od = OutputDir(args.out, COMM, files=("diagnosis.json",))
+    with od as stage, _failure_report(od, stage, model, args):
         d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
                      confirm=args.confirm, max_effects=args.max_effects, comm=COMM)
         out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
@@ -131,8 +191,7 @@ def cmd_diagnose(args) -> int:
                              mfs + [(label, f.misfit)], stem="before_after_")
             if args.add_best:
                 write_json(COMM, stage / "model_best.json", f.as_dict())
-        if COMM.rank == 0:
-            figures.misfit_path(d.path, stage / "misfit_path.png")
+        on_rank0(COMM, figures.misfit_path, d.path, stage / "misfit_path.png")
     rank0_print(COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
     for r in d.ranking:
         rank0_print(COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
@@ -146,8 +205,8 @@ def add_parsers(sub, formatter) -> None:
     p = sub.add_parser("compare", formatter_class=formatter,
                        help="misfit of a model against the data, with figures")
     add_common(p, terms_required=False)
-    p.add_argument("--steps", default=None, help="comma-separated steps for the error map "
-                   "(default: middle and last)")
+    p.add_argument("--steps", default=None, help="comma-separated step numbers (as in the "
+                   "data files, from 1) for the error map (default: the middle and the last)")
     p.set_defaults(func=cmd_compare)
     p = sub.add_parser("fit", formatter_class=formatter,
                        help="least-squares fit of the moduli (log-parametrised)")
@@ -157,9 +216,9 @@ def add_parsers(sub, formatter) -> None:
                        help="which effect is missing: rank, confirm, add (stepwise)")
     add_common(p)
     p.add_argument("--confirm", type=int, default=2,
-                   help="candidates confirmed by refitting in each round")
+                   help="candidates confirmed by refitting in each round (≥ 1)")
     p.add_argument("--max-effects", type=int, default=2,
-                   help="at most this many effects added, one per round")
+                   help="at most this many effects added, one per round (≥ 0)")
     p.add_argument("--add-best", action="store_true",
                    help="also save the final model as model_best.json (a --params file)")
     p.set_defaults(func=cmd_diagnose)

@@ -2,7 +2,10 @@
 
 Everything a command writes goes to a staging directory beside OUT (``.OUT.partial-…``); only
 when the command ends (successfully, or with the converged part of a failed run) are the files
-moved into OUT, one atomic rename each. A command that fails before that leaves OUT untouched.
+moved into OUT, one atomic rename each, after checking that none of them would have to replace
+a directory (or a file by a directory): a publish either moves everything or nothing. A command
+that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
+directory and names it.
 """
 
 from __future__ import annotations
@@ -18,29 +21,60 @@ from fabricsurf.discretise.output import on_rank0
 from fabricsurf.errors import InputError
 
 
-def _check(out: Path) -> str:
+def _existing_ancestor(path: Path) -> Path:
+    probe = path
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    return probe
+
+
+def _clash(dst: Path, will_be_dir: bool) -> str | None:
+    """Why ``dst`` cannot be replaced by a file (or a directory), or None."""
+    if dst.is_dir() and not will_be_dir:
+        return f"{dst} is a directory where a file of the same name is to be written"
+    if dst.exists() and not dst.is_dir() and will_be_dir:
+        return f"{dst} is a file where a directory of the same name is to be written"
+    return None
+
+
+def _check(out: Path, files: tuple[str, ...]) -> str:
+    """Validate ``--out`` (before any computation) and create the staging directory."""
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
-    parent = out.parent if not out.exists() else out
-    probe = parent
-    while not probe.exists():
-        probe = probe.parent
+    probe = _existing_ancestor(out.parent)
+    if not probe.is_dir():
+        raise InputError(f"--out {out}: {probe} is a file, not a directory")
     if not os.access(probe, os.W_OK | os.X_OK):
         raise InputError(f"--out {out}: {probe} is not writable")
+    if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out}: the directory is not writable")
+    for name in files:
+        why = _clash(out / name, will_be_dir=False)
+        if why:
+            raise InputError(f"--out {out}: {why}")
     out.parent.mkdir(parents=True, exist_ok=True)
-    return tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent)
+    stage = tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
+    return stage
 
 
 def _publish(stage: Path, out: Path) -> None:
     if not out.exists():
         os.replace(stage, out)
         return
-    for src in sorted(stage.rglob("*")):
+    items = sorted(stage.rglob("*"))
+    for src in items:
+        why = _clash(out / src.relative_to(stage), src.is_dir())
+        if why:
+            raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
+                             f"{stage}")
+    for src in items:
         dst = out / src.relative_to(stage)
         if src.is_dir():
             dst.mkdir(parents=True, exist_ok=True)
         else:
-            dst.parent.mkdir(parents=True, exist_ok=True)
             os.replace(src, dst)
     shutil.rmtree(stage)
 
@@ -48,22 +82,28 @@ def _publish(stage: Path, out: Path) -> None:
 class OutputDir:
     """``with OutputDir(out, comm) as stage:`` write into ``stage``; published on exit.
 
-    ``keep_on_error``: publish what was written even when the body raises (failed runs keep
-    their converged steps and the failure report); otherwise a failure discards it all.
+    ``files``: names the command will write, checked now (an existing directory of that name
+    in OUT is an error before any computation). ``keep_on_error``: publish what was written
+    even when the body raises (failed runs keep their converged steps and the failure report);
+    otherwise a failure discards it all. Collective: an exception on some ranks only is raised
+    on the others too (same message), so every rank ends the same way.
     """
 
     def __init__(self, out: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
-                 keep_on_error: bool = False) -> None:
+                 keep_on_error: bool = False, files: tuple[str, ...] = ()) -> None:
         self.out, self.comm, self.keep = Path(out), comm, keep_on_error
-        self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out), root=0))
+        self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out, tuple(files)), root=0))
 
     def __enter__(self) -> Path:
         return self.stage
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        self.comm.barrier()
-        if exc_type is None or self.keep:
+        mine = None if exc is None else (isinstance(exc, InputError), str(exc))
+        first = next((m for m in self.comm.allgather(mine) if m is not None), None)
+        if first is None or self.keep:
             on_rank0(self.comm, _publish, self.stage, self.out)
         elif self.comm.rank == 0:
             shutil.rmtree(self.stage, ignore_errors=True)
+        if first is not None and exc is None:
+            raise (InputError if first[0] else RuntimeError)(first[1])
         return False

@@ -82,10 +82,19 @@ def magnitudes(exp, length_unit: str) -> None:
         raise DataError(f"experiment.toml: [specimen] {exp.length:g} x {exp.width:g} mm is not "
                         f"a plausible specimen (from [units] length = \"{length_unit}\"): are "
                         "the sizes in another unit?")
+    where = ("the force file's displacement column" if exp.has_force
+             else "experiment.toml: [loading] path")
     if np.abs(exp.path).max() > 10 * size:
         k = int(np.argmax(np.abs(exp.path)))
-        raise DataError(f"load path: step {exp.steps[k]} has the value {exp.path[k]:.3g}, more "
-                        "than ten times the specimen size")
+        raise DataError(f"load path ({where}): step {exp.steps[k]} has the value "
+                        f"{exp.path[k]:.3g}, more than ten times the specimen size "
+                        f"({size:g} mm): check [units] length")
+    if exp.noise_std is not None and exp.noise_std > size:
+        raise DataError(f"experiment.toml: [data] noise_std = {exp.noise_std:.3g} mm exceeds "
+                        f"the specimen size ({size:g} mm): check [units] length")
+    if exp.force_noise_std is not None and exp.force_noise_std > MAX_FORCE_N:
+        raise DataError(f"experiment.toml: [data] force_noise_std = "
+                        f"{exp.force_noise_std:.3g} N is not plausible (check [units] force)")
 
 
 def field_displacements(u: np.ndarray, lines: np.ndarray, size: float, name: str) -> None:

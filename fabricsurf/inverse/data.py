@@ -144,7 +144,10 @@ def load_experiment(directory: str | Path) -> Experiment:
         (steps, path), force = _path_from_toml(t, pscale), None
     noise = {k: (number_option(t, "data", k, "experiment.toml") * s if k in data else None)
              for k, s in (("noise_std", ls), ("force_noise_std", fs))}
-    exp = Experiment(str(t.get("name", d.name)), setup, steps, path, force,
+    name = t.get("name", d.name)
+    if not isinstance(name, str) or not name.strip():
+        raise DataError(f"experiment.toml: name = {name!r} must be a non-empty string")
+    exp = Experiment(name, setup, steps, path, force,
                      noise_std=noise["noise_std"], force_noise_std=noise["force_noise_std"],
                      source=dict(t.get("source", {})), directory=str(d.resolve()))
     if fname is not None:

@@ -67,7 +67,8 @@ def misfit(exp: Experiment, pred) -> dict:
         n = c * len(rows) + (1 if dF is not None else 0)
         row = {"step": int(s), "load": float(exp.path[k]),
                "field_rms": float(np.sqrt(e2 / max(c * len(rows), 1))) if len(rows) else None,
-               "combined": float(np.sqrt((e2 / s_u**2 + (fk / s_F) ** 2) / max(n, 1)))}
+               "combined": float(np.sqrt(((e2 / s_u**2 if len(rows) else 0.0) + (fk / s_F) ** 2)
+                                          / max(n, 1)))}
         if dF is not None:
             row |= {"force_model": float(pred.force[k]), "force_meas": float(exp.force[k]),
                     "force_error": fk}

@@ -3,15 +3,19 @@ the file, the line (header = line 1) or key, and the problem.
 
 CSV dialects: comma-separated with a decimal point (the contract), and the semicolon-separated
 exports of European spreadsheet and DIC software, whose decimal separator may be a comma; the
-delimiter is read off the header line. UTF-8 with or without a byte-order mark; any other
-encoding is named with the offending byte's line. Blank lines (e.g. a trailing one) are skipped.
+delimiter is read off the header line. UTF-8 with or without a byte-order mark, and UTF-16
+with its byte-order mark (spreadsheets' "Unicode text"); any other encoding is named with the
+offending byte, its line, and what it would be in Windows-1252 (Latin-1). Blank lines (e.g. a
+trailing one) are skipped.
 """
 
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import math
+import re
 import tomllib
 from pathlib import Path
 
@@ -34,12 +38,18 @@ def read_toml(path: Path) -> dict:
 
 def _decode(path: Path) -> str:
     raw = path.read_bytes()
+    utf16 = raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
     try:
-        return raw.decode("utf-8-sig")
+        return raw.decode("utf-16") if utf16 else raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
+        if utf16:
+            raise DataError(f"{path.name}: not valid UTF-16 despite its byte-order mark "
+                            "(save the file as UTF-8)") from None
         line = raw[: e.start].count(b"\n") + 1
-        raise DataError(f"{path.name} line {line}: byte 0x{raw[e.start]:02x} is not UTF-8 "
-                        "(save the file as UTF-8)") from None
+        byte = raw[e.start: e.start + 1]
+        raise DataError(f"{path.name} line {line}: byte 0x{byte[0]:02x} is not UTF-8 ("
+                        f"{byte.decode('cp1252', errors='replace')!r} in Windows-1252/Latin-1?): "
+                        "save the file as UTF-8") from None
 
 
 def _number(cell: str, decimal_comma: bool) -> float:
@@ -88,7 +98,10 @@ def read_csv(path: Path, columns: tuple[str, ...], optional: tuple[str, ...] = (
             cell = row[header.index(c)].strip()
             v = _number(cell, comma)
             if not math.isfinite(v):
+                hint = (" (a decimal comma: separate the columns with ';' or write the decimal "
+                        "point '.')" if not comma and re.fullmatch(r"[-+]?\d+,\d+", cell)
+                        else "")
                 raise DataError(f"{name} line {line}: column {c} = {cell!r} is not a finite "
-                                "number")
+                                f"number{hint}")
             out[c][i] = v
     return out

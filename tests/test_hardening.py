@@ -1,0 +1,510 @@
+"""Issue 14, hardening: every bad input ends with one message naming the file, key or option and
+exit status 2, on 1 rank and on 2 ranks alike (the status and the message are compared across
+ranks); nothing given is silently ignored; --out is checked before any computation and written
+atomically; a failure on rank 0 alone ends every rank (subprocess under ``mpirun -n 2``); the
+JIT compiler is quiet unless --verbose; --help shows defaults and units.
+
+The table of rejected inputs in docs/input_errors.md is generated from the real messages here:
+``FABRICSURF_REGENERATE=1 pytest tests/test_hardening.py -k table`` rewrites it.
+"""
+
+import csv
+import importlib
+import json
+import logging
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import fabricsurf.cli as cli
+from fabricsurf.cli import main
+from fabricsurf.cli.outdir import OutputDir
+from fabricsurf.discretise.output import StepLog, write_json
+from fabricsurf.errors import InputError
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.data import DataError, load_experiment, write_experiment
+from fabricsurf.model.terms import EFFECTS
+
+COMM = MPI.COMM_WORLD
+TERMS = "fibre_stretch,shear"  # forms compiled by the other CLI tests
+DOC = Path(__file__).resolve().parents[1] / "docs" / "input_errors.md"
+
+
+def good_experiment():
+    """40 × 20 mm bias specimen, 4 × 2 DIC points, two steps (cheap: h = 10 mm default 2)."""
+    exp = sy.template(40.0, 20.0, [0.8, 1.6], sy.grid_points(40.0, 20.0, 4, 2))
+    exp.u = exp.u + 0.01
+    exp.noise_std, exp.force_noise_std = 0.01, 0.01
+    return exp
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    """One directory shared by all ranks (rank 0's), holding ``good`` and the variants; the
+    tests run with it as the working directory so messages hold relative names only."""
+    base = COMM.bcast(str(tmp_path_factory.mktemp("hard")) if COMM.rank == 0 else None)
+    base = Path(base)
+    if COMM.rank == 0:
+        write_experiment(base / "good", good_experiment())
+        for c in CASES:
+            c["make"](base)
+    COMM.barrier()
+    return base
+
+
+def run_cli(argv, capsys) -> tuple[int, str]:
+    """Exit status and rank 0's output; both must be the same on every rank."""
+    rc = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    text = out.out + out.err
+    if COMM.rank > 0:
+        assert text == "", f"rank {COMM.rank} printed: {text}"
+    text = COMM.bcast(text)
+    assert COMM.allgather(rc) == [rc] * COMM.size
+    return rc, text.strip()
+
+
+# -- the cases: (id, input class, how to make it, command line, pattern of the message) -------
+def variant(name: str, edit):
+    """A copy of ``good`` called ``name`` changed by ``edit(directory)``."""
+    def make(base: Path) -> None:
+        shutil.copytree(base / "good", base / name)
+        edit(base / name)
+    return make
+
+
+def replace(file: str, old, new):
+    def edit(d: Path) -> None:
+        data = (d / file).read_bytes()
+        old_b, new_b = (x.encode() if isinstance(x, str) else x for x in (old, new))
+        assert old_b in data, (old, file)
+        (d / file).write_bytes(data.replace(old_b, new_b, 1))
+    return edit
+
+
+def params_file(name: str, content):
+    def make(base: Path) -> None:
+        (base / name).write_text(content if isinstance(content, str) else json.dumps(content))
+    return make
+
+
+def nothing(base: Path) -> None:
+    return None
+
+
+def field_in_metres(d: Path) -> None:
+    rows = list(csv.reader((d / "field.csv").open()))
+    body = [[r[0]] + [repr(float(v) / 1000) for v in r[1:]] for r in rows[1:]]
+    (d / "field.csv").write_text("\n".join(",".join(r) for r in [rows[0], *body]) + "\n")
+
+
+def make_file_out(base: Path) -> None:
+    (base / "a_file").write_text("not a directory\n")
+
+
+def cmp(data="good", *extra):
+    return ["compare", data, "--terms", TERMS, "--out", "out", *extra]
+
+
+CASES = [
+    dict(id="params-typo", klass="`--params` naming a term that does not exist (typo)",
+         make=params_file("typo.json", {"sheer": {"k_s": 0.8}}),
+         argv=cmp("good", "--params", "typo.json"), pattern=r"typo.json: unknown term 'sheer'"),
+    dict(id="params-absent-term", klass="`--params` naming a term that is not in `--terms`",
+         make=params_file("absent.json", {"geodesic_bending": {"A_g": 1.0}}),
+         argv=cmp("good", "--params", "absent.json"),
+         pattern=r"absent.json: term 'geodesic_bending' is not in the model"),
+    dict(id="params-unknown-modulus", klass="`--params` naming a modulus the term lacks",
+         make=params_file("modulus.json", {"shear": {"k_l": 1.0}}),
+         argv=cmp("good", "--params", "modulus.json"),
+         pattern=r"modulus.json: term 'shear' has no parameter 'k_l'"),
+    dict(id="params-list", klass="`--params` that is not a JSON object (a list)",
+         make=params_file("list.json", [0.8]), argv=cmp("good", "--params", "list.json"),
+         pattern=r"list.json: expected \{\"term\": \{\"parameter\": value\}\}, got list"),
+    dict(id="params-flat", klass="`--params` with a number where a table of moduli belongs",
+         make=params_file("flat.json", {"shear": 0.8}), argv=cmp("good", "--params", "flat.json"),
+         pattern=r"flat.json: \"shear\" must map parameters to values"),
+    dict(id="params-negative", klass="`--params` with a negative or non-finite modulus",
+         make=params_file("negative.json", {"shear": {"k_s": -1}}),
+         argv=cmp("good", "--params", "negative.json"),
+         pattern=r"negative.json: shear.k_s = -1 must be a finite number ≥ 0 \(N/mm\)"),
+    dict(id="params-not-json", klass="`--params` that is not valid JSON",
+         make=params_file("broken.json", "{shear: 1"), argv=cmp("good", "--params", "broken.json"),
+         pattern=r"broken.json: not valid JSON"),
+    dict(id="fit-zero-start", klass="`fit`/`diagnose` starting from a zero modulus",
+         make=params_file("zero.json", {"shear": {"k_s": 0.0}}),
+         argv=["fit", "good", "--terms", TERMS, "--params", "zero.json", "--out", "out"],
+         pattern=r"zero.json: shear.k_s = 0: fit and diagnose start from these moduli"),
+    dict(id="terms-duplicate", klass="`--terms` naming a term twice", make=nothing,
+         argv=["compare", "good", "--terms", "shear,shear", "--out", "out"],
+         pattern=r"--terms: 'shear' is given twice"),
+    dict(id="terms-unknown", klass="`--terms` naming a term that does not exist", make=nothing,
+         argv=["compare", "good", "--terms", "shear,sheer", "--out", "out"],
+         pattern=r"--terms: unknown term 'sheer'; valid terms are: fibre_stretch"),
+    dict(id="toml-unknown-key", klass="unknown key in experiment.toml (`noise_sd`)",
+         make=variant("noise_sd", replace("experiment.toml", "noise_std", "noise_sd")),
+         argv=cmp("noise_sd"), pattern=r"experiment.toml: unknown key \[data\] noise_sd"),
+    dict(id="toml-unknown-table", klass="unknown table in experiment.toml",
+         make=variant("table", replace("experiment.toml", "[units]", "[unit]")),
+         argv=cmp("table"), pattern=r"experiment.toml: unknown key or table 'unit'"),
+    dict(id="field-1e300", klass="absurd displacement in field.csv (1e300)",
+         make=variant("huge", replace("field.csv", ",0.01\r\n", ",1e300\r\n")),
+         argv=cmp("huge"), pattern=r"field.csv line 2: displacement of 1e\+300 mm"),
+    dict(id="field-inf", klass="non-finite or empty cell in a CSV",
+         make=variant("inf", replace("force.csv", "\n1,0.8,", "\n1,inf,")),
+         argv=cmp("inf"), pattern=r"force.csv line 2: column displacement = 'inf' is not a "
+         "finite number"),
+    dict(id="force-absurd", klass="absurd force in force.csv",
+         make=variant("bigforce", replace("force.csv", "\n1,0.8,0.0", "\n1,0.8,1e12")),
+         argv=cmp("bigforce"), pattern=r"force.csv line 2: force 1e\+12 N is not plausible"),
+    dict(id="units-m-numbers-mm", klass="`[units] length = \"m\"` with the sizes in mm",
+         make=variant("metres", replace("experiment.toml", 'length = "mm"', 'length = "m"')),
+         argv=cmp("metres"), pattern=r"experiment.toml: \[specimen\] 40000 x 20000 mm is not a "
+         "plausible specimen"),
+    dict(id="field-in-m", klass="field.csv in m with the specimen in mm (points in a corner)",
+         make=variant("fieldm", field_in_metres), argv=cmp("fieldm"),
+         pattern=r"field.csv: all points lie in a 0.036 x 0.018 mm patch of the 40 x 20 mm "
+         "specimen"),
+    dict(id="field-outside", klass="field point outside the specimen",
+         make=variant("outside", replace("field.csv", "\n1,2.0,", "\n1,50.0,")),
+         argv=cmp("outside"), pattern=r"field.csv line 2: point \(X, Y\) = \(50, 1\) mm is "
+         "outside the specimen"),
+    dict(id="noise-absurd", klass="noise level larger than the specimen",
+         make=variant("noise", replace("experiment.toml", "noise_std = 0.01", "noise_std = 1e3")),
+         argv=cmp("noise"), pattern=r"\[data\] noise_std = 1e\+03 mm exceeds the specimen size"),
+    dict(id="latin1", klass="a CSV in Latin-1 (non-UTF-8 byte)",
+         make=variant("latin1", replace("field.csv", "step,X", b"step\xe9,X")),
+         argv=cmp("latin1"), pattern=r"field.csv line 1: byte 0xe9 is not UTF-8 \('é' in "
+         "Windows-1252/Latin-1\\?\\)"),
+    dict(id="decimal-comma", klass="decimal comma in a comma-separated CSV",
+         make=variant("deccomma", replace("force.csv", "\n1,0.8,", '\n1,"0,8",')),
+         argv=cmp("deccomma"), pattern=r"force.csv line 2: column displacement = '0,8' is not a "
+         "finite number \\(a decimal comma"),
+    dict(id="tab-separated", klass="tab-separated CSV",
+         make=variant("tabs", lambda d: (d / "force.csv").write_text(
+             (d / "force.csv").read_text().replace(",", "\t"))),
+         argv=cmp("tabs"), pattern=r"force.csv line 1: tab-separated header"),
+    dict(id="missing-data", klass="a DATA directory that does not exist", make=nothing,
+         argv=cmp("nodata"), pattern=r"nodata: not a directory"),
+    dict(id="out-is-file", klass="`--out` is an existing file", make=make_file_out,
+         argv=["compare", "good", "--terms", TERMS, "--out", "a_file"],
+         pattern=r"--out a_file: exists and is not a directory"),
+    dict(id="out-under-file", klass="`--out` inside a file", make=nothing,
+         argv=["compare", "good", "--terms", TERMS, "--out", "a_file/sub"],
+         pattern=r"--out a_file/sub: a_file is a file, not a directory"),
+    dict(id="h-zero", klass="`--h 0` (or negative)", make=nothing, argv=cmp("good", "--h", "0"),
+         pattern=r"--h 0: must be a positive element size in mm"),
+    dict(id="h-huge", klass="`--h` larger than half the specimen", make=nothing,
+         argv=cmp("good", "--h", "1e5"),
+         pattern=r"--h 100000: must be a positive element size in mm, at most 10"),
+    dict(id="steps-unknown", klass="`compare --steps` naming a step the data lack", make=nothing,
+         argv=cmp("good", "--steps", "99"),
+         pattern=r"--steps 99: step 99 is not a step of experiment 'synthetic' \(steps 1..2\)"),
+    dict(id="steps-garbage", klass="`compare --steps` that are not numbers", make=nothing,
+         argv=cmp("good", "--steps", "last"),
+         pattern=r"--steps last: expected comma-separated step numbers"),
+    dict(id="confirm-zero", klass="`diagnose --confirm 0`", make=nothing,
+         argv=["diagnose", "good", "--terms", TERMS, "--confirm", "0", "--out", "out"],
+         pattern=r"--confirm 0: must be at least 1"),
+    dict(id="max-effects-negative", klass="`diagnose --max-effects -1`", make=nothing,
+         argv=["diagnose", "good", "--terms", TERMS, "--max-effects", "-1", "--out", "out"],
+         pattern=r"--max-effects -1: must be at least 0"),
+    dict(id="bias-h-zero", klass="`bias --h 0`", make=nothing,
+         argv=["bias", "--h", "0", "--out", "out"], pattern=r"--h 0.0: must lie in \(0, 59.5\]"),
+    dict(id="bias-steps", klass="`bias --steps 0`", make=nothing,
+         argv=["bias", "--steps", "0", "--out", "out"], pattern=r"--steps 0: must lie in \[1, "
+         "1000\\]"),
+    dict(id="bias-out-clash", klass="`bias --out D` where D/bias_steps.csv is a directory",
+         make=lambda base: (base / "clash" / "bias_steps.csv").mkdir(parents=True),
+         argv=["bias", "--length", "40", "--width", "20", "--h", "10", "--out", "clash"],
+         pattern=r"--out clash: clash/bias_steps.csv is a directory where a file of the same "
+         "name is to be written"),
+    dict(id="usage", klass="a missing argument (usage error)", make=nothing,
+         argv=["fit", "good", "--out", "out"],
+         pattern=r"the following arguments are required: --terms"),
+]
+
+
+@pytest.fixture
+def in_root(root, monkeypatch):
+    monkeypatch.chdir(root)
+    return root
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["id"] for c in CASES])
+def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
+    """Each input class: exit 2 on every rank, one message, nothing computed or written."""
+    import fabricsurf.inverse.forward as forward
+
+    importlib.import_module("fabricsurf.inverse.diagnose")  # binds the real ForwardSet first
+    built = []
+    monkeypatch.setattr(forward, "ForwardSet", lambda *a, **k: built.append(a))
+    monkeypatch.setattr(cli.bias_cli, "BiasExtension", lambda *a, **k: built.append(a))
+    before = sorted(p.name for p in in_root.iterdir())
+    rc, msg = run_cli(case["argv"], capsys)
+    assert rc == 2, msg
+    assert re.search(case["pattern"], msg), (case["pattern"], msg)
+    assert [ln for ln in msg.splitlines() if "error:" in ln] == [msg.splitlines()[-1]], msg
+    assert case["id"] == "usage" or len(msg.splitlines()) == 1, msg
+    assert not built
+    COMM.barrier()
+    assert sorted(p.name for p in in_root.iterdir()) == before  # no output, no staging left
+
+
+def test_errors_table_is_up_to_date(in_root, capsys):
+    """docs/input_errors.md is built from the messages above (FABRICSURF_REGENERATE=1 rewrites
+    it); every row of the table is a real message of today's code."""
+    rows = []
+    for c in CASES:
+        rc, msg = run_cli(c["argv"], capsys)
+        assert rc == 2
+        cmd = " ".join(str(a) for a in c["argv"])
+        rows.append(f"| {c['klass']} | `fabricsurf {cmd}` | `{msg.splitlines()[-1]}` |")
+    text = "\n".join([
+        "# Inputs that are rejected, and the message each gives",
+        "",
+        "Generated by `tests/test_hardening.py` from the real messages (regenerate with",
+        "`FABRICSURF_REGENERATE=1 pytest tests/test_hardening.py -k table`). Every rejection",
+        "ends with exit status 2 on every MPI rank, prints one message (rank 0), and happens",
+        "before any solve; nothing is written to `--out`. DATA directories hold the",
+        "`experiment.toml`, `field.csv` and `force.csv` of measurement contract 2; `good` is a",
+        "valid one and each other name a copy with one defect.",
+        "",
+        "| input | command | message |",
+        "|---|---|---|",
+        *rows,
+        "",
+        "Accepted as they are (same values as the plain file): a UTF-8 byte-order mark in",
+        "`experiment.toml` or a CSV; UTF-16 CSV files with their byte-order mark; blank lines",
+        "(e.g. a trailing one) in a CSV; CRLF line ends; semicolon-separated CSV with a decimal",
+        "comma or a decimal point.",
+        "",
+    ])
+    if COMM.rank == 0 and os.environ.get("FABRICSURF_REGENERATE"):
+        DOC.write_text(text)
+    COMM.barrier()
+    assert DOC.read_text() == text, "docs/input_errors.md is stale: regenerate it (docstring)"
+
+
+# -- accepted variants: the same values as the plain file ----------------------------------------
+def test_dialects_and_encodings_accepted(tmp_path):
+    """Trailing blank line, BOM in the TOML, UTF-16 CSV, CRLF, semicolons with a decimal comma:
+    exactly the values of the plain directory."""
+    d0 = tmp_path / f"plain{COMM.rank}"
+    write_experiment(d0, good_experiment())
+    ref = load_experiment(d0)
+    edits = {
+        "blank": lambda d: (d / "field.csv").write_text((d / "field.csv").read_text() + "\n\n"),
+        "bom": lambda d: (d / "experiment.toml").write_bytes(
+            b"\xef\xbb\xbf" + (d / "experiment.toml").read_bytes()),
+        "utf16": lambda d: (d / "field.csv").write_bytes(
+            (d / "field.csv").read_text().encode("utf-16")),
+        "crlf": lambda d: (d / "force.csv").write_bytes(
+            (d / "force.csv").read_bytes().replace(b"\n", b"\r\n")),
+        "semicolon": lambda d: [(d / f).write_text((d / f).read_text().replace(",", ";")
+                                                   .replace(".", ","))
+                                for f in ("field.csv", "force.csv")],
+    }
+    for name, edit in edits.items():
+        d = tmp_path / f"{name}{COMM.rank}"
+        shutil.copytree(d0, d)
+        edit(d)
+        exp = load_experiment(d)
+        for a, b in ((exp.X, ref.X), (exp.u, ref.u), (exp.force, ref.force),
+                     (exp.path, ref.path)):
+            assert np.array_equal(a, b), name
+
+
+def test_loader_messages_name_file_and_line(tmp_path):
+    """The loader's own errors are DataError (an InputError) naming the file and line."""
+    d = tmp_path / f"l{COMM.rank}"
+    write_experiment(d, good_experiment())
+    (d / "experiment.toml").write_bytes((d / "experiment.toml").read_bytes() + b"# caf\xe9\n")
+    with pytest.raises(DataError, match=r"experiment.toml line \d+: byte 0xe9") as e:
+        load_experiment(d)
+    assert isinstance(e.value, InputError)
+
+
+# -- what is used is recorded; outputs are published whole ---------------------------------------
+def test_misfit_records_what_was_used(in_root, capsys):
+    """A compare run records terms, the exact moduli (from --params, the others at their
+    default 1.0), mesh size, inputs and versions; OUT gets the user's umask, not 0700."""
+    if COMM.rank == 0:
+        (in_root / "used.json").write_text(json.dumps({"shear": {"k_s": 0.8}}))
+    COMM.barrier()
+    rc, msg = run_cli(["compare", "good", "--terms", TERMS, "--params", "used.json", "--h", "10",
+                       "--out", "used"], capsys)
+    assert rc == 0, msg
+    m = json.loads((in_root / "used" / "misfit.json").read_text())
+    prov = m["provenance"]
+    assert prov["terms"] == ["fibre_stretch", "shear"] and prov["h_mm"] == [10.0]
+    assert prov["params"] == {"fibre_stretch": {"k_l": 1.0, "k_m": 1.0}, "shear": {"k_s": 0.8}}
+    assert prov["inputs"] == ["good"] and prov["ranks"] == COMM.size
+    assert set(prov["versions"]) >= {"fabricsurf", "dolfinx", "petsc4py", "python"}
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (in_root / "used").stat().st_mode & 0o777 == 0o777 & ~umask
+    assert not list(in_root.glob(".used.partial-*"))
+
+
+def test_solver_failure_reports_step_from_1(in_root, capsys):
+    """All moduli 0: the first load step cannot converge. The message counts from 1 (as the
+    files do), gives the SNES reason in words, and failure.json is published with what was
+    used; no misfit.json."""
+    if COMM.rank == 0:
+        (in_root / "soft.json").write_text(json.dumps(
+            {"fibre_stretch": {"k_l": 0.0, "k_m": 0.0}, "shear": {"k_s": 0.0}}))
+    COMM.barrier()
+    rc, msg = run_cli(["compare", "good", "--terms", TERMS, "--params", "soft.json", "--h", "10",
+                       "--out", "failed"], capsys)
+    assert rc == 2
+    assert re.search(r"failed: load step 1 \(target 0.8\) failed: .*DIVERGED_[A-Z_]+ \(-\d+\)",
+                     msg), msg
+    assert msg.endswith("the failure report is in failed/failure.json")
+    report = json.loads((in_root / "failed" / "failure.json").read_text())
+    assert report["error"] in msg and report["provenance"]["params"]["shear"] == {"k_s": 0.0}
+    assert sorted(p.name for p in (in_root / "failed").iterdir()) == ["failure.json"]
+
+
+def test_publish_all_or_nothing_and_collective(tmp_path):
+    """A publish that would replace a directory by a file moves nothing, keeps the staging
+    directory and raises the same InputError on every rank (it runs on rank 0 only)."""
+    base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
+    out = base / "out"
+    if COMM.rank == 0:
+        (out / "b.csv").mkdir(parents=True)
+    COMM.barrier()
+    with pytest.raises(InputError, match=r"b\.csv is a directory where a file") as e:
+        with OutputDir(out, COMM) as stage:
+            write_json(COMM, stage / "a.json", {"x": 1})
+            write_json(COMM, stage / "b.csv", {"x": 2})
+    assert str(stage) in str(e.value)
+    assert sorted(p.name for p in out.iterdir()) == ["b.csv"]
+    assert sorted(p.name for p in stage.iterdir()) == ["a.json", "b.csv"]
+
+
+def test_failure_on_one_rank_raised_on_all(tmp_path):
+    """An exception on the last rank only, inside the output context, is raised on every rank
+    with the same message, and nothing is published."""
+    base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
+    with pytest.raises(InputError, match="only the last rank"):
+        with OutputDir(base / "o", COMM) as stage:
+            write_json(COMM, stage / "a.json", {})
+            if COMM.rank == COMM.size - 1:
+                raise InputError("only the last rank")
+    COMM.barrier()
+    assert not (base / "o").exists() and not list(base.glob(".o.partial-*"))
+
+
+def test_rank0_write_failure_raised_on_all(tmp_path):
+    """StepLog writes on rank 0; a failure there (its directory is a file) is an OSError on
+    every rank, not a hang in the next collective call."""
+    base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
+    if COMM.rank == 0:
+        (base / "log").write_text("a file, not a directory")
+    COMM.barrier()
+    log = StepLog(COMM, base / "log")
+    with pytest.raises(OSError, match="log"):
+        log.add(step=1, force=1.0)
+    assert COMM.allreduce(1) == COMM.size
+
+
+# -- a rank-0-only failure under mpirun ends every rank -------------------------------------------
+@pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
+@pytest.mark.parametrize("command", ["bias", "compare"])
+def test_rank0_only_failure_under_mpirun(command, tmp_path):
+    """``mpirun -n 2 fabricsurf …`` where only rank 0 fails: bias checks --out on rank 0 (before
+    computing); compare fails in the publish, after the solve. Both end within seconds on both
+    ranks with status 2 and one message; nothing is published."""
+    write_experiment(tmp_path / "good", good_experiment())
+    clash = {"bias": "bias_steps.csv", "compare": "error_map.png"}[command]
+    (tmp_path / "D" / clash).mkdir(parents=True)
+    args = {"bias": ["bias", "--length", "40", "--width", "20", "--h", "10", "--steps", "1",
+                     "--terms", TERMS],
+            "compare": ["compare", "good", "--terms", TERMS, "--h", "10"]}[command]
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    t0 = time.perf_counter()
+    p = subprocess.run(["mpirun", "-n", "2", sys.executable, "-m", "fabricsurf", *args,
+                        "--out", "D"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=240)
+    seconds = time.perf_counter() - t0
+    lines = [ln for ln in (p.stdout + p.stderr).splitlines() if "error:" in ln]
+    assert p.returncode == 2, p.stdout + p.stderr
+    expected = (f"fabricsurf {command}: error: --out D: D/{clash} is a directory where a file "
+                "of the same name is to be written")
+    assert len(lines) == 1 and lines[0].startswith(expected), lines
+    if command == "compare":  # after the solve: the results are kept and named
+        assert re.search(r"nothing was published, the results are in \.D\.partial-", lines[0])
+    assert sorted(q.name for q in (tmp_path / "D").iterdir()) == [clash]
+    print(f"mpirun -n 2 {command}: exit {p.returncode} after {seconds:.1f} s")
+    assert seconds < 120
+
+
+# -- quiet compiler, help, vocabulary ----------------------------------------------------------
+def _compile_new_form(args) -> int:
+    """A form no cache holds (a value drawn on rank 0): the JIT compiles it."""
+    import ufl
+    from dolfinx import fem, mesh
+
+    k = COMM.bcast(int(time.time_ns() % 10**9) if COMM.rank == 0 else None)
+    m = mesh.create_unit_square(COMM, 1, 1)
+    x = ufl.SpatialCoordinate(m)
+    fem.form(x[0] * (1 + x[1] / (k + 7)) * ufl.dx)
+    return 0
+
+
+def test_compiler_quiet_unless_verbose(capfd, caplog, monkeypatch):
+    """The C compiler lines that cffi logs through the root logger (INFO, "running build_ext",
+    the gcc command lines) are not even emitted by default; --verbose lets them through.
+    (Compiles two tiny forms, ~0.5 s each.)"""
+    monkeypatch.setattr(cli, "cmd_terms", _compile_new_form)
+    assert main(["terms"]) == 0
+    quiet = capfd.readouterr()
+    assert "INFO" not in quiet.out + quiet.err and "gcc" not in quiet.out + quiet.err
+    assert not [r for r in caplog.records if r.levelno < logging.WARNING]
+    assert main(["terms", "--verbose"]) == 0
+    if COMM.rank == 0:  # rank 0 compiles, the others load the result
+        assert any("build_ext" in r.getMessage() for r in caplog.records), caplog.records
+    assert logging.root.manager.disable == logging.NOTSET  # main leaves logging as it was
+
+
+def test_help_shows_defaults_and_units(capsys):
+    """Every option with a default shows it (or its help describes it); --params and --h say
+    their units; the exit status of --help is 0, of a usage error 2, on every rank."""
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.choices and "bias" in a.choices).choices
+    for name, p in sub.items():
+        for a in p._actions:
+            if a.dest in ("help", "verbose") or a.required or a.option_strings == []:
+                continue
+            text = p.formatter_class("x")._get_help_string(a)
+            assert "default" in text or a.default is False, (name, a.dest, text)
+            if a.dest in ("h", "length", "width", "ubar"):
+                assert "mm" in text, (name, a.dest)
+            if a.dest == "params":
+                assert "N/mm" in text and "N·mm" in text, (name, text)
+            if a.dest == "terms":
+                assert all(e in text for e in EFFECTS), (name, text)
+    for name in sub:
+        rc, out = run_cli([name, "--help"], capsys)
+        assert rc == 0 and out.startswith(f"usage: fabricsurf {name}")
+    assert run_cli(["nonsense"], capsys)[0] == 2
+
+
+def test_terms_lists_vocabulary(capsys):
+    """`fabricsurf terms`: every name, each modulus with its unit, and its formula."""
+    rc, out = run_cli(["terms"], capsys)
+    assert rc == 0
+    for name, cls in EFFECTS.items():
+        line = next(ln for ln in out.splitlines() if ln.startswith(name + " "))
+        for p in cls.parameters():
+            assert f"{p} ({cls.units[p]})" in line, (name, p)
+        assert cls.__doc__.strip().splitlines()[0] in out
