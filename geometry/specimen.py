@@ -166,3 +166,11 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
     msh.topology.create_connectivity(1, 2)
     return Specimen(msh, None, ft, float(length), float(width),
                     points=_corners(length, width))
+
+
+def shift_x(specimen: Specimen, dx: float) -> Specimen:
+    """Translate a specimen by dx along x (mesh and named points), e.g. the free part of a
+    bias specimen between grips of depth dx; edge tags are unchanged."""
+    specimen.mesh.geometry.x[:, 0] += dx
+    specimen.points = {k: (x + dx, y) for k, (x, y) in specimen.points.items()}
+    return specimen

@@ -55,7 +55,8 @@ def test_picture_frame_force_is_exact(kind):
 
 def test_cao_force_only_compare_and_fit(tmp_path):
     """The real curve loads as it is; compare and fit run on every fourth step of it (a copy
-    written by the library, to keep the test short; the woven-fabric demo uses all 43)."""
+    written by the library, to keep the test short; the woven-fabric demo uses all 43); the
+    saved fit.json is accepted by compare --params (same χ²) and bias --params."""
     exp = load_experiment(CAO)
     assert not exp.has_field and exp.has_force and len(exp.steps) == 43
     assert exp.source["reference"].startswith("Cao J.")
@@ -75,6 +76,14 @@ def test_cao_force_only_compare_and_fit(tmp_path):
     f = json.loads((root / "fit" / "fit.json").read_text())
     assert f["misfit"]["combined"] < m["combined"]
     assert f["provenance"]["inputs"] == [str(root / "cao")]
+    assert main(["compare", str(root / "cao"), "--params", str(root / "fit" / "fit.json"),
+                 "--h", "28.75", "--out", str(root / "again")]) == 0
+    assert main(["bias", "--terms", "fibre_stretch,shear", "--params",
+                 str(root / "fit" / "fit.json"), "--length", "230", "--width", "115", "--h",
+                 "28.75", "--ubar", "10", "--steps", "1", "--out", str(root / "bias")]) == 0
+    comm.barrier()
+    again = json.loads((root / "again" / "misfit.json").read_text())
+    assert abs(again["chi2"] - f["chi2"]) <= 1e-8 * f["chi2"]
     assert (root / "cmp" / "force.png").is_file() and not (root / "cmp" / "per_point.csv").exists()
 
 

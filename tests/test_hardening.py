@@ -371,6 +371,7 @@ def test_solver_failure_reports_step_from_1(in_root, capsys):
     assert msg.endswith("the failure report is in failed/failure.json")
     report = json.loads((in_root / "failed" / "failure.json").read_text())
     assert report["error"] in msg and report["provenance"]["params"]["shear"] == {"k_s": 0.0}
+    assert report["converged_steps"] == [] and report["experiment"]
     assert sorted(p.name for p in (in_root / "failed").iterdir()) == ["failure.json"]
 
 

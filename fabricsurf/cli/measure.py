@@ -19,6 +19,7 @@ from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.data import load_experiment
+from fabricsurf.inverse.misfit import converged_steps
 from fabricsurf.inverse.params import load_params, parse_model, provenance
 from fabricsurf.model.terms import EFFECTS
 
@@ -93,14 +94,17 @@ def _error_map_steps(spec: str | None, exps: list) -> list[int] | None:
 
 
 @contextlib.contextmanager
-def _failure_report(od: OutputDir, stage, model, args) -> Iterator[None]:
+def _failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
     """A solver failure writes failure.json (the message and what was used), publishes it and
     ends with a message that names it."""
     try:
         yield
     except LoadStepError as e:
+        partial, by_name = getattr(e, "partial", None), {x.name: x for x in exps}
+        kept = {} if partial is None else {"experiment": e.experiment, "converged_steps":
+                                           converged_steps(by_name[e.experiment], partial)}
         write_json(COMM, stage / "failure.json",
-                   {"error": str(e)} | {"provenance": provenance(
+                   {"error": str(e)} | kept | {"provenance": provenance(
                        model, [str(d) for d in args.data], args.h and [args.h])})
         od.keep = True
         raise RuntimeError(f"{e}; the failure report is in {od.out / 'failure.json'}"
@@ -132,7 +136,7 @@ def cmd_compare(args) -> int:
     exps, model = _setup(args)
     steps = _error_map_steps(args.steps, exps)
     od = OutputDir(args.out, COMM, files=("misfit.json",))
-    with od as stage, _failure_report(od, stage, model, args):
+    with od as stage, _failure_report(od, stage, model, args, exps):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         preds = fs.run()
         m = fs.misfit(preds)
@@ -151,7 +155,7 @@ def cmd_fit(args) -> int:
     exps, model = _setup(args)
     _positive_start(model, args)
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"))
-    with od as stage, _failure_report(od, stage, model, args):
+    with od as stage, _failure_report(od, stage, model, args, exps):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         res = fit(fs, verbose=True)
         write_json(COMM, stage / "fit.json", res.as_dict() | _prov(model, fs, args))
@@ -161,6 +165,10 @@ def cmd_fit(args) -> int:
         rank0_print(COMM, f"  {n} = {v:.5g} ± {s:.2g}")
     rank0_print(COMM, _summary(label, res.misfit))
     return 0
+
+
+def _names(spec: str | None) -> list[str] | None:
+    return None if spec is None else [n.strip() for n in spec.split(",") if n.strip()]
 
 
 def cmd_diagnose(args) -> int:
@@ -176,9 +184,13 @@ def cmd_diagnose(args) -> int:
     _positive_start(model, args)
     params = {t.name: t.values() for t in model}
     od = OutputDir(args.out, COMM, files=("diagnosis.json",))
-    with od as stage, _failure_report(od, stage, model, args):
-        d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
-                     confirm=args.confirm, max_effects=args.max_effects, comm=COMM)
+    with od as stage, _failure_report(od, stage, model, args, exps):
+        try:
+            d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
+                         confirm=args.confirm, max_effects=args.max_effects, comm=COMM,
+                         candidates=_names(args.candidates), fixed=_names(args.fixed))
+        except ValueError as e:
+            raise InputError(str(e)) from None
         out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
                                                       args.h and [args.h])}
         write_json(COMM, stage / "diagnosis.json", out)
@@ -219,6 +231,11 @@ def add_parsers(sub, formatter) -> None:
                    help="candidates confirmed by refitting in each round (≥ 1)")
     p.add_argument("--max-effects", type=int, default=2,
                    help="at most this many effects added, one per round (≥ 0)")
+    p.add_argument("--candidates", default=None,
+                   help="comma-separated effects to consider (default: every effect the data "
+                   "can see)")
+    p.add_argument("--fixed", default=None,
+                   help="comma-separated baseline terms held at their --params moduli")
     p.add_argument("--add-best", action="store_true",
                    help="also save the final model as model_best.json (a --params file)")
     p.set_defaults(func=cmd_diagnose)

@@ -9,7 +9,7 @@ import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
-from fabricsurf.discretise.energy import DEFAULT_PENALTY, EnergyForm
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, DEFAULT_PENALTY, EnergyForm
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.kinematics import fibre_directions
 from fabricsurf.model.terms import Term
@@ -40,6 +40,8 @@ class FabricProblem:
         self.normal_derivative: dict = {}
         self.tractions: dict = {}
         self._point_forces: list = []
+        self.body_forces: list = []
+        self._body_form = None
         self._solver: SNESSolver | None = None
         self.energy: EnergyForm | None = None
 
@@ -80,6 +82,17 @@ class FabricProblem:
         """Dead load t (UFL d-vector, force per reference length) on an edge."""
         self.tractions[self.specimen.edge_tags[edge]] = t
 
+    def add_body_force(self, b) -> None:
+        """Dead load b per unit reference area (UFL d-vector, N/mm², e.g. self-weight; build it
+        from fem.Constants so that load stepping changes values only); potential −∫ b·u dx.
+
+        Its work ∫ b·v dx is assembled as a load vector, like the point forces, rather than
+        added to the residual form: ``SNESSolver.internal_force`` then stays the internal force,
+        linear in the moduli, which the reactions and the exact modulus sensitivities
+        (∂R/∂p = R with the moduli e_p, inverse/forward.py) rely on.
+        """
+        self.body_forces.append(b)
+
     def vertex_nodes(self, point: Sequence[float]) -> np.ndarray:
         """Local (block) indices of the dof nodes at a mesh vertex, ghosts included."""
         x = np.asarray(point, dtype=float)
@@ -108,13 +121,17 @@ class FabricProblem:
         self._point_forces.append((owned, f, self.V.dofmap.index_map_bs))
 
     def _nodal_forces(self):
-        dofs, vals = [], []
-        for nodes, f, bs in self._point_forces:
-            fv = np.asarray(f.value if isinstance(f, fem.Constant) else f, dtype=float)
+        """(local dofs, values) of the dead loads assembled outside the residual form: point
+        forces and body forces, summed into one local array (ghost entries included, before
+        the reverse scatter of SNESSolver._F), so loads at the same dof add up."""
+        im, bs = self.V.dofmap.index_map, self.V.dofmap.index_map_bs
+        f = (fem.assemble_vector(self._body_form).array.copy() if self._body_form is not None
+             else np.zeros((im.size_local + im.num_ghosts) * bs))
+        for nodes, fp, bs in self._point_forces:
+            fv = np.asarray(fp.value if isinstance(fp, fem.Constant) else fp, dtype=float)
             for i in range(self.d):
-                dofs.append(nodes * bs + i)
-                vals.append(np.full(len(nodes), fv[i]))
-        return np.concatenate(dofs).astype(np.int32), np.concatenate(vals)
+                np.add.at(f, nodes * bs + i, fv[i])
+        return np.arange(len(f), dtype=np.int32), f
 
     # -- solving -------------------------------------------------------------------------
     def solver(self) -> SNESSolver:
@@ -123,10 +140,14 @@ class FabricProblem:
             self.energy = EnergyForm(self.model, self.u, self.L, self.M, self.specimen.facet_tags,
                                      self.normal_derivative, self.tractions, self.penalty)
             v, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
+            if self.body_forces:
+                dx = ufl.Measure("dx", domain=self.msh,
+                                 metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
+                self._body_form = fem.form(sum(ufl.dot(b, v) for b in self.body_forces) * dx)
             self._solver = SNESSolver(
                 self.energy.residual(v), self.energy.jacobian(du, v), self.u, self.bcs,
                 self.prefix, self.snes_options,
-                self._nodal_forces if self._point_forces else None)
+                self._nodal_forces if self._point_forces or self.body_forces else None)
         return self._solver
 
     def solve(self) -> tuple[int, int]:

@@ -2,12 +2,27 @@
 
 The SNES callbacks follow the NonlinearPDE_SNESProblem of the dolfinx 0.5 unit tests: the
 residual is dΠ/du with Dirichlet rows x − g (lifting), the Jacobian d²Π/du². Options go to the
-database under a per-solver prefix only (never unprefixed/global ones).
+database under a per-solver prefix only (never unprefixed/global ones), and are removed from it
+again once SNES and KSP have read them (nothing is left behind in the global database).
+
+Energies with a restricted domain (e.g. the bi-pantographic energy, defined for ρ cos γ < 1 only)
+give NaN or inf outside it. Every residual evaluation checks, collectively, that the assembled
+cell and facet contributions are finite (before the Dirichlet rows overwrite anything); if not,
+it reports a function domain error to SNES (``SNESSetFunctionDomainError``) and returns an inf
+residual on every rank. A backtracking line search (``snes_linesearch_type: bt``, see
+:data:`DOMAIN_AWARE`) then halves the step until the trial state is back in the domain; with the
+default full-step (``basic``) line search the solve stops with DIVERGED_LINE_SEARCH and the load
+stepper cuts the load step. A converged state therefore always has a finite residual: every
+quadrature point is inside the domain. The check costs one pass over the local vector and one
+allreduce per residual evaluation.
 """
 
 from __future__ import annotations
 
+import ctypes
+import glob
 import itertools
+import os
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -29,14 +44,67 @@ SNES_DEFAULTS: dict[str, object] = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+DOMAIN_AWARE: dict[str, object] = {"snes_linesearch_type": "bt", "snes_max_it": 50}
+"""Options for energies with a restricted domain: the backtracking line search shrinks a Newton
+step that leaves the domain (or does not decrease the residual) instead of failing."""
+
+SOLVER_KEYS = ("jacobian",)
+"""Keys of ``options`` read by :class:`SNESSolver` itself, not by PETSc: ``jacobian`` =
+``"given"`` (the form passed in, default) or ``"exact"`` (the derivative of the residual form,
+``ufl.derivative``: quadratic Newton convergence, one more form to compile)."""
+
 _ids = itertools.count()
+
+
+def _reason_names() -> dict[int, str]:
+    R = PETSc.SNES.ConvergedReason
+    names = {getattr(R, k): k for k in dir(R) if k.isupper() and k != "ITERATING"}
+    names[0] = "CONVERGED_ITERATING"
+    return names
+
+
+SNES_REASONS = _reason_names()
+
+
+def reason_name(reason: int) -> str:
+    """PETSc's SNESConvergedReason code in words, e.g. −5 → 'DIVERGED_MAX_IT (-5)'."""
+    return f"{SNES_REASONS.get(int(reason), 'UNKNOWN')} ({int(reason)})"
+
+
+def _petsc_library():
+    """The PETSc shared library petsc4py loaded (for the two calls petsc4py 3.18 lacks)."""
+    paths = []
+    if os.path.exists("/proc/self/maps"):
+        with open("/proc/self/maps") as f:
+            paths = [ln.split()[-1] for ln in f if "libpetsc" in ln and ".so" in ln]
+    if not paths:
+        import petsc4py
+        cfg = petsc4py.get_config()
+        paths = glob.glob(os.path.join(cfg["PETSC_DIR"], cfg["PETSC_ARCH"], "lib", "libpetsc*.so*"))
+    try:
+        lib = ctypes.CDLL(paths[0])
+        for fn in (lib.SNESSetFunctionDomainError, lib.SNESSetJacobianDomainError):
+            fn.argtypes = [ctypes.c_void_p]
+        return lib
+    except (IndexError, OSError, AttributeError):
+        return None
+
+
+_PETSC_LIB = _petsc_library()
+
+
+def _collective_finite(comm: MPI.Comm, array: np.ndarray) -> bool:
+    return bool(comm.allreduce(bool(np.isfinite(array).all()), op=MPI.LAND))
 
 
 class SNESSolver:
     """Newton for R(u) = 0 with Jacobian ``jacobian`` (both UFL forms, usually from EnergyForm).
 
     ``nodal_forces`` is an optional callable returning (dofs, values) of dead point forces
-    (corner forces) added to the external load: R ← R − f at those local dofs.
+    (corner forces) added to the external load: R ← R − f at those local dofs. ``options`` are
+    PETSc options without the prefix (over :data:`SNES_DEFAULTS`), plus the keys of
+    :data:`SOLVER_KEYS`. ``domain_errors`` counts the residual evaluations that left the
+    energy's domain (module docstring).
     """
 
     def __init__(self, residual: ufl.Form, jacobian: ufl.Form, u: fem.Function,
@@ -44,6 +112,12 @@ class SNESSolver:
                  prefix: str | None = None, options: dict | None = None,
                  nodal_forces: Callable | None = None) -> None:
         V = u.function_space
+        options = dict(options or {})
+        mode = options.pop("jacobian", "given")
+        if mode not in ("given", "exact"):
+            raise ValueError(f"jacobian = {mode!r}: must be 'given' or 'exact'")
+        if mode == "exact":
+            jacobian = ufl.derivative(residual, u, ufl.TrialFunction(V))
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
         self.comm = V.mesh.comm
         self.L = fem.form(residual)
@@ -52,18 +126,31 @@ class SNESSolver:
         self.b = fem_petsc.create_vector(self.L)
         self.A = fem_petsc.create_matrix(self.a)
         self.x = u.vector.copy()
+        self.domain_errors = 0
         self.snes = PETSc.SNES().create(V.mesh.comm)
         self.snes.setFunction(self._F, self.b)
         self.snes.setJacobian(self._J, self.A)
-        self.set_options(options or {})
+        self.set_options(options)
 
     def set_options(self, options: dict) -> None:
+        """Apply PETSc options (over :data:`SNES_DEFAULTS`) under this solver's prefix; the
+        global database is left as it was found (entries set here are removed, entries that
+        were there before, e.g. from the command line, restored)."""
         opts = PETSc.Options()
-        for k, v in {**SNES_DEFAULTS, **options}.items():
-            opts[self.prefix + k] = v
-        self.snes.setOptionsPrefix(self.prefix)
-        self.snes.setFromOptions()
-        self.snes.getKSP().setFromOptions()
+        merged = {**SNES_DEFAULTS, **options}
+        before = {k: opts.getString(self.prefix + k) for k in merged
+                  if opts.hasName(self.prefix + k)}
+        try:
+            for k, v in merged.items():
+                opts[self.prefix + k] = v
+            self.snes.setOptionsPrefix(self.prefix)
+            self.snes.setFromOptions()
+            self.snes.getKSP().setFromOptions()
+        finally:
+            for k in merged:
+                opts.delValue(self.prefix + k)
+                if k in before:
+                    opts[self.prefix + k] = before[k]
 
     def _update_u(self, x: PETSc.Vec) -> None:
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -75,6 +162,14 @@ class SNESSolver:
         with b.localForm() as b_local:
             b_local.set(0.0)
         fem_petsc.assemble_vector(b, self.L)
+        with b.localForm() as b_local:
+            finite = _collective_finite(self.comm, b_local.array)
+        if not finite:
+            self.domain_errors += 1
+            if snes is not None and _PETSC_LIB is not None:
+                _PETSC_LIB.SNESSetFunctionDomainError(snes.handle)
+            b.set(np.inf)
+            return
         if self.nodal_forces is not None:
             dofs, vals = self.nodal_forces()
             with b.localForm() as b_local:
@@ -88,6 +183,18 @@ class SNESSolver:
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, self.a, bcs=self.bcs)
         A.assemble()
+        if not np.isfinite(A.norm(PETSc.NormType.FROBENIUS)) and snes is not None \
+                and _PETSC_LIB is not None:
+            _PETSC_LIB.SNESSetJacobianDomainError(snes.handle)
+
+    def evaluate_residual(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        """R(x) into b as SNES sees it (boundary rows, nodal forces, domain check)."""
+        self._F(None, x, b)
+
+    def evaluate_jacobian(self, x: PETSc.Vec) -> PETSc.Mat:
+        """The Jacobian at x (boundary rows and columns set), in :attr:`A`."""
+        self._J(None, x, self.A, self.A)
+        return self.A
 
     def solve(self) -> tuple[int, int]:
         """Newton from the current u; returns (converged reason, iterations). u holds the result."""
@@ -104,15 +211,28 @@ class SNESSolver:
 
 
 class LoadStepError(RuntimeError):
-    """The load path could not be followed even with the minimum step."""
+    """The load path could not be followed even with the minimum step.
+
+    Attributes (the same on every rank): ``step`` (1-based, as in the output files),
+    ``target``, ``last_load`` (the last converged load), ``reason`` (SNES code of the last
+    attempt) and ``attempts`` (the loads tried in this step, with their SNES reason codes).
+    """
+
+    def __init__(self, message: str, step: int = 0, target: float = float("nan"),
+                 last_load: float = float("nan"), reason: int = 0,
+                 attempts: Sequence[tuple[float, int]] = ()) -> None:
+        super().__init__(message)
+        self.step, self.target, self.last_load = step, target, last_load
+        self.reason, self.attempts = reason, list(attempts)
 
 
 class LoadStepper:
     """Follow a load parameter t through requested values, cutting the step on divergence.
 
     ``set_load(t)`` updates the problem data (Constants, BC values) for load t;
-    ``on_converged(k, t, iters)`` is called for each requested value t_k once converged
-    (write output there: everything converged is on disk when a later step fails).
+    ``on_converged(k, t, iters)`` is called for each requested value t_k (k from 0) once
+    converged (write output there: everything converged is on disk when a later step fails).
+    Messages and :class:`LoadStepError` count steps from 1, as the output files do.
     """
 
     def __init__(self, solver: SNESSolver, set_load: Callable[[float], None],
@@ -123,6 +243,7 @@ class LoadStepper:
         self.log = log or (lambda msg: None)
         self.t = 0.0
         self.iterations: list[int] = []
+        self.attempts: list[int] = []
 
     def _try(self, t: float) -> tuple[bool, int, int]:
         backup = self.solver.u.vector.copy()
@@ -137,26 +258,28 @@ class LoadStepper:
         return ok, reason, its
 
     def advance_to(self, target: float, k: int) -> int:
-        """Reach load ``target`` from the current load; returns total Newton iterations."""
+        """Reach load ``target`` (requested step ``k``, 0-based) from the current load;
+        returns the total Newton iterations (failed attempts included)."""
         span = target - self.t
-        dt, total = span, 0
+        dt, total, tried = span, 0, []
         while abs(target - self.t) > 1e-14 * max(1.0, abs(target)):
             t_next = self.t + dt if abs(dt) < abs(target - self.t) else target
             ok, reason, its = self._try(t_next)
             total += its
+            tried.append((t_next, reason))
             if ok:
                 self.t = t_next
                 dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
                 continue
             dt = 0.5 * (t_next - self.t)
-            self.log(f"step {k}: SNES reason {reason} at t = {t_next:.6g}; "
-                     f"cutting step to {dt:.3g}")
+            self.log(f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
+                     f"cutting the increment to {dt:.3g}")
             if abs(dt) < self.min_fraction * abs(span):
                 self.set_load(self.t)
-                raise LoadStepError(
-                    f"load step {k} (target {target:.6g}) failed: step cut below "
-                    f"{self.min_fraction:g} of the increment at load {t_next:.6g}; last converged "
-                    f"load {self.t:.6g}; SNES converged reason {reason}")
+                raise LoadStepError(_failure_message(k + 1, target, self.t, reason, tried,
+                                                     self.min_fraction),
+                                    k + 1, target, self.t, reason, tried)
+        self.attempts.append(len(tried))
         return total
 
     def run(self, targets: Sequence[float]) -> list[int]:
@@ -167,3 +290,17 @@ class LoadStepper:
                 self.on_converged(k, float(target), its)
         return self.iterations
 
+
+def _failure_message(step: int, target: float, last: float, reason: int,
+                     tried: list[tuple[float, int]], min_fraction: float) -> str:
+    failed = [(t, r) for t, r in tried if r <= 0]
+    shown = ", ".join(f"{t:.6g}" for t, _ in failed[:3])
+    if len(failed) > 4:
+        shown += f", ... ({len(failed) - 4} more), "
+    elif len(failed) == 4:
+        shown += ", "
+    shown += f"{failed[-1][0]:.6g}" if len(failed) > 3 else ""
+    return (f"load step {step} (target {target:.6g}) failed: Newton did not converge "
+            f"({reason_name(reason)}) even after cutting the increment {len(failed) - 1} times "
+            f"to below {min_fraction:g} of the step; loads tried without convergence: {shown}; "
+            f"last converged load {last:.6g}")

@@ -9,10 +9,11 @@ from __future__ import annotations
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup
 from fabricsurf.experiments.bias_extension import BiasExtensionTest
+from fabricsurf.experiments.cantilever import CantileverTest
 from fabricsurf.experiments.picture_frame import PictureFrameTest
 
 TESTS: dict[str, type[ExperimentSetup]] = {
-    c.name: c for c in (BiasExtensionTest, PictureFrameTest)
+    c.name: c for c in (BiasExtensionTest, PictureFrameTest, CantileverTest)
 }
 ALIASES = {"tensile": "bias_extension"}
 

@@ -24,9 +24,9 @@ from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, writ
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option
+from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
-from geometry.specimen import Specimen, bias_points, bias_specimen
+from geometry.specimen import Specimen, bias_points, bias_specimen, shift_x
 
 CLAMPS = ("gradient", "position")
 
@@ -174,24 +174,38 @@ class BiasExtensionTest(ExperimentSetup):
     name = "bias_extension"
     path_label = "grip displacement (mm)"
     reaction_label = "grip force (N)"
-    keys = {"loading": {"clamp": "gradient | position (default gradient)"}}
+    keys = {"loading": {"clamp": "gradient | position (default gradient)",
+                        "grip_depth": "depth held by each grip beyond the free length (length "
+                        "units, default 0)"}}
 
     def __init__(self, setup: Setup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         super().__init__(setup, model, h, comm)
+        depth = float(setup.options.get("grip_depth", 0.0))
+        specimen = bias_specimen(setup.length - 2 * depth, setup.width, h, comm)
+        if depth:
+            shift_x(specimen, depth)
         self.bias = BiasExtension(model, setup.length, setup.width, h,
                                   setup.options.get("clamp", "gradient"),
-                                  tuple(setup.fibre_angles_deg), comm=comm)
+                                  tuple(setup.fibre_angles_deg), comm=comm, specimen=specimen)
         self.problem, self.solver = self.bias.problem, self.bias.solver
         self._w = fem.Function(self.problem.V)
         self._w.x.array[self.problem.component_dofs("grip", 0)] = 1.0
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
-        return {"clamp": choice_option(tables, "loading", "clamp", CLAMPS, "gradient", where)}
+        depth = number_option(tables, "loading", "grip_depth", where, 0.0, positive=False)
+        if depth < 0:
+            raise DataError(f"{where}: [loading] grip_depth = {depth:g} must be ≥ 0")
+        return {"clamp": choice_option(tables, "loading", "clamp", CLAMPS, "gradient", where),
+                "grip_depth": depth * length_scale}
 
     @classmethod
     def check_specimen(cls, setup: Setup, where: str) -> None:
+        if 2 * setup.options.get("grip_depth", 0.0) >= 0.5 * setup.length:
+            raise DataError(f"{where}: [loading] grip_depth "
+                            f"{setup.options['grip_depth']:g} mm leaves less than half of the "
+                            f"{setup.length:g} mm specimen free")
         if setup.width > setup.length:
             raise DataError(f"{where}: [specimen] width {setup.width:g} mm exceeds length "
                             f"{setup.length:g} mm; the bias specimen has its long side along "

@@ -31,6 +31,7 @@ from fabricsurf.inverse.experiment import Experiment
 from fabricsurf.inverse.fit import FitResult, fit
 from fabricsurf.inverse.forward import ForwardSet
 from fabricsurf.inverse.report import Diagnosis, discretisation_chi2, where_unexplained
+from fabricsurf.inverse.start import candidate_start
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
 
@@ -75,23 +76,9 @@ def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
 
 def _refit(fs: ForwardSet, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
            verbose: bool) -> FitResult:
-    """Nested refit from the current optimum; the better of two starts for the candidate."""
-    floor = 1e-6 * float(np.max(cur[free]))
-    best, best_chi2 = None, np.inf
-    for start in (max(estimate, floor), floor):
-        v = cur.copy()
-        v[idx] = start
-        fs.set_values(v)
-        try:
-            r, _ = fs.residuals(fs.run())
-        except RuntimeError:
-            continue
-        if float(r @ r) < best_chi2:
-            best, best_chi2 = v, float(r @ r)
-    if best is None:
-        raise RuntimeError("diagnose: the refit cannot start (load path not followed)")
-    fs.set_values(best)
-    res = fit(fs, free + idx, verbose=verbose)
+    """Nested refit from the current optimum, the candidate at its best start."""
+    fs.set_values(candidate_start(fs, cur, free, idx, estimate))
+    res = fit(fs, free + idx, verbose=verbose, scale_start=False)
     fs.set_values(cur)
     return res
 
@@ -125,18 +112,32 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
 def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float | None = None,
              params: dict | None = None, confirm: int = 2, max_effects: int = 2,
              check_discretisation: bool = True, comm: MPI.Comm = MPI.COMM_WORLD,
-             verbose: bool = True) -> Diagnosis:
-    """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring)."""
+             verbose: bool = True, candidates: list[str] | None = None,
+             fixed: list[str] | None = None) -> Diagnosis:
+    """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
+
+    ``candidates``: the effects to consider (default: every effect the data can see);
+    ``fixed``: baseline terms held at their moduli in ``params`` (known from other tests).
+    """
     exps = exps if isinstance(exps, list) else [exps]
-    for name in baseline:
+    fixed = list(fixed or [])
+    for name in [*baseline, *(candidates or []), *fixed]:
         make_term(name)
     if confirm < 1 or max_effects < 0:
         raise ValueError(f"diagnose: confirm = {confirm} must be ≥ 1 and max_effects = "
                          f"{max_effects} ≥ 0")
-    visible = visible_effects(exps)
+    if set(fixed) - set(baseline):
+        raise ValueError(f"diagnose: fixed terms {sorted(set(fixed) - set(baseline))} are not "
+                         "in the baseline")
+    visible = seen = visible_effects(exps)
+    if candidates is not None:
+        hidden = [c for c in candidates if c not in visible]
+        if hidden:
+            raise ValueError(f"diagnose: these data cannot see {hidden} (planar data)")
+        visible = [n for n in visible if n in candidates or n in baseline]
     fs = ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm)
     idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
-    free = sorted(i for n in baseline for i in idx_of[n])
+    free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
     say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
     t0 = MPI.Wtime()
     cur = base = fit(fs, free, verbose=verbose)
@@ -168,7 +169,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
     chi2_h = discretisation_chi2(fs, exps, h, comm) if check_discretisation else None
     ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
     invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
-                 for n in EFFECTS if n not in visible and n not in baseline]
+                 for n in EFFECTS if n not in seen and n not in baseline]
     return Diagnosis(
         baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
         ranking=rankings[0] if rankings else [], rounds=rankings,

@@ -4,6 +4,8 @@ Each iteration is one forward run along the recorded load path that also returns
 du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.inverse.compare.ForwardModel`): the
 converged Jacobian's factorisation is reused, no finite differences of load paths. Moduli are
 parametrised as p = exp(θ) (positive); the step in θ is limited to ±``max_step`` per iteration.
+A small relative χ² change does not stop a step that was cut to ``max_step`` (a modulus far
+from its optimum, e.g. a candidate effect started near zero, changes χ² little per step).
 Uncertainties: Cov(θ) = (JᵀJ)⁻¹ — the residuals are already divided by the noise level — times
 the reduced χ² when the data give no ``noise_std``; σ_p = p σ_θ (first order).
 """
@@ -19,6 +21,7 @@ import numpy as np
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.inverse.forward import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.start import scan_terms
 
 
 @dataclass
@@ -74,15 +77,22 @@ def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
 
 
 def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
-        tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True) -> FitResult:
+        tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True,
+        scale_start: bool = True) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
-    values (which must be > 0); the other moduli stay fixed."""
+    values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
+    free moduli by decades (:func:`~fabricsurf.inverse.start.scan_terms`)."""
     free = list(range(len(fm.params))) if free is None else list(free)
     vals = fm.values()
     if np.any(vals[free] <= 0):
         raise ValueError("fit: initial moduli must be > 0 (log-parametrisation): "
                          f"{dict(zip(fm.names, vals))}")
     runs0 = fm.forward_runs
+    if scale_start:
+        vals = scan_terms(fm, free, vals)
+        if verbose:
+            rank0_print(fm.comm, "  fit: start after the scale scan: " + "  ".join(
+                f"{fm.names[k]} = {vals[k]:.4g}" for k in free))
     pred, rj, chi2 = _try(fm, free, vals)
     if pred is None:
         raise LoadStepError("fit: the initial model does not follow the load path")
@@ -112,7 +122,8 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         if verbose:
             rank0_print(fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
                         + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
-        if rel < tol or np.max(np.abs(step)) < 1e-5:
+        moving = np.max(np.abs(step)) >= max_step * (1 - 1e-9)  # step was cut: not converged
+        if (rel < tol and not moving) or np.max(np.abs(step)) < 1e-5:
             break
     fm.set_values(vals)
     Jt = Jr * vals[free]

@@ -22,7 +22,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fabricsurf.discretise.evaluation import eval_points
-from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse import misfit as mf
 from fabricsurf.inverse.experiment import Experiment
@@ -147,7 +147,17 @@ class ForwardModel:
                 if dF is not None:
                     dF[k, j] = dfj
 
-        iters = LoadStepper(sol, self.test.set_load, converged).run(exp.path)
+        stepper = LoadStepper(sol, self.test.set_load, converged)
+        try:
+            iters = stepper.run(exp.path)
+        except LoadStepError as e:
+            done = len(stepper.iterations)
+            if force is not None:
+                force[done:] = np.nan
+            for s in exp.steps[done:]:
+                u[exp.step_rows(s)] = np.nan
+            e.experiment, e.partial = exp.name, Prediction(u, force)
+            raise
         self.forward_runs += 1
         return Prediction(u, force, du, dF, int(sum(iters)), time.perf_counter() - t0)
 

@@ -81,3 +81,22 @@ def misfit(exp: Experiment, pred) -> dict:
         "s_u": s_u if exp.has_field else None, "s_F": s_F if exp.has_force else None,
         "points_outside": int(np.count_nonzero(~inside)), "per_step": per_step,
         "row_error": err}
+
+
+def converged_steps(exp: Experiment, pred) -> list[dict]:
+    """Model against data at the steps a failed run did converge (its NaN-free steps)."""
+    rows = []
+    for k, s in enumerate(exp.steps):
+        sel = exp.step_rows(s)
+        fk = None if pred.force is None else float(pred.force[k])
+        if (fk is not None and not np.isfinite(fk)) or (
+                len(sel) and not np.isfinite(pred.u[sel]).all()):
+            break
+        c = pred.u.shape[1]
+        row = {"step": int(s), "load": float(exp.path[k])}
+        if len(sel):
+            row["field_rms"] = float(np.sqrt(np.mean((pred.u[sel] - exp.u[sel, :c]) ** 2)))
+        if fk is not None:
+            row |= {"force_model": fk, "force_meas": float(exp.force[k])}
+        rows.append(row)
+    return rows

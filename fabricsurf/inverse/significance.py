@@ -3,9 +3,12 @@
 Residuals are divided by the noise level, so at the truth χ² ≈ ν = n − p.
 
 *Adequate*: the misfit left is what noise and the forward model's own discretisation error
-explain: (χ² − χ²_h)/ν ≤ 1 + 3√(2/ν), with χ²_h the squared difference, in noise units, between
-the predictions at h and at h/2 (0 when not measured). The 3σ band of χ²/ν keeps the false-alarm
-rate of "inadequate" at the 0.1 % level for Gaussian noise.
+explain: (χ² − χ²_h)/ν ≤ max(1 + 3√(2/ν), 1.1²), with χ²_h the squared difference, in noise
+units, between the predictions at h and at h/2 (0 when not measured). The 3σ band of χ²/ν keeps
+the false-alarm rate of "inadequate" at the 0.1 % level for Gaussian noise of exactly the stated
+level; the floor 1.1² (an RMS misfit of 1.1 noise levels) is there because a stated noise level
+is itself an estimate, good to about 10 %: with thousands of data the 3σ band alone would call a
+model inadequate for a systematic error of a tenth of the noise.
 
 *Significant* (nested models, k added moduli): both
 1. an F-test at the 0.999 level against the residual variance actually left,
@@ -33,9 +36,12 @@ def reduced(chi2: float, n: int, p: int) -> float:
     return chi2 / max(n - p, 1)
 
 
+ADEQUATE_MISFIT = 1.1
+
+
 def adequacy_bound(n: int, p: int) -> float:
-    """1 + 3√(2/ν): the upper 3σ bound of χ²/ν at the noise level."""
-    return 1.0 + 3.0 * np.sqrt(2.0 / max(n - p, 1))
+    """max(1 + 3√(2/ν), 1.1²): the largest χ²/ν still at the noise level (module docstring)."""
+    return max(1.0 + 3.0 * np.sqrt(2.0 / max(n - p, 1)), ADEQUATE_MISFIT**2)
 
 
 def adequate(chi2: float, n: int, p: int, chi2_h: float = 0.0, noise_known: bool = True

@@ -71,16 +71,18 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
 
 
 def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: float,
-                 every: int = 1) -> Experiment:
+                 every: int = 1, k4: float = 0.0, k6: float = 0.0) -> Experiment:
     """Replace ``exp`` by the Hencky lattice's response (seed 000 clamps: two held layers).
 
     The measurement points are the lattice nodes (every ``every``-th, clamp/grip layers
-    excluded); continuum moduli map to lattice stiffnesses by ``lattice_from_continuum``.
+    excluded); continuum moduli map to lattice stiffnesses by ``lattice_from_continuum``
+    (``k4``, ``k6``: the ``shear_locking`` moduli, nonlinear shear springs at the crossings).
     """
     from fabricsurf.network import hencky
     from fabricsurf.network.solver import solve_steps
 
-    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, tuple(exp.fibre_angles_deg))
+    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, tuple(exp.fibre_angles_deg),
+                                      k4=k4, k6=k6)
     lat = hencky.hencky_lattice(exp.length, exp.width, spacing, tuple(exp.fibre_angles_deg),
                                 **k)
     X = lat.net.X

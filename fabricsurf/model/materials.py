@@ -30,21 +30,41 @@ Implementation notes
 --------------------
 * acos(1 − 2x²) = 2 asin(x) for x ∈ [0, 1]; the asin form is used because its UFL derivative
   (2/√(1 − x²)) has no 0/0 at x = 0, which the derivative of the acos form has.
-* Guards: none. ρc < 1 is the geometric limit of a pantographic beam (fully opened rhombi:
-  ρ_max = 1/cos γ = 1.155); the energy is not defined beyond, and the stretch-gradient
-  coefficient diverges there, which is the physics of the homogenised model (the micro model
-  has extensible rhombus sides instead). A Newton iterate that crosses the limit gives NaN,
-  which the solver reports as divergence and the load stepper cuts the step (DESIGN §4).
-  In the bias test (demos/demo_bias_extension.py, h = 4 mm) the largest fibre stretch at the
-  lattice nodes is 1.062 at ū = 28 mm, but Newton fails near ū ≈ 28.9 mm (h = 8 mm): the limit
-  is approached locally (presumably at the clamp corners; not localised further), so the demo
-  compares up to ū = 15 % of the length.
+* Domain: ρc < 1 is the geometric limit of a pantographic beam (fully opened rhombi:
+  ρ_max = 1/cos γ = 1.155); the energy is not defined beyond (asin gives NaN), and the
+  stretch-gradient coefficient a_ρ grows as 1/(1 − ρ²c²). A Newton iterate that crosses the
+  limit gives a non-finite residual, which the solver reports to SNES as a domain error; with
+  the backtracking line search (``fabricsurf.discretise.solver.DOMAIN_AWARE``) the step is
+  shortened instead of failing (discretise/solver.py). A converged state has a finite
+  residual: every quadrature point is inside the domain.
+* Does the solution reach the limit? Measured in the bias test (Table 3, 187 × 119 mm, ±45°,
+  benchmarks/bipantographic_range.py): the largest stretch sits at the grip corners
+  (x = 183.5, y = 0 or 119 mm on the level-2 mesh) and grows smoothly with ū: ρc = 0.880,
+  0.894, 0.919, 0.941, 0.960, 0.978 at ū = 5, 10, 20, 30, 40, 50 mm (level 2, position
+  clamps). It stays below 1 up to ū = 50 mm; the numbers per mesh and clamp variant are in
+  the benchmark's output. The failures of earlier versions (Newton stalling near
+  ū = 19.8 mm) were not the limit (ρc = 0.92 there) but the interior penalty (next item).
+* Interior penalty. The C0-IP scale S of the second-gradient term (energy.py) is the sum of the
+  two coefficients at ρ = ``penalty_stretch`` (default 1: ≈ 436 N·mm for Table 3). Because
+  a_ρ grows as 1/(1 − ρ²c²) (×2.7 at ρ = 1.065, ×6.3 at 1.1, ×13 at 1.12), a penalty frozen at
+  ρ = 1 stops dominating the consistency term where the stretch concentrates, and the
+  discrete energy loses coercivity: measured on level 2 (position clamps) the smallest
+  eigenvalue of the exact Hessian falls from 1.0e-3 (ū = 19 mm) to 5.2e-4 (19.9 mm), its
+  eigenvector at the free edge, and Newton fails at 19.96 mm whatever the line search;
+  with α = 32 instead of 8 the same run reaches 41.96 mm, and with S following the largest
+  stretch (``fabricsurf.studies.bipantographic_range.PenaltyFollower``, ρ_p = max ρ + 0.03
+  after each step, at most ρ_p c = 0.97) it reaches 50 mm in 3–4 Newton iterations per step.
+  ``penalty_stretch`` is a fem.Constant: following the stretch never recompiles.
+* Regularisation (``bipantographic(limit_stretch=ρ_r)``, ρ_r c < 1): beyond ρ_r the pivot
+  energy K_S g(ρ)² is replaced by its second-order Taylor polynomial at ρ_r and a_θ, a_ρ are
+  frozen at their values there, so the energy is C² at ρ_r and defined for every stretch. It
+  models what the micro model does past the fully opened rhombus: the rhombus sides, rigid in
+  eq. (2), are extensible springs (k_e), so the beam keeps stretching against a stiff but
+  finite stiffness W''(ρ_r) instead of a wall. Not needed in the bias test up to 50 mm (the
+  limit is not reached); it changes nothing where ρ < ρ_r everywhere.
 * Units (mm, N): K_S in N/mm (Table 3: 34 N/m = 0.034 N/mm), K_E and K_F in N·mm (Table 3:
   0.33 J = 330 N·mm, 0.9 J = 900 N·mm), γ in rad. All are fem.Constants once bound, so
   changing them does not recompile.
-* The interior-penalty scale S of the second-gradient term (energy.py) is the sum of its two
-  coefficients at ρ = 1 (≈ 436 N·mm for Table 3), not K_E + K_F, so the penalty keeps the same
-  ratio to the physical stiffness as for the vocabulary terms.
 """
 
 from __future__ import annotations
@@ -96,44 +116,129 @@ class PantographPivot(Term):
 @dataclass
 class PantographBending(Term):
     """K_E K_F Σ_α [a_θ(ρ_α)(∂θ_α/∂α)² + a_ρ(ρ_α)(∂ρ_α/∂α)²]: geodesic bending and stretch
-    gradient of the pantographic beams (seed 000 eq. 2, second and third lines)."""
+    gradient of the pantographic beams (seed 000 eq. 2, second and third lines).
+
+    ``penalty_stretch`` ρ_p (dimensionless, ρ_p cos γ < 1) is not a modulus: it is the stretch
+    at which the interior-penalty scale S = a_θ(ρ_p) + a_ρ(ρ_p) is taken (module docstring,
+    "Interior penalty"); changing it does not recompile.
+    """
 
     K_E: float = TABLE3_MACRO["K_E"]
     K_F: float = TABLE3_MACRO["K_F"]
     gamma: float = math.pi / 6
+    penalty_stretch: float = 1.0
     name: ClassVar[str] = "bipantographic_bending"
     order: ClassVar[int] = 2
-    units: ClassVar[dict[str, str]] = {"K_E": "N·mm", "K_F": "N·mm", "gamma": "rad"}
+    units: ClassVar[dict[str, str]] = {"K_E": "N·mm", "K_F": "N·mm", "gamma": "rad",
+                                       "penalty_stretch": "1"}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_below_limit(self.name, "penalty_stretch", self.penalty_stretch, self.gamma)
 
     def _coeffs(self, rho):
         return _coefficients(rho, self.p("K_E"), self.p("K_F"), ufl.cos(self.p("gamma")))
+
+    def _stretch(self, rho):
+        """The stretch at which the coefficients are evaluated (ρ itself; capped when
+        regularised)."""
+        return rho
 
     def density(self, kin: Kinematics):
         W = 0
         for rho, geo, drho in ((kin.lam, kin.geodesic_l, kin.dlam_dL),
                                (kin.mu, kin.geodesic_m, kin.dmu_dM)):
-            a_theta, a_rho = self._coeffs(rho)
+            a_theta, a_rho = self._coeffs(self._stretch(rho))
             W += a_theta * (geo / rho) ** 2 + a_rho * drho**2
         return W
 
     def stiffness_scale(self):
-        """Sum of the two coefficients at ρ = 1 (the penalty scale S of energy.py)."""
-        a_theta, a_rho = self._coeffs(1.0)
+        """a_θ + a_ρ at ρ = ``penalty_stretch`` (the penalty scale S of energy.py)."""
+        a_theta, a_rho = self._coeffs(self._stretch(self.p("penalty_stretch")))
         return a_theta + a_rho
 
     def reference_moduli(self) -> tuple[float, float]:
         """(a_θ, a_ρ) at ρ = 1 as floats (N·mm)."""
         return _coefficients(1.0, self.K_E, self.K_F, math.cos(self.gamma))
 
+    def set(self, **values: float) -> None:
+        if "penalty_stretch" in values:
+            _check_below_limit(self.name, "penalty_stretch", values["penalty_stretch"],
+                               values.get("gamma", self.gamma))
+        super().set(**values)
+
+
+def _check_below_limit(name: str, key: str, rho: float, gamma: float) -> None:
+    if not float(rho) * math.cos(gamma) < 1.0:
+        raise ValueError(f"term '{name}': {key} = {rho} must satisfy {key}·cos γ < 1 "
+                         f"(< {1 / math.cos(gamma):.4f} for γ = {gamma:.4f})")
+
+
+def _pivot_extension(rho, rho_r, K_S, gamma):
+    """Second-order Taylor continuation of K_S g(ρ)² beyond ρ_r (g = 2 asin(ρc) − π + 2γ):
+    W(ρ̂) + W'(ρ_r) δ + ½W''(ρ_r) δ², ρ̂ = min(ρ, ρ_r), δ = max(ρ − ρ_r, 0); C² at ρ_r."""
+    c = ufl.cos(gamma)
+    g = _pivot(rho_r, c, gamma)
+    s = ufl.sqrt(1 - rho_r**2 * c**2)
+    g1, g2 = 2 * c / s, 2 * c**3 * rho_r / s**3
+    d = ufl.max_value(rho - rho_r, 0.0)
+    inner = _pivot(ufl.min_value(rho, rho_r), c, gamma)
+    return K_S * (inner**2 + 2 * g * g1 * d + (g1**2 + g * g2) * d**2)
+
+
+@dataclass
+class RegularisedPantographPivot(PantographPivot):
+    """:class:`PantographPivot` continued beyond ``limit_stretch`` ρ_r (< 1/cos γ) by its
+    second-order Taylor expansion (module docstring, "Regularisation")."""
+
+    limit_stretch: float = 1.12
+    units: ClassVar[dict[str, str]] = {"K_S": "N/mm", "gamma": "rad", "limit_stretch": "1"}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_below_limit(self.name, "limit_stretch", self.limit_stretch, self.gamma)
+
+    def density(self, kin: Kinematics):
+        r, K, g = self.p("limit_stretch"), self.p("K_S"), self.p("gamma")
+        return _pivot_extension(kin.lam, r, K, g) + _pivot_extension(kin.mu, r, K, g)
+
+
+@dataclass
+class RegularisedPantographBending(PantographBending):
+    """:class:`PantographBending` with a_θ, a_ρ frozen at their values at ``limit_stretch``
+    beyond it (module docstring, "Regularisation")."""
+
+    limit_stretch: float = 1.12
+    units: ClassVar[dict[str, str]] = {**PantographBending.units, "limit_stretch": "1"}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_below_limit(self.name, "limit_stretch", self.limit_stretch, self.gamma)
+
+    def _stretch(self, rho):
+        return ufl.min_value(rho, self.p("limit_stretch"))
+
 
 def bipantographic(K_S: float = TABLE3_MACRO["K_S"], K_E: float = TABLE3_MACRO["K_E"],
-                   K_F: float = TABLE3_MACRO["K_F"], gamma: float = math.pi / 6) -> list[Term]:
+                   K_F: float = TABLE3_MACRO["K_F"], gamma: float = math.pi / 6,
+                   penalty_stretch: float = 1.0,
+                   limit_stretch: float | None = None) -> list[Term]:
     """The homogenised bi-pantographic energy of seed 000 eq. (2) as a model (list of terms).
 
     Defaults: seed 000 Table 3 (macro model), K_S = 0.034 N/mm, K_E = 330 N·mm,
-    K_F = 900 N·mm, γ = π/6.
+    K_F = 900 N·mm, γ = π/6. ``penalty_stretch``: the stretch at which the interior-penalty
+    scale is taken (raise it with the largest stretch of the solution, see the module
+    docstring). ``limit_stretch`` ρ_r (None: eq. 2 as printed): continue the energy beyond ρ_r
+    (ρ_r cos γ < 1) by a stiff quadratic, defined for every stretch ("Regularisation").
     """
-    return [PantographPivot(K_S=K_S, gamma=gamma), PantographBending(K_E=K_E, K_F=K_F, gamma=gamma)]
+    if limit_stretch is None:
+        return [PantographPivot(K_S=K_S, gamma=gamma),
+                PantographBending(K_E=K_E, K_F=K_F, gamma=gamma,
+                                  penalty_stretch=penalty_stretch)]
+    return [RegularisedPantographPivot(K_S=K_S, gamma=gamma, limit_stretch=limit_stretch),
+            RegularisedPantographBending(K_E=K_E, K_F=K_F, gamma=gamma,
+                                         penalty_stretch=penalty_stretch,
+                                         limit_stretch=limit_stretch)]
 
 
 def bipantographic_density_numpy(rho, dtheta, drho, K_S=TABLE3_MACRO["K_S"],

@@ -1,0 +1,77 @@
+"""The bi-pantographic bias test (Barchiesi et al. 2020, eq. 2, Table 3 macro moduli) to ū = 50 mm
+on nested graded meshes, with gradient and position-only clamps.
+
+    mpirun -n 2 python benchmarks/bipantographic_range.py [--levels 1,2,4] [--steps 20]
+                                                          [--ubar 50] [--out FILE.json]
+
+Prints, per clamp variant and level: DOFs, the force and the shear angles at A and B at
+ū = 10, 20, 30, 40, 50 mm, the largest fibre stretch ρ (and ρ cos γ, the distance to the
+energy's limit 1) and where, Newton iterations, wall time per load step and per Newton
+iteration; then the observed rate of the force under refinement at each ū.
+"""
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.discretise.output import rank0_print
+from fabricsurf.studies.bipantographic_range import convergence, run_range, values_at
+
+
+def report(comm, run: dict, loads: list[float]) -> None:
+    rank0_print(comm, f"\n{run['clamp']} clamps, level {run['level']} ({run['dofs']} DOFs), "
+                      f"set-up {run['setup_seconds']:.1f} s")
+    if run["failure"]:
+        rank0_print(comm, "  FAILED: " + run["failure"]["message"])
+        return
+    for row in values_at(run, [u for u in loads if u <= run["ubar"][-1] + 1e-9]):
+        rank0_print(comm, f"  ū = {row['ubar']:4.0f} mm  F = {row['force']:9.4f} N  "
+                          f"γ_A = {row['angle_A_deg']:6.2f}°  γ_B = {row['angle_B_deg']:6.2f}°")
+    s = run["stretch"][-1]
+    rank0_print(comm, f"  largest stretch at ū = {s['ubar']:.0f} mm: ρ = {s['max_stretch']:.4f}"
+                      f" (ρ cos γ = {s['rho_cos_gamma']:.4f}) at {np.round(s['at'], 1)}")
+    its, st = np.array(run["newton"]), np.array(run["step_seconds"])
+    rank0_print(comm, f"  {len(its)} load steps, {its.sum()} Newton iterations "
+                      f"({its.min()}–{its.max()} per step), domain errors "
+                      f"{run['domain_errors']}; wall time {run['seconds']:.1f} s: "
+                      f"{st.mean():.2f} s per load step, "
+                      f"{st.sum() / its.sum():.3f} s per Newton iteration")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--levels", default="1,2,4")
+    ap.add_argument("--clamps", default="gradient,position")
+    ap.add_argument("--ubar", type=float, default=50.0)
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--limit-stretch", type=float, default=None,
+                    help="regularise eq. (2) beyond this stretch (default: as printed)")
+    ap.add_argument("--out", type=Path, default=None, help="write all results as JSON")
+    a = ap.parse_args()
+    comm = MPI.COMM_WORLD
+    loads = [u for u in (10.0, 20.0, 30.0, 40.0, 50.0) if u <= a.ubar]
+    results = {}
+    for clamp in a.clamps.split(","):
+        runs = [run_range(clamp, int(lev), a.ubar, a.steps, a.limit_stretch, comm=comm)
+                for lev in a.levels.split(",")]
+        for r in runs:
+            report(comm, r, loads)
+        ok = [r for r in runs if not r["failure"]]
+        conv = convergence(ok, loads) if len(ok) == len(runs) and len(runs) > 1 else None
+        if conv:
+            for u, c in conv.items():
+                rates = ", ".join("none" if x is None else f"{x:.2f}" for x in c["rates"])
+                rank0_print(comm, f"  {clamp}: force at ū = {u} mm: differences "
+                                  + ", ".join(f"{d:.4f}" for d in c["differences"])
+                                  + f" N, rate(s) {rates}")
+        results[clamp] = {"runs": runs, "convergence": conv}
+    if a.out and comm.rank == 0:
+        a.out.write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,114 @@
+"""Calibration of the diagnosis: false-alarm rate and detection power (docs/diagnosis.md).
+
+Null data sets: Hencky-lattice bias tests whose continuum limit is the complete model
+fibre_stretch + shear + geodesic_bending, diagnosed with that model: any verdict is a false
+alarm. They span two lattice spacings, both fibre-stiffness regimes (soft fibres k_l/k_s = 60,
+nearly inextensible k_l/k_s = 2500) and noise from half to three times the lattice–continuum
+form error (measured first: the misfit of the continuum at the true moduli against noise-free
+lattice data). Power: geodesic bending hidden from a fibre_stretch + shear baseline, at several
+bending lengths; the signal is the baseline's fitted misfit beyond the noise,
+√(misfit² − 1) in noise units, and a detection is the verdict geodesic_bending. Prints the
+rates and writes OUT/power.png and OUT/calibration.json.
+
+    mpirun -n 2 .venv/bin/python benchmarks/diagnose_calibration.py --out out/calibration
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.diagnose import diagnose, full_model
+from fabricsurf.inverse.forward import ForwardModel
+
+LENGTH, WIDTH = 60.0, 30.0
+REGIMES = {"soft": (30.0, 0.5), "stiff": (1000.0, 0.4)}
+COMPLETE = ["fibre_stretch", "shear", "geodesic_bending"]
+
+
+def lattice(spacing, k_l, k_s, A_g, strain, steps=3):
+    path = list(np.linspace(strain * LENGTH / steps, strain * LENGTH, steps))
+    exp = sy.template(LENGTH, WIDTH, path, np.zeros((0, 2)), name="calibration")
+    return sy.lattice_data(exp, spacing, k_l=k_l, k_s=k_s, A_g=A_g, every=2)
+
+
+def form_error(exp, k_l, k_s, A_g, h) -> float:
+    """RMS field difference (mm) between the continuum at the true moduli and the lattice."""
+    truth = {"fibre_stretch": {"k_l": k_l, "k_m": k_l}, "shear": {"k_s": k_s},
+             "geodesic_bending": {"A_g": A_g}}
+    p = ForwardModel(exp, full_model(COMPLETE, truth), h=h).run()
+    return float(np.sqrt(np.nanmean((p.u - exp.u[:, :2]) ** 2)))
+
+
+def noisy(exp, std, seed):
+    e = sy.template(LENGTH, WIDTH, exp.path, np.zeros((0, 2)))
+    e.field_step, e.X, e.u, e.force = exp.field_step, exp.X, exp.u.copy(), exp.force.copy()
+    return sy.add_noise(e, std, 0.01 * float(np.max(np.abs(exp.force))) + 1e-3, seed)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="out/calibration")
+    ap.add_argument("--h", type=float, default=2.0, help="model element size (mm)")
+    ap.add_argument("--seeds", type=int, default=2, help="noise draws per null configuration")
+    a = ap.parse_args()
+    comm = MPI.COMM_WORLD
+    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    null, power = [], []
+    for (regime, (k_l, k_s)), spacing in itertools.product(REGIMES.items(), (1.0, 0.5)):
+        strain = 0.05 if regime == "soft" else 0.12
+        A_g = k_s * 25.0
+        clean = lattice(spacing, k_l, k_s, A_g, strain)
+        e_f = form_error(clean, k_l, k_s, A_g, a.h)
+        for ratio, seed in itertools.product((0.5, 1.0, 3.0), range(a.seeds)):
+            d = diagnose(noisy(clean, ratio * e_f, 100 + seed), COMPLETE, h=a.h, confirm=1,
+                         max_effects=1, check_discretisation=False, comm=comm, verbose=False)
+            null.append({"regime": regime, "spacing": spacing, "noise_over_form": ratio,
+                         "form_error_mm": e_f, "verdict": d.verdict, "adequate": d.adequate,
+                         "misfit": d.final_fit.misfit["combined"]})
+            say(f"null {regime} eps={spacing} noise/form={ratio}: verdict {d.verdict}, "
+                f"adequate {d.adequate}, misfit {null[-1]['misfit']:.3f}")
+    for l_b, seed in itertools.product((2.0, 4.0, 8.0, 16.0), range(a.seeds)):
+        k_l, k_s = REGIMES["soft"]
+        clean = lattice(1.0, k_l, k_s, k_s * l_b**2, 0.05)
+        d = diagnose(noisy(clean, 0.01, 200 + seed), ["fibre_stretch", "shear"], h=a.h,
+                     confirm=1, max_effects=1, check_discretisation=False, comm=comm,
+                     verbose=False)
+        base = d.base_fit.misfit["combined"]
+        signal = float(np.sqrt(max(base**2 - 1.0, 0.0)))
+        power.append({"l_b_mm": l_b, "signal_over_noise": signal,
+                      "detected": d.verdict == "geodesic_bending", "verdict": d.verdict})
+        say(f"power l_b={l_b} signal/noise {signal:.1f}: verdict {d.verdict}")
+    fa = float(np.mean([r["verdict"] is not None for r in null]))
+    strong = [r for r in power if r["signal_over_noise"] > 3]
+    det = float(np.mean([r["detected"] for r in strong])) if strong else float("nan")
+    say(f"false alarms: {fa:.3f} over {len(null)} null data sets (target ≤ 0.05)")
+    say(f"detection where signal > 3 noise: {det:.3f} over {len(strong)} (target ≥ 0.9)")
+    out = Path(a.out)
+    write_json(comm, out / "calibration.json", {"null": null, "power": power,
+                                                "false_alarm_rate": fa, "detection": det})
+    if comm.rank == 0:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(5, 3.6))
+        x = [r["signal_over_noise"] for r in power]
+        ax.semilogx(x, [float(r["detected"]) for r in power], "o")
+        ax.axvline(3.0, color="k", ls="--", label="signal = 3 noise")
+        ax.set(xlabel="baseline field error / noise (hidden geodesic bending)",
+               ylabel="detected", title=f"false alarms {fa:.2f} over {len(null)}")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / "power.png", dpi=110)
+
+
+if __name__ == "__main__":
+    main()

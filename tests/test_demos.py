@@ -1,0 +1,33 @@
+"""Every demo runs in its quick mode and passes its own checks, on 1 rank and (in the 2-rank
+session of the suite) on 2 ranks, as dolfinx runs its demos. The demo runs in-process on every
+rank of the pytest session (runpy), so its collective calls meet; its own assertions are the
+test, and its summary.json must be written."""
+
+import json
+import runpy
+import sys
+from pathlib import Path
+
+import pytest
+from mpi4py import MPI
+
+DEMOS = Path(__file__).resolve().parents[1] / "demos"
+QUICK = {
+    "demo_hypar.py": [],
+    "demo_dispersion.py": [],
+    "demo_hidden_effect.py": ["--quick"],
+    "demo_bias_extension.py": ["--quick"],
+    "demo_bending.py": ["--quick"],
+    "demo_woven_fabric.py": ["--quick"],
+}
+
+
+@pytest.mark.parametrize("name", sorted(n for n in QUICK if (DEMOS / n).is_file()))
+def test_demo_runs_and_checks_itself(name, tmp_path, monkeypatch):
+    comm = MPI.COMM_WORLD
+    out = Path(comm.bcast(str(tmp_path / "out") if comm.rank == 0 else None))
+    monkeypatch.setattr(sys, "argv", [name, "--out", str(out), *QUICK[name]])
+    runpy.run_path(str(DEMOS / name), run_name="__main__")
+    comm.barrier()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary
