@@ -1,4 +1,4 @@
-"""Benchmark of the continuum solver on a medium-mesh bias-extension run (DESIGN §9).
+"""Benchmark of the continuum solver on a medium-mesh bias-extension run (docs/verification.md).
 
     mpirun -n 2 python benchmarks/solve.py [--h 4] [--ubar 30] [--steps 6]
 

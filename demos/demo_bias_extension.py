@@ -5,15 +5,15 @@
 # ---
 
 # %% [markdown]
-# # Bias extension: continuum versus spring network (seed 000)
+# # Bias extension: continuum versus spring network (Barchiesi et al. 2020)
 #
 # A 187 mm × 119 mm fabric with fibres at ±45° to the load is clamped at x = 0 and pulled at
-# x = length (seed 000 eq. 7):
+# x = length (Barchiesi et al. 2020, eq. 7):
 #
 #   u = 0, ∂u/∂x = 0 at x = 0;     u = ū e_x, ∂u/∂x = 0 at x = length,
 #
 # the zero normal derivative imposed weakly (Nitsche) in the second-gradient continuum and, in
-# the lattice, by holding two node layers (seed 000 Table 1). Two comparisons:
+# the lattice, by holding two node layers (Barchiesi et al. 2020, Table 1). Two comparisons:
 #
 # **(a) Hencky.** The continuum `fibre_stretch + shear + geodesic_bending`,
 #
@@ -22,14 +22,15 @@
 # against the Hencky fabric lattice (nodes at fibre crossings, spacing ε) whose stiffnesses come
 # from the micro–macro identification of `docs/network.md`: k_e = k_l, k_sh = k_s ε², k_b = A_g.
 # The spacing is ε = √2·w with w = 8.5 mm / k the x-distance between node columns, so that the
-# node columns tile the specimen (length = 22k·w, width = 14k·w) and the points A, B of seed
-# 000 Fig. 4 are nodes.
+# node columns tile the specimen (length = 22k·w, width = 14k·w) and the points A, B of
+# Barchiesi et al. 2020, Fig. 4, are nodes.
 #
-# **(b) Bi-pantographic.** The homogenised energy of seed 000 eq. (2) (`fabricsurf.model.materials`,
-# K_S = 34 N/m, K_E = 0.33 J, K_F = 0.9 J of Table 3) against the 13-node-cell lattice of
-# seed 000 §3 with the Table 3 micro parameters (k_E = 335 N/m, k_S = 9.36, k_F = 46.2 N·mm).
-# The two parameter sets were fitted *independently* to the experiment in seed 000, so the
-# models are not an identification of each other. The numerical homogenisation of the lattice
+# **(b) Bi-pantographic.** The homogenised energy of Barchiesi et al. 2020, eq. (2)
+# (`fabricsurf.model.materials`, K_S = 34 N/m, K_E = 0.33 J, K_F = 0.9 J of Table 3) against
+# the 13-node-cell lattice of their §3 with the Table 3 micro parameters (k_E = 335 N/m,
+# k_S = 9.36, k_F = 46.2 N·mm). The two parameter sets were fitted *independently* to the
+# experiment, so the models are not an identification of each other. The numerical
+# homogenisation of the lattice
 # (`fabricsurf.network.homogenize`: one pantographic beam, axis nodes on χ, side nodes relaxed)
 # measures what the micro set corresponds to: K_S = 0.0145 N/mm (Table 3: 0.034) and a
 # geodesic-bending coefficient a_θ(1) = 9.56 N·mm (Table 3's K_E K_F/(K_E + 18K_F) = 17.97):
@@ -50,11 +51,11 @@
 # a domain error. The same study runs both clamp variants on three
 # nested meshes (`--range-levels`, rates of the force reported).
 #
-# Quantities (seed 000 Figs. 9–11): grip reaction force vs ū; shear angle γ at A (centre of the
-# square on the clamped side) and at B (specimen centre) vs ū; deformed configurations —
-# continuum χ(x_i, y_j) against lattice nodes p_ij (eq. 3); the y-stretch ρ_y (eq. 4, the
-# stretch along the second fibre family M, = μ). Lattice angles at A and B use the central
-# differences of eq. (5) at the node there: γ = π/2 − arccos(a·b/|a||b|) with
+# Quantities (Barchiesi et al. 2020, Figs. 9–11): grip reaction force vs ū; shear angle γ at A
+# (centre of the square on the clamped side) and at B (specimen centre) vs ū; deformed
+# configurations — continuum χ(x_i, y_j) against lattice nodes p_ij (eq. 3); the y-stretch
+# ρ_y (eq. 4, the stretch along the second fibre family M, = μ). Lattice angles at A and B
+# use the central differences of eq. (5) at the node there: γ = π/2 − arccos(a·b/|a||b|) with
 # a = p_{i+1,j} − p_{i−1,j}, b = p_{i,j+1} − p_{i,j−1}.
 #
 # Checks: (1) continuum and Hencky lattice agree within the measured differences; (2) the
@@ -92,7 +93,7 @@ def parse_args(argv=None):
     ap.add_argument("--bip-ubar", type=float, default=50.0,
                     help="bi-pantographic comparison: ū_max (mm)")
     ap.add_argument("--bip-steps", type=int, default=20)
-    ap.add_argument("--range-levels", type=str, default="1,2,4",
+    ap.add_argument("--range-levels", type=str, default="2,4,8",
                     help="bi-pantographic whole-range study: nested graded mesh levels, both "
                          "clamp variants, to --bip-ubar ('' to skip)")
     ap.add_argument("--lattice-k", type=int, default=6,
@@ -161,7 +162,7 @@ def figures(out: Path, results: dict, extras: dict, conv: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = list(results)
+    names = [nm for nm, r in results.items() if isinstance(r, dict) and "curves" in r]
     fig, ax = plt.subplots(len(names), 3, figsize=(14, 3.8 * len(names)), squeeze=False)
     for row, nm in enumerate(names):
         c = results[nm]["curves"]
@@ -257,7 +258,7 @@ def figures(out: Path, results: dict, extras: dict, conv: dict) -> None:
 
 def range_figure(out: Path, rng: dict) -> None:
     """Eq. (2), Table 3, to ū = 50 mm: force, γ_A, γ_B and the largest ρ cos γ against ū, per
-    clamp variant and mesh level (Figs. 9 of seed 000 over its whole range)."""
+    clamp variant and mesh level (Figs. 9 of Barchiesi et al. 2020 over its whole range)."""
     import matplotlib
 
     matplotlib.use("Agg")

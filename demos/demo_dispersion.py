@@ -13,12 +13,13 @@
 #
 # Two questions, both answered with computed modes and checked against closed forms:
 #
-# 1. **The 1D chain of seed 002 §2** (Mühlhaus & Oka 1996). N point masses m, linear springs k,
+# 1. **The 1D chain of Mühlhaus & Oka 1996 §2**. N point masses m, linear
+# springs k,
 #    spacing D. How well do the continua obtained by truncating the Taylor expansion of the
 #    difference operator (eq. 10) after the ∂², ∂⁴, ∂⁶ terms reproduce the exact discrete
 #    dispersion (eq. 12)? Why is the ∂⁴ continuum ill-posed, and how does ∂⁶ repair it?
 # 2. **Waves along the fibres of the Hencky fabric lattice** against the fabric continuum of
-#    DESIGN §3 with and without its gradient terms (`stretch_gradient`, `geodesic_bending`):
+#    docs/theory.md with and without its gradient terms (`stretch_gradient`, `geodesic_bending`):
 #    at which qε does each continuum depart from the lattice by more than 1 %?
 #
 # ## Part 1 — equations
@@ -38,7 +39,8 @@
 #   (a,b,c) = kD\,(1,\,-D^2/12,\,D^4/360),$$
 #
 # because the Euler-Lagrange equation of W is rho ü = a u'' - b u'''' + c u⁽⁶⁾. **b is negative**:
-# the D²/12 term that improves the dispersion is *destabilising* (seed 002 footnote). W is then
+# the D²/12 term that improves the dispersion is *destabilising* (Mühlhaus & Oka 1996 footnote). W
+# is then
 # not positive for short waves: rho ω² = a q² + b q⁴ < 0 for qD > √12, and since a continuum admits
 # arbitrarily large q, the growth rate √(-ω²) ~ q² is unbounded — Hadamard ill-posedness.
 # The ∂⁶ term adds c q⁶ > 0; 1 - x²/12 + x⁴/360 has no real root (1/144 < 4/360), so the
@@ -50,7 +52,7 @@
 # the ends (and u'''' = 0, natural, for the ∂⁶ model) has the same sines as modes, so the two sets
 # of eigenvalues are compared at identical q_n. The continuum eigenproblem K v = ω² M v is
 # discretised in dolfinx with Lagrange P5 elements; the broken second/third derivatives are made
-# consistent by C0 interior-penalty terms (DESIGN §4, dolfinx demo_biharmonic) on the interior
+# consistent by C0 interior-penalty terms (docs/theory.md, dolfinx demo_biharmonic) on the interior
 # points, and solved densely (the 1D problem is small; matrices are gathered to rank 0).
 
 # %%
@@ -203,7 +205,7 @@ if comm.rank == 0:
 # %% [markdown]
 # ## Part 2 — waves along the fibres of the Hencky lattice
 #
-# **Continuum (DESIGN §3), linearised.** Fibres L, M orthonormal, r = X + u, wave along L
+# **Continuum (docs/theory.md), linearised.** Fibres L, M orthonormal, r = X + u, wave along L
 # (coordinate s = X·L). Longitudinal: u = w(s)L; transverse: u = v(s)M. To first order in u,
 #
 # * λ - 1 = |L + ∂_L u| - 1 ≈ L·∂_L u = w' (transverse: O(v'²));
@@ -221,7 +223,8 @@ if comm.rank == 0:
 # springs k_e, bending springs k_b on fibre triples, four quadrant shear springs k_sh/4 per
 # crossing; identification k_l = k_e, k_s = k_sh/ε², A_g = k_b. We compute ω²(q) by a Bloch
 # analysis of the engine's Hessian: for u_j = U exp(iq X_j·L) the dynamical matrix of an interior
-# node is Σ_j H_{0j} exp(iq (X_j - X_0)·L). In closed form (eq. 12 of seed 002 per spring family),
+# node is Σ_j H_{0j} exp(iq (X_j - X_0)·L). In closed form (eq. 12 of Mühlhaus & Oka 1996 per
+# spring family),
 #
 # $$\rho\omega^2 = k_l\Big(\tfrac{2}{\varepsilon}\sin\tfrac{q\varepsilon}{2}\Big)^2
 #   = k_l q^2\big(1 - \tfrac{(q\varepsilon)^2}{12} + \dots\big),\qquad
@@ -231,7 +234,8 @@ if comm.rank == 0:
 #   + A_g q^4\big(1 - \tfrac{(q\varepsilon)^2}{6}\big) + \dots$$
 #
 # Consequences: along the fibre the lattice behaves like a stretch-gradient continuum with
-# A_s = -k_lε²/12 < 0 — exactly the destabilising sign of seed 002. A `stretch_gradient` with
+# A_s = -k_lε²/12 < 0 — exactly the destabilising sign of Mühlhaus & Oka 1996. A `stretch_gradient`
+# with
 # A_s ≥ 0 (the only admissible values, it must be a stable energy) can only move the longitudinal
 # departure point to *smaller* qε. Transversally the shear-only continuum misses the whole
 # A_g q⁴ term: its relative phase-velocity error is ≈ ½β(qε)², β = A_g/(k_sε²), so it departs at
@@ -321,7 +325,7 @@ if comm.rank == 0:
     for p, col in zip(ORDERS, ("C0", "C1", "C2")):
         a.plot(xs, np.sqrt(dp.vp2_truncated(xs, p)), "--", color=col, label=f"∂^{p} continuum")
         a.plot(qd, np.sqrt(w2_fe[p]) / qd, "+", color=col, label=f"∂^{p} modes (dolfinx)")
-    a.set(xlabel="qD", ylabel="v_p / c0", title="Phase velocity, 1D chain (seed 002 §2)")
+    a.set(xlabel="qD", ylabel="v_p / c0", title="Phase velocity, 1D chain (Mühlhaus & Oka 1996 §2)")
     a.legend(fontsize=7)
     a = ax[0, 1]
     xe = np.geomspace(0.05, np.pi, 200)

@@ -11,12 +11,13 @@
 #
 # Run with `mpirun -n 2 python demos/demo_hidden_effect.py --out out/hidden_effect`.
 #
-# The "measurements" come from the Hencky spring lattice (DESIGN §5): extensional springs along
+# The "measurements" come from the Hencky spring lattice (docs/network.md): extensional springs
+# along
 # the fibres, shear springs at the crossings and **bending springs along the fibres**. Its
 # continuum limit is `fibre_stretch + shear + geodesic_bending`, so a user who models the
 # fabric with `fibre_stretch + shear` only is missing in-plane fibre bending. The lattice
 # response of a bias-extension test is sampled at the lattice nodes (a DIC-like point cloud),
-# Gaussian noise is added, and everything is written as a DESIGN §6 measurement directory.
+# Gaussian noise is added, and everything is written as a docs/contracts.md measurement directory.
 # Then the tool, which knows nothing about the lattice, is asked:
 #
 # 1. `fabricsurf compare`: how badly does `fibre_stretch + shear` (with guessed moduli) fit?

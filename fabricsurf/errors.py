@@ -8,4 +8,5 @@ class InputError(ValueError):
 
 
 class DataError(InputError):
-    """Bad measurement input (DESIGN §6); the message names file, row or key, and the problem."""
+    """Bad measurement input (docs/contracts.md); the message names file, row or key, and the
+    problem."""

@@ -1,4 +1,5 @@
-"""gmsh builders for rectangular specimens (bias-extension test, seed 000 Fig. 4) and squares.
+"""gmsh builders for rectangular specimens (bias-extension test, Barchiesi et al. 2020 Fig. 4) and
+squares.
 
 gmsh runs on rank 0 only; the mesh is distributed with ``dolfinx.io.gmshio.model_to_mesh``.
 Physical groups are named: edges ``clamp`` (x = 0), ``grip`` (x = length), ``bottom`` (y = 0),
@@ -45,7 +46,8 @@ def _corners(length: float, width: float) -> dict:
 
 
 def bias_points(length: float, width: float) -> dict:
-    """Points A and B of seed 000 Fig. 4: A the centre of the square whose side is the clamped
+    """Points A and B of Barchiesi et al. 2020 Fig. 4: A the centre of the square whose side is the
+    clamped
     short side (x = 0), B the centre of the specimen."""
     return {"A": (0.5 * width, 0.5 * width), "B": (0.5 * length, 0.5 * width)}
 
@@ -112,7 +114,8 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
 
 def bias_specimen(length: float = 187.0, width: float = 119.0, h: float = 8.0,
                   comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
-    """The bias-extension specimen of seed 000 (187 mm × 119 mm) with the points A and B of
+    """The bias-extension specimen of Barchiesi et al. 2020 (187 mm × 119 mm) with the points A and
+    B of
     :func:`bias_points` embedded as vertices."""
     _check_positive(length=length, width=width, h=h)
     if width > length:

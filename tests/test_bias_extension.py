@@ -1,5 +1,5 @@
-"""Bias extension (seed 000): the bi-pantographic energy of eq. (2) (with its regularisation
-beyond the limit stretch), and the continuum-versus-lattice study of the demo
+"""Bias extension (Barchiesi et al. 2020): the bi-pantographic energy of eq. (2) (with its
+regularisation beyond the limit stretch), and the continuum-versus-lattice study of the demo
 (``fabricsurf.studies.bias_study``) on a coarse run (tolerances from measured differences).
 
 Runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``.

@@ -1,4 +1,4 @@
-"""DESIGN §6: the measurement directory loader accepts good data and rejects each bad-input
+"""docs/contracts.md: the measurement directory loader accepts good data and rejects each bad-input
 class with one message naming the file, row (line) or key, and the problem."""
 
 import re

@@ -13,7 +13,7 @@ from mpi4py import MPI
 
 DEMOS = Path(__file__).resolve().parents[1] / "demos"
 QUICK = {
-    "demo_hypar.py": [],
+    "demo_hypar.py": ["--sizes", "0.5", "0.35"],
     "demo_dispersion.py": [],
     "demo_hidden_effect.py": ["--quick"],
     "demo_bias_extension.py": ["--quick"],

@@ -1,4 +1,5 @@
-"""Rung 6 (DESIGN §7, §8): data made with a hidden effect and noise → the hidden effect ranks
+"""Rung 6 (docs/contracts.md, §8): data made with a hidden effect and noise → the hidden effect
+ranks
 first and adding it brings the misfit to the noise level; a complete model gives verdict null.
 
 Noise-level criterion: the combined misfit (RMS of residuals divided by the noise std, see

@@ -1,6 +1,7 @@
 """Dispersion of the seed-002 chain and of the Hencky lattice against (gradient) continua.
 
-Each assertion compares a computed quantity with seed 002 eqs. (12), (14), (15) or with the
+Each assertion compares a computed quantity with Mühlhaus & Oka 1996 eqs. (12), (14), (15) or with
+the
 closed-form lattice/continuum relations derived in demos/demo_dispersion.py, to the order in qD
 that the expansion promises. Runs serially and under ``mpirun -n 2`` (dolfinx parts gather to
 rank 0 and broadcast, so every rank asserts the same numbers).
@@ -47,7 +48,7 @@ def test_series_is_expansion_of_eq12(p):
 
 
 def test_sign_of_gradient_terms():
-    # footnote of seed 002: the D²/12 term enters the energy with a negative sign
+    # footnote of Mühlhaus & Oka 1996: the D²/12 term enters the energy with a negative sign
     a4, b4, c4 = dp.gradient_moduli(4)
     assert (a4, b4, c4) == (1.0, -1.0 / 12.0, 0.0)
     assert dp.gradient_moduli(6)[2] == pytest.approx(1.0 / 360.0)

@@ -118,3 +118,14 @@ def test_bias_and_frame_fitted_together(tmp_path):
     comm.barrier()
     assert (root / "cmp" / "frame_force.png").is_file()
     assert (root / "cmp" / "bias_error_map.png").is_file()
+
+
+def test_boundary_data_after_the_solver_is_an_error():
+    """Boundary data are compiled into the solver when it is built; adding more afterwards would
+    be silently ignored, so it raises."""
+    from fabricsurf.experiments.bias_extension import BiasExtension
+
+    truth = {k: MATERIAL[k] for k in ("fibre_stretch", "shear")}
+    b = BiasExtension(full_model(list(truth), truth), 40.0, 20.0, 10.0)
+    with pytest.raises(RuntimeError, match="already built"):
+        b.problem.fix("top", (0.0, None))

@@ -1,4 +1,5 @@
-"""Rung 1: kinematic quantities of closed-form placements equal their exact values (DESIGN §8).
+"""Rung 1: kinematic quantities of closed-form placements equal their exact values
+(docs/verification.md).
 
 The placements are UFL expressions of the reference coordinates, so F = ∇r and H = ∇∇r are
 exact and every kinematic function is tested without discretisation error.
@@ -123,7 +124,8 @@ def test_cylinder_bias_fibres(msh):
 
 
 def test_hyperbolic_paraboloid(msh):
-    """r = a θ1θ2 + b θ1 + c θ2 (seed 001 eqs. 98-102): λl = aθ2 + b, μm = aθ1 + c,
+    """r = a θ1θ2 + b θ1 + c θ2 (Steigmann & dell'Isola 2015 eqs. 98-102): λl = aθ2 + b, μm = aθ1 +
+    c,
     r_LL = r_MM = 0 so K_L = K_M = 0 and g_l = g_m = 0; Γ + T n = a; λμ sin γ from eq. 100."""
     a, b, c = np.array([0.2, -0.1, 0.5]), np.array([1.1, 0.1, 0.0]), np.array([0.05, 0.9, 0.1])
     k = kin_of(msh, lambda x: ufl.as_vector(a) * x[0] * x[1] + ufl.as_vector(b) * x[0]

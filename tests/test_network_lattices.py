@@ -50,7 +50,7 @@ def placement(s, t, L, M):
 
 
 def continuum_density(rl, rm, rll, rmm, lattice_limit, L, M):
-    """fibre_stretch + shear + shear_locking + geodesic_bending (DESIGN §3), γ = θ0 − θ; with
+    """fibre_stretch + shear + shear_locking + geodesic_bending (docs/theory.md), γ = θ0 − θ; with
     ``lattice_limit`` the bending terms carry the 1/lam^2, 1/mu^2 factors of the lattice's
     exact limit."""
     lam, mu = np.linalg.norm(rl, axis=1), np.linalg.norm(rm, axis=1)

@@ -1,4 +1,4 @@
-"""Rung 7: results agree between 1 and 2 ranks (DESIGN §4, §8).
+"""Rung 7: results agree between 1 and 2 ranks (docs/theory.md, §8).
 
 Under ``mpirun -n 2`` the same bias-extension problem is solved on COMM_WORLD (distributed mesh)
 and on COMM_SELF (the whole mesh on each rank); gmsh builds the identical mesh for both. The

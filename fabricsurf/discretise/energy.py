@@ -1,11 +1,12 @@
-"""The discrete total energy Π_h of a second-gradient fabric surface (DESIGN §4).
+"""The discrete total energy Π_h of a second-gradient fabric surface (docs/theory.md).
 
 Π_h(u) = Σ_K ∫_K W(F, H) dx                                   (broken Hessians H = ∇∇r on cells)
        + Σ_e ∫_e ( −[[∂_n r]]·{M_nn} + α S/(2 h_e) |[[∂_n r]]|² ) dS     (C0 interior penalty)
        + Σ_Γ ∫_Γ ( −(∂_n r − g)·M_nn + α S/(2 h) |∂_n r − g|² ) ds        (Nitsche: ∂_n r = g on Γ)
        − ∫ t·u ds                                                      (dead edge loads)
 
-M = ∂W/∂H is the double-force tensor of the second-gradient terms (seed 001 eq. 82) and
+M = ∂W/∂H is the double-force tensor of the second-gradient terms (Steigmann & dell'Isola 2015 eq.
+82) and
 M_nn = M[:, a, b] n_a n_b the edge double force (eq. 94). At the exact solution the jumps
 vanish, so the method is consistent; it is the symmetric C0-IP of dolfinx's demo_biharmonic
 written as an energy, whose variation gives residual and Jacobian through ``ufl.derivative``.
@@ -60,7 +61,7 @@ def stiffness_scale(model: list[Term]):
 
 
 def double_force(model: list[Term], kin: Kinematics):
-    """M = ∂W/∂H (d×2×2) of the second-gradient terms (seed 001 eq. 82)."""
+    """M = ∂W/∂H (d×2×2) of the second-gradient terms (Steigmann & dell'Isola 2015 eq. 82)."""
     H = ufl.variable(kin.H)
     k = Kinematics(kin.F, H, kin.L, kin.M)
     W2 = sum(t.density(k) for t in model if t.order == 2)

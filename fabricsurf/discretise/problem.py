@@ -46,6 +46,13 @@ class FabricProblem:
         self.energy: EnergyForm | None = None
 
     # -- boundary data -------------------------------------------------------------------
+    def _open(self, what: str) -> None:
+        """Boundary data are compiled into the solver's forms and vectors when it is built:
+        adding more afterwards would be silently ignored, so it is an error."""
+        if self._solver is not None:
+            raise RuntimeError(f"FabricProblem.{what}: the solver was already built; add all "
+                               "boundary data and loads before calling solver()")
+
     def edge_facets(self, edge: str) -> np.ndarray:
         tag = self.specimen.edge_tags[edge]
         return self.specimen.facet_tags.find(tag)
@@ -58,6 +65,7 @@ class FabricProblem:
 
         Returns the fem.Constants holding the values (one per prescribed component).
         """
+        self._open("fix")
         consts = []
         for i, val in enumerate(values):
             if val is None:
@@ -69,17 +77,21 @@ class FabricProblem:
 
     def fix_function(self, edge_or_facets, g: fem.Function) -> None:
         """Prescribe u = g (a Function in V) on an edge name or an array of facets."""
+        self._open("fix_function")
         facets = (self.edge_facets(edge_or_facets) if isinstance(edge_or_facets, str)
                   else edge_or_facets)
         self.bcs.append(fem.dirichletbc(g, fem.locate_dofs_topological(self.V, 1, facets)))
 
     def clamp_gradient(self, edge: str, g=None) -> None:
-        """Prescribe ∂_n u = g (default 0: the clamp of seed 000 eq. 7) weakly on an edge."""
+        """Prescribe ∂_n u = g (default 0: the clamp of Barchiesi et al. 2020 eq. 7) weakly on an
+        edge."""
+        self._open("clamp_gradient")
         zero = ufl.as_vector([0.0] * self.d)
         self.normal_derivative[self.specimen.edge_tags[edge]] = zero if g is None else g
 
     def add_traction(self, edge: str, t) -> None:
         """Dead load t (UFL d-vector, force per reference length) on an edge."""
+        self._open("add_traction")
         self.tractions[self.specimen.edge_tags[edge]] = t
 
     def add_body_force(self, b) -> None:
@@ -91,6 +103,7 @@ class FabricProblem:
         linear in the moduli, which the reactions and the exact modulus sensitivities
         (∂R/∂p = R with the moduli e_p, inverse/forward.py) rely on.
         """
+        self._open("add_body_force")
         self.body_forces.append(b)
 
     def vertex_nodes(self, point: Sequence[float]) -> np.ndarray:
@@ -103,6 +116,7 @@ class FabricProblem:
 
     def fix_point(self, point: Sequence[float], values: Sequence[float]) -> list[fem.Constant]:
         """Prescribe all components of u at a mesh vertex; returns their fem.Constants."""
+        self._open("fix_point")
         nodes, bs = self.vertex_nodes(point), self.V.dofmap.index_map_bs
         consts = []
         for i, val in enumerate(values):
@@ -113,7 +127,9 @@ class FabricProblem:
         return consts
 
     def add_point_force(self, point: Sequence[float], f: Sequence[float] | fem.Constant) -> None:
-        """Dead point force f at a mesh vertex (e.g. a corner force f_i of seed 001 eq. 94)."""
+        """Dead point force f at a mesh vertex (e.g. a corner force f_i of Steigmann & dell'Isola
+        2015 eq. 94)."""
+        self._open("add_point_force")
         nodes = self.vertex_nodes(point)
         owned = nodes[nodes < self.V.dofmap.index_map.size_local]
         if self.msh.comm.allreduce(len(owned)) != 1:

@@ -1,9 +1,11 @@
-"""The planar bias-extension test with the continuum model (seed 000 §2, eq. 7; DESIGN §4).
+"""The planar bias-extension test with the continuum model (Barchiesi et al. 2020 §2, eq. 7;
+docs/theory.md).
 
-Specimen [0, length] × [0, width] (mm), fibres at ±45° to the load (x). Clamps of seed 000
+Specimen [0, length] × [0, width] (mm), fibres at ±45° to the load (x). Clamps of Barchiesi et al.
+2020
 eq. (7): u = 0 at x = 0 and u = ū e_x at x = length, with zero normal derivative on both
 (weakly, by Nitsche) when the model has second-gradient terms. The reaction is the virtual work
-of the residual at the grip; shear angles are evaluated at A and B of seed 000 Fig. 4.
+of the residual at the grip; shear angles are evaluated at A and B of Barchiesi et al. 2020 Fig. 4.
 """
 
 from __future__ import annotations

@@ -8,9 +8,10 @@
    linearising about the fit with c's moduli (together, ≥ 0) as an extra parameter, the fitted
    moduli free: with s⊥ = dr/dp_c projected off the fitted sensitivities,
    score = (s⊥·r)²/|s⊥|² if the estimated modulus −(s⊥·r)/|s⊥|² is positive, else 0.
-3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts from the current
-   optimum (the candidate at its linearised estimate, or near zero if that starts worse), so a
-   refit is never worse than the model it extends.
+3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts from the best of
+   the current optimum with the candidate near zero (so a refit is never worse than the model it
+   extends), the linearised refit (one Gauss–Newton step in all moduli) and a log grid of the
+   candidate's modulus (:mod:`~fabricsurf.inverse.start`).
 4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
    from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
 
@@ -74,10 +75,23 @@ def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
     return out
 
 
+def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: list[int],
+                       idx: list[int]) -> np.ndarray:
+    """The linearised refit: one Gauss–Newton step in the fitted moduli and the candidate's
+    (together) from the current optimum, each modulus kept positive (at most a factor e^1.5
+    down, as the fit's own step limit)."""
+    A = np.column_stack([Jr[:, free], Jr[:, idx].sum(axis=1)])
+    step = np.linalg.lstsq(A, -r, rcond=None)[0]
+    v = cur.copy()
+    v[free] = np.maximum(cur[free] + step[:-1], cur[free] * np.exp(-1.5))
+    v[idx] = max(step[-1], 0.0)
+    return v
+
+
 def _refit(fs: ForwardSet, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
-           verbose: bool) -> FitResult:
+           gn: np.ndarray, verbose: bool) -> FitResult:
     """Nested refit from the current optimum, the candidate at its best start."""
-    fs.set_values(candidate_start(fs, cur, free, idx, estimate))
+    fs.set_values(candidate_start(fs, cur, free, idx, estimate, extra=[gn]))
     res = fit(fs, free + idx, verbose=verbose, scale_start=False)
     fs.set_values(cur)
     return res
@@ -91,7 +105,8 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
     refits, rows = {}, []
     n = cur.misfit["n"]
     for c in order[:confirm]:
-        refits[c] = _refit(fs, cur.values, free, cand[c], sc[c][1], verbose)
+        gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
+        refits[c] = _refit(fs, cur.values, free, cand[c], sc[c][1], gn, verbose)
     for c in order:
         row = {"effect": c, "score": sc[c][0], "linearised_modulus": sc[c][1],
                "refit_misfit": None, "significant": None}

@@ -92,17 +92,23 @@ def natural_scale(fm, cur: np.ndarray, free: list[int], idx: list[int]) -> float
     return s
 
 
-def candidate_start(fm, cur: np.ndarray, free: list[int], idx: list[int], estimate: float
-                    ) -> np.ndarray:
-    """The best start for a candidate's moduli ``idx`` added to the fitted ``cur``."""
+def candidate_start(fm, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
+                    extra: list[np.ndarray] = ()) -> np.ndarray:
+    """The best start for a candidate's moduli ``idx`` added to the fitted ``cur``; ``extra``:
+    further complete starting vectors (e.g. the linearised refit)."""
     s = natural_scale(fm, cur, free, idx)
     tries = [s * 1e-9] + [s * 10.0**k for k in (-6, -4, -3, -2, -1, 0, 1)]
     if estimate > 0:
         tries.append(estimate)
-    best, start = np.inf, None
+    vectors = []
     for t in tries:
         v = cur.copy()
         v[idx] = t
+        vectors.append(v)
+    best, start = np.inf, None
+    for v in [*vectors, *extra]:
+        v = v.copy()
+        v[idx] = np.maximum(v[idx], s * 1e-9)
         chi2, _ = _chi2(fm, v, False)
         if chi2 < best:
             best, start = chi2, v

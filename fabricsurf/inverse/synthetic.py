@@ -1,4 +1,4 @@
-"""Synthetic measurement data (DESIGN §6 format) from the continuum or the Hencky lattice.
+"""Synthetic measurement data (docs/contracts.md format) from the continuum or the Hencky lattice.
 
 Used by the hidden-effect demo, the diagnosis tests and the benchmark: the data are made with
 a model richer than the one that will be fitted (a hidden effect), on a different discretisation
@@ -72,7 +72,8 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
 
 def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: float,
                  every: int = 1, k4: float = 0.0, k6: float = 0.0) -> Experiment:
-    """Replace ``exp`` by the Hencky lattice's response (seed 000 clamps: two held layers).
+    """Replace ``exp`` by the Hencky lattice's response (Barchiesi et al. 2020 clamps: two held
+    layers).
 
     The measurement points are the lattice nodes (every ``every``-th, clamp/grip layers
     excluded); continuum moduli map to lattice stiffnesses by ``lattice_from_continuum``

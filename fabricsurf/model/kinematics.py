@@ -1,4 +1,5 @@
-"""Kinematics of a fabric surface with two families of straight fibres (DESIGN §2, seed 001 §2-3).
+"""Kinematics of a fabric surface with two families of straight fibres (docs/theory.md, Steigmann &
+dell'Isola 2015 §2-3).
 
 The placement is r: Ω ⊂ R² → R^d (d = 2 or 3), F = ∇r (d×2) and H = ∇∇r (d×2×2), with
 H[i, a, b] = ∂²r_i/∂X_a∂X_b. L and M are the constant unit reference fibre directions; they

@@ -1,6 +1,6 @@
 """Ready-made materials: term sets that are not part of the effect vocabulary (DESIGN §3).
 
-Homogenised bi-pantographic fabric (seed 000 §2, eq. 2)
+Homogenised bi-pantographic fabric (Barchiesi et al. 2020, §2, eq. 2)
 ------------------------------------------------------
 Seed 000 writes the deformation energy of the homogenised bi-pantographic fabric (Barchiesi et
 al., its ref. [29]) per fibre family α ∈ {L, M} as (the text extraction of eq. 2 is garbled:
@@ -12,9 +12,9 @@ the fraction ``ρ²/(1/(2cos²γ))`` is ``2ρ²cos²γ``, and the last line is p
 
 with c = cos γ, γ = π/6 the angle between the rhombus sides of a pantographic beam and its axis
 (side length ε/√3, so a straight beam segment of length ε at ρ = 1). ∂χ/∂α = ρ_α(cos θ_α,
-sin θ_α) defines the stretch ρ_α and the direction θ_α of the deformed fibre (seed 000 eq. 1;
-the seed's x, y are the fibre directions, here L, M). In the kinematics of this package
-(DESIGN §2): ρ_L = λ, ∂ρ_L/∂L = l·r_LL = ``kin.dlam_dL``, and since
+sin θ_α) defines the stretch ρ_α and the direction θ_α of the deformed fibre (Barchiesi et
+al. 2020, eq. 1; the paper's x, y are the fibre directions, here L, M). In the kinematics of
+this package (docs/theory.md): ρ_L = λ, ∂ρ_L/∂L = l·r_LL = ``kin.dlam_dL``, and since
 r_LL = (∂_Lρ) l + ρ(∂_Lθ) p, ∂θ_L/∂L = p·r_LL/λ = ``kin.geodesic_l / kin.lam``; the same for M
 with μ, ``geodesic_m``, ``dmu_dM``.
 
@@ -38,12 +38,14 @@ Implementation notes
   shortened instead of failing (discretise/solver.py). A converged state has a finite
   residual: every quadrature point is inside the domain.
 * Does the solution reach the limit? Measured in the bias test (Table 3, 187 × 119 mm, ±45°,
-  benchmarks/bipantographic_range.py): the largest stretch sits at the grip corners
-  (x = 183.5, y = 0 or 119 mm on the level-2 mesh) and grows smoothly with ū: ρc = 0.880,
-  0.894, 0.919, 0.941, 0.960, 0.978 at ū = 5, 10, 20, 30, 40, 50 mm (level 2, position
-  clamps). It stays below 1 up to ū = 50 mm; the numbers per mesh and clamp variant are in
-  the benchmark's output. The failures of earlier versions (Newton stalling near
-  ū = 19.8 mm) were not the limit (ρc = 0.92 there) but the interior penalty (next item).
+  benchmarks/bipantographic_range.py, 20 steps to ū = 50 mm): the largest stretch sits at the
+  grip corners (y = 0 or 119 mm, 1.7–12 mm from the grip, closer on finer meshes) and grows
+  smoothly with ū: ρc = 0.880, 0.894, 0.919, 0.941, 0.960, 0.978 at ū = 5, 10, 20, 30, 40,
+  50 mm (level 2, position clamps). At ū = 50 mm: position clamps ρc = 0.984, 0.978, 0.977
+  on levels 1, 2, 4; gradient clamps 0.966, 0.963 on levels 2, 4. The continuum solution
+  does not reach the limit up to ū = 50 mm, and refinement does not push it there. The
+  failures of earlier versions (Newton stalling near ū = 19.8 mm) were not the limit
+  (ρc = 0.92 there) but the interior penalty (next item).
 * Interior penalty. The C0-IP scale S of the second-gradient term (energy.py) is the sum of the
   two coefficients at ρ = ``penalty_stretch`` (default 1: ≈ 436 N·mm for Table 3). Because
   a_ρ grows as 1/(1 − ρ²c²) (×2.7 at ρ = 1.065, ×6.3 at 1.1, ×13 at 1.12), a penalty frozen at
@@ -61,7 +63,10 @@ Implementation notes
   models what the micro model does past the fully opened rhombus: the rhombus sides, rigid in
   eq. (2), are extensible springs (k_e), so the beam keeps stretching against a stiff but
   finite stiffness W''(ρ_r) instead of a wall. Not needed in the bias test up to 50 mm (the
-  limit is not reached); it changes nothing where ρ < ρ_r everywhere.
+  limit is not reached); it changes nothing where ρ < ρ_r everywhere. Measured effect with
+  ρ_r = 1.1 (ρ_r c = 0.953; level 2, position clamps, 20 steps): grip force unchanged to
+  ū = 20 mm, −0.9 % at 30, −4.2 % at 40, −13.4 % at 50 mm (8.75 against 10.10 N), γ_B
+  52.4° against 53.5° at 50 mm; the corner stretch rises to ρc = 0.994.
 * Units (mm, N): K_S in N/mm (Table 3: 34 N/m = 0.034 N/mm), K_E and K_F in N·mm (Table 3:
   0.33 J = 330 N·mm, 0.9 J = 900 N·mm), γ in rad. All are fem.Constants once bound, so
   changing them does not recompile.
@@ -99,7 +104,7 @@ def _coefficients(rho, K_E, K_F, c):
 @dataclass
 class PantographPivot(Term):
     """K_S Σ_α [acos(1 − 2ρ_α² cos²γ) − π + 2γ]²: pivot rotation of the pantographic
-    rhombi as the beams stretch (seed 000 eq. 2, first line)."""
+    rhombi as the beams stretch (Barchiesi et al. 2020, eq. 2, first line)."""
 
     K_S: float = TABLE3_MACRO["K_S"]
     gamma: float = math.pi / 6
@@ -116,7 +121,7 @@ class PantographPivot(Term):
 @dataclass
 class PantographBending(Term):
     """K_E K_F Σ_α [a_θ(ρ_α)(∂θ_α/∂α)² + a_ρ(ρ_α)(∂ρ_α/∂α)²]: geodesic bending and stretch
-    gradient of the pantographic beams (seed 000 eq. 2, second and third lines).
+    gradient of the pantographic beams (Barchiesi et al. 2020, eq. 2, second and third lines).
 
     ``penalty_stretch`` ρ_p (dimensionless, ρ_p cos γ < 1) is not a modulus: it is the stretch
     at which the interior-penalty scale S = a_θ(ρ_p) + a_ρ(ρ_p) is taken (module docstring,
@@ -223,9 +228,9 @@ def bipantographic(K_S: float = TABLE3_MACRO["K_S"], K_E: float = TABLE3_MACRO["
                    K_F: float = TABLE3_MACRO["K_F"], gamma: float = math.pi / 6,
                    penalty_stretch: float = 1.0,
                    limit_stretch: float | None = None) -> list[Term]:
-    """The homogenised bi-pantographic energy of seed 000 eq. (2) as a model (list of terms).
+    """The homogenised bi-pantographic energy (Barchiesi et al. 2020, eq. 2) as a model.
 
-    Defaults: seed 000 Table 3 (macro model), K_S = 0.034 N/mm, K_E = 330 N·mm,
+    Defaults: Barchiesi et al. 2020 Table 3 (macro model), K_S = 0.034 N/mm, K_E = 330 N·mm,
     K_F = 900 N·mm, γ = π/6. ``penalty_stretch``: the stretch at which the interior-penalty
     scale is taken (raise it with the largest stretch of the solution, see the module
     docstring). ``limit_stretch`` ρ_r (None: eq. 2 as printed): continue the energy beyond ρ_r

@@ -1,4 +1,5 @@
-"""Energy terms: the public vocabulary of physical effects (DESIGN §3, seed 001 eq. 60).
+"""Energy terms: the public vocabulary of physical effects (docs/theory.md, Steigmann & dell'Isola
+2015 eq. 60).
 
 Each term is a small dataclass with validated moduli and a ``density(kin)`` method giving its
 strain energy per unit reference area. A model is a list of terms::
@@ -139,7 +140,8 @@ class ShearLocking(Term):
 
 @dataclass
 class GeodesicBending(Term):
-    """½A_g[(λ²η_l)² + (μ²η_m)²]: in-plane fibre bending (seed 001 §1, eqs. 23, 58)."""
+    """½A_g[(λ²η_l)² + (μ²η_m)²]: in-plane fibre bending (Steigmann & dell'Isola 2015 §1, eqs. 23,
+    58)."""
 
     A_g: float = 1.0
     name: ClassVar[str] = "geodesic_bending"
@@ -152,7 +154,8 @@ class GeodesicBending(Term):
 
 @dataclass
 class StretchGradient(Term):
-    """½A_s[(∂_Lλ)² + (∂_Mμ)²]: tangential stretch gradients (seed 001 §3, eq. 58)."""
+    """½A_s[(∂_Lλ)² + (∂_Mμ)²]: tangential stretch gradients (Steigmann & dell'Isola 2015 §3, eq.
+    58)."""
 
     A_s: float = 1.0
     name: ClassVar[str] = "stretch_gradient"
@@ -165,7 +168,7 @@ class StretchGradient(Term):
 
 @dataclass
 class ShearGradient(Term):
-    """½A_Γ|Γ|²: cross derivatives / shear-angle gradient (seed 001 eq. 60)."""
+    """½A_Γ|Γ|²: cross derivatives / shear-angle gradient (Steigmann & dell'Isola 2015 eq. 60)."""
 
     A_Gamma: float = 1.0
     name: ClassVar[str] = "shear_gradient"
@@ -179,7 +182,8 @@ class ShearGradient(Term):
 
 @dataclass
 class NormalBending(Term):
-    """½k_b(K_L² + K_M²): out-of-plane fibre bending (seed 001 eqs. 60, 61); 3D only."""
+    """½k_b(K_L² + K_M²): out-of-plane fibre bending (Steigmann & dell'Isola 2015 eqs. 60, 61); 3D
+    only."""
 
     k_b: float = 1.0
     name: ClassVar[str] = "normal_bending"
@@ -192,7 +196,7 @@ class NormalBending(Term):
 
 @dataclass
 class Twist(Term):
-    """½k_t T²: fibre twist (seed 001 eqs. 60, 61; k̄ there); 3D only."""
+    """½k_t T²: fibre twist (Steigmann & dell'Isola 2015 eqs. 60, 61; k̄ there); 3D only."""
 
     k_t: float = 1.0
     name: ClassVar[str] = "twist"
@@ -208,7 +212,7 @@ EFFECTS: dict[str, type[Term]] = {
     for cls in (FibreStretch, Shear, ShearLocking, GeodesicBending, StretchGradient,
                 ShearGradient, NormalBending, Twist)
 }
-"""The vocabulary of effects, by exact name (DESIGN §3)."""
+"""The vocabulary of effects, by exact name (docs/theory.md)."""
 
 IN_PLANE_INVISIBLE = ("normal_bending", "twist")
 """Effects that planar (2D) data cannot see."""

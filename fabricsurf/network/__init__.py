@@ -1,4 +1,5 @@
-"""Spring-network reference of seed 000 §3: engine, Hencky fabric lattice, bi-pantographic lattice.
+"""Spring-network reference of Barchiesi et al. 2020 §3: engine, Hencky fabric lattice,
+bi-pantographic lattice.
 
 See ``docs/network.md`` for the micro-macro identification and the reconstruction notes, and
 ``docs/vocabulary.md`` for the identification with skew fibre cells and shear-locking springs.

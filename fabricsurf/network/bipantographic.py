@@ -1,4 +1,5 @@
-"""Bi-pantographic cell lattice of seed 000 §3 ([B] (18)-(20), Table 2, Fig. 6-8), reconstructed.
+"""Bi-pantographic cell lattice of Barchiesi et al. 2020, §3 (eqs. 18-20, Table 2, Figs. 6-8),
+reconstructed.
 
 Reconstruction (figure: ``docs/bipantographic_cell.png``, made by :func:`plot_cell`)
 -------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """Spring-network engine: extensional and rotational springs in the plane [B §3].
 
-Notation follows seed 000 ([B], Barchiesi et al. 2020, §3). Nodes carry positions
+Notation follows Barchiesi et al. 2020 ([B], Barchiesi et al. 2020, §3). Nodes carry positions
 ``x`` of shape ``(n, 2)`` (mm); the generalised coordinates q of [B (18)] are ``x.ravel()``
 (node-major: ``[x0, y0, x1, y1, ...]``), so dof ``2*a + c`` is component ``c`` of node ``a``.
 

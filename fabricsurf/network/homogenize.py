@@ -1,4 +1,4 @@
-"""Numerical homogenisation of the bi-pantographic lattice of seed 000 §3 ([B (18)-(20)]).
+"""Numerical homogenisation of the bi-pantographic lattice (Barchiesi et al. 2020, §3, eqs. 18-20).
 
 The L- and M-beams of :func:`~fabricsurf.network.bipantographic.bipantographic_lattice`
 share only their axis nodes (vertices and centres), so one pantographic beam carries the

@@ -15,7 +15,7 @@ def graded_specimen(level: int, grading: float = 0.6, length: float = 187.0,
                     width: float = 119.0, base: tuple[int, int] = (11, 7),
                     comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
     """Nested graded mesh of refinement ``level``: base[0]·level × base[1]·level crossed cells
-    (squares of 17 mm / level for the seed 000 specimen and the default base), refined
+    (squares of 17 mm / level for the Barchiesi et al. 2020 specimen and the default base), refined
     towards the edges by ``grading`` (:func:`~geometry.specimen.graded`): the clamp boundary
     layers and the clamp corners, where the second-gradient solution is least regular."""
     return structured_rectangle(length, width, base[0] * level, base[1] * level, comm,

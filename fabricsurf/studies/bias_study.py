@@ -67,7 +67,7 @@ class BiasStudySettings:
     skip_bip: bool = False
     bip_ubar: float = 50.0
     bip_steps: int = 20
-    range_levels: str = "1,2,4"
+    range_levels: str = "2,4,8"
     is_quick: bool = False
 
     def quick(self) -> BiasStudySettings:

@@ -1,12 +1,14 @@
-"""Dispersion of discrete chains/lattices against (gradient) continua (seed 002 §2, DESIGN §3).
+"""Dispersion of discrete chains/lattices against (gradient) continua (Mühlhaus & Oka 1996 §2,
+docs/theory.md).
 
-Notation (seed 002 §2): a chain of point masses m, springs k, spacing D; c0² = kD²/m.
+Notation (Mühlhaus & Oka 1996 §2): a chain of point masses m, springs k, spacing D; c0² = kD²/m.
 Plane waves u_j = A exp iq(jD - v_p t) give the exact discrete relation (eq. 12)
 
     ω² = (2k/m)(1 - cos qD),   v_p²/c0² = 2(1 - cos qD)/(qD)² = Σ_n 2(-1)ⁿ(qD)²ⁿ/(2n+2)!,
 
 and the continuum of eq. (10), truncated after the ∂², ∂⁴, ∂⁶ terms, gives the first one, two,
-three terms of that series (eqs. 14, 15). As an energy per unit length (seed 002 footnote, eq. 20)
+three terms of that series (eqs. 14, 15). As an energy per unit length (Mühlhaus & Oka 1996
+footnote, eq. 20)
 the truncated continuum reads ½∫ a u'² + b u''² + c u'''² with (a, b, c) = kD(1, -D²/12, D⁴/360):
 b < 0 is the destabilising D²/12 term, c > 0 restores well-posedness.
 """
@@ -25,12 +27,14 @@ from mpi4py import MPI
 
 
 def omega2_chain(qD: np.ndarray, k: float = 1.0, m: float = 1.0) -> np.ndarray:
-    """Exact discrete dispersion ω² = (2k/m)(1 - cos qD) of the linear chain (seed 002 eq. 12)."""
+    """Exact discrete dispersion ω² = (2k/m)(1 - cos qD) of the linear chain (Mühlhaus & Oka 1996
+    eq. 12)."""
     return 2.0 * k / m * (1.0 - np.cos(qD))
 
 
 def vp2_exact(qD: np.ndarray) -> np.ndarray:
-    """Normalised phase velocity² v_p²/c0² = 2(1 - cos qD)/(qD)² (seed 002 eqs. 12, 14)."""
+    """Normalised phase velocity² v_p²/c0² = 2(1 - cos qD)/(qD)² (Mühlhaus & Oka 1996 eqs. 12,
+    14)."""
     x = np.asarray(qD, dtype=float)
     return np.sinc(x / (2.0 * np.pi)) ** 2  # = 4 sin²(x/2)/x² = 2(1 - cos x)/x²
 
@@ -67,8 +71,8 @@ def chain_modes(N: int, k: float = 1.0, m: float = 1.0, D: float = 1.0) -> np.nd
     """ω² of the N masses of a fixed-fixed chain, from the network engine's Hessian.
 
     Nodes 0 and N+1 are clamped; the stiffness of the longitudinal dofs is the Hessian of the
-    spring network (DESIGN §5) at the reference state. Eigenvalues are ascending, so entry n-1
-    belongs to q_n = nπ/((N+1)D) and should equal eq. (12) of seed 002.
+    spring network (docs/network.md) at the reference state. Eigenvalues are ascending, so entry n-1
+    belongs to q_n = nπ/((N+1)D) and should equal eq. (12) of Mühlhaus & Oka 1996.
     """
     from fabricsurf.network.engine import SpringNetwork
 
@@ -88,7 +92,8 @@ def hencky_omega2(q: np.ndarray, eps: float, k2: float, A: float = 0.0,
                   rho: float = 1.0) -> np.ndarray:
     """Hencky lattice along a fibre: rho ω² = k (2/ε)² sin²(qε/2) + A (2/ε)⁴ sin⁴(qε/2).
 
-    The discrete analogue of :func:`fabric_omega2` (eq. 12 of seed 002 for each spring family):
+    The discrete analogue of :func:`fabric_omega2` (eq. 12 of Mühlhaus & Oka 1996 for each spring
+    family):
     (k_l, 0) longitudinal, (k_s, A_g) transverse, with k_l = k_e, k_s = k_sh/ε², A_g = k_b.
     """
     s2 = (2.0 / eps * np.sin(0.5 * q * eps)) ** 2
@@ -138,7 +143,7 @@ class GradientContinuum1D:
     dolfinx's demo_biharmonic) make the b-term consistent, symmetric-interior-penalty terms on
     the jumps of u' and u'' the c-term. u'' = 0 at the ends is imposed by Nitsche's method for
     the c-term; for c = 0 it is the natural condition. Sines sin(nπx/L) are then exact modes,
-    with rho ω² = a q² + b q⁴ + c q⁶ (seed 002 eqs. 10, 15). Moduli live in fem.Constant.
+    with rho ω² = a q² + b q⁴ + c q⁶ (Mühlhaus & Oka 1996 eqs. 10, 15). Moduli live in fem.Constant.
 
     With b < 0 the b-penalty is negative too; for c > 0 the c-penalty must dominate it,
     h² < c·s0/(|b|·s1) (h < 0.9 D for the seed-002 moduli and degree 5), else spurious

@@ -22,9 +22,6 @@ is its inverse (the force an elastic shear response τ(γ) gives under the ideal
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
-
-from fabricsurf.model.terms import Term
 
 KNEE = "initial knee (friction at the crossovers: no elastic term starts with a finite force)"
 BEYOND = "beyond locking (yarn slip, wrinkling: softer than any elastic shear response)"
@@ -123,11 +120,14 @@ def force_errors(model, measured) -> dict:
     return {"rms_N": rms, "max_N": mx, "rms_pct": 100 * rms / fmax, "max_pct": 100 * mx / fmax}
 
 
-def unexplained_ranges(d, error, s_F: float, length: float, width: float) -> list[dict]:
+def unexplained_ranges(d, error, measured, s_F: float, length: float, width: float
+                       ) -> list[dict]:
     """Displacement ranges where |force error| exceeds three noise levels (the criterion of
-    :func:`fabricsurf.inverse.report.where_unexplained`), each named: a range from the first
-    point is the initial knee, one reaching the last point is beyond locking."""
-    d, error = np.asarray(d, float), np.asarray(error, float)
+    :func:`fabricsurf.inverse.report.where_unexplained`), each named. A range is the initial
+    knee if every point before it has a measured force below three noise levels (there the
+    data cannot tell any response from zero, so it is where the curve first departs); a range
+    reaching the last point is beyond locking; anything else is an intermediate range."""
+    d, error, measured = (np.asarray(a, float) for a in (d, error, measured))
     bad = np.abs(error) > 3.0 * s_F
     out, k = [], 0
     while k < len(d):
@@ -137,10 +137,12 @@ def unexplained_ranges(d, error, s_F: float, length: float, width: float) -> lis
         j = k
         while j + 1 < len(d) and bad[j + 1]:
             j += 1
-        kind = KNEE if k == 0 else BEYOND if j == len(d) - 1 else MIDDLE
+        quiet_before = bool(np.all(np.abs(measured[:k]) < 3.0 * s_F))
+        kind = KNEE if quiet_before else BEYOND if j == len(d) - 1 else MIDDLE
         g = np.degrees(zone_c_shear_angle(d[[k, j]], length, width))
         out.append({"kind": kind, "displacement_mm": [float(d[k]), float(d[j])],
                     "zone_c_angle_deg": [float(g[0]), float(g[1])],
+                    "points": int(j - k + 1),
                     "max_abs_error_N": float(np.max(np.abs(error[k:j + 1]))),
                     "sign": "model above data" if error[k:j + 1].mean() > 0 else
                     "model below data"})
@@ -148,15 +150,15 @@ def unexplained_ranges(d, error, s_F: float, length: float, width: float) -> lis
     return out
 
 
-def predict_force(model: list[Term], length: float, width: float, path, h: float,
-                  angles: tuple[float, float] = (45.0, -45.0),
-                  comm: MPI.Comm = MPI.COMM_WORLD):
-    """Grip force (N) of the continuum bias test of another specimen along ``path`` (mm),
-    same fabric (``model`` with its moduli), mesh size ``h``; returns (path, force, forward)."""
-    from fabricsurf.inverse.forward import ForwardModel
-    from fabricsurf.inverse.synthetic import template
+def moduli_covariance(fm, free: list[int]) -> tuple[object, np.ndarray]:
+    """One forward run of ``fm`` at its current moduli with sensitivities: (prediction,
+    covariance of the moduli ``free``), Cov(p) = P Cov(θ) P with P = diag(p), θ = log p, as
+    :func:`fabricsurf.inverse.fit.covariance` (scaled by the reduced χ² without a stated noise
+    level). Used for combinations of moduli, e.g. the mean fibre stiffness (k_l + k_m)/2."""
+    from fabricsurf.inverse.fit import covariance
 
-    exp = template(length, width, path, np.zeros((0, 2)), angles=angles,
-                   name=f"prediction-{length:g}x{width:g}")
-    fm = ForwardModel(exp, model, h=h, comm=comm)
-    return np.asarray(exp.path), fm.run().force, fm
+    vals = fm.values()
+    pred = fm.run(sens=free)
+    r, Jr = fm.residuals(pred)
+    C = covariance(Jr * vals[free], float(r @ r), fm.noise_known)
+    return pred, C * np.outer(vals[free], vals[free])

@@ -1,4 +1,5 @@
-"""The hyperbolic-paraboloid exact solution of the fabric-surface theory (seed 001 §5).
+"""The hyperbolic-paraboloid exact solution of the fabric-surface theory (Steigmann & dell'Isola
+2015 §5).
 
 r(θ) = a θ1θ2 + b θ1 + c θ2 + d on the unit square, fibres along θ1 (L = e1) and θ2 (M = e2),
 w = w1(λ) + w2(μ) (``fibre_stretch`` only, no shear), A_Γ = k̄ (``shear_gradient`` and

@@ -1,0 +1,83 @@
+"""The diagnosis in the regime of real fabrics (issue table: nearly inextensible fibres,
+k_l/k_s = 2500, large shear, grips holding node columns, model-form error above the noise),
+on Hencky-lattice data of our own generator at a small size:
+
+* the complete model (fibre_stretch + shear + geodesic_bending, the lattice's continuum limit)
+  gives no verdict — the lattice–continuum form error (several noise levels) is not taken for a
+  missing effect; it is reported as unexplained misfit, because that is what it is;
+* geodesic bending hidden from fibre_stretch + shear, fibres at ±40°, data written in m and kN:
+  loaded, diagnosed and named (measured: misfit 2.96 → 2.53; the rest is the form error of a
+  1.6 mm lattice, which the tool then reports as not adequate).
+Criteria: the significance rule of docs/diagnosis.md; no tolerance is tuned here.
+"""
+
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.data import load_experiment, write_experiment
+from fabricsurf.inverse.diagnose import diagnose
+
+K_L, K_S = 1000.0, 0.4
+LENGTH, WIDTH = 48.0, 24.0
+
+
+def lattice(angles, A_g, seed, spacing=1.6, noise=0.02):
+    path = list(np.linspace(0.04 * LENGTH, 0.12 * LENGTH, 3))
+    exp = sy.template(LENGTH, WIDTH, path, np.zeros((0, 2)), angles=angles, name="regime")
+    sy.lattice_data(exp, spacing, k_l=K_L, k_s=K_S, A_g=A_g, every=2)
+    return sy.add_noise(exp, noise, 0.02, seed)
+
+
+def to_m_kn(directory: Path) -> None:
+    """Rewrite a directory written in mm and N in m and kN (the numbers change, not the data)."""
+    toml = directory / "experiment.toml"
+    text = toml.read_text().replace('length = "mm"', 'length = "m"').replace(
+        'force = "N"', 'force = "kN"')
+    lines = []
+    for line in text.splitlines():
+        key = line.split("=")[0].strip()
+        if key in ("length", "width", "noise_std") and '"' not in line:
+            line = f"{key} = {float(line.split('=')[1]) / 1000.0!r}"
+        if key == "force_noise_std":
+            line = f"{key} = {float(line.split('=')[1]) / 1000.0!r}"
+        lines.append(line)
+    toml.write_text("\n".join(lines) + "\n")
+    for name, scale in (("field.csv", [1, 1e-3, 1e-3, 1e-3, 1e-3]),
+                        ("force.csv", [1, 1e-3, 1e-3])):
+        rows = (directory / name).read_text().splitlines()
+        out = [rows[0]]
+        for r in rows[1:]:
+            v = [float(x) for x in r.split(",")]
+            out.append(",".join([str(int(v[0]))] + [repr(a * s) for a, s in zip(v[1:], scale[1:])]))
+        (directory / name).write_text("\n".join(out) + "\n")
+
+
+def test_complete_model_no_false_alarm_in_the_stiff_regime():
+    exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=3)
+    d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.0, confirm=1,
+                 max_effects=1, check_discretisation=False, verbose=False)
+    print(d.outcome(), d.base_fit.misfit["combined"],
+          [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking])
+    assert d.verdict is None
+    assert d.outcome() in ("nothing missing", "unexplained misfit")
+
+
+def test_hidden_geodesic_bending_at_40_degrees_in_m_and_kn(tmp_path):
+    comm = MPI.COMM_WORLD
+    exp = lattice((40.0, -40.0), A_g=K_S * 100.0, seed=4)
+    root = Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None))
+    if comm.rank == 0:
+        write_experiment(root / "data", exp)
+        to_m_kn(root / "data")
+    comm.barrier()
+    loaded = load_experiment(root / "data")
+    assert np.allclose(loaded.u, exp.u) and np.isclose(loaded.length, LENGTH)
+    assert np.allclose(loaded.force, exp.force)
+    d = diagnose(loaded, ["fibre_stretch", "shear"], h=3.0, confirm=1, max_effects=1,
+                 check_discretisation=False, verbose=False)
+    print(d.outcome(), d.path, [(r["effect"], r["refit_misfit"]) for r in d.ranking])
+    assert d.verdict == "geodesic_bending" == d.ranking[0]["effect"]
+    assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
