@@ -45,7 +45,7 @@ case "$cmd" in
     mpirun -n 2 "$PY" demos/demo_hidden_effect.py "$@" ;;
   test)
     echo "[run.sh] test suite, 1 rank"
-    run_pytest "$PY" -m pytest -q -ra tests "$@"
+    run_pytest "$PY" -m pytest -q -ra --durations=15 tests "$@"
     echo "[run.sh] test suite, 2 ranks"
     run_pytest mpirun -n 2 "$PY" -m mpi4py -m pytest -q -ra -p no:cacheprovider tests "$@" ;;
   *)

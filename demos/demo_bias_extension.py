@@ -300,6 +300,8 @@ def main(argv=None) -> dict:
         if "bipantographic_range" in summary:
             range_figure(args.out, summary["bipantographic_range"])
     check(summary, args)
+    if args.is_quick:
+        check_quick(summary, args.out)
     rank0_print(comm, f"done in {time.perf_counter() - t0:.1f} s; summary: "
                       f"{args.out / 'summary.json'}")
     return summary
@@ -330,6 +332,49 @@ def check(summary: dict, args) -> None:
         check_bipantographic(summary)
     if "bipantographic_range" in summary:
         check_range(summary["bipantographic_range"], args.bip_ubar)
+
+
+def check_quick(summary: dict, out: Path) -> None:
+    """The quick run's own figures, measured on 1 and 2 ranks (h = 8 mm, ε = 6.01 mm,
+    ū ≤ 18.7 mm): continuum vs Hencky force 1.4 %, γ_A 0.08°, γ_B 0.42°, positions 0.12 mm
+    (tolerances twice these, rounded up); zones γ = 1.8°, 13.6°, 23.1° at ū = 18.7 mm; grip
+    force on levels 2, 4, 8: differences 0.229, 0.109 N, rate 1.07; Table 3 continuum/lattice
+    force ratio 1.9–2.1, with the homogenised moduli within 0.3 of 1 and bracketed by the
+    full-length and free-length continua; eq. (2) with the springs' ½ halves the force exactly
+    (ratio 0.97–1.13)."""
+    keys = {"force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
+            "position_rms_diff", "curves"}
+    bip = {"force_ratio_continuum_to_lattice", "max_stretch"}
+    extra = {"hencky": set(), "bipantographic": bip, "bipantographic_half": bip,
+             "bipantographic_identified": bip | {"clamp_offset"}}
+    for name, more in extra.items():
+        assert set(summary[name]) == keys | more, name
+        assert len(summary[name]["curves"]["ubar"]) == 4
+    hk = summary["hencky"]
+    assert hk["force_rel_diff"] < 0.03 and hk["angle_A_max_diff_deg"] < 0.3
+    assert hk["angle_B_max_diff_deg"] < 1.0 and hk["position_rms_diff"] < 0.25
+    z = summary["three_zones"]["check"]
+    assert abs(z["ubar"] - 18.7) < 1e-9
+    assert 0.45 * z["centre_B"] < z["half_sheared"] < 0.7 * z["centre_B"]
+    assert z["centre_B"] < z["ideal_centre_deg"]
+    c = hk["curves"]
+    assert 1.2 < c["angle_B_continuum_deg"][-1] / c["angle_A_continuum_deg"][-1] < 2.0
+    conv = summary["force_convergence"]
+    assert conv["levels"] == [2, 4, 8] and conv["differences"][1] < 0.6 * conv[
+        "differences"][0]
+    assert 0.8 < conv["rates"][0] < 2.5
+    ident = summary["settings"]["bipantographic"]["identified"]
+    assert abs(ident["K_S"] / 0.01446 - 1) < 1e-3 and abs(ident["a_theta"] / 9.557 - 1) < 1e-3
+    assert min(summary["bipantographic"]["force_ratio_continuum_to_lattice"]) > 1.5
+    r_id = summary["bipantographic_identified"]["force_ratio_continuum_to_lattice"]
+    assert max(abs(r - 1) for r in r_id) < 0.3
+    t3, half = summary["bipantographic"]["curves"], summary["bipantographic_half"]
+    assert np.allclose(half["curves"]["force_continuum"],
+                       0.5 * np.array(t3["force_continuum"]), rtol=1e-6)
+    assert all(0.95 < r < 1.15 for r in half["force_ratio_continuum_to_lattice"])
+    for f in ("hencky/bias.xdmf", "bipantographic/bias.xdmf",
+              "bipantographic_identified/bias.xdmf"):
+        assert (out / f).exists(), f
 
 
 def check_convergence(conv: dict) -> None:
