@@ -41,6 +41,7 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
 from fabricsurf.discretise.output import FieldWriter, on_rank0, rank0_print, write_json
+from fabricsurf.inverse import significance as sg
 from fabricsurf.inverse.data import load_experiment
 from fabricsurf.inverse.diagnose import diagnose
 from fabricsurf.inverse.fit import fit
@@ -138,7 +139,8 @@ else:
     lock = fit(lock_fm, scale_start=False, verbose=True)
 lock_params = {t: v for t, v in lock.params().items() if t in LOCK}
 lock_force = (lock.prediction[0] if isinstance(lock.prediction, list) else lock.prediction).force
-lock_label = "+ shear_locking" + ("" if row["significant"] else " (not significant)")
+lock_significant = sg.significant(base.chi2, 3, lock.chi2, 5, len(d_meas))  # the diagnosis's rule
+lock_label = "+ shear_locking" + ("" if lock_significant else " (not significant)")
 preds = {"first guess": guess_pred.force, "fibre_stretch + shear": base.prediction[0].force,
          lock_label: lock_force}
 errors = {k: wv.force_errors(v, F_meas) for k, v in preds.items()}
@@ -363,7 +365,8 @@ summary = {
                   "discretisation_chi2": diag.discretisation_chi2,
                   "unexplained": diag.unexplained},
     "shear_locking_refit": {"params": lock_params, "chi2": lock.chi2,
-                            "significant": row["significant"],
+                            "significant": lock_significant,
+                            "diagnosis_refit_chi2": row.get("refit_chi2"),
                             "std": {n: s for n, s in lock.as_dict()["std"].items()
                                     if n.split(".")[0] in LOCK},
                             "errors": errors[lock_label],

@@ -12,8 +12,8 @@ Checks:
   formula from the chord angle;
 * the 0° strip against the heavy elastica (scipy solve_bvp, fabricsurf.verification.elastica)
   at a tip angle of 66°: the centre-line error falls at rate ≥ 2.5 (measured 2.9, 3.9 on these
-  meshes; 3.3, 3.1 on n = 96, 192 in demos/demo_bending.py), with a recorded 1-rank value of the
-  tip deflection that 2 ranks must reproduce;
+  meshes; 3.35 at n = 96 in demos/demo_bending.py, 3.15 at n = 192 in docs/bending.md), with a
+  recorded 1-rank value of the tip deflection that 2 ranks must reproduce;
 * the ±45° strip: the narrow-strip rigidity 2k_b k_t/(k_t + 2k_b) (docs/bending.md) approached as
   w/L → 0 (the clamp's cylindrical boundary layer makes the error O(w/L)); without twist the
   near-mechanism: a warning, and a strip many times softer;

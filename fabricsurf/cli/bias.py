@@ -48,21 +48,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--params", type=Path, default=None,
                    help='JSON moduli {"term": {"parameter": value}}, first-gradient moduli in '
                    "N/mm, second-gradient in N·mm (see `fabricsurf terms`), or a saved "
-                   "fit.json; only terms of the model (default: the moduli of --terms' default, or "
-                   "1.0 for every modulus of terms given by --terms)")
+                   "fit.json; without --terms its terms are the model; moduli not given are 1.0")
     p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
                    help="gradient: u and its normal derivative held; position: u only")
 
 
 def _model(args) -> list:
-    defaults = [t.name for t in default_model()]
-    params = load_params(args.params, args.terms.split(",") if args.terms else defaults)
-    if args.terms:
+    """--terms (with --params moduli); else the terms of the --params file (a saved fit is the
+    whole model: no default term is added silently); else the default model."""
+    params = load_params(args.params, args.terms.split(",") if args.terms else None)
+    if args.terms or params:
         return parse_model(args.terms, params)
-    model = default_model()
-    for t in model:
-        t.set(**params.get(t.name, {}))
-    return model
+    return default_model()
 
 
 def _check(args) -> float:

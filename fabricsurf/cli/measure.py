@@ -235,7 +235,8 @@ def add_parsers(sub, formatter) -> None:
                    help="comma-separated effects to consider (default: every effect the data "
                    "can see)")
     p.add_argument("--fixed", default=None,
-                   help="comma-separated baseline terms held at their --params moduli")
+                   help="comma-separated baseline terms held at their --params moduli "
+                   "(default: none, every baseline modulus is fitted)")
     p.add_argument("--add-best", action="store_true",
                    help="also save the final model as model_best.json (a --params file)")
     p.set_defaults(func=cmd_diagnose)

@@ -1,4 +1,5 @@
-"""Newton solver (PETSc SNES) for Π_h and load stepping with automatic step cutting (DESIGN §4).
+"""Newton solver (PETSc SNES) for Π_h and load stepping with automatic step cutting
+(docs/theory.md).
 
 The SNES callbacks follow the NonlinearPDE_SNESProblem of the dolfinx 0.5 unit tests: the
 residual is dΠ/du with Dirichlet rows x − g (lifting), the Jacobian d²Π/du². Options go to the

@@ -5,7 +5,9 @@ du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.inverse.
 converged Jacobian's factorisation is reused, no finite differences of load paths. Moduli are
 parametrised as p = exp(θ) (positive); the step in θ is limited to ±``max_step`` per iteration.
 A small relative χ² change does not stop a step that was cut to ``max_step`` (a modulus far
-from its optimum, e.g. a candidate effect started near zero, changes χ² little per step).
+from its optimum, e.g. a candidate effect started near zero, changes χ² little per step); the
+fit stops when not even the Gauss–Newton step promises a relative decrease of ``tol`` (at the
+optimum every trial step would be rejected, each costing a forward run).
 Uncertainties: Cov(θ) = (JᵀJ)⁻¹ — the residuals are already divided by the noise level — times
 the reduced χ² when the data give no ``noise_std``; σ_p = p σ_θ (first order).
 """
@@ -102,6 +104,9 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         Jt = Jr * vals[free]  # dr/dθ
         g, JTJ = Jt.T @ r, Jt.T @ Jt
         D = np.diag(np.diag(JTJ)) + 1e-12 * np.trace(JTJ) * np.eye(len(free))
+        gn = np.linalg.lstsq(Jt, -r, rcond=None)[0]
+        if float(r @ r - (r + Jt @ gn) @ (r + Jt @ gn)) < tol * chi2:
+            break  # not even the Gauss-Newton step promises a relative decrease of tol
         accepted = False
         while lam < 1e8:
             step = np.linalg.solve(JTJ + lam * D, -g)

@@ -5,10 +5,11 @@ k_s ~ 10 N/mm). Levenberg–Marquardt in log-moduli moves a modulus by a bounded
 iteration and, started at 1:1, settles in the wrong valley (soft fibres, huge bending). Two cheap
 remedies, forward runs without sensitivities only:
 
-* :func:`scan_terms`: for each free term in turn, try its moduli times 10^k (k = −2 … 3) and keep
-  the best; with measured reactions of displacement-controlled tests, every trial is first
-  given the best common factor of all moduli (:func:`common_factor`: a common factor leaves the
-  displacements unchanged and scales the reactions, so it is found in closed form).
+* :func:`scan_terms`: for each free term in turn, move its moduli by decades (up while that
+  improves, else down, at most four decades) and keep the best; with measured reactions of
+  displacement-controlled tests, every trial is first given the best common factor of all
+  moduli (:func:`common_factor`: a common factor leaves the displacements unchanged and scales
+  the reactions, so it is found in closed form).
 * :func:`candidate_start`: a candidate effect added to a fitted model starts at the best of its
   linearised estimate, a log grid around its natural scale (the fitted first-gradient moduli,
   times (width/10)² for a second-gradient term) and a value so small that the start is the
@@ -24,7 +25,7 @@ from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.misfit import scales
 
-SCAN = tuple(10.0**k for k in (-2, -1, 1, 2, 3))
+MAX_DECADES = 4
 
 
 def _preds(fm):
@@ -72,12 +73,17 @@ def scan_terms(fm, free: list[int], vals: np.ndarray) -> np.ndarray:
     for i in free:
         groups.setdefault(fm.params[i][0].name, []).append(i)
     for idx in groups.values():
-        for f in SCAN:
-            trial = vals.copy()
-            trial[idx] *= f
-            chi2, used = _chi2(fm, trial, scale)
-            if chi2 < best:
-                best, vals = chi2, used
+        for factor in (10.0, 0.1):
+            moved = False
+            for _ in range(MAX_DECADES):
+                trial = vals.copy()
+                trial[idx] *= factor
+                chi2, used = _chi2(fm, trial, scale)
+                if chi2 >= best:
+                    break
+                best, vals, moved = chi2, used, True
+            if moved:
+                break
         fm.set_values(vals)
     return vals
 

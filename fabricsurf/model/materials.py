@@ -1,4 +1,4 @@
-"""Ready-made materials: term sets that are not part of the effect vocabulary (DESIGN §3).
+"""Ready-made materials: term sets that are not part of the effect vocabulary (docs/theory.md).
 
 Homogenised bi-pantographic fabric (Barchiesi et al. 2020, §2, eq. 2)
 ------------------------------------------------------

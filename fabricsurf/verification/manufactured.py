@@ -63,3 +63,35 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     if reason <= 0:
         raise RuntimeError(f"manufactured problem (n = {n}, d = {d}) did not converge: {reason}")
     return norms(u - ue, msh), its
+
+
+def in_plane_model() -> list[Term]:
+    """All in-plane terms with distinct moduli (the 2D manufactured case)."""
+    from fabricsurf.model.terms import (
+        FibreStretch,
+        GeodesicBending,
+        Shear,
+        ShearGradient,
+        StretchGradient,
+    )
+
+    return [FibreStretch(k_l=1.0, k_m=2.0), Shear(k_s=1.0), GeodesicBending(A_g=1.0),
+            StretchGradient(A_s=0.5), ShearGradient(A_Gamma=0.7)]
+
+
+def full_3d_model() -> list[Term]:
+    """The in-plane terms with normal bending and twist (the 3D manufactured case)."""
+    from fabricsurf.model.terms import NormalBending, Twist
+
+    return in_plane_model() + [NormalBending(k_b=1.0), Twist(k_t=0.8)]
+
+
+def u_2d(x):
+    """A smooth in-plane displacement of the unit square."""
+    return 0.1 * ufl.as_vector((ufl.sin(2 * x[0] + x[1]), ufl.cos(x[0] - 2 * x[1])))
+
+
+def u_3d(x):
+    """A smooth displacement with an out-of-plane bulge."""
+    return ufl.as_vector((0.1 * ufl.sin(2 * x[0] + x[1]), 0.1 * ufl.cos(x[0] - 2 * x[1]),
+                          0.2 * ufl.sin(ufl.pi * x[0]) * ufl.sin(ufl.pi * x[1])))
