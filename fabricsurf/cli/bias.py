@@ -48,7 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--params", type=Path, default=None,
                    help='JSON moduli {"term": {"parameter": value}}, first-gradient moduli in '
                    "N/mm, second-gradient in N·mm (see `fabricsurf terms`), or a saved "
-                   "fit.json; without --terms its terms are the model; moduli not given are 1.0")
+                   "fit.json; without --terms its terms are the model (default: none, the default "
+                   "model of --terms)")
     p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
                    help="gradient: u and its normal derivative held; position: u only")
 
