@@ -1,8 +1,7 @@
-"""Every demo runs in its quick mode and passes its own checks on 2 ranks, as users run them
-(`mpirun -n 2`): in the 2-rank session of the suite, in-process on both ranks (runpy), so its
-collective calls meet; its own assertions are the test, and its summary.json must be written.
-The serial session skips them to keep the suite within its time budget (the library code they
-use is tested serially by the other tests); FABRICSURF_ALL_DEMOS=1 runs them on 1 rank too.
+"""Every demo runs in its quick mode and passes its own checks, on 1 rank and (in the 2-rank
+session of the suite) on 2 ranks, as dolfinx runs its demos. The demo runs in-process on every
+rank of the pytest session (runpy), so its collective calls meet; its own assertions are the
+test, and its summary.json must be written.
 
 The woven-fabric and bending demos take minutes even in quick mode (a 43-step force curve with
 a full diagnosis; 3D strips): they run only with FABRICSURF_ALL_DEMOS=1, to keep the suite
@@ -34,11 +33,8 @@ SLOW = {"demo_bending.py", "demo_woven_fabric.py"}
 @pytest.mark.parametrize("name", sorted(n for n in QUICK if (DEMOS / n).is_file()))
 def test_demo_runs_and_checks_itself(name, tmp_path, monkeypatch):
     comm = MPI.COMM_WORLD
-    every = bool(os.environ.get("FABRICSURF_ALL_DEMOS"))
-    if name in SLOW and not every:
+    if name in SLOW and not os.environ.get("FABRICSURF_ALL_DEMOS"):
         pytest.skip(f"{name}: minutes even in quick mode; FABRICSURF_ALL_DEMOS=1 runs it")
-    if comm.size == 1 and not every:
-        pytest.skip("demos run on 2 ranks (the 2-rank session); FABRICSURF_ALL_DEMOS=1: 1 too")
     out = Path(comm.bcast(str(tmp_path / "out") if comm.rank == 0 else None))
     monkeypatch.setattr(sys, "argv", [name, "--out", str(out), *QUICK[name]])
     runpy.run_path(str(DEMOS / name), run_name="__main__")
