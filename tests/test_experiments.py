@@ -5,7 +5,8 @@
   tolerance, with pinned and with clamped fibres;
 * the real force-only Cao et al. 2008 curve loads and goes through compare, fit and diagnose;
 * a bias test (field + force) and a picture frame (force only) made from one material are fitted
-  together: one set of moduli, misfit per experiment, the truth recovered.
+  together: one set of moduli, misfit per experiment, the truth recovered; compared and
+  diagnosed together through the CLI (no effect is missing, so no verdict).
 """
 
 import json
@@ -118,6 +119,13 @@ def test_bias_and_frame_fitted_together(tmp_path):
     comm.barrier()
     assert (root / "cmp" / "frame_force.png").is_file()
     assert (root / "cmp" / "bias_error_map.png").is_file()
+    assert main(["diagnose", str(root / "bias"), str(root / "frame"), "--terms",
+                 "fibre_stretch,shear", "--h", "4", "--confirm", "1", "--max-effects", "1",
+                 "--out", str(root / "diag")]) == 0
+    comm.barrier()
+    d = json.loads((root / "diag" / "diagnosis.json").read_text())
+    assert [e["experiment"] for e in d["final"]["misfit"]["experiments"]] == ["bias", "frame"]
+    assert d["verdict"] is None  # the data hold no effect beyond the baseline: no false alarm
 
 
 def test_boundary_data_after_the_solver_is_an_error():
