@@ -27,6 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
+from fabricsurf.experiments import get_test
 from fabricsurf.inverse import significance as sg
 from fabricsurf.inverse.experiment import Experiment
 from fabricsurf.inverse.fit import FitResult, fit
@@ -38,8 +39,6 @@ from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
 def visible_effects(exps: list[Experiment]) -> list[str]:
     """The vocabulary effects these data can see: out-of-plane ones only with 3D data."""
-    from fabricsurf.experiments import get_test
-
     three_d = any(get_test(e.test).d == 3 and e.has_field and e.u.shape[1] == 3 for e in exps)
     return [n for n in EFFECTS if three_d or n not in IN_PLANE_INVISIBLE]
 
@@ -181,7 +180,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         path.append({"added": c, "misfit": cur.misfit["combined"], "chi2": cur.chi2})
         say(f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
     fs.set_values(cur.values)
-    chi2_h = discretisation_chi2(fs, exps, h, comm) if check_discretisation else None
+    chi2_h = discretisation_chi2(fs, comm) if check_discretisation else None
     ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
     invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
                  for n in EFFECTS if n not in seen and n not in baseline]

@@ -61,7 +61,7 @@ class Diagnosis:
             "seconds": {"baseline_fit": self.fit_seconds}}
 
 
-def discretisation_chi2(fs: ForwardSet, exps: list, h: float | None, comm: MPI.Comm) -> float:
+def discretisation_chi2(fs: ForwardSet, comm: MPI.Comm) -> float:
     """Σ((prediction at h − prediction at h/2)/noise)² at the current moduli: the part of the
     misfit the mesh explains (every experiment's plug-in mesh refined by 2)."""
     total = 0.0
