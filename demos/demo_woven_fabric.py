@@ -136,7 +136,7 @@ else:
     if lock_fm.misfit(lock_fm.run())["chi2"] > base.chi2:  # start at the baseline itself
         lock_fm.set_values([1e-9 * v if t.name == "shear_locking" else v
                             for (t, _), v in zip(lock_fm.params, lock_fm.values())])
-    lock = fit(lock_fm, scale_start=False, verbose=True)
+    lock = fit(lock_fm, scale_start=False, verbose=True, space="linear")
 lock_params = {t: v for t, v in lock.params().items() if t in LOCK}
 lock_force = (lock.prediction[0] if isinstance(lock.prediction, list) else lock.prediction).force
 lock_significant = sg.significant(base.chi2, 3, lock.chi2, 5, len(d_meas))  # the diagnosis's rule

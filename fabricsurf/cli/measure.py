@@ -171,6 +171,24 @@ def _names(spec: str | None) -> list[str] | None:
     return None if spec is None else [n.strip() for n in spec.split(",") if n.strip()]
 
 
+def _grip_depths(spec: str | None, exps: list) -> list[float] | None:
+    """``--grip-depths``: comma-separated depths in mm, checked against the experiments."""
+    if spec is None:
+        return None
+    from fabricsurf.inverse.nuisance import check_depths
+
+    try:
+        depths = [float(s) for s in spec.split(",")]
+    except ValueError:
+        raise InputError(f"--grip-depths {spec}: expected comma-separated depths in mm, e.g. "
+                         "0,0.5,1") from None
+    try:
+        check_depths(exps, depths, f"--grip-depths {spec}")
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    return depths
+
+
 def cmd_diagnose(args) -> int:
     from fabricsurf.inverse import figures
     from fabricsurf.inverse.diagnose import diagnose
@@ -182,13 +200,15 @@ def cmd_diagnose(args) -> int:
         raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
     exps, model = _setup(args)
     _positive_start(model, args)
+    depths = _grip_depths(args.grip_depths, exps)
     params = {t.name: t.values() for t in model}
     od = OutputDir(args.out, COMM, files=("diagnosis.json",))
     with od as stage, _failure_report(od, stage, model, args, exps):
         try:
             d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
                          confirm=args.confirm, max_effects=args.max_effects, comm=COMM,
-                         candidates=_names(args.candidates), fixed=_names(args.fixed))
+                         candidates=_names(args.candidates), fixed=_names(args.fixed),
+                         grip_depths=depths)
         except ValueError as e:
             raise InputError(str(e)) from None
         out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
@@ -204,6 +224,9 @@ def cmd_diagnose(args) -> int:
             if args.add_best:
                 write_json(COMM, stage / "model_best.json", f.as_dict())
         on_rank0(COMM, figures.misfit_path, d.path, stage / "misfit_path.png")
+    if d.grip_depth is not None:
+        rank0_print(COMM, f"grip depth: {d.grip_depth['best_mm']:g} mm (the best of "
+                    f"{[q['depth_mm'] for q in d.grip_depth['profile']]})")
     rank0_print(COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
     for r in d.ranking:
         rank0_print(COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
@@ -237,6 +260,11 @@ def add_parsers(sub, formatter) -> None:
     p.add_argument("--fixed", default=None,
                    help="comma-separated baseline terms held at their --params moduli "
                    "(default: none, every baseline modulus is fitted)")
+    p.add_argument("--grip-depths", default=None,
+                   help="comma-separated grip depths in mm of the bias experiments, e.g. "
+                   "0,0.5,1: the depth is fitted as a nuisance parameter first (the best of "
+                   "these by baseline chi2), then the diagnosis uses it (default: the depth "
+                   "in the data)")
     p.add_argument("--add-best", action="store_true",
                    help="also save the final model as model_best.json (a --params file)")
     p.set_defaults(func=cmd_diagnose)

@@ -1,6 +1,8 @@
 """Which physical effect is missing? Stepwise diagnosis (docs/diagnosis.md).
 
 1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fit.fit`).
+   With ``grip_depths``, the effective grip depth of the bias experiments is first profiled
+   as a nuisance parameter (:mod:`~fabricsurf.inverse.nuisance`).
 2. Rank every vocabulary effect the data can see and the model lacks with one forward run:
    the model holds all those effects (vocabulary order, so one compiled form serves every
    diagnosis), candidates at modulus 0, so the state is the current fit; tangent solves give
@@ -11,7 +13,8 @@
 3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts from the best of
    the current optimum with the candidate near zero (so a refit is never worse than the model it
    extends), the linearised refit (one Gauss–Newton step in all moduli) and a log grid of the
-   candidate's modulus (:mod:`~fabricsurf.inverse.start`).
+   candidate's modulus (:mod:`~fabricsurf.inverse.start`); the refit steps in the moduli, not
+   their logarithms (:mod:`~fabricsurf.inverse.fit`).
 4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
    from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
 
@@ -32,6 +35,7 @@ from fabricsurf.inverse import significance as sg
 from fabricsurf.inverse.experiment import Experiment
 from fabricsurf.inverse.fit import FitResult, fit
 from fabricsurf.inverse.forward import ForwardSet
+from fabricsurf.inverse.nuisance import grip_profile, with_depth
 from fabricsurf.inverse.report import Diagnosis, discretisation_chi2, where_unexplained
 from fabricsurf.inverse.start import candidate_start
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
@@ -91,7 +95,7 @@ def _refit(fs: ForwardSet, cur: np.ndarray, free: list[int], idx: list[int], est
            gn: np.ndarray, verbose: bool) -> FitResult:
     """Nested refit from the current optimum, the candidate at its best start."""
     fs.set_values(candidate_start(fs, cur, free, idx, estimate, extra=[gn]))
-    res = fit(fs, free + idx, verbose=verbose, scale_start=False)
+    res = fit(fs, free + idx, verbose=verbose, scale_start=False, space="linear")
     fs.set_values(cur)
     return res
 
@@ -127,11 +131,14 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
              params: dict | None = None, confirm: int = 2, max_effects: int = 2,
              check_discretisation: bool = True, comm: MPI.Comm = MPI.COMM_WORLD,
              verbose: bool = True, candidates: list[str] | None = None,
-             fixed: list[str] | None = None) -> Diagnosis:
+             fixed: list[str] | None = None,
+             grip_depths: list[float] | None = None) -> Diagnosis:
     """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
 
     ``candidates``: the effects to consider (default: every effect the data can see);
-    ``fixed``: baseline terms held at their moduli in ``params`` (known from other tests).
+    ``fixed``: baseline terms held at their moduli in ``params`` (known from other tests);
+    ``grip_depths``: candidate grip depths (mm) of the bias experiments, profiled first
+    (:mod:`~fabricsurf.inverse.nuisance`); the best is used.
     """
     exps = exps if isinstance(exps, list) else [exps]
     fixed = list(fixed or [])
@@ -149,6 +156,10 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         if hidden:
             raise ValueError(f"diagnose: these data cannot see {hidden} (planar data)")
         visible = [n for n in visible if n in candidates or n in baseline]
+    grip = None if grip_depths is None else grip_profile(
+        exps, grip_depths, lambda: full_model(baseline, params, visible),
+        [n for n in baseline if n not in fixed], h, comm, verbose)
+    exps = exps if grip is None else [with_depth(e, grip["best_mm"]) for e in exps]
     fs = ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm)
     idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
     free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
@@ -190,4 +201,4 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         verdict=added[0] if added else None, alternatives=alternatives, adequate=ok, path=path,
         not_identifiable=invisible, discretisation_chi2=chi2_h,
         unexplained=None if ok else where_unexplained(exps, cur),
-        fit_seconds=t_fit, noise_known=fs.noise_known)
+        fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip)

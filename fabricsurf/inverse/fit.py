@@ -1,9 +1,15 @@
 """Least-squares fit of the moduli (Levenberg–Marquardt in log-moduli) with tangent sensitivities.
 
 Each iteration is one forward run along the recorded load path that also returns
-du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.inverse.compare.ForwardModel`): the
-converged Jacobian's factorisation is reused, no finite differences of load paths. Moduli are
-parametrised as p = exp(θ) (positive); the step in θ is limited to ±``max_step`` per iteration.
+du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.inverse.forward.ForwardModel`): the
+converged Jacobian's factorisation is reused, no finite differences of load paths. Two step
+variables: log-moduli θ = log p (positive; the step in θ is limited to ±``max_step`` per
+iteration), for fits that start decades away; or the moduli themselves, with Marquardt's scaling
+(which makes the steps independent of the moduli's units) and the bound p ≥ 0 (a step that would
+cross it cuts the modulus by ``BOUND_CUT``), for nested refits that start at an optimum with a
+candidate near zero: there log steps crawl (∂χ²/∂θ = p ∂χ²/∂p vanishes at p → 0) and the valley
+along which a stiffness trades against another (reactions are linear in the moduli) is straight
+in p but curved in θ.
 A small relative χ² change does not stop a step that was cut to ``max_step`` (a modulus far
 from its optimum, e.g. a candidate effect started near zero, changes χ² little per step); the
 fit stops when not even the Gauss–Newton step promises a relative decrease of ``tol`` (at the
@@ -78,12 +84,29 @@ def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
     return C if noise_known else C * chi2 / max(n - P, 1)
 
 
+BOUND_CUT = 1e-3
+"""Linear steps: a modulus the step would make ≤ 0 is cut by this factor instead (a few steps
+take it to where it no longer matters: the bound at zero)."""
+
+
+def _steps(space: str, vals: np.ndarray, free: list[int], max_step: float):
+    """(dr/dq scaling, update) of the step variable q: θ = log p, or p itself (module
+    docstring)."""
+    if space == "log":
+        return vals[free], lambda v, s: v * np.exp(s)
+    return np.ones(len(free)), lambda v, s: np.maximum(v + s, v * BOUND_CUT)
+
+
 def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True,
-        scale_start: bool = True) -> FitResult:
+        scale_start: bool = True, space: str = "log") -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
-    free moduli by decades (:func:`~fabricsurf.inverse.start.scan_terms`)."""
+    free moduli by decades (:func:`~fabricsurf.inverse.start.scan_terms`). ``space``: the
+    step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
+    docstring)."""
+    if space not in ("log", "linear"):
+        raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
     vals = fm.values()
     if np.any(vals[free] <= 0):
@@ -100,19 +123,26 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         raise LoadStepError("fit: the initial model does not follow the load path")
     r, Jr = rj
     lam, hist, it = 1e-3, [], 0
+    at_bound = np.zeros(len(free), bool)
     for it in range(1, max_iter + 1):
-        Jt = Jr * vals[free]  # dr/dθ
-        g, JTJ = Jt.T @ r, Jt.T @ Jt
-        D = np.diag(np.diag(JTJ)) + 1e-12 * np.trace(JTJ) * np.eye(len(free))
-        gn = np.linalg.lstsq(Jt, -r, rcond=None)[0]
-        if float(r @ r - (r + Jt @ gn) @ (r + Jt @ gn)) < tol * chi2:
+        q_scale, update = _steps(space, vals, free, max_step)
+        Jt = Jr * q_scale  # dr/dq
+        g = Jt.T @ r
+        act = ~(at_bound & (g > 0))  # a modulus at the bound that would go on down is held
+        Ja = Jt[:, act]
+        JTJ = Ja.T @ Ja
+        D = np.diag(np.diag(JTJ)) + 1e-12 * np.trace(JTJ) * np.eye(len(JTJ))
+        gn = np.linalg.lstsq(Ja, -r, rcond=None)[0]
+        if float(r @ r - (r + Ja @ gn) @ (r + Ja @ gn)) < tol * chi2:
             break  # not even the Gauss-Newton step promises a relative decrease of tol
         accepted = False
         while lam < 1e8:
-            step = np.linalg.solve(JTJ + lam * D, -g)
-            step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
+            step = np.zeros(len(free))
+            step[act] = np.linalg.solve(JTJ + lam * D, -g[act])
+            if space == "log":
+                step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
             trial = vals.copy()
-            trial[free] = vals[free] * np.exp(step)
+            trial[free] = update(vals[free], step)
             p2, rj2, chi2_new = _try(fm, free, trial)
             if chi2_new < chi2:
                 accepted, lam = True, max(lam / 5, 1e-7)
@@ -122,13 +152,15 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
             fm.set_values(vals)
             break
         rel = (chi2 - chi2_new) / max(chi2, 1e-300)
+        dlog = np.abs(np.log(trial[free] / vals[free]))
+        at_bound = (space == "linear") & (~act | (vals[free] + step <= 0))
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
         hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
         if verbose:
             rank0_print(fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
                         + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
-        moving = np.max(np.abs(step)) >= max_step * (1 - 1e-9)  # step was cut: not converged
-        if (rel < tol and not moving) or np.max(np.abs(step)) < 1e-5:
+        moving = space == "log" and np.max(dlog) >= max_step * (1 - 1e-9)  # cut: go on
+        if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < 1e-5:
             break
     fm.set_values(vals)
     Jt = Jr * vals[free]

@@ -31,6 +31,7 @@ class Diagnosis:
     unexplained: dict | None
     fit_seconds: float
     noise_known: bool
+    grip_depth: dict | None = None
 
     def outcome(self) -> str:
         if self.verdict is not None:
@@ -58,6 +59,7 @@ class Diagnosis:
                              "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
                              "noise_known": self.noise_known,
                              "rule": sg.__doc__.split("*Adequate*")[1].strip()},
+            "grip_depth": self.grip_depth,
             "seconds": {"baseline_fit": self.fit_seconds}}
 
 
