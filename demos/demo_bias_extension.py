@@ -343,13 +343,13 @@ def check_quick(summary: dict, out: Path) -> None:
     full-length and free-length continua; eq. (2) with the springs' ½ halves the force exactly
     (ratio 0.97–1.13)."""
     keys = {"force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
-            "position_rms_diff", "curves"}
+            "position_rms_diff", "curves", "failure"}
     bip = {"force_ratio_continuum_to_lattice", "max_stretch"}
     extra = {"hencky": set(), "bipantographic": bip, "bipantographic_half": bip,
              "bipantographic_identified": bip | {"clamp_offset"}}
     for name, more in extra.items():
         assert set(summary[name]) == keys | more, name
-        assert len(summary[name]["curves"]["ubar"]) == 4
+        assert len(summary[name]["curves"]["ubar"]) == 4 and summary[name]["failure"] is None
     hk = summary["hencky"]
     assert hk["force_rel_diff"] < 0.03 and hk["angle_A_max_diff_deg"] < 0.3
     assert hk["angle_B_max_diff_deg"] < 1.0 and hk["position_rms_diff"] < 0.25
@@ -399,8 +399,13 @@ def check_bipantographic(summary: dict, limit: float = 0.15 * LENGTH) -> None:
     within 1.3°; the rest is the clamp offset, bracketed by the continuum on the full and on
     the free length (measured at ū = 2.8 mm: 0.74 and 1.36 × the lattice force). Beyond, to
     50 mm, the curves are reported (summary.json, curves.png); the largest stretch of the
-    continuum stays inside the energy's domain (ρ cos γ < 1) at every step."""
+    continuum stays inside the energy's domain (ρ cos γ < 1) at every step. Eq. (2) with Table
+    3's moduli reaches ū_max; a comparison that stops earlier (measured: the identified moduli
+    on the uniform h = 4 mesh, Newton fails at ū = 42.87 mm with ρ cos γ = 0.984 at the grip
+    corner (8, 119) mm) covers its converged steps and records where it stopped ("failure")."""
     t3, idf = summary["bipantographic"], summary["bipantographic_identified"]
+    assert t3["failure"] is None and summary["bipantographic_half"]["failure"] is None, t3
+    assert idf["failure"] is not None or idf["curves"]["ubar"] == t3["curves"]["ubar"]
     for x in (t3, idf):
         assert all(h["rho_cos_gamma"] < 1 for h in x["max_stretch"]), x["max_stretch"]
     u = t3["curves"]["ubar"]

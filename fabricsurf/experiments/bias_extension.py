@@ -24,7 +24,7 @@ from fabricsurf.discretise.energy import has_second_gradient
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, write_json
 from fabricsurf.discretise.problem import FabricProblem
-from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
@@ -109,7 +109,8 @@ class BiasExtension:
         """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``.
 
         ``on_step(k, ubar)`` is called on every rank after each converged requested step (e.g.
-        to sample :meth:`displacement_at`); collective calls are allowed there.
+        to sample :meth:`displacement_at`); collective calls are allowed there. A step that
+        fails raises :class:`LoadStepError` with the converged steps as its ``partial``.
         """
         comm = self.problem.msh.comm
         res, t0 = BiasResult(), time.perf_counter()
@@ -138,6 +139,9 @@ class BiasExtension:
                               log=lambda m: rank0_print(comm, "  " + m) if verbose else None)
         try:
             stepper.run(np.linspace(ubar_max / steps, ubar_max, steps))
+        except LoadStepError as e:
+            e.partial = res  # the converged steps
+            raise
         finally:
             res.seconds = time.perf_counter() - t0
             if writer:

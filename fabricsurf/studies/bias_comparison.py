@@ -15,6 +15,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
+from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.materials import bipantographic
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear
@@ -109,7 +110,9 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
     """Continuum (BiasExtension, mesh size h) against lattice ``lat`` at the same ū_k: force,
     shear angles at A and B (lattice: eq. 5 at the node), positions at the lattice nodes
     (eq. 3), zone angles. Returns (JSON summary, extras for figures). ``on_step(test, k, ū)``
-    is called after each converged continuum step."""
+    is called after each converged continuum step. If the continuum stops before ``ubar_max``
+    the comparison covers its converged steps and ``failure`` says where it stopped (else
+    None)."""
     nodes = lat.grid[lat.grid >= 0]
     # node positions rounded onto the specimen (nodes on the edges can be 1e-13 mm outside)
     Xn = np.clip(lat.net.X[nodes], 0.0, [LENGTH, WIDTH])
@@ -127,7 +130,17 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
         if on_step is not None:
             on_step(bias, k, ubar)
 
-    cres = bias.run(ubar_max, steps, out=out, on_step=sample, verbose=False)
+    failure = None
+    try:
+        cres = bias.run(ubar_max, steps, out=out, on_step=sample, verbose=False)
+    except LoadStepError as e:
+        cres, failure = e.partial, {"step": e.step, "last_load": e.last_load,
+                                    "reason": e.reason, "message": str(e)}
+        rank0_print(comm, f"[{name}] continuum stopped: {e}")
+        if not cres.ubar:
+            raise
+        latres = {k: (v[:len(cres.ubar)] if isinstance(v, list) else v)
+                  for k, v in latres.items()}
     if not np.allclose(cres.ubar, latres["ubar"]):
         raise RuntimeError(f"{name}: continuum and lattice loads differ")
     iA, iB = node_at(lat, bias.points[0]), node_at(lat, bias.points[1])
@@ -141,6 +154,7 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
         "angle_A_max_diff_deg": float(np.max(np.abs(np.array(cres.angle_A_deg) - lat_A))),
         "angle_B_max_diff_deg": float(np.max(np.abs(np.array(cres.angle_B_deg) - lat_B))),
         "position_rms_diff": float(max(rms)),
+        "failure": failure,
         "curves": {"ubar": cres.ubar, "force_continuum": cres.force,
                    "force_lattice": latres["force"],
                    "angle_A_continuum_deg": cres.angle_A_deg, "angle_A_lattice_deg": lat_A,

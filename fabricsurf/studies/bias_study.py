@@ -106,7 +106,8 @@ def _bipantographic(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras:
         results[name], extras[name] = compare(name, model, blat, s.bip_ubar, s.bip_steps, s.h,
                                               comm, out=s.out / name, latres=latres,
                                               snes_options=opts, on_step=follow)
-        latres = extras[name]["lat"]
+        if results[name]["failure"] is None:  # else the lattice steps were cut to its range
+            latres = extras[name]["lat"]
         results[name]["max_stretch"] = [f.history for f in follow.followers.values()][-1]
     n = sum(u <= BRACKET_FRAC * LENGTH + 1e-9 for u in latres["ubar"])
     extras["bipantographic_identified"]["clamp_offset"] = clamp_offset_bracket(
@@ -142,7 +143,7 @@ def run_bias_study(s: BiasStudySettings, comm: MPI.Comm = MPI.COMM_WORLD) -> tup
                              comm=comm)
     rank0_print(comm, f"[convergence] differences {conv['differences']}, rates {conv['rates']}")
     keys = ("force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
-            "position_rms_diff", "curves")
+            "position_rms_diff", "curves", "failure")
     summary = {nm: {kk: r[kk] for kk in keys} for nm, r in results.items()}
     for nm in ("bipantographic", "bipantographic_half", "bipantographic_identified"):
         if nm in results:
