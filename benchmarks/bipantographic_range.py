@@ -26,7 +26,8 @@ def report(comm, run: dict, loads: list[float]) -> None:
                       f"set-up {run['setup_seconds']:.1f} s")
     if run["failure"]:
         rank0_print(comm, "  FAILED: " + run["failure"]["message"])
-        return
+        if "ubar" not in run:
+            return
     for row in values_at(run, [u for u in loads if u <= run["ubar"][-1] + 1e-9]):
         rank0_print(comm, f"  ū = {row['ubar']:4.0f} mm  F = {row['force']:9.4f} N  "
                           f"γ_A = {row['angle_A_deg']:6.2f}°  γ_B = {row['angle_B_deg']:6.2f}°")

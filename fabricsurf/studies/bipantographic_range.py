@@ -98,7 +98,7 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
     except LoadStepError as e:
         failure = {"step": e.step, "last_load": e.last_load, "reason": e.reason,
                    "message": str(e)}
-        res = None
+        res = e.partial if getattr(e, "partial", None) and e.partial.ubar else None
     V = test.problem.V
     out = {"clamp": clamp, "level": level, "limit_stretch": limit_stretch,
            "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
