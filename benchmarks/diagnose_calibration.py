@@ -62,9 +62,10 @@ def best_candidate(d) -> dict:
     p = sum(nm.split(".")[0] in d.baseline for nm in d.base_fit.names)
     dchi2 = d.base_fit.chi2 - row["refit_chi2"]
     excess = d.base_fit.chi2 - (n - p)
-    s2 = max(1.0, row["refit_chi2"] / (n - p))
+    k = sum(nm.split(".")[0] == row["effect"] for nm in d.base_fit.names)
+    s2 = max(1.0, row["refit_chi2"] / (n - p - k))
     return {"effect": row["effect"], "delta_chi2": dchi2, "share_of_excess": dchi2 / excess,
-            "F": dchi2 / s2, "significant": row["significant"]}
+            "F": dchi2 / k / s2, "significant": row["significant"]}
 
 
 def main() -> None:
