@@ -77,14 +77,18 @@ def _positive_start(model, args) -> None:
                                  "positive starting value")
 
 
+def _number_list(spec: str, option: str, cast: type, what: str):
+    """``spec`` split at commas and converted by ``cast``; a bad item names the option."""
+    try:
+        return [cast(s) for s in spec.split(",")]
+    except ValueError:
+        raise InputError(f"{option} {spec}: expected comma-separated {what}") from None
+
+
 def _error_map_steps(spec: str | None, exps: list) -> list[int] | None:
     if spec is None:
         return None
-    try:
-        steps = [int(s) for s in spec.split(",")]
-    except ValueError:
-        raise InputError(f"--steps {spec}: expected comma-separated step numbers, e.g. 1,3"
-                         ) from None
+    steps = _number_list(spec, "--steps", int, "step numbers, e.g. 1,3")
     for e in exps:
         bad = [s for s in steps if s not in set(int(k) for k in e.steps)]
         if bad:
@@ -177,11 +181,7 @@ def _grip_depths(spec: str | None, exps: list) -> list[float] | None:
         return None
     from fabricsurf.inverse.nuisance import check_depths
 
-    try:
-        depths = [float(s) for s in spec.split(",")]
-    except ValueError:
-        raise InputError(f"--grip-depths {spec}: expected comma-separated depths in mm, e.g. "
-                         "0,0.5,1") from None
+    depths = _number_list(spec, "--grip-depths", float, "depths in mm, e.g. 0,0.5,1")
     try:
         check_depths(exps, depths, f"--grip-depths {spec}")
     except ValueError as e:

@@ -89,7 +89,7 @@ BOUND_CUT = 1e-3
 take it to where it no longer matters: the bound at zero)."""
 
 
-def _steps(space: str, vals: np.ndarray, free: list[int], max_step: float):
+def _steps(space: str, vals: np.ndarray, free: list[int]):
     """(dr/dq scaling, update) of the step variable q: θ = log p, or p itself (module
     docstring)."""
     if space == "log":
@@ -125,7 +125,7 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     lam, hist, it = 1e-3, [], 0
     at_bound = np.zeros(len(free), bool)
     for it in range(1, max_iter + 1):
-        q_scale, update = _steps(space, vals, free, max_step)
+        q_scale, update = _steps(space, vals, free)
         Jt = Jr * q_scale  # dr/dq
         g = Jt.T @ r
         act = ~(at_bound & (g > 0))  # a modulus at the bound that would go on down is held
