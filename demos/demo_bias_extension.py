@@ -399,13 +399,14 @@ def check_bipantographic(summary: dict, limit: float = 0.15 * LENGTH) -> None:
     within 1.3°; the rest is the clamp offset, bracketed by the continuum on the full and on
     the free length (measured at ū = 2.8 mm: 0.74 and 1.36 × the lattice force). Beyond, to
     50 mm, the curves are reported (summary.json, curves.png); the largest stretch of the
-    continuum stays inside the energy's domain (ρ cos γ < 1) at every step. Eq. (2) with Table
-    3's moduli reaches ū_max; a comparison that stops earlier (measured: the identified moduli
-    on the uniform h = 4 mesh, Newton fails at ū = 42.87 mm with ρ cos γ = 0.984 at the grip
-    corner (8, 119) mm) covers its converged steps and records where it stopped ("failure")."""
+    continuum stays inside the energy's domain (ρ cos γ < 1) at every step. All three continua
+    reach ū_max; the identified moduli come closest to the limit (measured on the uniform
+    h = 4 mm mesh: ρ cos γ = 0.9956 at the grip corner (8, 0) mm at ū = 50 mm). A comparison
+    that stopped earlier would cover its converged steps and record where ("failure")."""
     t3, idf = summary["bipantographic"], summary["bipantographic_identified"]
-    assert t3["failure"] is None and summary["bipantographic_half"]["failure"] is None, t3
-    assert idf["failure"] is not None or idf["curves"]["ubar"] == t3["curves"]["ubar"]
+    for name in ("bipantographic", "bipantographic_half", "bipantographic_identified"):
+        assert summary[name]["failure"] is None, (name, summary[name]["failure"])
+    assert idf["curves"]["ubar"] == t3["curves"]["ubar"]
     for x in (t3, idf):
         assert all(h["rho_cos_gamma"] < 1 for h in x["max_stretch"]), x["max_stretch"]
     u = t3["curves"]["ubar"]

@@ -106,3 +106,21 @@ def test_regularised_energy_continues_eq2_beyond_the_limit_stretch(unit_square):
     assert math.isfinite(far) and far > got
     with pytest.raises(ValueError, match="cos γ < 1"):
         bipantographic(limit_stretch=1.2)
+
+
+@pytest.mark.parametrize("rho_c", [0.90, 0.97, 0.99, 0.999])
+def test_penalty_follows_the_stretch_up_to_the_limit(rho_c):
+    """The interior-penalty stretch ρ_p stays above the largest stretch of the solution and
+    inside eq. (2)'s domain however close the stretch comes to the limit ρ cos γ = 1: a fixed
+    ceiling ρ_p cos γ ≤ 0.97 fell below the corner stretch of the level-8 run (0.971) and
+    Newton stalled (bipantographic_range module docstring). ρ + margin where that is inside."""
+    from fabricsurf.studies.bipantographic_range import penalty_stretch
+
+    gamma = math.pi / 6
+    c = math.cos(gamma)
+    rho = rho_c / c
+    rho_p = penalty_stretch(rho, 0.03, gamma)
+    assert rho < rho_p <= rho + 0.03 and rho_p * c < 1.0
+    if rho_c == 0.90:
+        assert rho_p == pytest.approx(rho + 0.03, rel=1e-14)
+    PantographBending(penalty_stretch=rho_p)

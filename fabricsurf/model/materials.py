@@ -55,7 +55,9 @@ Implementation notes
   eigenvector at the free edge, and Newton fails at 19.96 mm whatever the line search;
   with α = 32 instead of 8 the same run reaches 41.96 mm, and with S following the largest
   stretch (``fabricsurf.studies.bipantographic_range.PenaltyFollower``, ρ_p = max ρ + 0.03
-  after each step, at most ρ_p c = 0.97) it reaches 50 mm in 3–4 Newton iterations per step.
+  after each step, at most halfway from max ρ to the limit) it reaches 50 mm in 3–4 Newton
+  iterations per step. A fixed ceiling (ρ_p c ≤ 0.97) is not enough: where the corner stretch
+  passes it (position clamps, level 8, ρc = 0.971 at ū = 45 mm) Newton stalls again.
   ``penalty_stretch`` is a fem.Constant: following the stretch never recompiles.
 * Regularisation (``bipantographic(limit_stretch=ρ_r)``, ρ_r c < 1): beyond ρ_r the pivot
   energy K_S g(ρ)² is replaced by its second-order Taylor polynomial at ρ_r and a_θ, a_ρ are

@@ -7,7 +7,10 @@ What makes the homogenised energy (Barchiesi et al. 2020, eq. 2) followable to �
 * the interior-penalty scale follows the largest fibre stretch of the solution
   (:class:`PenaltyFollower`, after every converged step; fem.Constant, no recompilation) —
   with the scale frozen at ρ = 1 the discrete energy loses coercivity near the grip corners
-  and Newton stalls (ū ≈ 19.8 mm on level 2), whatever the line search or Jacobian;
+  and Newton stalls (ū ≈ 19.8 mm on level 2), whatever the line search or Jacobian. The
+  scale must keep following up to the limit: with a fixed ceiling ρ_p cos γ ≤ 0.97 it stopped
+  once the corner stretch passed 0.97, and the position clamps on level 8 stalled at
+  ū = 46.33 mm (ρ cos γ = 0.971); the ceiling is now halfway from ρ to the limit;
 * the domain-aware solver options (:data:`~fabricsurf.discretise.solver.DOMAIN_AWARE`):
   a backtracking line search that shrinks steps leaving ρ cos γ < 1.
 
@@ -40,13 +43,16 @@ RANGE_OPTIONS = dict(DOMAIN_AWARE)
 
 
 class PenaltyFollower:
-    """After each converged step: record the largest fibre stretch (and where), and set the
-    ``penalty_stretch`` of the model's :class:`PantographBending` to it plus ``margin``,
-    capped at ``cap_rho_c``/cos γ. Use as (part of) the ``on_step`` callback of
+    """After each converged step: record the largest fibre stretch ρ (and where), and set the
+    ``penalty_stretch`` of the model's :class:`PantographBending` to
+    ρ_p = min(ρ + ``margin``, (ρ + 1/cos γ)/2): above the largest stretch, and at most halfway
+    from it to the limit ρ cos γ = 1, so ρ_p always stays inside the domain and never falls
+    below the stretch of the solution (a fixed ceiling did: the penalty stopped following
+    and Newton stalled, module docstring). Use as (part of) the ``on_step`` callback of
     :meth:`BiasExtension.run`; collective."""
 
-    def __init__(self, test: BiasExtension, margin: float = 0.03, cap_rho_c: float = 0.97):
-        self.test, self.margin, self.cap = test, margin, cap_rho_c
+    def __init__(self, test: BiasExtension, margin: float = 0.03):
+        self.test, self.margin = test, margin
         p = test.problem
         self.terms = [t for t in test.model if isinstance(t, PantographBending)]
         self.V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=2)
@@ -65,8 +71,7 @@ class PenaltyFollower:
     def __call__(self, k: int, ubar: float) -> None:
         rho, where = self.max_stretch()
         for t in self.terms:
-            cap = self.cap / math.cos(t.gamma)
-            t.set(penalty_stretch=min(rho + self.margin, cap))
+            t.set(penalty_stretch=penalty_stretch(rho, self.margin, t.gamma))
         c = math.cos(self.terms[0].gamma) if self.terms else math.cos(math.pi / 6)
         self.history.append({"ubar": ubar, "max_stretch": rho, "rho_cos_gamma": rho * c,
                              "at": where})
@@ -137,14 +142,19 @@ def convergence(runs: list[dict], loads: list[float]) -> dict:
     return out
 
 
-def follow_penalty(margin: float = 0.03, cap_rho_c: float = 0.97):
+def penalty_stretch(rho: float, margin: float, gamma: float) -> float:
+    """min(ρ + margin, (ρ + 1/cos γ)/2) (:class:`PenaltyFollower`)."""
+    return min(rho + margin, 0.5 * (rho + 1.0 / math.cos(gamma)))
+
+
+def follow_penalty(margin: float = 0.03):
     """An ``on_step(test, k, ū)`` callback for
     :func:`fabricsurf.studies.bias_comparison.compare` that keeps one
     :class:`PenaltyFollower` per continuum test (built at its first step)."""
     followers: dict[int, PenaltyFollower] = {}
 
     def on_step(test: BiasExtension, k: int, ubar: float) -> None:
-        f = followers.setdefault(id(test), PenaltyFollower(test, margin, cap_rho_c))
+        f = followers.setdefault(id(test), PenaltyFollower(test, margin))
         f(k, ubar)
 
     on_step.followers = followers
