@@ -124,3 +124,31 @@ def test_penalty_follows_the_stretch_up_to_the_limit(rho_c):
     if rho_c == 0.90:
         assert rho_p == pytest.approx(rho + 0.03, rel=1e-14)
     PantographBending(penalty_stretch=rho_p)
+
+
+def test_cellwise_penalty_stretch(unit_square):
+    """ρ_p set cell by cell (local cells in mesh order) reaches the penalty scale S of those
+    cells: ∫ S dx = Σ_cells |K| (a_θ + a_ρ)(ρ_K) against eq. (2)'s coefficients in numpy;
+    ``set(penalty_stretch=...)`` makes it uniform again; a value outside the domain is refused."""
+    from fabricsurf.model.materials import _coefficients
+
+    t = PantographBending().bind(unit_square)
+    tdim = unit_square.topology.dim
+    imap = unit_square.topology.index_map(tdim)
+    n = imap.size_local + imap.num_ghosts
+    mid = dmesh.compute_midpoints(unit_square, tdim, np.arange(n, dtype=np.int32))
+    rho = 1.0 + 0.12 * mid[:, 0]                       # varies from cell to cell
+    t.set_penalty_stretch(unit_square, rho)
+    c = math.cos(t.gamma)
+    S = sum(_coefficients(rho, t.K_E, t.K_F, c))
+    area = 1.0 / (2 * 6 * 6)
+    expected = COMM.allreduce(float(np.sum(S[:imap.size_local])) * area, op=MPI.SUM)
+    got = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale() * ufl.dx)),
+                         op=MPI.SUM)
+    assert got == pytest.approx(expected, rel=1e-12)
+    t.set(penalty_stretch=1.0)
+    uniform = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale() * ufl.dx)),
+                             op=MPI.SUM)
+    assert uniform == pytest.approx(sum(_coefficients(1.0, t.K_E, t.K_F, c)), rel=1e-12)
+    with pytest.raises(ValueError, match="cos γ < 1"):
+        t.set_penalty_stretch(unit_square, np.full(n, 1.2))

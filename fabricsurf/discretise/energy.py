@@ -13,7 +13,10 @@ written as an energy, whose variation gives residual and Jacobian through ``ufl.
 
 The penalty α/h scales with S, the sum of the second-gradient moduli, so the penalty keeps
 its ratio to the physical stiffness when moduli change (no recompilation: S is built from the
-moduli's fem.Constants). α = 8 is the value of dolfinx's P2 biharmonic demo; the tests show
+moduli's fem.Constants). S may vary from cell to cell (a term whose moduli depend on the
+state, e.g. the bi-pantographic coefficients, evaluates them on a DG0 field); on an interior
+facet the larger of the two cells' values is taken, so the penalty dominates on both sides.
+α = 8 is the value of dolfinx's P2 biharmonic demo; the tests show
 that results change by less than the discretisation error for α in [4, 64] (test_penalty).
 """
 
@@ -117,7 +120,8 @@ class EnergyForm:
         F = self.kin.F
         jump = F("+") * n("+") + F("-") * n("-")
         avg_Mnn = 0.5 * (contract_nn(Mt("+"), n("+")) + contract_nn(Mt("-"), n("-")))
-        pieces = [(self.dS, jump, avg_Mnn, S, 0.5 * (h("+") + h("-")))]
+        S_facet = ufl.max_value(S("+"), S("-"))
+        pieces = [(self.dS, jump, avg_Mnn, S_facet, 0.5 * (h("+") + h("-")))]
         for tag, g in self.normal_derivative.items():
             pieces.append((self.ds(tag), ufl.grad(self.u) * n - g, contract_nn(Mt, n), S, h))
         return pieces if has_second_gradient(self.model) else []

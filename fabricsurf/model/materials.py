@@ -1,86 +1,31 @@
 """Ready-made materials: term sets that are not part of the effect vocabulary (docs/theory.md).
 
-Homogenised bi-pantographic fabric (Barchiesi et al. 2020, §2, eq. 2)
-------------------------------------------------------
-Seed 000 writes the deformation energy of the homogenised bi-pantographic fabric (Barchiesi et
-al., its ref. [29]) per fibre family α ∈ {L, M} as (the text extraction of eq. 2 is garbled:
-the fraction ``ρ²/(1/(2cos²γ))`` is ``2ρ²cos²γ``, and the last line is printed twice)::
+The homogenised bi-pantographic fabric (Barchiesi et al. 2020, eq. 2), per fibre family
+α ∈ {L, M}, with c = cos γ::
 
     W = Σ_α { K_S [acos(1 − 2ρ_α²c²) − π + 2γ]²
-              + K_E K_F [ (ρ_α²c² − 1) / (ρ_α²c²(K_E − 8K_F c²) − K_E) (∂θ_α/∂α)²
-                        + ρ_α²c² / ((1 − ρ_α²c²)(8K_F + ρ_α²(K_E − 8K_F c²))) (∂ρ_α/∂α)² ] }
+              + a_θ(ρ_α) (∂θ_α/∂α)² + a_ρ(ρ_α) (∂ρ_α/∂α)² },
+    a_θ = K_E K_F (ρ²c² − 1) / (ρ²c²(K_E − 8K_F c²) − K_E),
+    a_ρ = K_E K_F ρ²c² / ((1 − ρ²c²)(8K_F + ρ²(K_E − 8K_F c²))).
 
-with c = cos γ, γ = π/6 the angle between the rhombus sides of a pantographic beam and its axis
-(side length ε/√3, so a straight beam segment of length ε at ρ = 1). ∂χ/∂α = ρ_α(cos θ_α,
-sin θ_α) defines the stretch ρ_α and the direction θ_α of the deformed fibre (Barchiesi et
-al. 2020, eq. 1; the paper's x, y are the fibre directions, here L, M). In the kinematics of
-this package (docs/theory.md): ρ_L = λ, ∂ρ_L/∂L = l·r_LL = ``kin.dlam_dL``, and since
-r_LL = (∂_Lρ) l + ρ(∂_Lθ) p, ∂θ_L/∂L = p·r_LL/λ = ``kin.geodesic_l / kin.lam``; the same for M
-with μ, ``geodesic_m``, ``dmu_dM``.
-
-Checks of the reading: the first bracket vanishes at ρ = 1 when γ = π/6
-(acos(1 − 3/2) = 2π/3 = π − 2γ); with θ the current side-to-axis angle, ρ = cos θ / cos γ, and
-acos(1 − 2ρ²c²) − π + 2γ = 2(γ − θ): the change of the pivot angle at the rhombus side nodes,
-so K_S is the pivot (k_r1) stiffness per unit area. Both second-gradient coefficients are
-positive for 0 < ρc < 1 with the Table 3 moduli (K_E − 8K_F c² = −5070 N·mm < 0 and
-8K_F + ρ²(K_E − 8K_F c²) > 0 for ρ < 1.19), and at ρ = 1 they are 17.97 N·mm (geodesic
-bending) and 418.3 N·mm (stretch gradient).
-
-Implementation notes
---------------------
-* acos(1 − 2x²) = 2 asin(x) for x ∈ [0, 1]; the asin form is used because its UFL derivative
-  (2/√(1 − x²)) has no 0/0 at x = 0, which the derivative of the acos form has.
-* Domain: ρc < 1 is the geometric limit of a pantographic beam (fully opened rhombi:
-  ρ_max = 1/cos γ = 1.155); the energy is not defined beyond (asin gives NaN), and the
-  stretch-gradient coefficient a_ρ grows as 1/(1 − ρ²c²). A Newton iterate that crosses the
-  limit gives a non-finite residual, which the solver reports to SNES as a domain error; with
-  the backtracking line search (``fabricsurf.discretise.solver.DOMAIN_AWARE``) the step is
-  shortened instead of failing (discretise/solver.py). A converged state has a finite
-  residual: every quadrature point is inside the domain.
-* Does the solution reach the limit? Measured in the bias test (Table 3, 187 × 119 mm, ±45°,
-  benchmarks/bipantographic_range.py, 20 steps to ū = 50 mm): the largest stretch sits at the
-  grip corners (y = 0 or 119 mm, 1.7–12 mm from the grip, closer on finer meshes) and grows
-  smoothly with ū: ρc = 0.880, 0.894, 0.919, 0.941, 0.960, 0.978 at ū = 5, 10, 20, 30, 40,
-  50 mm (level 2, position clamps). At ū = 50 mm: position clamps ρc = 0.984, 0.978, 0.977
-  on levels 1, 2, 4; gradient clamps 0.966, 0.963 on levels 2, 4. The continuum solution
-  does not reach the limit up to ū = 50 mm, and refinement does not push it there. The
-  failures of earlier versions (Newton stalling near ū = 19.8 mm) were not the limit
-  (ρc = 0.92 there) but the interior penalty (next item).
-* Interior penalty. The C0-IP scale S of the second-gradient term (energy.py) is the sum of the
-  two coefficients at ρ = ``penalty_stretch`` (default 1: ≈ 436 N·mm for Table 3). Because
-  a_ρ grows as 1/(1 − ρ²c²) (×2.7 at ρ = 1.065, ×6.3 at 1.1, ×13 at 1.12), a penalty frozen at
-  ρ = 1 stops dominating the consistency term where the stretch concentrates, and the
-  discrete energy loses coercivity: measured on level 2 (position clamps) the smallest
-  eigenvalue of the exact Hessian falls from 1.0e-3 (ū = 19 mm) to 5.2e-4 (19.9 mm), its
-  eigenvector at the free edge, and Newton fails at 19.96 mm whatever the line search;
-  with α = 32 instead of 8 the same run reaches 41.96 mm, and with S following the largest
-  stretch (``fabricsurf.studies.bipantographic_range.PenaltyFollower``, ρ_p = max ρ + 0.03
-  after each step, at most halfway from max ρ to the limit) it reaches 50 mm in 3–4 Newton
-  iterations per step. A fixed ceiling (ρ_p c ≤ 0.97) is not enough: where the corner stretch
-  passes it (position clamps, level 8, ρc = 0.971 at ū = 45 mm) Newton stalls again.
-  ``penalty_stretch`` is a fem.Constant: following the stretch never recompiles.
-* Regularisation (``bipantographic(limit_stretch=ρ_r)``, ρ_r c < 1): beyond ρ_r the pivot
-  energy K_S g(ρ)² is replaced by its second-order Taylor polynomial at ρ_r and a_θ, a_ρ are
-  frozen at their values there, so the energy is C² at ρ_r and defined for every stretch. It
-  models what the micro model does past the fully opened rhombus: the rhombus sides, rigid in
-  eq. (2), are extensible springs (k_e), so the beam keeps stretching against a stiff but
-  finite stiffness W''(ρ_r) instead of a wall. Not needed in the bias test up to 50 mm (the
-  limit is not reached); it changes nothing where ρ < ρ_r everywhere. Measured effect with
-  ρ_r = 1.1 (ρ_r c = 0.953; level 2, position clamps, 20 steps): grip force unchanged to
-  ū = 20 mm, −0.9 % at 30, −4.2 % at 40, −13.4 % at 50 mm (8.75 against 10.10 N), γ_B
-  52.4° against 53.5° at 50 mm; the corner stretch rises to ρc = 0.994.
-* Units (mm, N): K_S in N/mm (Table 3: 34 N/m = 0.034 N/mm), K_E and K_F in N·mm (Table 3:
-  0.33 J = 330 N·mm, 0.9 J = 900 N·mm), γ in rad. All are fem.Constants once bound, so
-  changing them does not recompile.
+In this package's kinematics ρ_L = λ, ∂ρ_L/∂L = ``kin.dlam_dL``, ∂θ_L/∂L =
+``kin.geodesic_l / kin.lam`` (the same for M). The energy is defined for ρc < 1 only (fully
+opened rhombi); the docs (docs/bipantographic.md) give the reading of the printed equation,
+its checks, the domain and how the solver respects it, the interior penalty that follows the
+stretch (cell by cell, :class:`PantographBending` ``penalty_stretch``), the regularisation
+beyond a limit stretch, and the units (mm, N: K_S in N/mm, K_E and K_F in N·mm, γ in rad; all
+fem.Constants once bound).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
+import numpy as np
 import ufl
+from dolfinx import fem
 
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import Term
@@ -126,8 +71,10 @@ class PantographBending(Term):
     gradient of the pantographic beams (Barchiesi et al. 2020, eq. 2, second and third lines).
 
     ``penalty_stretch`` ρ_p (dimensionless, ρ_p cos γ < 1) is not a modulus: it is the stretch
-    at which the interior-penalty scale S = a_θ(ρ_p) + a_ρ(ρ_p) is taken (module docstring,
-    "Interior penalty"); changing it does not recompile.
+    at which the interior-penalty scale S = a_θ(ρ_p) + a_ρ(ρ_p) is taken (docs/bipantographic.md,
+    "Interior penalty"). Once bound, ρ_p lives in a cellwise-constant (DG0) field per mesh,
+    :meth:`penalty_field`: ``set(penalty_stretch=...)`` makes it uniform, a caller that
+    follows the local stretch writes it cell by cell; neither recompiles.
     """
 
     K_E: float = TABLE3_MACRO["K_E"]
@@ -139,9 +86,41 @@ class PantographBending(Term):
     units: ClassVar[dict[str, str]] = {"K_E": "N·mm", "K_F": "N·mm", "gamma": "rad",
                                        "penalty_stretch": "1"}
 
+    _fields: list = field(default_factory=list, init=False, repr=False, compare=False)
+    _field: object = field(default=None, init=False, repr=False, compare=False)
+
     def __post_init__(self) -> None:
         super().__post_init__()
         _check_below_limit(self.name, "penalty_stretch", self.penalty_stretch, self.gamma)
+
+    def bind(self, msh) -> Term:
+        """As :meth:`Term.bind`, plus the DG0 field of ρ_p on ``msh`` (made current)."""
+        super().bind(msh)
+        try:
+            self._field = self.penalty_field(msh)
+        except RuntimeError:
+            self._field = fem.Function(fem.FunctionSpace(msh, ("DG", 0)), name="penalty_stretch")
+            self._field.x.array[:] = self.penalty_stretch
+            self._fields.append(self._field)
+        return self
+
+    def penalty_field(self, msh) -> fem.Function:
+        """The DG0 field of ρ_p on ``msh`` (the term must be bound to it)."""
+        for f in self._fields:
+            if f.function_space.mesh is msh:
+                return f
+        raise RuntimeError(f"term '{self.name}' is not bound to this mesh")
+
+    def set_penalty_stretch(self, msh, values: np.ndarray) -> None:
+        """Set ρ_p cell by cell on ``msh``: ``values`` in the order of the local cells,
+        ghosts included; each must lie inside the energy's domain."""
+        values = np.asarray(values, dtype=float)
+        if not (values * math.cos(self.gamma) < 1.0).all():
+            raise ValueError(f"term '{self.name}': penalty_stretch must satisfy "
+                             f"penalty_stretch·cos γ < 1 in every cell")
+        f = self.penalty_field(msh)
+        f.x.array[f.function_space.dofmap.list.array] = values
+        f.x.scatter_forward()
 
     def _coeffs(self, rho):
         return _coefficients(rho, self.p("K_E"), self.p("K_F"), ufl.cos(self.p("gamma")))
@@ -161,7 +140,8 @@ class PantographBending(Term):
 
     def stiffness_scale(self):
         """a_θ + a_ρ at ρ = ``penalty_stretch`` (the penalty scale S of energy.py)."""
-        a_theta, a_rho = self._coeffs(self._stretch(self.p("penalty_stretch")))
+        rho_p = self._field if self._field is not None else self.p("penalty_stretch")
+        a_theta, a_rho = self._coeffs(self._stretch(rho_p))
         return a_theta + a_rho
 
     def reference_moduli(self) -> tuple[float, float]:
@@ -173,6 +153,9 @@ class PantographBending(Term):
             _check_below_limit(self.name, "penalty_stretch", values["penalty_stretch"],
                                values.get("gamma", self.gamma))
         super().set(**values)
+        if "penalty_stretch" in values:
+            for f in self._fields:
+                f.x.array[:] = float(values["penalty_stretch"])
 
 
 def _check_below_limit(name: str, key: str, rho: float, gamma: float) -> None:
@@ -196,7 +179,7 @@ def _pivot_extension(rho, rho_r, K_S, gamma):
 @dataclass
 class RegularisedPantographPivot(PantographPivot):
     """:class:`PantographPivot` continued beyond ``limit_stretch`` ρ_r (< 1/cos γ) by its
-    second-order Taylor expansion (module docstring, "Regularisation")."""
+    second-order Taylor expansion (docs/bipantographic.md, "Regularisation")."""
 
     limit_stretch: float = 1.12
     units: ClassVar[dict[str, str]] = {"K_S": "N/mm", "gamma": "rad", "limit_stretch": "1"}
@@ -213,7 +196,7 @@ class RegularisedPantographPivot(PantographPivot):
 @dataclass
 class RegularisedPantographBending(PantographBending):
     """:class:`PantographBending` with a_θ, a_ρ frozen at their values at ``limit_stretch``
-    beyond it (module docstring, "Regularisation")."""
+    beyond it (docs/bipantographic.md, "Regularisation")."""
 
     limit_stretch: float = 1.12
     units: ClassVar[dict[str, str]] = {**PantographBending.units, "limit_stretch": "1"}

@@ -2,7 +2,7 @@
 to 25 % of the length), on nested meshes, with both clamp variants.
 
 What makes the homogenised energy (Barchiesi et al. 2020, eq. 2) followable to ū = 50 mm
-(measured and explained in :mod:`fabricsurf.model.materials`, "Interior penalty"):
+(measured and explained in docs/bipantographic.md, "Interior penalty"):
 
 * the interior-penalty scale follows the largest fibre stretch of the solution
   (:class:`PenaltyFollower`, after every converged step; fem.Constant, no recompilation) —
@@ -44,34 +44,47 @@ RANGE_OPTIONS = dict(DOMAIN_AWARE)
 
 class PenaltyFollower:
     """After each converged step: record the largest fibre stretch ρ (and where), and set the
-    ``penalty_stretch`` of the model's :class:`PantographBending` to
-    ρ_p = min(ρ + ``margin``, (ρ + 1/cos γ)/2): above the largest stretch, and at most halfway
-    from it to the limit ρ cos γ = 1, so ρ_p always stays inside the domain and never falls
-    below the stretch of the solution (a fixed ceiling did: the penalty stopped following
-    and Newton stalled, module docstring). Use as (part of) the ``on_step`` callback of
+    interior-penalty stretch ρ_p of the model's :class:`PantographBending` to
+    ρ_p = max(ρ_0, min(ρ + ``margin``, (ρ + 1/cos γ)/2)), ρ_0 the term's own
+    ``penalty_stretch``: above the stretch, and at most halfway from it to the limit
+    ρ cos γ = 1, so ρ_p stays inside the domain and never falls below the stretch of the
+    solution (a fixed ceiling did: the penalty stopped following and Newton stalled, module
+    docstring). By default ρ is the largest stretch anywhere and ρ_p uniform; with ``local``
+    ρ is the largest stretch in each cell and ρ_p a DG0 field, raised only where the stretch
+    concentrates: more accurate on coarse meshes, less robust next to the limit (measured in
+    docs/bipantographic.md). Use as (part of) the ``on_step`` callback of
     :meth:`BiasExtension.run`; collective."""
 
-    def __init__(self, test: BiasExtension, margin: float = 0.03):
-        self.test, self.margin = test, margin
+    def __init__(self, test: BiasExtension, margin: float = 0.03, local: bool = False):
+        self.test, self.margin, self.local = test, margin, local
         p = test.problem
         self.terms = [t for t in test.model if isinstance(t, PantographBending)]
         self.V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=2)
         self.expr = ufl.as_vector([p.energy.kin.lam, p.energy.kin.mu])
         self.X = self.V.tabulate_dof_coordinates()[:, :2]
+        self.cell_nodes = self.V.dofmap.list.array.reshape(-1, self.V.dofmap.dof_layout.num_dofs)
         self.history: list[dict] = []
 
-    def max_stretch(self) -> tuple[float, list[float]]:
+    def _stretch_at_nodes(self) -> np.ndarray:
+        return interpolate_expression(self.expr, self.V).x.array.reshape(-1, 2).max(axis=1)
+
+    def max_stretch(self, a: np.ndarray | None = None) -> tuple[float, list[float]]:
         """Largest fibre stretch at the DG2 nodes and its reference position (all ranks)."""
-        a = interpolate_expression(self.expr, self.V).x.array.reshape(-1, 2).max(axis=1)
+        a = self._stretch_at_nodes() if a is None else a
         i = int(np.argmax(a)) if len(a) else 0
         local = (float(a[i]), list(map(float, self.X[i]))) if len(a) else (-1.0, [0.0, 0.0])
         comm = self.test.problem.msh.comm
         return max(comm.allgather(local), key=lambda v: v[0])
 
     def __call__(self, k: int, ubar: float) -> None:
-        rho, where = self.max_stretch()
+        a = self._stretch_at_nodes()
+        rho, where = self.max_stretch(a)
+        msh = self.test.problem.msh
+        cells = a[self.cell_nodes].max(axis=1) if self.local else \
+            np.full(len(self.cell_nodes), rho)
         for t in self.terms:
-            t.set(penalty_stretch=penalty_stretch(rho, self.margin, t.gamma))
+            t.set_penalty_stretch(msh, np.maximum(t.penalty_stretch,
+                                                  penalty_stretch(cells, self.margin, t.gamma)))
         c = math.cos(self.terms[0].gamma) if self.terms else math.cos(math.pi / 6)
         self.history.append({"ubar": ubar, "max_stretch": rho, "rho_cos_gamma": rho * c,
                              "at": where})
@@ -79,16 +92,18 @@ class PenaltyFollower:
 
 def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
               limit_stretch: float | None = None, grading: float = 0.6,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False) -> dict:
-    """Table 3 eq. (2) on the graded mesh of ``level`` to ``ubar`` in ``steps`` steps; returns
-    the curves, the largest stretch per step, Newton iterations, times, and the failure (step,
-    load, reason) if the path could not be followed. JSON-ready; scalars reduced."""
-    model = bipantographic(limit_stretch=limit_stretch)
+              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False,
+              moduli: dict | None = None, local_penalty: bool = False) -> dict:
+    """Eq. (2) (Table 3 moduli, or ``moduli``: K_S, K_E, K_F) on the graded mesh of ``level``
+    to ``ubar`` in ``steps`` steps; returns the curves, the largest stretch per step, Newton
+    iterations, times, and the failure (step, load, reason) if the path could not be
+    followed. ``local_penalty``: see :class:`PenaltyFollower`. JSON-ready; scalars reduced."""
+    model = bipantographic(limit_stretch=limit_stretch, **(moduli or {}))
     t0 = time.perf_counter()
     test = BiasExtension(model, clamp=clamp, specimen=graded_specimen(level, grading, comm=comm),
                          snes_options=RANGE_OPTIONS, comm=comm)
     setup = time.perf_counter() - t0
-    follow = PenaltyFollower(test)
+    follow = PenaltyFollower(test, local=local_penalty)
     step_times, last = [], [time.perf_counter()]
 
     def on_step(k: int, ub: float) -> None:
@@ -106,6 +121,8 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
         res = e.partial if getattr(e, "partial", None) and e.partial.ubar else None
     V = test.problem.V
     out = {"clamp": clamp, "level": level, "limit_stretch": limit_stretch,
+           "local_penalty": local_penalty,
+           "moduli": {t.name: t.values() for t in model},
            "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
            "setup_seconds": setup, "step_seconds": step_times,
            "stretch": follow.history, "failure": failure,
@@ -142,9 +159,9 @@ def convergence(runs: list[dict], loads: list[float]) -> dict:
     return out
 
 
-def penalty_stretch(rho: float, margin: float, gamma: float) -> float:
-    """min(ρ + margin, (ρ + 1/cos γ)/2) (:class:`PenaltyFollower`)."""
-    return min(rho + margin, 0.5 * (rho + 1.0 / math.cos(gamma)))
+def penalty_stretch(rho, margin: float, gamma: float):
+    """min(ρ + margin, (ρ + 1/cos γ)/2) (:class:`PenaltyFollower`), for a float or an array."""
+    return np.minimum(rho + margin, 0.5 * (rho + 1.0 / math.cos(gamma)))
 
 
 def follow_penalty(margin: float = 0.03):
