@@ -113,6 +113,8 @@ class EnergyForm:
 
     def _ip_pieces(self):
         """(measure, jump, M_nn, S, h) of the C0-IP and Nitsche terms; jump is affine in u."""
+        if not has_second_gradient(self.model):
+            return []
         msh = self.u.function_space.mesh
         n, h = ufl.FacetNormal(msh), ufl.CellDiameter(msh)
         Mt = double_force(self.model, self.kin)
@@ -124,7 +126,7 @@ class EnergyForm:
         pieces = [(self.dS, jump, avg_Mnn, S_facet, 0.5 * (h("+") + h("-")))]
         for tag, g in self.normal_derivative.items():
             pieces.append((self.ds(tag), ufl.grad(self.u) * n - g, contract_nn(Mt, n), S, h))
-        return pieces if has_second_gradient(self.model) else []
+        return pieces
 
     def _penalty_energy(self):
         return sum(self.alpha * S / (2 * h) * ufl.dot(j, j) * m
