@@ -1,6 +1,7 @@
 """Which physical effect is missing? Stepwise diagnosis (docs/diagnosis.md).
 
-1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fit.fit`).
+1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fit.fit`:
+   a scan by decades, then steps in the moduli themselves).
    With ``grip_depths``, the effective grip depth of the bias experiments is first profiled
    as a nuisance parameter (:mod:`~fabricsurf.inverse.nuisance`).
 2. Rank every vocabulary effect the data can see and the model lacks with one forward run:
@@ -91,12 +92,12 @@ def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: lis
     return v
 
 
-def _refit(fs: ForwardSet, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
+def _refit(fs: ForwardSet, cur: FitResult, free: list[int], idx: list[int], estimate: float,
            gn: np.ndarray, verbose: bool) -> FitResult:
     """Nested refit from the current optimum, the candidate at its best start."""
-    fs.set_values(candidate_start(fs, cur, free, idx, estimate, extra=[gn]))
+    fs.set_values(candidate_start(fs, cur.values, free, idx, estimate, cur.chi2, extra=[gn]))
     res = fit(fs, free + idx, verbose=verbose, scale_start=False, space="linear")
-    fs.set_values(cur)
+    fs.set_values(cur.values)
     return res
 
 
@@ -109,7 +110,7 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
     n = cur.misfit["n"]
     for c in order[:confirm]:
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        refits[c] = _refit(fs, cur.values, free, cand[c], sc[c][1], gn, verbose)
+        refits[c] = _refit(fs, cur, free, cand[c], sc[c][1], gn, verbose)
     for c in order:
         row = {"effect": c, "score": sc[c][0], "linearised_modulus": sc[c][1],
                "refit_misfit": None, "significant": None}
@@ -165,7 +166,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
     free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
     say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
     t0 = MPI.Wtime()
-    cur = base = fit(fs, free, verbose=verbose)
+    cur = base = fit(fs, free, verbose=verbose, space="linear")
     t_fit = MPI.Wtime() - t0
     terms, path, rankings, added, alternatives = list(baseline), [], [], [], []
     path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})

@@ -67,6 +67,15 @@ class ForwardModel:
         self._bc_dofs = np.concatenate(
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
         self.forward_runs = 0
+        self._coarse: ForwardModel | None = None
+
+    def coarse(self, factor: float = 2.0) -> ForwardModel:
+        """The same experiment and moduli (the term objects are shared) on a mesh ``factor``
+        times coarser, built once: a cheap scout for starting values (same forms, so nothing
+        is compiled)."""
+        if self._coarse is None:
+            self._coarse = ForwardModel(self.exp, self.model, self.h * factor, self.comm)
+        return self._coarse
 
     # -- parameters ----------------------------------------------------------------------
     def values(self) -> np.ndarray:
@@ -171,13 +180,22 @@ class ForwardModel:
 class ForwardSet:
     """Several experiments, one set of moduli: runs, stacked residuals, joint misfit."""
 
-    def __init__(self, exps: list[Experiment], model: list[Term], h: float | None = None,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    def __init__(self, exps: list[Experiment], model: list[Term],
+                 h: float | list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         if not exps:
             raise ValueError("no experiments given")
-        self.models = [ForwardModel(e, model, h, comm) for e in exps]
+        hs = list(h) if isinstance(h, (list, tuple)) else [h] * len(exps)
+        self.models = [ForwardModel(e, model, hk, comm) for e, hk in zip(exps, hs)]
         first = self.models[0]
         self.model, self.comm, self.params, self.names = model, comm, first.params, first.names
+        self._coarse: ForwardSet | None = None
+
+    def coarse(self, factor: float = 2.0) -> ForwardSet:
+        """Every experiment on a mesh ``factor`` times coarser (:meth:`ForwardModel.coarse`)."""
+        if self._coarse is None:
+            self._coarse = ForwardSet(self.experiments, self.model,
+                                      [m.h * factor for m in self.models], self.comm)
+        return self._coarse
 
     def values(self) -> np.ndarray:
         return self.models[0].values()

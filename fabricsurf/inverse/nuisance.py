@@ -81,7 +81,7 @@ def grip_profile(exps: list[Experiment], depths: list[float],
     for d in sorted(set(float(x) for x in depths)):
         fs = ForwardSet([with_depth(e, d) for e in common], make_model(), h=h, comm=comm)
         free = [i for i, (t, _) in enumerate(fs.params) if t.name in free_terms]
-        res = fit(fs, free, verbose=verbose)
+        res = fit(fs, free, verbose=verbose, space="linear")
         rows.append({"depth_mm": d, "chi2": res.chi2, "misfit": res.misfit["combined"],
                      "n": res.misfit["n"], "params": res.params()})
         if verbose:

@@ -33,10 +33,18 @@ class Diagnosis:
     noise_known: bool
     grip_depth: dict | None = None
 
+    def too_coarse(self) -> bool:
+        """The h/2 check says the mesh is too coarse for these data (:func:`~.sg.too_coarse`)."""
+        return self.discretisation_chi2 is not None and sg.too_coarse(
+            self.discretisation_chi2, self.final_fit.misfit["n"], len(self.final_fit.names))
+
     def outcome(self) -> str:
         if self.verdict is not None:
-            return f"add {self.verdict}" + ("" if self.adequate else " (still not adequate)")
-        return "nothing missing" if self.adequate else "unexplained misfit"
+            text = f"add {self.verdict}" + ("" if self.adequate else " (still not adequate)")
+        else:
+            text = "nothing missing" if self.adequate else "unexplained misfit"
+        return text + ("; the mesh is too coarse for these data (refine h)"
+                       if self.too_coarse() else "")
 
     def as_dict(self) -> dict:
         b, f = self.base_fit, self.final_fit
@@ -54,7 +62,8 @@ class Diagnosis:
             "discretisation": {
                 "chi2_h_vs_h2": self.discretisation_chi2,
                 "misfit": (None if self.discretisation_chi2 is None
-                           else float(np.sqrt(self.discretisation_chi2 / max(n, 1))))},
+                           else float(np.sqrt(self.discretisation_chi2 / max(n, 1)))),
+                "too_coarse": self.too_coarse()},
             "significance": {"level": sg.LEVEL, "fraction_of_excess": sg.FRACTION_OF_EXCESS,
                              "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
                              "noise_known": self.noise_known,

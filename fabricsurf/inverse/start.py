@@ -15,6 +15,15 @@ remedies, forward runs without sensitivities only:
   times (width/10)² for a second-gradient term) and a value so small that the start is the
   fitted model itself: the refit does not creep up from zero, and is never worse than the
   model it extends.
+
+Both rank their trials on a scout mesh :data:`SCOUT_FACTOR` times coarser than the fit's
+(:meth:`~fabricsurf.inverse.forward.ForwardSet.coarse`: same forms, a quarter of the unknowns in
+2D): they choose a start among values decades apart, which a coarse mesh ranks as well, and the
+fit itself then runs on the fine mesh. The candidate's chosen start is checked on the fine mesh
+against the fitted model itself, which keeps the guarantee above. Measured at the issue-12 size
+(187 × 119 mm, h = 4 mm, 12 load steps, 13 518 unknowns): a forward run costs 30–40 s on the
+fine mesh and 5–7 s on the scout, and the scan and the grid are 11 and 10 runs of a diagnosis's
+~60.
 """
 
 from __future__ import annotations
@@ -26,6 +35,13 @@ from fabricsurf.experiments import get_test
 from fabricsurf.inverse.misfit import scales
 
 MAX_DECADES = 4
+SCOUT_FACTOR = 2.0
+"""Scout mesh size over the fit's (module docstring)."""
+
+
+def scout(fm):
+    """The coarse copy of ``fm`` on which starting values are ranked (module docstring)."""
+    return fm.coarse(SCOUT_FACTOR)
 
 
 def _preds(fm):
@@ -65,7 +81,9 @@ def _chi2(fm, vals: np.ndarray, scale: bool) -> tuple[float, np.ndarray]:
 
 
 def scan_terms(fm, free: list[int], vals: np.ndarray) -> np.ndarray:
-    """Coordinate scan of each free term's moduli by decades (module docstring)."""
+    """Coordinate scan of each free term's moduli by decades, on the scout mesh (module
+    docstring)."""
+    fm = scout(fm)
     fixed_nonzero = any(vals[i] != 0 for i in range(len(vals)) if i not in free)
     scale = not fixed_nonzero
     best, vals = _chi2(fm, vals, scale)
@@ -99,9 +117,11 @@ def natural_scale(fm, cur: np.ndarray, free: list[int], idx: list[int]) -> float
 
 
 def candidate_start(fm, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
-                    extra: list[np.ndarray] = ()) -> np.ndarray:
-    """The best start for a candidate's moduli ``idx`` added to the fitted ``cur``; ``extra``:
-    further complete starting vectors (e.g. the linearised refit)."""
+                    chi2_cur: float, extra: list[np.ndarray] = ()) -> np.ndarray:
+    """The best start for a candidate's moduli ``idx`` added to the fitted ``cur`` (of χ²
+    ``chi2_cur`` on ``fm``'s mesh); ``extra``: further complete starting vectors (e.g. the
+    linearised refit). Ranked on the scout mesh; the winner replaces the fitted model itself
+    only if it is better on ``fm``'s own mesh (module docstring)."""
     s = natural_scale(fm, cur, free, idx)
     tries = [s * 1e-9] + [s * 10.0**k for k in (-6, -4, -3, -2, -1, 0, 1)]
     if estimate > 0:
@@ -115,9 +135,10 @@ def candidate_start(fm, cur: np.ndarray, free: list[int], idx: list[int], estima
     for v in [*vectors, *extra]:
         v = v.copy()
         v[idx] = np.maximum(v[idx], s * 1e-9)
-        chi2, _ = _chi2(fm, v, False)
+        chi2, _ = _chi2(scout(fm), v, False)
         if chi2 < best:
             best, start = chi2, v
-    if start is None:
-        raise RuntimeError("diagnose: the refit cannot start (load path not followed)")
+    if start is None or _chi2(fm, start, False)[0] >= chi2_cur:
+        start = vectors[0]
+    fm.set_values(start)
     return start

@@ -7,6 +7,8 @@ a model richer than the one that will be fitted (a hidden effect), on a differen
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from mpi4py import MPI
 
@@ -101,3 +103,28 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
     exp.X, exp.u = np.tile(X[nodes], (len(steps), 1)), np.vstack(u)
     exp.force = np.array(force)
     return exp
+
+
+def rewrite_in_m_kn(directory: str | Path) -> None:
+    """Rewrite a measurement directory written in mm and N (:func:`~.data.write_experiment`) in
+    m and kN: the numbers change, not the data (a user's units, for the loader to convert)."""
+    directory = Path(directory)
+    toml = directory / "experiment.toml"
+    text = toml.read_text().replace('length = "mm"', 'length = "m"').replace(
+        'force = "N"', 'force = "kN"')
+    lines = []
+    for line in text.splitlines():
+        key = line.split("=")[0].strip()
+        if key in ("length", "width", "noise_std", "force_noise_std") and '"' not in line:
+            line = f"{key} = {float(line.split('=')[1]) / 1000.0!r}"
+        lines.append(line)
+    toml.write_text("\n".join(lines) + "\n")
+    for name in ("field.csv", "force.csv"):
+        if not (directory / name).exists():
+            continue
+        rows = (directory / name).read_text().splitlines()
+        out = [rows[0]]
+        for r in rows[1:]:
+            v = [float(x) for x in r.split(",")]
+            out.append(",".join([str(int(v[0]))] + [repr(a * 1e-3) for a in v[1:]]))
+        (directory / name).write_text("\n".join(out) + "\n")
