@@ -216,7 +216,8 @@ class LoadStepError(RuntimeError):
 
     Attributes (the same on every rank): ``step`` (1-based, as in the output files),
     ``target``, ``last_load`` (the last converged load), ``reason`` (SNES code of the last
-    attempt) and ``attempts`` (the loads tried in this step, with their SNES reason codes).
+    attempt), ``attempts`` (the loads tried in this step, with their SNES reason codes) and
+    ``partial`` (what the caller converged before the failure, if it attaches it; else None).
     """
 
     def __init__(self, message: str, step: int = 0, target: float = float("nan"),
@@ -225,6 +226,12 @@ class LoadStepError(RuntimeError):
         super().__init__(message)
         self.step, self.target, self.last_load = step, target, last_load
         self.reason, self.attempts = reason, list(attempts)
+        self.partial = None
+
+    def as_dict(self) -> dict:
+        """Where the load path stopped, JSON-ready: step, last_load, reason, message."""
+        return {"step": self.step, "last_load": self.last_load, "reason": self.reason,
+                "message": str(self)}
 
 
 class LoadStepper:

@@ -134,8 +134,7 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
     try:
         cres = bias.run(ubar_max, steps, out=out, on_step=sample, verbose=False)
     except LoadStepError as e:
-        cres, failure = e.partial, {"step": e.step, "last_load": e.last_load,
-                                    "reason": e.reason, "message": str(e)}
+        cres, failure = e.partial, e.as_dict()
         rank0_print(comm, f"[{name}] continuum stopped: {e}")
         if not cres.ubar:
             raise

@@ -68,9 +68,9 @@ class PenaltyFollower:
     def _stretch_at_nodes(self) -> np.ndarray:
         return interpolate_expression(self.expr, self.V).x.array.reshape(-1, 2).max(axis=1)
 
-    def max_stretch(self, a: np.ndarray | None = None) -> tuple[float, list[float]]:
-        """Largest fibre stretch at the DG2 nodes and its reference position (all ranks)."""
-        a = self._stretch_at_nodes() if a is None else a
+    def max_stretch(self, a: np.ndarray) -> tuple[float, list[float]]:
+        """Largest of the fibre stretches ``a`` at the DG2 nodes and its reference position
+        (all ranks)."""
         i = int(np.argmax(a)) if len(a) else 0
         local = (float(a[i]), list(map(float, self.X[i]))) if len(a) else (-1.0, [0.0, 0.0])
         comm = self.test.problem.msh.comm
@@ -116,9 +116,8 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
     try:
         res = test.run(ubar, steps, verbose=verbose, on_step=on_step)
     except LoadStepError as e:
-        failure = {"step": e.step, "last_load": e.last_load, "reason": e.reason,
-                   "message": str(e)}
-        res = e.partial if getattr(e, "partial", None) and e.partial.ubar else None
+        failure = e.as_dict()
+        res = e.partial if e.partial is not None and e.partial.ubar else None
     V = test.problem.V
     out = {"clamp": clamp, "level": level, "limit_stretch": limit_stretch,
            "local_penalty": local_penalty,
