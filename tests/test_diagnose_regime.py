@@ -6,8 +6,10 @@ on Hencky-lattice data of our own generator at a small size:
   gives no verdict — the lattice–continuum form error (several noise levels) is not taken for a
   missing effect; it is reported as unexplained misfit, because that is what it is;
 * geodesic bending hidden from fibre_stretch + shear, fibres at ±40°, data written in m and kN:
-  loaded, diagnosed and named (measured: misfit 2.96 → 2.14; the rest is the form error of a
-  1.6 mm lattice, which the tool then reports as not adequate).
+  loaded, diagnosed and named (measured: misfit 2.690 → 1.760; the rest is the form error of
+  a 1.6 mm lattice, which the tool then reports as not adequate);
+* shear hidden from fibre_stretch + geodesic_bending: shear or, honestly, unexplained misfit
+  with shear as the best lead (the test's docstring).
 Criteria: the significance rule of docs/diagnosis.md; no tolerance is tuned here.
 """
 
@@ -40,6 +42,10 @@ def test_complete_model_no_false_alarm_in_the_stiff_regime():
           [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking])
     assert d.verdict is None
     assert d.outcome() in ("nothing missing", "unexplained misfit")
+    if not d.adequate:  # the best lead is the refit that came closest, and it failed the rule
+        lead = d.unexplained["best_lead"]
+        assert lead["effect"] == d.ranking[0]["effect"]
+        assert lead["share_of_excess"] < lead["share_needed"] or not lead["f_test_passed"]
 
 
 def test_hidden_geodesic_bending_at_40_degrees_in_m_and_kn(tmp_path):
@@ -64,16 +70,24 @@ def test_hidden_shear_in_the_stiff_regime():
     """Shear hidden from fibre_stretch + geodesic_bending (the issue table's first row, at a
     small size): the baseline mimics the pivot stiffness with stiffer fibres and bending; the
     nested refit, stepping in the moduli, finds k_s (with log-moduli steps it crawled from zero
-    and stopped at k_s ≈ 0.03 N/mm, not significant). Measured on another noise draw while
-    developing: misfit 2.633 → 2.314, k_s = 0.524; on this draw 2.606 → 2.289, k_s = 0.524 (the
-    rest is the 1.6 mm lattice's form error)."""
+    and stopped at k_s ≈ 0.03 N/mm). At this size the shear's own signal is small against the
+    1.6 mm lattice's form error: measured 2.965 → 2.647 (k_s = 0.526), 23 % of the baseline's
+    excess where the rule asks a quarter (27 % when the generator still left the grip layer
+    0.5 mm short of the end), so the tool reports unexplained misfit with shear as its best
+    lead. It must never name another effect; at the issue's own size shear is named
+    (docs/diagnosis.md)."""
     exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=6)
     d = diagnose(exp, ["fibre_stretch", "geodesic_bending"], h=3.0, confirm=1, max_effects=1,
                  check_discretisation=False, verbose=False)
     row = d.ranking[0]
-    print(d.outcome(), d.path, row["refit_params"])
-    assert d.verdict == "shear" == row["effect"] and row["significant"]
-    assert 0.5 * K_S < row["refit_params"]["k_s"] < 2.0 * K_S
+    print(d.outcome(), d.path, row["refit_params"], d.unexplained and d.unexplained["best_lead"])
+    assert row["effect"] == "shear" and 0.5 * K_S < row["refit_params"]["k_s"] < 2.0 * K_S
+    if d.verdict is None:
+        lead = d.unexplained["best_lead"]
+        assert d.outcome() == "unexplained misfit" and lead["effect"] == "shear"
+        assert lead["share_of_excess"] < lead["share_needed"]
+    else:
+        assert d.verdict == "shear" and row["significant"]
 
 
 def test_discretisation_credit_is_capped():

@@ -10,6 +10,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from fabricsurf.inverse import synthetic as sy
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import FibreStretch, Shear, ShearLocking
@@ -18,6 +19,7 @@ from fabricsurf.network.hencky import (
     fibre_directions,
     hencky_lattice,
     lattice_from_continuum,
+    spanning_spacing,
 )
 from fabricsurf.network.micromacro import grid_fields
 from fabricsurf.network.solver import Dirichlet, solve_steps
@@ -204,6 +206,29 @@ def test_hencky_clamps_hold_two_layers():
     assert len(xs) == 2 and xs[0] == 0.0, "clamp = columns x=0 and x=eps/sqrt(2)"
     xs = np.unique(np.round(lat.net.X[lat.grip, 0], 9))
     assert len(xs) == 2 and xs[-1] == 17.0
+
+
+@pytest.mark.parametrize("angles", [(45.0, -45.0), (40.0, -40.0), (0.0, 90.0)])
+def test_spanning_spacing_puts_the_grip_layer_on_the_specimen_end(angles):
+    """187 mm at eps = 2.5 mm is no whole number of column steps: the outermost layer stops up
+    to one step w short of the end. The spanning spacing is within half a step of the request
+    and puts it on the end."""
+    w = 2.5 * max(abs(np.cos(np.radians(a))) for a in angles)
+    short = 187.0 - hencky_lattice(187.0, 20.0, 2.5, angles).net.X[:, 0].max()
+    eps = spanning_spacing(187.0, 2.5, angles)
+    lat = hencky_lattice(187.0, 20.0, eps, angles)
+    assert 0.0 < short < w and abs(eps / 2.5 - 1.0) * 187.0 <= w / 2.0
+    assert np.isclose(lat.net.X[:, 0].max(), 187.0, rtol=1e-12, atol=0.0)
+    assert np.isclose(lat.net.X[lat.grip, 0].min(), 187.0 - eps * w / 2.5, rtol=1e-12)
+
+
+def test_lattice_data_refuses_a_lattice_short_of_the_grip():
+    """At 30/-60 degrees the node x-coordinates are not evenly stepped: at 12.3 x 7 mm the
+    spanning spacing still leaves the last node 0.1 mm short of the end, and the generator
+    refuses rather than write data whose grip is not where the experiment says."""
+    exp = sy.template(12.3, 7.0, [0.1], np.zeros((0, 2)), angles=(30.0, -60.0))
+    with pytest.raises(ValueError, match=r"spans x = 0\.\.[0-9.]+ mm, not the specimen's 0\.\.12"):
+        sy.lattice_data(exp, 1.0, k_l=1.0, k_s=1.0, A_g=0.0)
 
 
 @pytest.mark.parametrize("angles", [(45.0, -45.0), (30.0, -60.0), (0.0, 90.0)])

@@ -233,6 +233,11 @@ def cmd_diagnose(args) -> int:
                     f"{r['refit_misfit']}  significant {r['significant']}")
     rank0_print(COMM, f"verdict: {d.verdict}; final {'+'.join(d.terms)} misfit "
                 f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}")
+    lead = (d.unexplained or {}).get("best_lead")
+    if lead:
+        rank0_print(COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
+                    f"the excess misfit ({lead['share_needed']:.0%} needed; F-test passed: "
+                    f"{lead['f_test_passed']})")
     return 0
 
 

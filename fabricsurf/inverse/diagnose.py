@@ -37,7 +37,12 @@ from fabricsurf.inverse.experiment import Experiment
 from fabricsurf.inverse.fit import FitResult, fit
 from fabricsurf.inverse.forward import ForwardSet
 from fabricsurf.inverse.nuisance import grip_profile, with_depth
-from fabricsurf.inverse.report import Diagnosis, discretisation_chi2, where_unexplained
+from fabricsurf.inverse.report import (
+    Diagnosis,
+    best_lead,
+    discretisation_chi2,
+    where_unexplained,
+)
 from fabricsurf.inverse.start import candidate_start
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
@@ -201,5 +206,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         ranking=rankings[0] if rankings else [], rounds=rankings,
         verdict=added[0] if added else None, alternatives=alternatives, adequate=ok, path=path,
         not_identifiable=invisible, discretisation_chi2=chi2_h,
-        unexplained=None if ok else where_unexplained(exps, cur),
+        unexplained=None if ok else where_unexplained(
+            exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not
+            any(q["significant"] for q in rankings[-1]) else None),
         fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip)

@@ -113,9 +113,23 @@ def _regions(exp, err: np.ndarray, s_u: float, blocks: int = 3) -> list:
     return sorted(out, key=lambda q: -q["rms_noise_units"])
 
 
-def where_unexplained(exps: list, res: FitResult) -> dict:
+def best_lead(rows: list, res: FitResult, p: int) -> dict | None:
+    """The refitted candidate that came closest, and by how much it missed the rule: what to
+    look at first when the misfit stays unexplained."""
+    tried = [q for q in rows if q.get("refit_chi2") is not None]
+    if not tried:
+        return None
+    q = min(tried, key=lambda r: r["refit_chi2"])
+    n, k = res.misfit["n"], len(q.get("refit_std") or {}) or 1
+    return {"effect": q["effect"], "refit_misfit": q["refit_misfit"],
+            "share_of_excess": sg.share_of_excess(res.chi2, p, q["refit_chi2"], n),
+            "share_needed": sg.FRACTION_OF_EXCESS,
+            "f_test_passed": sg.f_test(res.chi2, p, q["refit_chi2"], p + k, n)}
+
+
+def where_unexplained(exps: list, res: FitResult, lead: dict | None = None) -> dict:
     """Per experiment: the worst steps, the load ranges with force errors beyond 3σ, the worst
-    regions of the specimen."""
+    regions of the specimen; ``best_lead`` (:func:`best_lead`) when a candidate was refitted."""
     per = res.misfit["experiments"] if "experiments" in res.misfit else [res.misfit]
     out = []
     for exp, m in zip(exps, per):
@@ -128,5 +142,5 @@ def where_unexplained(exps: list, res: FitResult) -> dict:
         if exp.has_field:
             item["worst_regions"] = _regions(exp, m["row_error"], m["s_u"])[:3]
         out.append(item)
-    return {"experiments": out,
+    return {"experiments": out, "best_lead": lead,
             "figure": "error_vs_step.png and error_map.png of the final model"}

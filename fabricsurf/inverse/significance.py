@@ -64,14 +64,24 @@ def adequate(chi2: float, n: int, p: int, chi2_h: float = 0.0, noise_known: bool
         bool(reduced(chi2, n, p) <= bound)
 
 
-def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
-    """The two-part rule of the module docstring."""
+def share_of_excess(chi2_base: float, p_base: int, chi2_new: float, n: int) -> float:
+    """Δχ² / (χ²_base − ν_base): the part of the baseline's excess misfit an effect removes
+    (inf when the baseline has no excess)."""
+    excess = chi2_base - max(n - p_base, 1)
+    return float((chi2_base - chi2_new) / excess) if excess > 0 else float("inf")
+
+
+def f_test(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
+    """Part 1 of the rule: the F-test against the residual variance left."""
     k = max(p_new - p_base, 1)
-    d = chi2_base - chi2_new
-    if d <= 0:
-        return False
     nu_new = max(n - p_new, 1)
     s2 = max(1.0, chi2_new / nu_new)
-    f_ok = (d / k) / s2 > stats.f.ppf(LEVEL, k, nu_new)
-    excess = chi2_base - max(n - p_base, 1)
-    return bool(f_ok and d >= FRACTION_OF_EXCESS * max(excess, 0.0))
+    return bool(((chi2_base - chi2_new) / k) / s2 > stats.f.ppf(LEVEL, k, nu_new))
+
+
+def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
+    """The two-part rule of the module docstring."""
+    if chi2_base - chi2_new <= 0:
+        return False
+    return (f_test(chi2_base, p_base, chi2_new, p_new, n)
+            and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS)

@@ -77,18 +77,25 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
     """Replace ``exp`` by the Hencky lattice's response (Barchiesi et al. 2020 clamps: two held
     layers).
 
-    The measurement points are the lattice nodes (every ``every``-th, clamp/grip layers
-    excluded); continuum moduli map to lattice stiffnesses by ``lattice_from_continuum``
-    (``k4``, ``k6``: the ``shear_locking`` moduli, nonlinear shear springs at the crossings).
+    The lattice spacing is ``hencky.spanning_spacing`` of ``spacing`` (the nearest for which the
+    held layers sit on both ends of the specimen: the grips are where the experiment says). The
+    measurement points are the lattice nodes (every ``every``-th, clamp/grip layers excluded);
+    continuum moduli map to lattice stiffnesses by ``lattice_from_continuum`` (``k4``, ``k6``:
+    the ``shear_locking`` moduli, nonlinear shear springs at the crossings).
     """
     from fabricsurf.network import hencky
     from fabricsurf.network.solver import solve_steps
 
-    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, tuple(exp.fibre_angles_deg),
-                                      k4=k4, k6=k6)
-    lat = hencky.hencky_lattice(exp.length, exp.width, spacing, tuple(exp.fibre_angles_deg),
-                                **k)
+    angles = tuple(exp.fibre_angles_deg)
+    spacing = hencky.spanning_spacing(exp.length, spacing, angles)
+    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6)
+    lat = hencky.hencky_lattice(exp.length, exp.width, spacing, angles, **k)
     X = lat.net.X
+    span = (float(X[:, 0].min()), float(X[:, 0].max()))
+    if not np.allclose(span, (0.0, exp.length), atol=1e-6 * exp.length):
+        raise ValueError(f"lattice_data: at fibre angles {angles} deg the lattice spans x = "
+                         f"{span[0]:.4g}..{span[1]:.4g} mm, not the specimen's 0..{exp.length:g}"
+                         " mm (its grip layer would not sit on the specimen's end)")
     held = np.zeros(len(X), bool)
     held[np.concatenate([lat.clamp, lat.grip])] = True
     nodes = np.flatnonzero(~held)[::every]

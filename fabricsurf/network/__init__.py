@@ -11,8 +11,10 @@ from fabricsurf.network.hencky import (
     continuum_from_lattice,
     hencky_lattice,
     lattice_from_continuum,
+    spanning_spacing,
 )
 from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, reaction, solve_steps
 
 __all__ = ["ConvergenceError", "Dirichlet", "Lattice", "SpringNetwork", "continuum_from_lattice",
-           "hencky_lattice", "lattice_from_continuum", "newton", "reaction", "solve_steps"]
+           "hencky_lattice", "lattice_from_continuum", "newton", "reaction", "solve_steps",
+           "spanning_spacing"]

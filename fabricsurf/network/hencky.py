@@ -51,8 +51,12 @@ Clamps [B Table 1, (7)]
 is every node with ``x <= x_min + w`` and the grip set every node with ``x >= x_max - w``,
 ``w = eps max(|L_x|, |M_x|)`` the x-distance between fibre neighbours (for +-45 degrees the
 columns x = 0 and x = eps/sqrt(2); for 0/90 degrees the columns x = 0 and x = eps).
-Choose eps so that ``length`` is a multiple of ``w`` to have the outer layers on the
-specimen ends.
+The outer layers sit on the specimen ends only when ``length`` is a whole number of column
+steps w (:func:`spanning_spacing` gives the nearest such eps). Otherwise the grip layer lies
+up to w inside the specimen: a grip mismatch that a continuum model of the specimen's length
+reads as stiffer fibres (measured at 187 x 119 mm, +-40 degrees: with eps = 2.5 mm the grip
+layer is 1.2 mm short and the lattice's force 5-19 % above the continuum's at the lattice's
+own moduli; with the spanning eps = 2.491 mm it is within -6 to +7 %).
 """
 
 from __future__ import annotations
@@ -122,6 +126,19 @@ def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
     cell = s0 * spacing**2
     return {"k_e": k_l * s0, "k_sh": k_s * cell, "k_b": A_g * s0,
             "k_sh4": k4 * cell, "k_sh6": k6 * cell}
+
+
+def spanning_spacing(length: float, spacing: float,
+                     angles_deg: tuple[float, float] = (45.0, -45.0)) -> float:
+    """The spacing nearest to ``spacing`` for which ``length`` is a whole number of column
+    steps ``w = eps max(|L_x|, |M_x|)``, so that the held layers of :func:`hencky_lattice` sit
+    on both specimen ends (exact for fibres at ±θ and at 0/90 degrees)."""
+    if not (np.isfinite(spacing) and spacing > 0.0 and np.isfinite(length) and length > 0.0):
+        raise ValueError(f"spanning_spacing: length {length!r} and spacing {spacing!r} must be "
+                         "positive (mm)")
+    _, L, M = _sin_theta0(angles_deg)
+    c = max(abs(L[0]), abs(M[0]))
+    return float(length / (max(1, round(length / (spacing * c))) * c))
 
 
 def continuum_from_lattice(k_e: float, k_sh: float, k_b: float, spacing: float,
