@@ -29,6 +29,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.inverse import significance as sg
 from fabricsurf.inverse import synthetic as sy
 from fabricsurf.inverse.diagnose import diagnose, full_model
 from fabricsurf.inverse.forward import ForwardModel
@@ -57,9 +58,7 @@ def form_error(exp, k_l, k_s, A_g, h) -> float:
 
 
 def noisy(exp, std, seed):
-    e = sy.template(LENGTH, WIDTH, exp.path, np.zeros((0, 2)))
-    e.field_step, e.X, e.u, e.force = exp.field_step, exp.X, exp.u.copy(), exp.force.copy()
-    return sy.add_noise(e, std, 0.01 * float(np.max(np.abs(exp.force))) + 1e-3, seed)
+    return sy.noisy_copy(exp, std, 0.01 * float(np.max(np.abs(exp.force))) + 1e-3, seed)
 
 
 def best_candidate(d) -> dict:
@@ -70,12 +69,11 @@ def best_candidate(d) -> dict:
         return {}
     n = d.base_fit.misfit["n"]
     p = sum(nm.split(".")[0] in d.baseline for nm in d.base_fit.names)
-    dchi2 = d.base_fit.chi2 - row["refit_chi2"]
-    excess = d.base_fit.chi2 - (n - p)
     k = sum(nm.split(".")[0] == row["effect"] for nm in d.base_fit.names)
-    s2 = max(1.0, row["refit_chi2"] / (n - p - k))
-    return {"effect": row["effect"], "delta_chi2": dchi2, "share_of_excess": dchi2 / excess,
-            "F": dchi2 / k / s2, "significant": row["significant"]}
+    base, new = d.base_fit.chi2, row["refit_chi2"]
+    return {"effect": row["effect"], "delta_chi2": base - new,
+            "share_of_excess": sg.share_of_excess(base, p, new, n),
+            "F": sg.f_statistic(base, p, new, p + k, n), "significant": row["significant"]}
 
 
 def null_sets(a, comm, say) -> list[dict]:

@@ -66,11 +66,7 @@ def lattice(angle: float, every: int, length: float, width: float) -> sy.Experim
 
 
 def noisy(clean, seed: int):
-    e = sy.template(clean.length, clean.width, clean.path, np.zeros((0, 2)),
-                    angles=clean.fibre_angles_deg, name=clean.name)
-    e.field_step, e.X, e.u, e.force = (clean.field_step, clean.X, clean.u.copy(),
-                                       clean.force.copy())
-    return sy.add_noise(e, NOISE_MM, NOISE_N, seed)
+    return sy.noisy_copy(clean, NOISE_MM, NOISE_N, seed)
 
 
 def in_m_kn(exp, out: Path, comm):

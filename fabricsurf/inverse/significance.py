@@ -71,12 +71,18 @@ def share_of_excess(chi2_base: float, p_base: int, chi2_new: float, n: int) -> f
     return float((chi2_base - chi2_new) / excess) if excess > 0 else float("inf")
 
 
-def f_test(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
-    """Part 1 of the rule: the F-test against the residual variance left."""
+def f_statistic(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> float:
+    """F = (Δχ²/k) / s², s² = max(1, χ²_new/ν_new): the added moduli's reduction against the
+    residual variance left."""
     k = max(p_new - p_base, 1)
-    nu_new = max(n - p_new, 1)
-    s2 = max(1.0, chi2_new / nu_new)
-    return bool(((chi2_base - chi2_new) / k) / s2 > stats.f.ppf(LEVEL, k, nu_new))
+    return float((chi2_base - chi2_new) / k / max(1.0, chi2_new / max(n - p_new, 1)))
+
+
+def f_test(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
+    """Part 1 of the rule: the F-test at :data:`LEVEL` against the residual variance left."""
+    k, nu_new = max(p_new - p_base, 1), max(n - p_new, 1)
+    return bool(f_statistic(chi2_base, p_base, chi2_new, p_new, n)
+                > stats.f.ppf(LEVEL, k, nu_new))
 
 
 def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:

@@ -7,6 +7,7 @@ a model richer than the one that will be fitted (a hidden effect), on a differen
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,12 @@ def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: i
     if exp.has_field:
         exp.noise_std = float(noise_std)
     return exp
+
+
+def noisy_copy(exp: Experiment, noise_std: float, force_noise_std: float, seed: int
+               ) -> Experiment:
+    """:func:`add_noise` on a copy: ``exp`` (clean data, drawn on again) stays as it is."""
+    return add_noise(replace(exp), noise_std, force_noise_std, seed)
 
 
 def continuum_data(exp: Experiment, model: list[Term], h: float,
