@@ -20,8 +20,8 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.network.homogenize import identify_macro
-from fabricsurf.studies.bias_comparison import EPS_EXACT, IDENTIFIED_K_E
-from fabricsurf.studies.bipantographic_range import convergence, run_range, values_at
+from research.studies.bias_comparison import EPS_EXACT, IDENTIFIED_K_E
+from research.studies.bipantographic_range import convergence, run_range, values_at
 
 
 def report(comm, run: dict, loads: list[float]) -> None:

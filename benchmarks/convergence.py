@@ -14,14 +14,14 @@ import argparse
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
-from fabricsurf.verification.manufactured import (
+from research.verification.manufactured import (
     full_3d_model,
     in_plane_model,
     manufactured_solve,
     u_2d,
     u_3d,
 )
-from fabricsurf.verification.rates import rates
+from research.verification.rates import rates
 
 
 def main() -> None:

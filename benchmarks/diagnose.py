@@ -19,8 +19,8 @@ import argparse
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.diagnose import diagnose, full_model
+from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.synthetic import generate as sy
 
 
 def main() -> None:

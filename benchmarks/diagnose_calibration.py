@@ -29,10 +29,10 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print, write_json
-from fabricsurf.inverse import significance as sg
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.diagnose import diagnose, full_model
-from fabricsurf.inverse.forward import ForwardModel
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.network import ConvergenceError
 
 LENGTH, WIDTH = 60.0, 30.0

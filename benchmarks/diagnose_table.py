@@ -36,11 +36,11 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print, write_json
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import load_experiment, write_experiment
-from fabricsurf.inverse.diagnose import diagnose, full_model
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardSet
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardSet
+from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.network import spanning_spacing
 
 LENGTH, WIDTH, SPACING, STEPS, STRAIN = 187.0, 119.0, 2.5, 12, 0.15

@@ -45,23 +45,27 @@
 import argparse
 import itertools
 import math
+import sys
 import time
 from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
 from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
-from fabricsurf.inverse import significance as sg
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import load_experiment, write_experiment
-from fabricsurf.inverse.diagnose import diagnose, full_model
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardModel
-from fabricsurf.verification.elastica import (
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.model.rigidity import narrow_strip_rigidity
+from research.verification.elastica import (
     bending_length,
-    narrow_strip_rigidity,
     peirce_bending_length,
     solve_elastica,
 )
@@ -177,7 +181,7 @@ lap("data")
 # fibre_stretch + shear + normal_bending with k_b free, started from the textile engineer's
 # estimate: Peirce's bending length from the chord angle of the outermost measured points
 # (c³ scaled to the full weight, k = ρ_A g c³). The 0° strip is explained at the noise level
-# (adequacy rule of `fabricsurf.inverse.significance`); the 45° strip is not, by any k_b:
+# (adequacy rule of `fabricsurf.inverse.fitting.significance`); the 45° strip is not, by any k_b:
 # without twist its fibres can follow the anticlastic near-mechanism (docs/bending.md), a
 # different shape, not only a softer strip.
 

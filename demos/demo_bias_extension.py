@@ -44,7 +44,7 @@
 #
 # **Whole range.** The bi-pantographic comparisons run to ū = 50 mm (27 % of the length,
 # the paper's whole range). Eq. (2) needs three things there
-# (`fabricsurf.studies.bipantographic_range`): an interior penalty that follows the largest
+# (`research.studies.bipantographic_range`): an interior penalty that follows the largest
 # fibre stretch (its second-gradient coefficient a_ρ grows as 1/(1 − ρ²cos²γ); with the
 # penalty frozen at ρ = 1 the discrete energy loses coercivity near the grip corners and
 # Newton stalls near ū = 20 mm), and a backtracking line search that treats ρ cos γ ≥ 1 as
@@ -71,16 +71,20 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print, write_json
 from fabricsurf.network.micromacro import grid_fields
-from fabricsurf.studies.bias_comparison import LENGTH, WIDTH
-from fabricsurf.studies.bias_study import BiasStudySettings, run_bias_study
+from research.studies.bias_comparison import LENGTH, WIDTH
+from research.studies.bias_study import BiasStudySettings, run_bias_study
 
 
 def parse_args(argv=None):
@@ -135,7 +139,7 @@ def parse_args(argv=None):
 # centre reaches full shear (γ_C = 90° at ū = (√2 − 1)(length − width) = 28.2 mm): the fibres
 # must stretch (λ up to 1.32 at ū = 25 %, k_l/k_s = 60) and the zones blur (measured at
 # ū = 46.75 mm: 8.4°, 36.4°, 49.6°). Zone points and the ideal angle:
-# `fabricsurf.studies.bias_comparison` (`ZONE_POINTS`, `ideal_centre_shear_deg`).
+# `research.studies.bias_comparison` (`ZONE_POINTS`, `ideal_centre_shear_deg`).
 
 # %% [markdown]
 # ## Mesh convergence of the grip force
@@ -149,7 +153,7 @@ def parse_args(argv=None):
 # structured meshes they grew until h ≈ 2 mm, then fell at rate 0.63 (h = 2.1 → 1.06 mm,
 # 340 s on one rank). With F_n the force on level n and d_n = |F_n − F_2n|, the observed rate
 # is log2(d_n / d_2n) and the finest force's error is estimated as d / (2^rate − 1)
-# (`fabricsurf.studies.bias_convergence.force_convergence`; benchmarks/bias_convergence.py
+# (`research.studies.bias_convergence.force_convergence`; benchmarks/bias_convergence.py
 # adds level 16).
 
 # %% [markdown]

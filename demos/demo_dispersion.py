@@ -61,14 +61,18 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import matplotlib
 import numpy as np
 from dolfinx import fem, io
 from mpi4py import MPI
 
-from fabricsurf.studies import dispersion as dp
+from research.studies import dispersion as dp
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt

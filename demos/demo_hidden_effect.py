@@ -36,10 +36,10 @@ from mpi4py import MPI
 from fabricsurf.cli import main as cli
 from fabricsurf.discretise.output import rank0_print, write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import load_experiment, write_experiment
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardModel
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.terms import parse_terms
 
 comm = MPI.COMM_WORLD

@@ -41,14 +41,19 @@
 # %%
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
-from fabricsurf.verification.hypar import (
+from geometry.specimen import square
+from research.verification.hypar import (
     CORNER_SIGNS,
     Hypar,
     computed_corner_forces,
@@ -56,8 +61,7 @@ from fabricsurf.verification.hypar import (
     solve_dirichlet,
     solve_natural,
 )
-from fabricsurf.verification.rates import rates
-from geometry.specimen import square
+from research.verification.rates import rates
 
 comm = MPI.COMM_WORLD
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)

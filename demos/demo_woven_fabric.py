@@ -33,23 +33,28 @@
 # %%
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
 from fabricsurf.discretise.output import FieldWriter, on_rank0, rank0_print, write_json
-from fabricsurf.inverse import significance as sg
-from fabricsurf.inverse.data import load_experiment
-from fabricsurf.inverse.diagnose import diagnose
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardModel
-from fabricsurf.inverse.misfit import scales
-from fabricsurf.inverse.params import provenance
+from fabricsurf.experiments import three_zone as tz
+from fabricsurf.inverse.contract.data import load_experiment
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.fitting.misfit import scales
+from fabricsurf.inverse.fitting.params import provenance
 from fabricsurf.model.terms import parse_terms
-from fabricsurf.studies import woven as wv
+from research.studies import woven as wv
 
 comm = MPI.COMM_WORLD
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,11 +84,11 @@ runs = {}
 # %%
 exp = load_experiment(args.data)
 H, W, d_meas, F_meas = exp.length, exp.width, exp.path, exp.force
-gam = wv.zone_c_shear_angle(d_meas, H, W)
+gam = tz.zone_c_shear_angle(d_meas, H, W)
 err_unit = scales(exp)[1]
 say(f"{exp.name}: {len(d_meas)} points, d up to {d_meas[-1]:.1f} mm, F up to {F_meas.max():.2f} N;"
     f" zone-C angle (eq. 13) up to {np.degrees(gam[-1]):.1f} deg; geometric lock at d = "
-    f"{wv.lock_displacement(H, W):.1f} mm; error unit = {err_unit:.4f} N; mesh h = {H_MESH} mm")
+    f"{tz.lock_displacement(H, W):.1f} mm; error unit = {err_unit:.4f} N; mesh h = {H_MESH} mm")
 GUESS = {"fibre_stretch": {"k_l": 100.0, "k_m": 100.0}, "shear": {"k_s": 0.01}}
 base_fm = ForwardModel(exp, parse_terms(",".join(BASE), GUESS), h=H_MESH, comm=comm)
 guess_pred = base_fm.run()
@@ -95,7 +100,7 @@ say(f"first guess: chi2 {guess_chi2:.1f}")
 # The diagnosis fits the baseline from the first guess (a decade scan of each term's moduli,
 # then Levenberg–Marquardt in log-moduli, all three free), scores every in-plane effect the
 # model lacks by the χ² drop of the linearised fit, confirms the best by nested refits and adds
-# one only if it is significant (`fabricsurf/inverse/significance.py`, unchanged). The quick
+# one only if it is significant (`fabricsurf/inverse/fitting/significance.py`, unchanged). The quick
 # mode scores and confirms `shear_locking` alone (the candidate the issue expects); the full
 # mode considers every effect, confirms two and measures the discretisation error at h/2.
 
@@ -163,15 +168,15 @@ say(f"RMS force error ratio baseline / +shear_locking: {improvement:.4f}")
 # linear interpolation of F_sh(γ/2) (second order in the ~2.5° angle step of the data).
 
 # %%
-g_d, fsh_d = wv.normalised_shear_force(d_meas, F_meas, H, W)
-fsh_model = {k: wv.normalised_shear_force(d_meas, v, H, W)[1] for k, v in preds.items()
+g_d, fsh_d = tz.normalised_shear_force(d_meas, F_meas, H, W)
+fsh_model = {k: tz.normalised_shear_force(d_meas, v, H, W)[1] for k, v in preds.items()
              if k != "first guess"}
-fsh_const = {"fibre_stretch + shear": wv.constitutive_shear_force(gam, base.params()),
-             lock_label: wv.constitutive_shear_force(gam, lock_params)}
+fsh_const = {"fibre_stretch + shear": tz.constitutive_shear_force(gam, base.params()),
+             lock_label: tz.constitutive_shear_force(gam, lock_params)}
 gcheck = gam[gam < np.radians(80)]
-kin = wv.kinematic_force(wv.displacement_at_angle(gcheck, H, W), H, W, lock_params)
-_, fsh_kin = wv.normalised_shear_force(wv.displacement_at_angle(gcheck, H, W), kin, H, W)
-eq18_error = float(np.max(np.abs(fsh_kin / wv.constitutive_shear_force(gcheck, lock_params)
+kin = tz.kinematic_force(tz.displacement_at_angle(gcheck, H, W), H, W, lock_params)
+_, fsh_kin = tz.normalised_shear_force(tz.displacement_at_angle(gcheck, H, W), kin, H, W)
+eq18_error = float(np.max(np.abs(fsh_kin / tz.constitutive_shear_force(gcheck, lock_params)
                                  - 1.0)))
 say(f"eq. 18 of the ideal-kinematics force vs tau/cos(gamma): max relative error {eq18_error:.2e}")
 band = (gam > np.radians(15)) & (gam < np.radians(60))
@@ -252,9 +257,9 @@ def _csv(p: Path) -> None:
 
 on_rank0(comm, _csv, out / "prediction_150x450.csv")
 say(f"prediction 150 x 450 mm: F = {F_pred[-1]:.2f} N at {d_pred[-1]:.0f} mm (zone-C angle "
-    f"{np.degrees(wv.zone_c_shear_angle(d_pred[-1], 450.0, 150.0)):.0f} deg)")
-kin_ratio = {(L, Wd): float(np.interp(np.radians(30.0), wv.zone_c_shear_angle(dd, L, Wd),
-                                      FF / wv.kinematic_force(dd, L, Wd, final_params)))
+    f"{np.degrees(tz.zone_c_shear_angle(d_pred[-1], 450.0, 150.0)):.0f} deg)")
+kin_ratio = {(L, Wd): float(np.interp(np.radians(30.0), tz.zone_c_shear_angle(dd, L, Wd),
+                                      FF / tz.kinematic_force(dd, L, Wd, final_params)))
              for (L, Wd), dd, FF in (((H, W), d_meas, final_force),
                                      ((450.0, 150.0), d_pred, F_pred)) if len(dd) > 1}
 say("FE force / ideal-kinematics force at a zone-C angle of 30 deg: " + ", ".join(
@@ -274,9 +279,9 @@ def figures() -> None:
 
     def gamma_axis(ax, length, width):
         sec = ax.secondary_xaxis(
-            "top", functions=(lambda d: np.degrees(wv.zone_c_shear_angle(
-                np.clip(d, 0, wv.lock_displacement(length, width)), length, width)),
-                lambda g: wv.displacement_at_angle(np.radians(g), length, width)))
+            "top", functions=(lambda d: np.degrees(tz.zone_c_shear_angle(
+                np.clip(d, 0, tz.lock_displacement(length, width)), length, width)),
+                lambda g: tz.displacement_at_angle(np.radians(g), length, width)))
         sec.set_xlabel("zone-C shear angle, Cao eq. 13 (deg)")
 
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.3))
@@ -329,7 +334,7 @@ def figures() -> None:
     ax.plot(d_meas, final_force, "-", label="115 × 230 mm, final model")
     ax.plot(d_pred, F_pred, "-", label="150 × 450 mm, prediction")
     for (length, width), c in (((H, W), "C0"), ((450.0, 150.0), "C1")):
-        ax.axvline(wv.lock_displacement(length, width), color=c, ls=":")
+        ax.axvline(tz.lock_displacement(length, width), color=c, ls=":")
     ax.set(xlabel="crosshead displacement d (mm)", ylabel="force (N)",
            title="dotted: geometric lock of eq. 13", ylim=(0, 1.3 * max(F_pred.max(),
                                                                          F_meas.max())))
@@ -346,10 +351,10 @@ on_rank0(comm, figures)
 # ## Summary and checks
 
 # %%
-locking_angle = wv.locking_angle(lock_params)
+locking_angle = tz.locking_angle(lock_params)
 summary = {
     "data": exp.name, "h_mm": H_MESH, "quick": args.quick, "ranks": comm.size,
-    "error_unit_N": err_unit, "geometric_lock_mm": wv.lock_displacement(H, W),
+    "error_unit_N": err_unit, "geometric_lock_mm": tz.lock_displacement(H, W),
     "first_guess": {"params": GUESS, "chi2": guess_chi2, "errors": errors["first guess"]},
     "baseline": {"params": {t: v for t, v in base.params().items() if t in BASE},
                  "std": {n: s for n, s in base.as_dict()["std"].items()

@@ -9,10 +9,10 @@ __version__ = "0.2.0"
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments import TESTS, get_test
 from fabricsurf.experiments.bias_extension import BiasExtension
-from fabricsurf.inverse.data import Experiment, load_experiment, write_experiment
-from fabricsurf.inverse.diagnose import diagnose
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.contract.data import Experiment, load_experiment, write_experiment
+from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
 from fabricsurf.model.terms import (
     EFFECTS,
     FibreStretch,

@@ -1,6 +1,6 @@
 """Bias extension (Barchiesi et al. 2020): the bi-pantographic energy of eq. (2) (with its
 regularisation beyond the limit stretch), and the continuum-versus-lattice study of the demo
-(``fabricsurf.studies.bias_study``) on a coarse run (tolerances from measured differences).
+(``research.studies.bias_study``) on a coarse run (tolerances from measured differences).
 
 Runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``.
 """
@@ -114,7 +114,7 @@ def test_penalty_follows_the_stretch_up_to_the_limit(rho_c):
     inside eq. (2)'s domain however close the stretch comes to the limit ρ cos γ = 1: a fixed
     ceiling ρ_p cos γ ≤ 0.97 fell below the corner stretch of the level-8 run (0.971) and
     Newton stalled (bipantographic_range module docstring). ρ + margin where that is inside."""
-    from fabricsurf.studies.bipantographic_range import penalty_stretch
+    from research.studies.bipantographic_range import penalty_stretch
 
     gamma = math.pi / 6
     c = math.cos(gamma)

@@ -10,7 +10,7 @@ Checks:
 * the unit conversion g/m² → N/mm² and the assembled weight of a strip (∫ b = −ρ_A g L w);
 * Peirce's small-deflection relation δ = L⁴/(8c³), c = (k_b/ρ_A g)^(1/3), and his bending-length
   formula from the chord angle;
-* the 0° strip against the heavy elastica (scipy solve_bvp, fabricsurf.verification.elastica)
+* the 0° strip against the heavy elastica (scipy solve_bvp, research.verification.elastica)
   at a tip angle of 66°: the centre-line error falls at rate ≥ 2.5 (measured 2.9, 3.9 on these
   meshes; 3.35 at n = 96 in demos/demo_bending.py, 3.15 at n = 192 in docs/bending.md), with a
   recorded 1-rank value of the tip deflection that 2 ranks must reproduce;
@@ -32,14 +32,14 @@ from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.experiments.base import Setup
 from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import load_experiment, write_experiment
-from fabricsurf.inverse.diagnose import visible_effects
-from fabricsurf.inverse.forward import ForwardModel
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting.diagnose import visible_effects
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.model.rigidity import narrow_strip_rigidity
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
-from fabricsurf.verification.elastica import (
+from research.verification.elastica import (
     bending_length,
-    narrow_strip_rigidity,
     peirce_bending_length,
     small_deflection_tip,
     solve_elastica,

@@ -8,7 +8,12 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.experiments.base import Setup
-from fabricsurf.inverse.data import DataError, Experiment, load_experiment, write_experiment
+from fabricsurf.inverse.contract.data import (
+    DataError,
+    Experiment,
+    load_experiment,
+    write_experiment,
+)
 
 
 def good_experiment() -> Experiment:
@@ -130,7 +135,7 @@ def test_spreadsheet_bom_and_unit_types(good):
 
 
 def test_compare_rejects_terms_outside_vocabulary():
-    from fabricsurf.inverse.forward import ForwardModel
+    from fabricsurf.inverse.fitting.forward import ForwardModel
     from fabricsurf.model.materials import bipantographic
 
     with pytest.raises(ValueError, match="not in the vocabulary"):

@@ -3,8 +3,8 @@ ranks first and adding it brings the misfit to the noise level; a complete model
 verdict.
 
 Noise-level criterion: the combined misfit (RMS of residuals divided by the noise std,
-fabricsurf.inverse.misfit) of the refit is ≤ 1.25, i.e. the residual RMS is within 25 % of the
-noise. The data use specimen sizes, meshes and noise seeds other than those used while
+fabricsurf.inverse.fitting.misfit) of the refit is ≤ 1.25, i.e. the residual RMS is within 25 %
+of the noise. The data use specimen sizes, meshes and noise seeds other than those used while
 developing the method. Hidden effects here: geodesic_bending (continuum, via the CLI), shear,
 shear_gradient; lattice data with hidden geodesic bending are diagnosed by the main demo
 (tests/test_demos.py), skew fibres and stiff fibres by tests/test_diagnose_regime.py, hidden
@@ -19,10 +19,10 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fabricsurf.cli import main
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import write_experiment
-from fabricsurf.inverse.diagnose import diagnose as _diagnose
-from fabricsurf.inverse.diagnose import full_model
+from fabricsurf.inverse.contract.data import write_experiment
+from fabricsurf.inverse.fitting.diagnose import diagnose as _diagnose
+from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.synthetic import generate as sy
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 NOISE_LEVEL = 1.25

@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fabricsurf.inverse import significance as sg
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import load_experiment, write_experiment
-from fabricsurf.inverse.diagnose import diagnose
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.synthetic import generate as sy
 
 K_L, K_S = 1000.0, 0.4
 LENGTH, WIDTH = 48.0, 24.0

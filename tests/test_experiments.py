@@ -19,11 +19,11 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.experiments.picture_frame import frame_force_exact, frame_shear_angle
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import load_experiment, write_experiment
-from fabricsurf.inverse.diagnose import full_model
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.synthetic import generate as sy
 
 CAO = Path(__file__).resolve().parents[2] / "shared" / "data" / "cao2008_plain_weave_115x230"
 MATERIAL = {"fibre_stretch": {"k_l": 40.0, "k_m": 40.0}, "shear": {"k_s": 0.4},

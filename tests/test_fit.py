@@ -8,11 +8,11 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import write_experiment
-from fabricsurf.inverse.diagnose import full_model
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardModel
+from fabricsurf.inverse.contract.data import write_experiment
+from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
 
 TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
          "geodesic_bending": {"A_g": 12.0}}

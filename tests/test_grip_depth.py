@@ -16,9 +16,9 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fabricsurf.cli import main
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import write_experiment
-from fabricsurf.inverse.diagnose import diagnose, full_model
+from fabricsurf.inverse.contract.data import write_experiment
+from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.synthetic import generate as sy
 
 TERMS = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
          "geodesic_bending": {"A_g": 15.0}}

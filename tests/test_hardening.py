@@ -29,8 +29,8 @@ from fabricsurf.cli import main
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import StepLog, write_json
 from fabricsurf.errors import InputError
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.data import DataError, load_experiment, write_experiment
+from fabricsurf.inverse.contract.data import DataError, load_experiment, write_experiment
+from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.terms import EFFECTS
 
 COMM = MPI.COMM_WORLD
@@ -242,9 +242,10 @@ def in_root(root, monkeypatch):
 @pytest.mark.parametrize("case", CASES, ids=[c["id"] for c in CASES])
 def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
     """Each input class: exit 2 on every rank, one message, nothing computed or written."""
-    import fabricsurf.inverse.forward as forward
+    import fabricsurf.inverse.fitting.forward as forward
 
-    importlib.import_module("fabricsurf.inverse.diagnose")  # binds the real ForwardSet first
+    # binds the real ForwardSet first
+    importlib.import_module("fabricsurf.inverse.fitting.diagnose")
     built = []
     monkeypatch.setattr(forward, "ForwardSet", lambda *a, **k: built.append(a))
     monkeypatch.setattr(cli.bias_cli, "BiasExtension", lambda *a, **k: built.append(a))

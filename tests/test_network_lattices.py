@@ -10,7 +10,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fabricsurf.inverse import synthetic as sy
+from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import FibreStretch, Shear, ShearLocking

@@ -2,7 +2,7 @@
 
 import pytest
 
-from fabricsurf.verification.rates import richardson_summary
+from research.verification.rates import richardson_summary
 
 
 def test_exact_power_law():

@@ -15,9 +15,9 @@ and the benchmark formulas are exact.
 
 import numpy as np
 
-from fabricsurf.inverse import synthetic as sy
-from fabricsurf.inverse.diagnose import diagnose
-from fabricsurf.studies import woven as wv
+from fabricsurf.experiments import three_zone as tz
+from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.synthetic import generate as sy
 
 LATTICE = {"k_l": 30.0, "k_s": 0.5, "A_g": 0.0, "k4": 2.0, "k6": 2.0}
 
@@ -29,14 +29,14 @@ def test_eq18_inverts_ideal_kinematics():
     err = []
     for n in (80, 320):
         g = np.radians(np.linspace(80.0 / n, 80.0, n))
-        d = wv.displacement_at_angle(g, 230.0, 115.0)
-        assert np.allclose(wv.zone_c_shear_angle(d, 230.0, 115.0), g, rtol=1e-12)
-        F = wv.kinematic_force(d, 230.0, 115.0, params)
-        _, fsh = wv.normalised_shear_force(d, F, 230.0, 115.0)
-        err.append(np.max(np.abs(fsh / wv.constitutive_shear_force(g, params) - 1.0)))
+        d = tz.displacement_at_angle(g, 230.0, 115.0)
+        assert np.allclose(tz.zone_c_shear_angle(d, 230.0, 115.0), g, rtol=1e-12)
+        F = tz.kinematic_force(d, 230.0, 115.0, params)
+        _, fsh = tz.normalised_shear_force(d, F, 230.0, 115.0)
+        err.append(np.max(np.abs(fsh / tz.constitutive_shear_force(g, params) - 1.0)))
     assert err[0] < 2e-4 and err[1] < err[0] / 8.0, err
-    gl = wv.locking_angle(params)
-    assert np.isclose(wv.shear_moment(gl, {"shear_locking": params["shear_locking"]}),
+    gl = tz.locking_angle(params)
+    assert np.isclose(tz.shear_moment(gl, {"shear_locking": params["shear_locking"]}),
                       0.02 * gl, rtol=1e-12)
 
 
@@ -44,7 +44,7 @@ def test_hidden_locking_in_lattice_data_is_diagnosed():
     exp = sy.template(48.0, 24.0, [1.7, 3.4, 5.1, 6.8], np.zeros((0, 2)), name="locking")
     sy.lattice_data(exp, 0.8, every=6, **LATTICE)
     sy.add_noise(exp, 0.01, 0.02, 7)
-    assert np.degrees(wv.zone_c_shear_angle(6.8, 48.0, 24.0)) > 40.0
+    assert np.degrees(tz.zone_c_shear_angle(6.8, 48.0, 24.0)) > 40.0
     d = diagnose(exp, ["fibre_stretch", "shear"], h=4.0, confirm=1, max_effects=1,
                  check_discretisation=False, verbose=False)
     print(d.base_fit.misfit["combined"], [(r["effect"], r["score"], r["refit_misfit"])

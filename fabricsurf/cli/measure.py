@@ -18,9 +18,9 @@ from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.errors import InputError
-from fabricsurf.inverse.data import load_experiment
-from fabricsurf.inverse.misfit import converged_steps
-from fabricsurf.inverse.params import load_params, parse_model, provenance
+from fabricsurf.inverse.contract.data import load_experiment
+from fabricsurf.inverse.fitting.misfit import converged_steps
+from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.model.terms import EFFECTS
 
 COMM = MPI.COMM_WORLD
@@ -134,8 +134,8 @@ def _prov(model, fs, args) -> dict:
 
 
 def cmd_compare(args) -> int:
-    from fabricsurf.inverse.forward import ForwardSet
-    from fabricsurf.inverse.outputs import write_comparison
+    from fabricsurf.inverse.fitting.forward import ForwardSet
+    from fabricsurf.inverse.plots.outputs import write_comparison
 
     exps, model = _setup(args)
     steps = _error_map_steps(args.steps, exps)
@@ -152,9 +152,9 @@ def cmd_compare(args) -> int:
 
 
 def cmd_fit(args) -> int:
-    from fabricsurf.inverse.fit import fit
-    from fabricsurf.inverse.forward import ForwardSet
-    from fabricsurf.inverse.outputs import write_comparison
+    from fabricsurf.inverse.fitting.fit import fit
+    from fabricsurf.inverse.fitting.forward import ForwardSet
+    from fabricsurf.inverse.plots.outputs import write_comparison
 
     exps, model = _setup(args)
     _positive_start(model, args)
@@ -179,7 +179,7 @@ def _grip_depths(spec: str | None, exps: list) -> list[float] | None:
     """``--grip-depths``: comma-separated depths in mm, checked against the experiments."""
     if spec is None:
         return None
-    from fabricsurf.inverse.nuisance import check_depths
+    from fabricsurf.inverse.fitting.nuisance import check_depths
 
     depths = _number_list(spec, "--grip-depths", float, "depths in mm, e.g. 0,0.5,1")
     try:
@@ -190,9 +190,9 @@ def _grip_depths(spec: str | None, exps: list) -> list[float] | None:
 
 
 def cmd_diagnose(args) -> int:
-    from fabricsurf.inverse import figures
-    from fabricsurf.inverse.diagnose import diagnose
-    from fabricsurf.inverse.outputs import write_comparison
+    from fabricsurf.inverse.fitting.diagnose import diagnose
+    from fabricsurf.inverse.plots import figures
+    from fabricsurf.inverse.plots.outputs import write_comparison
 
     if args.confirm < 1:
         raise InputError(f"--confirm {args.confirm}: must be at least 1")

@@ -5,7 +5,7 @@ An experiment plug-in is one class derived from :class:`ExperimentSetup` (one fi
 From the experiment description (specimen, fibre angles, plug-in options) it builds the mesh,
 the boundary conditions and the solver; :meth:`~ExperimentSetup.set_load` applies one value of
 the load path (one value per measured step); at a converged state the generic forward model
-(:mod:`fabricsurf.inverse.forward`) observes
+(:mod:`fabricsurf.inverse.fitting.forward`) observes
 
 * displacements at points: the d components of u (d = :attr:`~ExperimentSetup.d`),
 * the measured reaction as a virtual-work functional R(u)·w, with w =

@@ -38,8 +38,8 @@ from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
+from fabricsurf.model.rigidity import cylindrical_rigidity, narrow_strip_rigidity
 from fabricsurf.model.terms import Term
-from fabricsurf.verification.elastica import cylindrical_rigidity, narrow_strip_rigidity
 from geometry.specimen import structured_rectangle
 
 GRAVITY = 9.81

@@ -1,0 +1,1 @@
+"""The inverse layer: contract (measurement data) <- fitting <- plots, synthetic."""

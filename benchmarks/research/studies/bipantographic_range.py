@@ -35,8 +35,8 @@ from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import DOMAIN_AWARE, LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.materials import PantographBending, bipantographic
-from fabricsurf.studies.bias_convergence import graded_specimen
-from fabricsurf.verification.rates import richardson_summary
+from research.studies.bias_convergence import graded_specimen
+from research.verification.rates import richardson_summary
 
 RANGE_OPTIONS = dict(DOMAIN_AWARE)
 """Solver options of the whole-range runs (module docstring)."""
@@ -165,7 +165,7 @@ def penalty_stretch(rho, margin: float, gamma: float):
 
 def follow_penalty(margin: float = 0.03):
     """An ``on_step(test, k, ū)`` callback for
-    :func:`fabricsurf.studies.bias_comparison.compare` that keeps one
+    :func:`research.studies.bias_comparison.compare` that keeps one
     :class:`PenaltyFollower` per continuum test (built at its first step)."""
     followers: dict[int, PenaltyFollower] = {}
 

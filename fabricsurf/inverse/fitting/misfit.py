@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricsurf.inverse.experiment import Experiment
+from fabricsurf.inverse.contract.experiment import Experiment
 
 
 def noise_known(exp: Experiment) -> bool:

@@ -1,7 +1,7 @@
 """Least-squares fit of the moduli (Levenberg–Marquardt in log-moduli) with tangent sensitivities.
 
 Each iteration is one forward run along the recorded load path that also returns
-du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`fabricsurf.inverse.forward.ForwardModel`): the
+du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`~.forward.ForwardModel`): the
 converged Jacobian's factorisation is reused, no finite differences of load paths. Two step
 variables: log-moduli θ = log p (positive; the step in θ is limited to ±``max_step`` per
 iteration), for fits that start decades away; or the moduli themselves, with Marquardt's scaling
@@ -32,8 +32,8 @@ import numpy as np
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import LoadStepError
-from fabricsurf.inverse.forward import ForwardModel, ForwardSet, Prediction
-from fabricsurf.inverse.start import scan_terms
+from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.fitting.start import scan_terms
 
 
 @dataclass
@@ -106,7 +106,7 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         scale_start: bool = True, space: str = "log") -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
-    free moduli by decades (:func:`~fabricsurf.inverse.start.scan_terms`). ``space``: the
+    free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
     docstring)."""
     if space not in ("log", "linear"):

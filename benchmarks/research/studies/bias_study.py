@@ -7,7 +7,7 @@ docs/network.md, "The factor 2") and the energy with the moduli identified from 
 micro lattice by numerical homogenisation, against that lattice, to ``bip_ubar`` (the paper's
 whole range: 50 mm), with the clamp-offset bracket;
 (c) the whole-range study of eq. (2) on nested meshes with both clamp variants
-(:mod:`fabricsurf.studies.bipantographic_range`).
+(:mod:`research.studies.bipantographic_range`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from fabricsurf.model.materials import TABLE3_MACRO, bipantographic
 from fabricsurf.network import hencky_lattice, lattice_from_continuum
 from fabricsurf.network.bipantographic import TABLE3, bipantographic_lattice
 from fabricsurf.network.homogenize import identify_macro
-from fabricsurf.studies.bias_comparison import (
+from research.studies.bias_comparison import (
     EPS_EXACT,
     HENCKY_MODULI,
     LENGTH,
@@ -37,8 +37,8 @@ from fabricsurf.studies.bias_comparison import (
     identified_model,
     zones_at,
 )
-from fabricsurf.studies.bias_convergence import force_convergence
-from fabricsurf.studies.bipantographic_range import (
+from research.studies.bias_convergence import force_convergence
+from research.studies.bipantographic_range import (
     RANGE_OPTIONS,
     convergence,
     follow_penalty,

@@ -21,9 +21,9 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse.experiment import Experiment
-from fabricsurf.inverse.fit import fit
-from fabricsurf.inverse.forward import ForwardSet
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.model.terms import Term
 
 KEY = "grip_depth"

@@ -14,7 +14,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.experiments.base import Setup
-from fabricsurf.inverse.experiment import Experiment
+from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.model.terms import Term
 
 
@@ -67,7 +67,7 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
                    comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
     """Fill ``exp`` with the continuum solution of ``model`` on a mesh of size ``h``."""
     from fabricsurf.experiments import get_test
-    from fabricsurf.inverse.forward import ForwardModel
+    from fabricsurf.inverse.fitting.forward import ForwardModel
 
     exp.u = np.zeros((len(exp.field_step), get_test(exp.test).d))
     pred = ForwardModel(exp, model, h=h, comm=comm).run()

@@ -10,7 +10,7 @@ import tempfile
 from pathlib import Path
 
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse.experiment import Experiment
+from fabricsurf.inverse.contract.experiment import Experiment
 
 
 def _toml_value(v) -> str:

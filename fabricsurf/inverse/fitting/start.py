@@ -17,7 +17,7 @@ remedies, forward runs without sensitivities only:
   model it extends.
 
 Both rank their trials on a scout mesh :data:`SCOUT_FACTOR` times coarser than the fit's
-(:meth:`~fabricsurf.inverse.forward.ForwardSet.coarse`: same forms, a quarter of the unknowns in
+(:meth:`~.forward.ForwardSet.coarse`: same forms, a quarter of the unknowns in
 2D): they choose a start among values decades apart, which a coarse mesh ranks as well, and the
 fit itself then runs on the fine mesh. The candidate's chosen start is checked on the fine mesh
 against the fitted model itself, which keeps the guarantee above. Measured at the issue-12 size
@@ -32,7 +32,7 @@ import numpy as np
 
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse.misfit import scales
+from fabricsurf.inverse.fitting.misfit import scales
 
 MAX_DECADES = 4
 SCOUT_FACTOR = 2.0

@@ -19,10 +19,10 @@ import numpy as np
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.experiments.base import Setup, number_option
-from fabricsurf.inverse import checks
-from fabricsurf.inverse.experiment import Experiment
-from fabricsurf.inverse.tables import read_csv, read_toml
-from fabricsurf.inverse.writer import write_experiment
+from fabricsurf.inverse.contract import checks
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.contract.tables import read_csv, read_toml
+from fabricsurf.inverse.contract.writer import write_experiment
 
 LENGTH_UNITS = {"mm": 1.0, "m": 1000.0}
 FORCE_UNITS = {"N": 1.0, "mN": 1e-3, "kN": 1e3}

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse.experiment import Experiment
+from fabricsurf.inverse.contract.experiment import Experiment
 
 
 def _plt():

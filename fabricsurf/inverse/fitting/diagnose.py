@@ -1,9 +1,9 @@
 """Which physical effect is missing? Stepwise diagnosis (docs/diagnosis.md).
 
-1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fit.fit`:
+1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fitting.fit.fit`:
    a scan by decades, then steps in the moduli themselves).
    With ``grip_depths``, the effective grip depth of the bias experiments is first profiled
-   as a nuisance parameter (:mod:`~fabricsurf.inverse.nuisance`).
+   as a nuisance parameter (:mod:`~fabricsurf.inverse.fitting.nuisance`).
 2. Rank every vocabulary effect the data can see and the model lacks with one forward run:
    the model holds all those effects (vocabulary order, so one compiled form serves every
    diagnosis), candidates at modulus 0, so the state is the current fit; tangent solves give
@@ -14,8 +14,8 @@
 3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts from the best of
    the current optimum with the candidate near zero (so a refit is never worse than the model it
    extends), the linearised refit (one Gauss–Newton step in all moduli) and a log grid of the
-   candidate's modulus (:mod:`~fabricsurf.inverse.start`); the refit steps in the moduli, not
-   their logarithms (:mod:`~fabricsurf.inverse.fit`).
+   candidate's modulus (:mod:`~.start`); the refit steps in the moduli, not
+   their logarithms (:mod:`~.fit`).
 4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
    from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
 
@@ -32,18 +32,18 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse import significance as sg
-from fabricsurf.inverse.experiment import Experiment
-from fabricsurf.inverse.fit import FitResult, fit
-from fabricsurf.inverse.forward import ForwardSet
-from fabricsurf.inverse.nuisance import grip_profile, with_depth
-from fabricsurf.inverse.report import (
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.fit import FitResult, fit
+from fabricsurf.inverse.fitting.forward import ForwardSet
+from fabricsurf.inverse.fitting.nuisance import grip_profile, with_depth
+from fabricsurf.inverse.fitting.report import (
     Diagnosis,
     best_lead,
     discretisation_chi2,
     where_unexplained,
 )
-from fabricsurf.inverse.start import candidate_start
+from fabricsurf.inverse.fitting.start import candidate_start
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
 
@@ -144,7 +144,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
     ``candidates``: the effects to consider (default: every effect the data can see);
     ``fixed``: baseline terms held at their moduli in ``params`` (known from other tests);
     ``grip_depths``: candidate grip depths (mm) of the bias experiments, profiled first
-    (:mod:`~fabricsurf.inverse.nuisance`); the best is used.
+    (:mod:`~fabricsurf.inverse.fitting.nuisance`); the best is used.
     """
     exps = exps if isinstance(exps, list) else [exps]
     fixed = list(fixed or [])

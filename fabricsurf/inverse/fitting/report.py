@@ -7,9 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.inverse import significance as sg
-from fabricsurf.inverse.fit import FitResult, strip_rows
-from fabricsurf.inverse.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.fit import FitResult, strip_rows
+from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
 
 
 @dataclass

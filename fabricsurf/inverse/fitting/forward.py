@@ -24,8 +24,8 @@ from petsc4py import PETSc
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse import misfit as mf
-from fabricsurf.inverse.experiment import Experiment
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.fitting import misfit as mf
 from fabricsurf.model.terms import EFFECTS, Term
 
 

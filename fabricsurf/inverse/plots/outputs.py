@@ -9,8 +9,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import on_rank0, write_json
-from fabricsurf.inverse import figures
-from fabricsurf.inverse.fit import strip_rows
+from fabricsurf.inverse.fitting.fit import strip_rows
+from fabricsurf.inverse.plots import figures
 
 
 def slug(name: str) -> str:

@@ -1,0 +1,1 @@
+"""Verification problems: manufactured solutions, hyperbolic paraboloid, rates, heavy elastica."""

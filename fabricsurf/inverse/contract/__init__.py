@@ -1,0 +1,1 @@
+"""The measurement data contract (docs/contracts.md): read, check and write experiments."""

@@ -1,0 +1,1 @@
+"""Forward model with sensitivities, misfit, fit, diagnosis, significance, moduli files."""

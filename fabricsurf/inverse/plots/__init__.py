@@ -1,0 +1,1 @@
+"""Figures of model vs measurement and the comparison outputs (misfit JSON, CSV, figures)."""

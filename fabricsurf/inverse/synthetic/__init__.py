@@ -1,0 +1,1 @@
+"""Synthetic measurement data with a hidden effect (continuum or Hencky lattice, plus noise)."""
