@@ -112,7 +112,8 @@ def summary(d, seconds: float) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="out/diagnose_table", help="output directory")
-    ap.add_argument("--h", type=float, default=6.0, help="element size of the fitted model (mm)")
+    ap.add_argument("--h", type=float, default=None,
+                    help="element size of the fitted model (mm; default: the plug-in's, W/10)")
     ap.add_argument("--every", type=int, default=4, help="every n-th lattice node is a point")
     ap.add_argument("--cases", default=",".join(CASES), help="comma list of " + ", ".join(CASES))
     ap.add_argument("--confirm", type=int, default=2, help="candidates confirmed per round")
@@ -166,6 +167,7 @@ def main() -> None:
             + " -> ".join(f"{p['misfit']:.3f}" for p in row["path"])
             + f"; discretisation misfit {row['discretisation']['misfit']}; "
             f"{row['seconds']:.0f} s")
+        say(f"    final moduli {row['final']['params']}")
         for r in row["ranking"]:
             say(f"    {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
                 f"{r['refit_misfit'] if r['refit_misfit'] is None else round(r['refit_misfit'], 4)}"

@@ -33,13 +33,13 @@ class Specimen:
     points: dict = field(default_factory=dict)
 
 
-def _check_positive(**kw: float) -> None:
+def check_positive(**kw: float) -> None:
     for k, v in kw.items():
         if not (np.isfinite(v) and v > 0):
             raise ValueError(f"geometry: {k} = {v!r} must be a positive finite number")
 
 
-def _corners(length: float, width: float) -> dict:
+def corner_points(length: float, width: float) -> dict:
     """The named corner points of [0, length] × [0, width]."""
     return {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
             "corner_11": (length, width), "corner_01": (0.0, width)}
@@ -85,7 +85,7 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
 
     ``extra_points`` (name → (x, y)) are embedded as vertices and named physical points.
     """
-    _check_positive(length=length, width=width, h=h)
+    check_positive(length=length, width=width, h=h)
     extra = dict(extra_points or {})
     error = None
     if comm.rank == 0:
@@ -109,19 +109,7 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
             gmsh.finalize()
     msh.topology.create_connectivity(1, 2)
     return Specimen(msh, ct, ft, float(length), float(width),
-                    points={**_corners(length, width), **extra})
-
-
-def bias_specimen(length: float = 187.0, width: float = 119.0, h: float = 8.0,
-                  comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
-    """The bias-extension specimen of Barchiesi et al. 2020 (187 mm × 119 mm) with the points A and
-    B of
-    :func:`bias_points` embedded as vertices."""
-    _check_positive(length=length, width=width, h=h)
-    if width > length:
-        raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
-                         "has its long side along the load")
-    return rectangle(length, width, h, comm, extra_points=bias_points(length, width))
+                    points={**corner_points(length, width), **extra})
 
 
 def square(side: float = 1.0, h: float = 0.25, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -147,15 +135,27 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
     """
     from dolfinx import mesh as dmesh
 
-    _check_positive(length=length, width=width, nx=nx, ny=ny)
+    check_positive(length=length, width=width, nx=nx, ny=ny)
     if not 0.0 <= grading < 1.0:
         raise ValueError(f"geometry: grading = {grading!r} must lie in [0, 1)")
     msh = dmesh.create_rectangle(comm, [np.zeros(2), np.array([length, width])], [nx, ny],
-                                 dmesh.CellType.triangle, diagonal=dmesh.DiagonalType.crossed)
+                                 dmesh.CellType.triangle, diagonal=dmesh.DiagonalType.crossed,
+                                 ghost_mode=dmesh.GhostMode.shared_facet)
     if grading > 0.0:
         x = msh.geometry.x
         x[:, 0] = length * graded(x[:, 0] / length, grading)
         x[:, 1] = width * graded(x[:, 1] / width, grading)
+    ft = tag_rectangle_edges(msh, length, width)
+    msh.topology.create_connectivity(1, 2)
+    return Specimen(msh, None, ft, float(length), float(width),
+                    points=corner_points(length, width))
+
+
+def tag_rectangle_edges(msh, length: float, width: float):
+    """Facet tags ``clamp``, ``grip``, ``bottom``, ``top`` (:data:`EDGE_TAGS`) of the rectangle
+    [0, length] × [0, width] meshed by ``msh`` (a corner facet is tagged once)."""
+    from dolfinx import mesh as dmesh
+
     where = {"clamp": lambda x: np.isclose(x[0], 0.0), "grip": lambda x: np.isclose(x[0], length),
              "bottom": lambda x: np.isclose(x[1], 0.0), "top": lambda x: np.isclose(x[1], width)}
     facets, values = [], []
@@ -165,10 +165,7 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
         values.append(np.full(len(f), EDGE_TAGS[name], dtype=np.int32))
     facets, values = np.concatenate(facets), np.concatenate(values)
     facets, first = np.unique(facets, return_index=True)
-    ft = dmesh.meshtags(msh, 1, facets, values[first])
-    msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, None, ft, float(length), float(width),
-                    points=_corners(length, width))
+    return dmesh.meshtags(msh, 1, facets, values[first])
 
 
 def shift_x(specimen: Specimen, dx: float) -> Specimen:

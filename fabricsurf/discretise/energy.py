@@ -27,12 +27,16 @@ from dataclasses import dataclass, field
 import ufl
 from dolfinx import fem
 
+from fabricsurf.discretise.constraints import Multiplier
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import Term
 
 DEFAULT_PENALTY = 8.0
 CELL_QUADRATURE_DEGREE = 4
 FACET_QUADRATURE_DEGREE = 4
+AUGMENTATION = 1e5
+"""An exact constraint's augmentation stiffness is its term's own plus this many times the sum
+of the other first-gradient moduli: Uzawa's iteration then contracts by about 1e-5 a step."""
 
 
 def placement(u):
@@ -52,6 +56,12 @@ def kinematics(u, L, M) -> Kinematics:
 def strain_energy_density(model: list[Term], kin: Kinematics):
     """W = Σ_terms density (per unit reference area)."""
     return sum(t.density(kin) for t in model)
+
+
+def membrane_scale(model: list[Term], kin: Kinematics):
+    """Sum of the first-gradient moduli of the unconstrained terms (UFL, N/mm)."""
+    return sum((t.p(q) for t in model if t.order == 1 and not t.constraints(kin)
+                for q in t.parameters()), 0.0)
 
 
 def has_second_gradient(model: list[Term]) -> bool:
@@ -103,13 +113,27 @@ class EnergyForm:
             t.bind(msh)
         self.alpha = fem.Constant(msh, float(self.penalty))
         self.kin = kinematics(self.u, self.L, self.M)
+        scale = AUGMENTATION * membrane_scale(self.model, self.kin)
+        self.multipliers = [Multiplier(name, g, r + scale, msh, self.qdeg_cell)
+                            for t in self.model for name, g, r in t.constraints(self.kin)]
         self.dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": self.qdeg_cell})
         md = {"quadrature_degree": self.qdeg_facet}
         self.dS = ufl.Measure("dS", domain=msh, metadata=md)
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=self.facet_tags, metadata=md)
 
     def cell_energy(self):
-        return strain_energy_density(self.model, self.kin) * self.dx
+        W = strain_energy_density(self.model, self.kin)
+        W += sum(m.energy_density() for m in self.multipliers)
+        return W * self.dx
+
+    def tension_fields(self) -> dict:
+        """Fibre tensions per unit reference width (N/mm, UFL): the multipliers of exact
+        constraints, else ∂W/∂λ and ∂W/∂μ of the elastic fibre terms."""
+        fields = {m.name: m.tension() for m in self.multipliers}
+        for t in self.model:
+            if hasattr(t, "tensions") and not t.constraints(self.kin):
+                fields.update(t.tensions(self.kin))
+        return fields
 
     def _ip_pieces(self):
         """(measure, jump, M_nn, S, h) of the C0-IP and Nitsche terms; jump is affine in u."""

@@ -163,7 +163,8 @@ class FabricProblem:
             self._solver = SNESSolver(
                 self.energy.residual(v), self.energy.jacobian(du, v), self.u, self.bcs,
                 self.prefix, self.snes_options,
-                self._nodal_forces if self._point_forces or self.body_forces else None)
+                self._nodal_forces if self._point_forces or self.body_forces else None,
+                self.energy.multipliers)
         return self._solver
 
     def solve(self) -> tuple[int, int]:

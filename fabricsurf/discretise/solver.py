@@ -33,6 +33,12 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabricsurf.discretise.constraints import (
+    CONSTRAINT_TOLERANCE,
+    MAX_MULTIPLIER_UPDATES,
+    Multiplier,
+)
+
 SNES_DEFAULTS: dict[str, object] = {
     "snes_type": "newtonls",
     "snes_linesearch_type": "basic",
@@ -111,7 +117,8 @@ class SNESSolver:
     def __init__(self, residual: ufl.Form, jacobian: ufl.Form, u: fem.Function,
                  bcs: Sequence[fem.DirichletBCMetaClass] = (),
                  prefix: str | None = None, options: dict | None = None,
-                 nodal_forces: Callable | None = None) -> None:
+                 nodal_forces: Callable | None = None,
+                 multipliers: Sequence[Multiplier] = ()) -> None:
         V = u.function_space
         options = dict(options or {})
         mode = options.pop("jacobian", "given")
@@ -120,6 +127,7 @@ class SNESSolver:
         if mode == "exact":
             jacobian = ufl.derivative(residual, u, ufl.TrialFunction(V))
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
+        self.multipliers = list(multipliers)
         self.comm = V.mesh.comm
         self.L = fem.form(residual)
         self.a = fem.form(jacobian)
@@ -197,12 +205,43 @@ class SNESSolver:
         self._J(None, x, self.A, self.A)
         return self.A
 
-    def solve(self) -> tuple[int, int]:
-        """Newton from the current u; returns (converged reason, iterations). u holds the result."""
+    def _newton(self) -> tuple[int, int]:
         self.u.vector.copy(self.x)
         self.snes.solve(None, self.x)
         self._update_u(self.x)
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
+
+    def solve(self) -> tuple[int, int]:
+        """Newton from the current u; returns (converged reason, iterations). u holds the result.
+
+        With exact constraints (``multipliers``), Newton runs at fixed multipliers, which are
+        then updated until every constraint holds to :data:`CONSTRAINT_TOLERANCE`
+        (discretise/constraints.py); the iterations of all solves are summed. If they do not
+        within :data:`MAX_MULTIPLIER_UPDATES`, the reason is SNES's DIVERGED_MAX_IT.
+        """
+        reason, its = self._newton()
+        for _ in range(MAX_MULTIPLIER_UPDATES if self.multipliers else 0):
+            if reason <= 0:
+                break
+            if max(m.violation() for m in self.multipliers) <= CONSTRAINT_TOLERANCE:
+                return reason, its
+            for m in self.multipliers:
+                m.update()
+            reason, more = self._newton()
+            its += more
+        else:
+            if self.multipliers and reason > 0:
+                reason = int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)
+        return reason, its
+
+    def state(self) -> list[np.ndarray]:
+        """u and the multipliers, to :meth:`restore` after a failed attempt."""
+        return [self.u.x.array.copy()] + [m.state() for m in self.multipliers]
+
+    def restore(self, state: list[np.ndarray]) -> None:
+        self.u.x.array[:] = state[0]
+        for m, s in zip(self.multipliers, state[1:]):
+            m.restore(s)
 
     def internal_force(self) -> PETSc.Vec:
         """R(u) assembled without boundary conditions or nodal forces (owned entries complete)."""
@@ -254,15 +293,14 @@ class LoadStepper:
         self.attempts: list[int] = []
 
     def _try(self, t: float) -> tuple[bool, int, int]:
-        backup = self.solver.u.vector.copy()
+        backup = self.solver.state()
         self.set_load(t)
         reason, its = self.solver.solve()
         finite = bool(np.isfinite(self.solver.u.x.array).all())
         comm = getattr(self.solver, "comm", MPI.COMM_SELF)
         ok = reason > 0 and comm.allreduce(finite, op=MPI.LAND)
         if not ok:
-            backup.copy(self.solver.u.vector)
-            self.solver.u.x.scatter_forward()
+            self.solver.restore(backup)
         return ok, reason, its
 
     def advance_to(self, target: float, k: int) -> int:

@@ -28,7 +28,8 @@ from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
-from geometry.specimen import Specimen, bias_points, bias_specimen, shift_x
+from geometry.aligned import bias_mesh
+from geometry.specimen import Specimen, bias_points, check_positive, shift_x
 
 CLAMPS = ("gradient", "position")
 
@@ -37,6 +38,19 @@ def default_model() -> list[Term]:
     """fibre_stretch + shear + geodesic_bending with moduli of a stiff-fibre, soft-pivot fabric
     (N/mm, N/mm, N·mm)."""
     return [FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5), GeodesicBending(A_g=40.0)]
+
+
+def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
+                  comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto") -> Specimen:
+    """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
+    :data:`geometry.aligned.MESH_KINDS`), with the points A and B of
+    :func:`~geometry.specimen.bias_points`."""
+    check_positive(length=length, width=width, h=h)
+    if width > length:
+        raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
+                         "has its long side along the load")
+    return bias_mesh(length, width, h, fibre_angles, comm, mesh,
+                     extra_points=bias_points(length, width))
 
 
 @dataclass
@@ -57,21 +71,24 @@ class BiasResult:
 class BiasExtension:
     """Set-up and load stepping of the continuum bias-extension test.
 
-    The mesh is the gmsh :func:`~geometry.specimen.bias_specimen` of size ``h`` unless a
-    ``specimen`` (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) is given;
-    its edges must carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h`` are
-    then unused (A and B follow ``specimen.length`` and ``specimen.width``).
+    The mesh is :func:`specimen_mesh` of size ``h`` and kind ``mesh``: by default fibre-aligned
+    when the fibres are at ±θ to the load (no intra-ply shear locking, so nearly inextensible
+    yarns need no fine mesh; docs/theory.md), else gmsh's unstructured one. A ``specimen``
+    (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) replaces it; its edges must
+    carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h``, ``mesh`` are then
+    unused (A and B follow ``specimen.length`` and ``specimen.width``).
     """
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
                  width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
                  fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
-                 comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None) -> None:
+                 comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None,
+                 mesh: str = "auto") -> None:
         if clamp not in CLAMPS:
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
         self.model = model if model is not None else default_model()
         self.specimen = (specimen if specimen is not None
-                         else bias_specimen(length, width, h, comm))
+                         else specimen_mesh(length, width, h, fibre_angles, comm, mesh))
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_")
         p.fix("clamp", (0.0, 0.0))
@@ -188,7 +205,8 @@ class BiasExtensionTest(ExperimentSetup):
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         super().__init__(setup, model, h, comm)
         depth = float(setup.options.get("grip_depth", 0.0))
-        specimen = bias_specimen(setup.length - 2 * depth, setup.width, h, comm)
+        specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h,
+                                 tuple(setup.fibre_angles_deg), comm)
         if depth:
             shift_x(specimen, depth)
         self.bias = BiasExtension(model, setup.length, setup.width, h,

@@ -32,6 +32,7 @@ class Term:
     name: ClassVar[str] = ""
     order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
     units: ClassVar[dict[str, str]] = {}
+    options: ClassVar[tuple[str, ...]] = ()  # fields that are switches, not moduli
     _const: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _bound: list = field(default_factory=list, init=False, repr=False, compare=False)
 
@@ -41,7 +42,8 @@ class Term:
 
     @classmethod
     def parameters(cls) -> list[str]:
-        return [f.name for f in fields(cls) if not f.name.startswith("_")]
+        return [f.name for f in fields(cls)
+                if not f.name.startswith("_") and f.name not in cls.options]
 
     def _check(self, p: str, value: float) -> None:
         try:
@@ -94,18 +96,43 @@ class Term:
     def density(self, kin: Kinematics):
         raise NotImplementedError
 
+    def constraints(self, kin: Kinematics) -> list[tuple[str, object, object]]:
+        """Exact constraints (name, g, r) with g(u) = 0 enforced by a multiplier and r the
+        augmentation stiffness (discretise/constraints.py); none by default."""
+        return []
+
 
 @dataclass
 class FibreStretch(Term):
-    """½k_l(λ−1)² + ½k_m(μ−1)²: fibre extension (crimp/decrimp)."""
+    """½k_l(λ−1)² + ½k_m(μ−1)²: fibre extension (crimp/decrimp).
+
+    With ``inextensible=True`` the fibres do not stretch at all: λ = μ = 1 is a constraint
+    whose multipliers are the fibre tensions T_l, T_m (N/mm), and k_l, k_m are the
+    augmentation stiffnesses of the augmented Lagrangian that enforces it (numerical, not
+    material, constants: any value works, larger ones need fewer multiplier updates).
+    """
 
     k_l: float = 1.0
     k_m: float = 1.0
+    inextensible: bool = False
     name: ClassVar[str] = "fibre_stretch"
     units: ClassVar[dict[str, str]] = {"k_l": "N/mm", "k_m": "N/mm"}
+    options: ClassVar[tuple[str, ...]] = ("inextensible",)
 
     def density(self, kin: Kinematics):
+        if self.inextensible:
+            return 0.0
         return 0.5 * self.p("k_l") * (kin.lam - 1) ** 2 + 0.5 * self.p("k_m") * (kin.mu - 1) ** 2
+
+    def tensions(self, kin: Kinematics) -> dict:
+        """Fibre tensions ∂W/∂λ, ∂W/∂μ per unit reference width (N/mm) of the elastic fibres."""
+        return {"tension_l": self.p("k_l") * (kin.lam - 1),
+                "tension_m": self.p("k_m") * (kin.mu - 1)}
+
+    def constraints(self, kin: Kinematics) -> list[tuple[str, object, object]]:
+        if not self.inextensible:
+            return []
+        return [("tension_l", kin.lam - 1, self.p("k_l")), ("tension_m", kin.mu - 1, self.p("k_m"))]
 
 
 @dataclass

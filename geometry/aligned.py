@@ -1,0 +1,145 @@
+"""Fibre-aligned triangulations of a rectangle for two fibre families at ±θ to its long side.
+
+On a mesh whose edges do not follow the fibres, conforming elements cannot shear without
+stretching a fibre somewhere in each element, so the response of nearly inextensible yarns
+grows with their stiffness (intra-ply shear locking, Yu et al. 2005; ten Thije & Akkerman
+2008). Here every interior edge lies along one of the fibre families or along the rectangle's
+axes: the vertices form the rhombic lattice (p·dx, q·dy), p + q even, with dy/dx = tan θ, and
+each lattice rhombus (its diagonals are along x and y) is cut along its shorter diagonal. The
+rectangle's corners are lattice vertices, so the fibre lines that leave the clamp corners (the
+zone boundaries of the bias test, Cao et al. 2008 §5) are mesh lines and the piecewise
+homogeneous pin-jointed-net solution is in the discrete space.
+
+The mesh is built in memory on rank 0 and distributed by dolfinx with shared-facet ghosts,
+which the interior-penalty facet integrals need. Edges are tagged ``clamp`` (x = 0), ``grip``
+(x = length), ``bottom`` (y = 0) and ``top`` (y = width), as for every specimen builder.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import ufl
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from geometry.specimen import Specimen, check_positive, corner_points, tag_rectangle_edges
+
+ANGLE_TOLERANCE_DEG = 0.05
+"""Largest difference between the mesh's lattice angle and the requested fibre angle."""
+
+
+def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
+                      tol_deg: float = ANGLE_TOLERANCE_DEG) -> tuple[int, int]:
+    """Even numbers (P, Q) of lattice steps along x and y with atan((W/Q)/(L/P)) = θ within
+    ``tol_deg`` and a fibre edge length as close to ``h`` as such pairs allow.
+
+    Raises ValueError, naming the nearest angle a lattice can have, when no pair with at most
+    four times the requested number of steps fits.
+    """
+    check_positive(length=length, width=width, h=h)
+    if not 0.0 < theta_deg < 90.0:
+        raise ValueError(f"geometry: fibre angle ±{theta_deg:g}° must lie strictly between 0° "
+                         "and 90° for a fibre-aligned mesh")
+    t = math.radians(theta_deg)
+    q0 = max(2, 2 * round(width / (2 * h * math.sin(t))))
+    best, nearest = None, None
+    for q in range(2, 4 * q0 + 1, 2):
+        p = max(2, 2 * round(length * math.tan(t) * q / (2 * width)))
+        err = abs(math.degrees(math.atan((width / q) / (length / p))) - theta_deg)
+        if nearest is None or err < nearest[0]:
+            nearest = (err, p, q)
+        if err <= tol_deg and (best is None or abs(q - q0) < abs(best[1] - q0)):
+            best = (p, q)
+    if best is None:
+        _, p, q = nearest
+        ang = math.degrees(math.atan((width / q) / (length / p)))
+        raise ValueError(f"geometry: no fibre-aligned lattice of a {length:g} × {width:g} "
+                         f"rectangle at ±{theta_deg:g}° within {tol_deg:g}° near h = {h:g} "
+                         f"(nearest: ±{ang:.3f}° with {p} × {q} steps)")
+    return best
+
+
+def lattice_triangles(P: int, Q: int, split_horizontal: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (p, q) (p + q even, 0 ≤ p ≤ P, 0 ≤ q ≤ Q) and the triangles of the rhombi
+    centred at (p, q) with p + q odd, cut along one diagonal; half rhombi on the boundary are
+    single triangles."""
+    index = {}
+    for q in range(Q + 1):
+        for p in range(q % 2, P + 1, 2):
+            index[(p, q)] = len(index)
+    cells = []
+    for q in range(Q + 1):
+        for p in range((q + 1) % 2, P + 1, 2):
+            left, right, down, up = (p - 1, q), (p + 1, q), (p, q - 1), (p, q + 1)
+            have = [v in index for v in (left, right, down, up)]
+            if all(have):
+                if split_horizontal:
+                    cells += [(left, right, up), (left, right, down)]
+                else:
+                    cells += [(down, up, left), (down, up, right)]
+            elif sum(have) == 3:
+                cells.append(tuple(v for v, ok in zip((left, right, down, up), have) if ok))
+    verts = np.array(list(index), dtype=float)
+    tri = np.array([[index[v] for v in c] for c in cells], dtype=np.int64)
+    return verts, tri
+
+
+def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_deg: float = 45.0,
+                            comm: MPI.Comm = MPI.COMM_WORLD,
+                            extra_points: dict | None = None) -> Specimen:
+    """The rectangle [0, length] × [0, width] meshed along fibres at ±``fibre_angle_deg`` to x,
+    with fibre edges of length ≈ ``h`` (see :func:`lattice_divisions`).
+
+    ``extra_points`` (name → (x, y)) are recorded in ``points`` for evaluation; they need not
+    be vertices.
+    """
+    P, Q = lattice_divisions(length, width, h, fibre_angle_deg)
+    dx, dy = length / P, width / Q
+    if comm.rank == 0:
+        verts, cells = lattice_triangles(P, Q, split_horizontal=dx <= dy)
+        x = np.column_stack([verts[:, 0] * dx, verts[:, 1] * dy])
+    else:
+        x, cells = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", "triangle", 1))
+    msh = dmesh.create_mesh(comm, cells, x, domain, ghost_mode=dmesh.GhostMode.shared_facet)
+    ft = tag_rectangle_edges(msh, length, width)
+    msh.topology.create_connectivity(1, 2)
+    return Specimen(msh, None, ft, float(length), float(width),
+                    points={**corner_points(length, width), **dict(extra_points or {})})
+
+
+MESH_KINDS = ("auto", "aligned", "unstructured")
+"""``aligned``: :func:`fibre_aligned_rectangle`; ``unstructured``: gmsh's frontal Delaunay;
+``auto``: aligned where the fibres are at ±θ to x and a lattice fits, else unstructured."""
+
+
+def symmetric_angle(fibre_angles: tuple[float, float]) -> float | None:
+    """θ when the two families are at +θ and −θ to x (either order, 0 < θ < 90°), else None."""
+    a, b = (float(v) for v in fibre_angles)
+    theta = abs(a)
+    if math.isclose(a, -b, abs_tol=1e-9) and 0.0 < theta < 90.0:
+        return theta
+    return None
+
+
+def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
+              comm: MPI.Comm = MPI.COMM_WORLD, kind: str = "auto",
+              extra_points: dict | None = None) -> Specimen:
+    """The mesh of a rectangular specimen of the given ``kind`` (:data:`MESH_KINDS`)."""
+    from geometry.specimen import rectangle
+
+    if kind not in MESH_KINDS:
+        raise ValueError(f"geometry: mesh = {kind!r} must be one of {', '.join(MESH_KINDS)}")
+    theta = symmetric_angle(fibre_angles)
+    if kind == "aligned" and theta is None:
+        raise ValueError(f"geometry: a fibre-aligned mesh needs fibres at ±θ to x, not at "
+                         f"{tuple(fibre_angles)}°")
+    if kind != "unstructured" and theta is not None:
+        try:
+            return fibre_aligned_rectangle(length, width, h, theta, comm, extra_points)
+        except ValueError:
+            if kind == "aligned":
+                raise
+    return rectangle(length, width, h, comm, extra_points=extra_points)
