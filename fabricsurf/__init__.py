@@ -2,30 +2,29 @@
 
 The curated public API, layer by layer (docs/layout.md): the effect vocabulary (model), the
 experiment plug-ins, and the measurement workflow (load, compare, fit, diagnose).
+
+The names are imported on first use (PEP 562), so that ``import fabricsurf`` and
+``import fabricsurf.network`` do not load dolfinx, petsc4py or ufl.
 """
+
+from importlib import import_module
 
 __version__ = "0.2.0"
 
-from fabricsurf.errors import DataError, InputError
-from fabricsurf.experiments import TESTS, get_test
-from fabricsurf.experiments.bias_extension import BiasExtension
-from fabricsurf.inverse.contract.data import Experiment, load_experiment, write_experiment
-from fabricsurf.inverse.fitting.diagnose import diagnose
-from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
-from fabricsurf.model.terms import (
-    EFFECTS,
-    FibreStretch,
-    GeodesicBending,
-    NormalBending,
-    Shear,
-    ShearGradient,
-    ShearLocking,
-    StretchGradient,
-    Twist,
-    make_term,
-    parse_terms,
-)
+_SOURCES = {
+    "fabricsurf.errors": ("DataError", "InputError"),
+    "fabricsurf.experiments": ("TESTS", "get_test"),
+    "fabricsurf.experiments.bias_extension": ("BiasExtension",),
+    "fabricsurf.inverse.contract.data": ("Experiment", "load_experiment", "write_experiment"),
+    "fabricsurf.inverse.fitting.diagnose": ("diagnose",),
+    "fabricsurf.inverse.fitting.fit": ("fit",),
+    "fabricsurf.inverse.fitting.forward": ("ForwardModel", "ForwardSet"),
+    "fabricsurf.model.terms": (
+        "EFFECTS", "FibreStretch", "GeodesicBending", "NormalBending", "Shear", "ShearGradient",
+        "ShearLocking", "StretchGradient", "Twist", "make_term", "parse_terms",
+    ),
+}
+_LAZY = {name: module for module, names in _SOURCES.items() for name in names}
 
 __all__ = [
     "EFFECTS", "TESTS", "BiasExtension", "DataError", "Experiment", "FibreStretch",
@@ -33,3 +32,16 @@ __all__ = [
     "ShearGradient", "ShearLocking", "StretchGradient", "Twist", "__version__", "diagnose",
     "fit", "get_test", "load_experiment", "make_term", "parse_terms", "write_experiment",
 ]
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(module), name)
+    globals()[name] = value  # imported once
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
