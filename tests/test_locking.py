@@ -12,6 +12,7 @@ W/20, for K/k_s from 1e2 to 1e9 and for exact inextensibility.
 
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -63,15 +64,19 @@ def test_bias_force_tends_to_the_three_zone_limit_without_locking(h, tol):
     assert np.all(np.abs(table[None] - 1.0) < 1e-3)
 
 
-def test_zone_angles_follow_eq13():
+def test_zone_angles_follow_eq13(tmp_path):
     """Exact inextensibility: the shear angle in zones A, B and C (their centroids) is 0, γ_C/2
     and γ_C of Cao et al. 2008 eq. 13 within 0.5° at every step; the fibre tensions (the
-    multipliers) are finite and the grip force positive."""
+    multipliers) are reported per step, rise with the load, and are written to the XDMF."""
     b = bias(None, W / 10)
     pts = np.array([[W / 6, W / 2], [W / 2, W / 6], [H / 2, W / 2]])
     angles = []
-    b.run(UBAR[-1], len(UBAR), verbose=False,
-          on_step=lambda k, u: angles.append(np.degrees(b.fibre_fields_at(pts)[:, 2])))
+    out = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
+    res = b.run(UBAR[-1], len(UBAR), out=out, verbose=False,
+                on_step=lambda k, u: angles.append(np.degrees(b.fibre_fields_at(pts)[:, 2])))
+    assert np.all(np.diff(res.tension_max) > 0) and res.tension_max[0] > 0
+    MPI.COMM_WORLD.barrier()
+    assert "tension_l" in (out / "bias.xdmf").read_text()
     for ubar, got in zip(UBAR, angles):
         gc = math.degrees(float(zone_c_shear_angle(ubar, H, W)))
         print(f"ubar = {ubar}: zones A, B, C {np.round(got, 3)}; eq. 13: 0, {gc / 2:.3f}, {gc:.3f}")

@@ -35,16 +35,19 @@ class FieldWriter:
     """Writes u and the derived fields on P1 to ``path`` (XDMF + h5), one time per call.
 
     Derived fields are lumped L2 projections onto P1, f_i = ∫ f φ_i / ∫ φ_i, computed with one
-    compiled form for all fields (XDMF in dolfinx 0.5.2 holds P1 data only).
+    compiled form for all fields (XDMF in dolfinx 0.5.2 holds P1 data only). ``extra`` adds
+    named UFL fields (e.g. the fibre tensions); ``qdeg`` must equal the degree of any
+    quadrature-space coefficient in them (the multipliers of exact constraints).
     """
 
-    def __init__(self, path: Path, u: fem.Function, kin: Kinematics, qdeg: int = 2) -> None:
+    def __init__(self, path: Path, u: fem.Function, kin: Kinematics, qdeg: int = 2,
+                 extra: dict | None = None) -> None:
         msh = u.function_space.mesh
         self.comm, self.u = msh.comm, u
         d = u.function_space.dofmap.index_map_bs
         self.V1 = fem.VectorFunctionSpace(msh, ("CG", 1), dim=d)
         self.u1 = fem.Function(self.V1, name="u")
-        exprs = derived_fields(kin)
+        exprs = {**derived_fields(kin), **dict(extra or {})}
         self.names = list(exprs)
         k = len(self.names)
         self.Vk = fem.VectorFunctionSpace(msh, ("CG", 1), dim=k)

@@ -20,8 +20,13 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.discretise.energy import has_second_gradient
-from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, has_second_gradient
+from fabricsurf.discretise.evaluation import (
+    eval_points,
+    extremes_over_cells,
+    interpolate_expression,
+    quadrature_expression,
+)
 from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, write_json
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import LoadStepError, LoadStepper
@@ -62,6 +67,7 @@ class BiasResult:
     angle_A_deg: list = field(default_factory=list)
     angle_B_deg: list = field(default_factory=list)
     newton: list = field(default_factory=list)
+    tension_max: list = field(default_factory=list)
     seconds: float = 0.0
 
     def as_dict(self) -> dict:
@@ -101,11 +107,20 @@ class BiasExtension:
         kin = p.energy.kin
         self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
         self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
+        self._tensions = [quadrature_expression(e, p.msh, CELL_QUADRATURE_DEGREE)
+                          for e in p.energy.tension_fields().values()]
         pts = {**bias_points(self.specimen.length, self.specimen.width), **self.specimen.points}
         self.points = np.array([pts["A"], pts["B"]])
 
     def set_load(self, ubar: float) -> None:
         self.grip_ux.value = ubar
+
+    def tension_max(self) -> float:
+        """The largest fibre tension of either family (N/mm, at the quadrature points; the
+        multipliers for exact inextensibility), reduced over ranks; NaN without fibre terms."""
+        if not self._tensions:
+            return float("nan")
+        return max(extremes_over_cells(e, self.problem.msh)[1] for e in self._tensions)
 
     def angles_deg(self) -> np.ndarray:
         """Shear angles γ at A and B in degrees."""
@@ -131,24 +146,27 @@ class BiasExtension:
         """
         comm = self.problem.msh.comm
         res, t0 = BiasResult(), time.perf_counter()
-        writer = FieldWriter(Path(out) / "bias.xdmf", self.problem.u,
-                             self.problem.energy.kin) if out else None
+        energy = self.problem.energy
+        writer = FieldWriter(Path(out) / "bias.xdmf", self.problem.u, energy.kin,
+                             CELL_QUADRATURE_DEGREE if energy.multipliers else 2,
+                             energy.tension_fields()) if out else None
         log = StepLog(comm, Path(out), "bias_steps") if out else None
 
         def converged(k: int, ubar: float, its: int) -> None:
             f = self.problem.reaction("grip", 0)
             a = self.angles_deg()
+            t_max = self.tension_max()
             for lst, v in ((res.ubar, ubar), (res.force, f), (res.angle_A_deg, a[0]),
-                           (res.angle_B_deg, a[1]), (res.newton, its)):
+                           (res.angle_B_deg, a[1]), (res.newton, its), (res.tension_max, t_max)):
                 lst.append(float(v))
             if writer:
                 writer.write(ubar)
                 log.add(step=k + 1, ubar=ubar, force=f, angle_A_deg=a[0], angle_B_deg=a[1],
-                        newton_iterations=its)
+                        tension_max=t_max, newton_iterations=its)
             if verbose:
                 rank0_print(comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
                             f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
-                            f"  Newton {its}")
+                            f"  max fibre tension {t_max:8.4g} N/mm  Newton {its}")
             if on_step is not None:
                 on_step(k, ubar)
 
