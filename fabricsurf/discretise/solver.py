@@ -206,8 +206,15 @@ class SNESSolver:
         return self.A
 
     def _newton(self) -> tuple[int, int]:
+        """One SNES solve; a linear-solver failure (e.g. MUMPS on a singular tangent raises a
+        PETSc error rather than returning a reason) counts as DIVERGED_LINEAR_SOLVE, so the
+        load stepper cuts the step and reports it like any other divergence."""
         self.u.vector.copy(self.x)
-        self.snes.solve(None, self.x)
+        try:
+            self.snes.solve(None, self.x)
+        except PETSc.Error:
+            return (int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE),
+                    self.snes.getIterationNumber())
         self._update_u(self.x)
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
 
