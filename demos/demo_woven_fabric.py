@@ -13,9 +13,9 @@
 #
 # The data are the bias-extension curve of a plain-weave glass/PP fabric (Twintex) from the
 # international woven-fabric benchmark (Cao et al. 2008, Fig. 38), specimen 115 × 230 mm, force
-# only, digitised from the figure (`../shared/data/cao2008_plain_weave_115x230/`). No noise level
-# is given, so errors are in units of 1 % of the largest force (0.18 N; the digitising error is
-# about 0.1 N). Steps:
+# only, digitised from the figure (shipped as `fabricsurf.datasets.cao2008_plain_weave()`). No
+# noise level is given, so errors are in units of 1 % of the largest force (0.18 N; the
+# digitising error is about 0.1 N). Steps:
 #
 # 1. compare a first guess of `fibre_stretch + shear`, then fit it (k_l, k_m, k_s free);
 # 2. show where it fails: force residual against displacement, with the zone-C shear angle of
@@ -44,6 +44,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
+from fabricsurf.datasets import cao2008_plain_weave
 from fabricsurf.discretise.output import FieldWriter, on_rank0, rank0_print, write_json
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.inverse.contract.data import load_experiment
@@ -57,14 +58,13 @@ from fabricsurf.model.terms import parse_terms
 from research.studies import woven as wv
 
 comm = MPI.COMM_WORLD
-ROOT = Path(__file__).resolve().parents[1]
 ap = argparse.ArgumentParser()
 ap.add_argument("--out", default="out/woven")
 ap.add_argument("--quick", action="store_true",
                 help="h = 23 mm, diagnosis of shear_locking alone (one confirmation, no "
                 "discretisation check), prediction in 11 steps")
-ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data"
-                                      / "cao2008_plain_weave_115x230"))
+ap.add_argument("--data", default=str(cao2008_plain_weave()),
+                help="measurement directory (default: the Cao curve shipped with fabricsurf)")
 ap.add_argument("--h", type=float, default=None, help="element size (mm; default 11.5, quick 23)")
 args, _ = ap.parse_known_args()
 out = Path(args.out)

@@ -18,6 +18,7 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.cli import main
+from fabricsurf.datasets import cao2008_plain_weave
 from fabricsurf.experiments.picture_frame import frame_force_exact, frame_shear_angle
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting.diagnose import full_model
@@ -25,7 +26,7 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
 
-CAO = Path(__file__).resolve().parents[2] / "shared" / "data" / "cao2008_plain_weave_115x230"
+CAO = cao2008_plain_weave()
 MATERIAL = {"fibre_stretch": {"k_l": 40.0, "k_m": 40.0}, "shear": {"k_s": 0.4},
             "shear_locking": {"k4": 0.8, "k6": 0.5}, "geodesic_bending": {"A_g": 5.0}}
 

@@ -13,7 +13,8 @@ PKG = ROOT / "fabricsurf"
 HEAVY = ("dolfinx", "petsc4py", "ufl", "ffcx", "basix")
 
 # the layers, bottom first: a module may import its own layer and the layers below it
-LAYERS = ["errors", "model", "discretise", "experiments", "inverse", "cli", "fabricsurf"]
+LAYERS = ["errors", "datasets", "model", "discretise", "experiments", "inverse", "cli",
+          "fabricsurf"]
 # within inverse: the sub-packages each may import
 INVERSE = {
     "contract": {"contract"},
