@@ -24,7 +24,13 @@ import ufl
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from geometry.specimen import Specimen, check_positive, corner_points, tag_rectangle_edges
+from geometry.specimen import (
+    Specimen,
+    check_positive,
+    corner_points,
+    rectangle,
+    tag_rectangle_edges,
+)
 
 ANGLE_TOLERANCE_DEG = 0.05
 """Largest difference between the mesh's lattice angle and the requested fibre angle."""
@@ -128,8 +134,6 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
               comm: MPI.Comm = MPI.COMM_WORLD, kind: str = "auto",
               extra_points: dict | None = None) -> Specimen:
     """The mesh of a rectangular specimen of the given ``kind`` (:data:`MESH_KINDS`)."""
-    from geometry.specimen import rectangle
-
     if kind not in MESH_KINDS:
         raise ValueError(f"geometry: mesh = {kind!r} must be one of {', '.join(MESH_KINDS)}")
     theta = symmetric_angle(fibre_angles)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import gmsh
 import numpy as np
+from dolfinx import mesh as dmesh
 from dolfinx.io import gmshio
 from mpi4py import MPI
 
@@ -133,8 +134,6 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
     ``grading`` ∈ [0, 1) maps both coordinates by :func:`graded`, refining towards all four
     edges (boundary layers) and most at the corners.
     """
-    from dolfinx import mesh as dmesh
-
     check_positive(length=length, width=width, nx=nx, ny=ny)
     if not 0.0 <= grading < 1.0:
         raise ValueError(f"geometry: grading = {grading!r} must lie in [0, 1)")
@@ -154,8 +153,6 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
 def tag_rectangle_edges(msh, length: float, width: float):
     """Facet tags ``clamp``, ``grip``, ``bottom``, ``top`` (:data:`EDGE_TAGS`) of the rectangle
     [0, length] × [0, width] meshed by ``msh`` (a corner facet is tagged once)."""
-    from dolfinx import mesh as dmesh
-
     where = {"clamp": lambda x: np.isclose(x[0], 0.0), "grip": lambda x: np.isclose(x[0], length),
              "bottom": lambda x: np.isclose(x[1], 0.0), "top": lambda x: np.isclose(x[1], width)}
     facets, values = [], []

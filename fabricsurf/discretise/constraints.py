@@ -15,11 +15,12 @@ with u when it cuts a step.
 
 from __future__ import annotations
 
-import basix
 import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
+
+from fabricsurf.discretise.evaluation import quadrature_expression
 
 CONSTRAINT_TOLERANCE = 1e-9
 """Largest |g| accepted at a quadrature point (for stretches: a relative elongation)."""
@@ -40,10 +41,8 @@ class Multiplier:
         self.name, self.g, self.r = name, g, r
         self.space = fem.FunctionSpace(msh, element)
         self.T = fem.Function(self.space, name=name)
-        cell = basix.cell.string_to_type(msh.topology.cell_name())
-        points, _ = basix.make_quadrature(cell, degree)
-        self._g = fem.Expression(g, points)
-        self._tension = fem.Expression(self.tension(), points)
+        self._g = quadrature_expression(g, msh, degree)
+        self._tension = quadrature_expression(self.tension(), msh, degree)
         tdim = msh.topology.dim
         imap = msh.topology.index_map(tdim)
         self._cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)

@@ -131,8 +131,7 @@ class EnergyForm:
         constraints, else ∂W/∂λ and ∂W/∂μ of the elastic fibre terms."""
         fields = {m.name: m.tension() for m in self.multipliers}
         for t in self.model:
-            if hasattr(t, "tensions") and not t.constraints(self.kin):
-                fields.update(t.tensions(self.kin))
+            fields.update(t.tensions(self.kin))
         return fields
 
     def _ip_pieces(self):

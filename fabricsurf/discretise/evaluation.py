@@ -54,17 +54,15 @@ def interpolate_expression(expr, V: fem.FunctionSpace, name: str = "") -> fem.Fu
     return f
 
 
-
 def quadrature_expression(expr, msh, degree: int) -> fem.Expression:
     """``expr`` compiled for evaluation at the degree-``degree`` quadrature points of a cell."""
     cell = basix.cell.string_to_type(msh.topology.cell_name())
     return fem.Expression(expr, basix.make_quadrature(cell, degree)[0])
 
 
-def extremes_over_cells(expression: fem.Expression, msh) -> tuple[float, float]:
-    """(min, max) of a scalar fem.Expression over its points in the owned cells of all ranks."""
+def max_over_cells(expression: fem.Expression, msh) -> float:
+    """The largest value of a scalar fem.Expression at its points in the owned cells of all
+    ranks."""
     cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
-    vals = expression.eval(cells) if len(cells) else np.zeros(0)
-    lo = float(vals.min()) if vals.size else np.inf
-    hi = float(vals.max()) if vals.size else -np.inf
-    return msh.comm.allreduce(lo, op=MPI.MIN), msh.comm.allreduce(hi, op=MPI.MAX)
+    local = float(expression.eval(cells).max()) if len(cells) else -np.inf
+    return msh.comm.allreduce(local, op=MPI.MAX)

@@ -23,8 +23,8 @@ from mpi4py import MPI
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, has_second_gradient
 from fabricsurf.discretise.evaluation import (
     eval_points,
-    extremes_over_cells,
     interpolate_expression,
+    max_over_cells,
     quadrature_expression,
 )
 from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, write_json
@@ -120,7 +120,7 @@ class BiasExtension:
         multipliers for exact inextensibility), reduced over ranks; NaN without fibre terms."""
         if not self._tensions:
             return float("nan")
-        return max(extremes_over_cells(e, self.problem.msh)[1] for e in self._tensions)
+        return max(max_over_cells(e, self.problem.msh) for e in self._tensions)
 
     def angles_deg(self) -> np.ndarray:
         """Shear angles γ at A and B in degrees."""

@@ -101,6 +101,10 @@ class Term:
         augmentation stiffness (discretise/constraints.py); none by default."""
         return []
 
+    def tensions(self, kin: Kinematics) -> dict:
+        """Named fibre tensions (N/mm, UFL) the term's own energy carries; none by default."""
+        return {}
+
 
 @dataclass
 class FibreStretch(Term):
@@ -125,7 +129,10 @@ class FibreStretch(Term):
         return 0.5 * self.p("k_l") * (kin.lam - 1) ** 2 + 0.5 * self.p("k_m") * (kin.mu - 1) ** 2
 
     def tensions(self, kin: Kinematics) -> dict:
-        """Fibre tensions ∂W/∂λ, ∂W/∂μ per unit reference width (N/mm) of the elastic fibres."""
+        """Fibre tensions ∂W/∂λ, ∂W/∂μ per unit reference width (N/mm) of the elastic fibres
+        (those of inextensible ones are the multipliers of :meth:`constraints`)."""
+        if self.inextensible:
+            return {}
         return {"tension_l": self.p("k_l") * (kin.lam - 1),
                 "tension_m": self.p("k_m") * (kin.mu - 1)}
 
