@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     ubar = _check(args)
     model = _model(args)
-    od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS)
+    od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS,
+                   inputs=((f"--params {args.params}", args.params),) if args.params else ())
     rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
                       f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
                       f"on {comm.size} rank(s)")

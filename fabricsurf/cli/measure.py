@@ -67,6 +67,13 @@ def _setup(args):
     return exps, model
 
 
+def _inputs(args, exps: list) -> tuple[tuple[str, str], ...]:
+    """(label, path) of every input, which --out must keep apart from (cli.outdir)."""
+    found = [(f"DATA directory {d}", d) for d in args.data]
+    found += [(f"file {f} of DATA {d}", f) for d, e in zip(args.data, exps) for f in e.files]
+    return tuple(found + ([(f"--params {args.params}", args.params)] if args.params else []))
+
+
 def _positive_start(model, args) -> None:
     """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move."""
     for t in model:
@@ -139,7 +146,8 @@ def cmd_compare(args) -> int:
 
     exps, model = _setup(args)
     steps = _error_map_steps(args.steps, exps)
-    od = OutputDir(args.out, COMM, files=("misfit.json",))
+    od = OutputDir(args.out, COMM, files=("misfit.json",),
+                   inputs=_inputs(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         preds = fs.run()
@@ -158,7 +166,8 @@ def cmd_fit(args) -> int:
 
     exps, model = _setup(args)
     _positive_start(model, args)
-    od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"))
+    od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
+                   inputs=_inputs(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         res = fit(fs, verbose=True)
@@ -202,7 +211,8 @@ def cmd_diagnose(args) -> int:
     _positive_start(model, args)
     depths = _grip_depths(args.grip_depths, exps)
     params = {t.name: t.values() for t in model}
-    od = OutputDir(args.out, COMM, files=("diagnosis.json",))
+    od = OutputDir(args.out, COMM, files=("diagnosis.json",),
+                   inputs=_inputs(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         try:
             d = diagnose(exps, [t.name for t in model], h=args.h, params=params,

@@ -6,10 +6,15 @@ moved into OUT, one atomic rename each, after checking that none of them would h
 a directory (or a file by a directory): a publish either moves everything or nothing. A command
 that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
 directory and names it.
+
+``--out`` is checked first: its symbolic links are resolved (a dangling or looping link is
+refused), and it must not be, contain or lie inside any input (a DATA directory, a file it
+names, the --params file), so an input is never overwritten.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -28,6 +33,40 @@ def _existing_ancestor(path: Path) -> Path:
     return probe
 
 
+def _resolve(out: Path) -> Path:
+    """``out`` with its symbolic links resolved; a dangling or looping link (``out`` itself or
+    a directory on its way) is refused, naming the link."""
+    probe = Path()
+    for part in out.parts:
+        probe = probe / part
+        if probe.is_symlink() and not probe.exists():
+            try:
+                os.stat(probe)
+            except OSError as e:
+                if e.errno == errno.ELOOP:
+                    raise InputError(f"--out {out}: {probe} is a symbolic link that loops "
+                                     f"(-> {os.readlink(probe)})") from None
+            raise InputError(f"--out {out}: {probe} is a symbolic link to "
+                             f"{os.readlink(probe)}, which does not exist")
+    return out.resolve()
+
+
+def _inputs_clash(out: Path, real: Path, inputs: tuple[tuple[str, Path], ...]) -> None:
+    """--out must not be, contain or lie inside an input (``inputs``: (label, path) pairs)."""
+    for label, path in inputs:
+        p = Path(path).resolve()
+        if real == p:
+            why = "is"
+        elif p.is_relative_to(real):
+            why = "contains"
+        elif real.is_relative_to(p):
+            why = "lies inside"
+        else:
+            continue
+        raise InputError(f"--out {out}: it {why} the input {label}; outputs must not "
+                         "overwrite or mix with the inputs: choose another directory")
+
+
 def _clash(dst: Path, will_be_dir: bool) -> str | None:
     """Why ``dst`` cannot be replaced by a file (or a directory), or None."""
     if dst.is_dir() and not will_be_dir:
@@ -37,8 +76,11 @@ def _clash(dst: Path, will_be_dir: bool) -> str | None:
     return None
 
 
-def _check(out: Path, files: tuple[str, ...]) -> str:
+def _check(out: Path, files: tuple[str, ...],
+           inputs: tuple[tuple[str, Path], ...] = ()) -> str:
     """Validate ``--out`` (before any computation) and create the staging directory."""
+    real = _resolve(out)
+    _inputs_clash(out, real, inputs)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
     probe = _existing_ancestor(out.parent)
@@ -52,8 +94,8 @@ def _check(out: Path, files: tuple[str, ...]) -> str:
         why = _clash(out / name, will_be_dir=False)
         if why:
             raise InputError(f"--out {out}: {why}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent)
+    real.parent.mkdir(parents=True, exist_ok=True)
+    stage = tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=real.parent)
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
@@ -62,7 +104,7 @@ def _check(out: Path, files: tuple[str, ...]) -> str:
 
 def _publish(stage: Path, out: Path) -> None:
     if not out.exists():
-        os.replace(stage, out)
+        os.replace(stage, out.resolve())
         return
     items = sorted(stage.rglob("*"))
     for src in items:
@@ -83,16 +125,19 @@ class OutputDir:
     """``with OutputDir(out, comm) as stage:`` write into ``stage``; published on exit.
 
     ``files``: names the command will write, checked now (an existing directory of that name
-    in OUT is an error before any computation). ``keep_on_error``: publish what was written
+    in OUT is an error before any computation). ``inputs``: (label, path) of every input
+    (module docstring). ``keep_on_error``: publish what was written
     even when the body raises (failed runs keep their converged steps and the failure report);
     otherwise a failure discards it all. Collective: an exception on some ranks only is raised
     on the others too (same message), so every rank ends the same way.
     """
 
     def __init__(self, out: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
-                 keep_on_error: bool = False, files: tuple[str, ...] = ()) -> None:
+                 keep_on_error: bool = False, files: tuple[str, ...] = (),
+                 inputs: tuple[tuple[str, Path], ...] = ()) -> None:
         self.out, self.comm, self.keep = Path(out), comm, keep_on_error
-        self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out, tuple(files)), root=0))
+        self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out, tuple(files),
+                                              tuple(inputs)), root=0))
 
     def __enter__(self) -> Path:
         return self.stage

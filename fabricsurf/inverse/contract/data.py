@@ -149,7 +149,9 @@ def load_experiment(directory: str | Path) -> Experiment:
         raise DataError(f"experiment.toml: name = {name!r} must be a non-empty string")
     exp = Experiment(name, setup, steps, path, force,
                      noise_std=noise["noise_std"], force_noise_std=noise["force_noise_std"],
-                     source=dict(t.get("source", {})), directory=str(d.resolve()))
+                     source=dict(t.get("source", {})), directory=str(d.resolve()),
+                     files=tuple(str(d / f) for f in ("experiment.toml", fname, gname)
+                                 if f is not None))
     if fname is not None:
         _read_field(exp, d / str(fname), ls)
     checks.magnitudes(exp, lu)

@@ -30,6 +30,8 @@ class Experiment:
     force_noise_std: float | None = None
     source: dict = field(default_factory=dict)
     directory: str | None = None
+    files: tuple[str, ...] = ()
+    """The files read (experiment.toml, the field and force files), as given."""
 
     @property
     def test(self) -> str:
