@@ -114,6 +114,10 @@ def cmp(data="good", *extra):
     return ["compare", data, "--terms", TERMS, "--out", "out", *extra]
 
 
+def dgn(*extra):
+    return ["diagnose", "good", "--terms", TERMS, "--out", "out", *extra]
+
+
 CASES = [
     dict(id="params-typo", klass="`--params` naming a term that does not exist (typo)",
          make=params_file("typo.json", {"sheer": {"k_s": 0.8}}),
@@ -238,6 +242,35 @@ CASES = [
     dict(id="max-effects-negative", klass="`diagnose --max-effects -1`", make=nothing,
          argv=["diagnose", "good", "--terms", TERMS, "--max-effects", "-1", "--out", "out"],
          pattern=r"--max-effects -1: must be at least 0"),
+    dict(id="fixed-no-params", klass="`diagnose --fixed` without the moduli of the fixed terms",
+         make=params_file("nofixed.json", {"fibre_stretch": {"k_l": 2.0, "k_m": 2.0}}),
+         argv=dgn("--fixed", "shear", "--params", "nofixed.json"),
+         pattern=r"--fixed shear: a fixed term is held at its moduli from --params, and "
+         r"shear.k_s is not given in --params nofixed.json"),
+    dict(id="fixed-all", klass="`diagnose --fixed` on every baseline term", make=nothing,
+         argv=dgn("--fixed", "shear,fibre_stretch"),
+         pattern=r"--fixed shear,fibre_stretch: every baseline term \(--terms "
+         r"fibre_stretch,shear\) is fixed, so the baseline has no modulus to fit"),
+    dict(id="fixed-not-baseline", klass="`diagnose --fixed` naming a term not in `--terms`",
+         make=nothing, argv=dgn("--fixed", "shear_locking"),
+         pattern=r"--fixed shear_locking: 'shear_locking' is not a baseline term"),
+    dict(id="candidates-in-baseline", klass="`diagnose --candidates` only baseline terms",
+         make=nothing, argv=dgn("--candidates", "shear"),
+         pattern=r"--candidates shear: every candidate is already in the baseline \(--terms "
+         r"fibre_stretch,shear\), so nothing would be tested"),
+    dict(id="candidates-unknown", klass="`diagnose --candidates` naming an unknown term",
+         make=nothing, argv=dgn("--candidates", "sheer_locking"),
+         pattern=r"--candidates sheer_locking: unknown term 'sheer_locking'; valid terms are"),
+    dict(id="candidates-hidden", klass="`diagnose --candidates` the data cannot see",
+         make=nothing, argv=dgn("--candidates", "normal_bending"),
+         pattern=r"--candidates normal_bending: these data cannot see normal_bending"),
+    dict(id="params-misfit", klass="`--params` given a misfit.json (not a moduli file)",
+         make=params_file("misfit.json", {"combined": 1.8, "chi2": 110.2, "n": 34,
+                                          "experiments": [], "model": "fibre_stretch+shear",
+                                          "provenance": {}}),
+         argv=cmp("good", "--params", "misfit.json"),
+         pattern=r"--params misfit.json: this is a misfit report \(the misfit.json of compare, "
+         r"fit or diagnose\), not a moduli file"),
     dict(id="bias-h-zero", klass="`bias --h 0`", make=nothing,
          argv=["bias", "--h", "0", "--out", "out"], pattern=r"--h 0.0: must lie in \(0, 59.5\]"),
     dict(id="bias-steps", klass="`bias --steps 0`", make=nothing,

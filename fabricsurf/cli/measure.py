@@ -64,7 +64,7 @@ def _setup(args):
         raise InputError(f"experiments must have distinct names (experiment.toml: name), got "
                          f"{names} from {', '.join(map(str, args.data))}")
     check_h(args.h, exps)
-    return exps, model
+    return exps, model, params
 
 
 def _inputs(args, exps: list) -> tuple[tuple[str, str], ...]:
@@ -144,7 +144,7 @@ def cmd_compare(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model = _setup(args)
+    exps, model, _ = _setup(args)
     steps = _error_map_steps(args.steps, exps)
     od = OutputDir(args.out, COMM, files=("misfit.json",),
                    inputs=_inputs(args, exps))
@@ -164,7 +164,7 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model = _setup(args)
+    exps, model, _ = _setup(args)
     _positive_start(model, args)
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
                    inputs=_inputs(args, exps))
@@ -198,6 +198,57 @@ def _grip_depths(spec: str | None, exps: list) -> list[float] | None:
     return depths
 
 
+def _diagnose_options(args, exps: list, model: list, params: dict
+                      ) -> tuple[list[str] | None, list[str] | None]:
+    """--candidates and --fixed, checked against the vocabulary, the baseline (--terms), the
+    data and --params: no combination that silently answers another question."""
+    from fabricsurf.inverse.fitting.diagnose import visible_effects
+
+    baseline = [t.name for t in model]
+    terms = f"--terms {','.join(baseline)}"
+    cands, fixed = _names(args.candidates), _names(args.fixed)
+    for option, spec, names in (("--candidates", args.candidates, cands),
+                                ("--fixed", args.fixed, fixed)):
+        if names is None:
+            continue
+        if not names:
+            raise InputError(f"{option} {spec!r}: names no effect")
+        bad = [n for n in names if n not in EFFECTS]
+        if bad:
+            raise InputError(f"{option} {spec}: unknown term '{bad[0]}'; valid terms are: "
+                             f"{', '.join(EFFECTS)}")
+        dup = [n for n in names if names.count(n) > 1]
+        if dup:
+            raise InputError(f"{option} {spec}: '{dup[0]}' is given twice")
+    if fixed is not None:
+        outside = [n for n in fixed if n not in baseline]
+        if outside:
+            raise InputError(f"--fixed {args.fixed}: '{outside[0]}' is not a baseline term "
+                             f"({terms}); only baseline terms can be held fixed")
+        if set(fixed) == set(baseline):
+            raise InputError(f"--fixed {args.fixed}: every baseline term ({terms}) is fixed, "
+                             "so the baseline has no modulus to fit; leave at least one free "
+                             "(compare evaluates a model with given moduli)")
+        missing = [f"{n}.{p}" for n in fixed for p in EFFECTS[n].parameters()
+                   if p not in params.get(n, {})]
+        if missing:
+            where = f"in --params {args.params}" if args.params else "(no --params file)"
+            raise InputError(f"--fixed {args.fixed}: a fixed term is held at its moduli from "
+                             f"--params, and {', '.join(missing)} is not given {where}; give "
+                             "the known moduli of every fixed term")
+    if cands is not None:
+        hidden = [c for c in cands if c not in visible_effects(exps)]
+        if hidden:
+            raise InputError(f"--candidates {args.candidates}: these data cannot see "
+                             f"{', '.join(hidden)} (planar data cannot see out-of-plane "
+                             "effects)")
+        if all(c in baseline for c in cands):
+            raise InputError(f"--candidates {args.candidates}: every candidate is already in "
+                             f"the baseline ({terms}), so nothing would be tested; name "
+                             "effects that are not in --terms")
+    return cands, fixed
+
+
 def cmd_diagnose(args) -> int:
     from fabricsurf.inverse.fitting.diagnose import diagnose
     from fabricsurf.inverse.plots import figures
@@ -207,9 +258,10 @@ def cmd_diagnose(args) -> int:
         raise InputError(f"--confirm {args.confirm}: must be at least 1")
     if args.max_effects < 0:
         raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
-    exps, model = _setup(args)
+    exps, model, params = _setup(args)
     _positive_start(model, args)
     depths = _grip_depths(args.grip_depths, exps)
+    candidates, fixed = _diagnose_options(args, exps, model, params)
     params = {t.name: t.values() for t in model}
     od = OutputDir(args.out, COMM, files=("diagnosis.json",),
                    inputs=_inputs(args, exps))
@@ -217,7 +269,7 @@ def cmd_diagnose(args) -> int:
         try:
             d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
                          confirm=args.confirm, max_effects=args.max_effects, comm=COMM,
-                         candidates=_names(args.candidates), fixed=_names(args.fixed),
+                         candidates=candidates, fixed=fixed,
                          grip_depths=depths)
         except ValueError as e:
             raise InputError(str(e)) from None

@@ -11,6 +11,22 @@ from pathlib import Path
 from fabricsurf.errors import InputError
 from fabricsurf.model.terms import EFFECTS, Term
 
+OTHER_KINDS = (
+    ({"combined", "chi2"}, "a misfit report (the misfit.json of compare, fit or diagnose)"),
+    ({"baseline", "verdict"}, "a diagnosis (diagnosis.json; its final model is saved as "
+                              "model_best.json by diagnose --add-best)"),
+    ({"error"}, "a failure report (failure.json)"),
+    ({"ubar", "force"}, "the summary of a bias run (summary.json)"),
+)
+"""Outputs that are not moduli files, by the keys that mark them."""
+
+
+def _other_kind(data: dict) -> str | None:
+    """What ``data`` is when it is one of the outputs of OTHER_KINDS (and names no term)."""
+    if any(k in EFFECTS for k in data):
+        return None
+    return next((kind for keys, kind in OTHER_KINDS if keys <= set(data)), None)
+
 
 def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict:
     """{term: {param: value}} from a JSON file, every name and value checked. ``terms``: the
@@ -26,6 +42,10 @@ def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict
         raise InputError(f"--params {name}: not valid JSON ({e})") from None
     if isinstance(data, dict) and isinstance(data.get("params"), dict):
         data = data["params"]
+    kind = _other_kind(data) if isinstance(data, dict) else None
+    if kind:
+        raise InputError(f"--params {name}: this is {kind}, not a moduli file; give "
+                         '{"term": {"parameter": value}}, a fit.json or a model_best.json')
     if not isinstance(data, dict) or not data:
         raise InputError(f'--params {name}: expected {{"term": {{"parameter": value}}}}, got '
                          f"{type(data).__name__}")
