@@ -106,6 +106,34 @@ def field_in_metres(d: Path) -> None:
     (d / "field.csv").write_text("\n".join(",".join(r) for r in [rows[0], *body]) + "\n")
 
 
+def edits(*fns):
+    def edit(d: Path) -> None:
+        for fn in fns:
+            fn(d)
+    return edit
+
+
+def self_link(file: str):
+    def edit(d: Path) -> None:
+        (d / file).unlink()
+        (d / file).symlink_to(file)
+    return edit
+
+
+def cantilever(path: str):
+    """``good`` made a cantilever strip (field only, [loading] path ``path``; no uz)."""
+    def edit(d: Path) -> None:
+        toml = (d / "experiment.toml").read_text()
+        for old, new in (('test = "bias_extension"\nclamp = "gradient"',
+                          f'test = "cantilever"\npath = {path}'),
+                         ('force = "force.csv"\n', ""), ("force_noise_std = 0.01\n", "")):
+            assert old in toml, old
+            toml = toml.replace(old, new)
+        (d / "experiment.toml").write_text(toml + "[material]\nareal_density_g_m2 = 200.0\n")
+        (d / "force.csv").unlink()
+    return edit
+
+
 def make_file_out(base: Path) -> None:
     (base / "a_file").write_text("not a directory\n")
 
@@ -196,6 +224,38 @@ CASES = [
          make=variant("tabs", lambda d: (d / "force.csv").write_text(
              (d / "force.csv").read_text().replace(",", "\t"))),
          argv=cmp("tabs"), pattern=r"force.csv line 1: tab-separated header"),
+    dict(id="force-link-loop", klass="force.csv a symbolic link to itself",
+         make=variant("forceloop", self_link("force.csv")), argv=cmp("forceloop"),
+         pattern=r"force.csv: a symbolic link that loops \(force.csv -> force.csv\) in "
+         "forceloop, not a file"),
+    dict(id="fibres-near-parallel", klass="fibre families less than 5° apart",
+         make=variant("nearpar", replace("experiment.toml", "[45.0, -45.0]", "[45.0, 45.0001]")),
+         argv=cmp("nearpar"), pattern=r"fibre_angles_deg = \[45.0, 45.0001\]: the two fibre "
+         "families are 0.0001° apart, nearly parallel; they must cross at 5° or more"),
+    dict(id="bias-compression", klass="bias force curve with negative displacements",
+         make=variant("compress", edits(replace("force.csv", "\n1,0.8,0.0", "\n1,-0.8,-0.1"),
+                                        replace("force.csv", "\n2,1.6,0.0", "\n2,-1.6,-0.2"))),
+         argv=cmp("compress"), pattern=r"force.csv: step 1: grip displacement \(mm\) -0.8 is "
+         "negative; the 'bias_extension' test models extension"),
+    dict(id="cantilever-path", klass="cantilever load path outside (0, 1]",
+         make=variant("cantpath", cantilever("[0.5, -1, 3, 1]")),
+         argv=["compare", "cantpath", "--terms", "fibre_stretch,shear,normal_bending", "--out",
+               "out"], pattern=r"experiment.toml: \[loading\] path: step 2: self-weight factor "
+         r"-1 is outside \(0, 1\]"),
+    dict(id="cantilever-no-uz", klass="cantilever field without uz",
+         make=variant("cantnouz", cantilever("[0.5, 1.0]")),
+         argv=["compare", "cantnouz", "--terms", "fibre_stretch,shear,normal_bending", "--out",
+               "out"], pattern=r"field.csv: no column uz; the 'cantilever' test is out of plane"),
+    dict(id="forces-all-zero", klass="forces all 0 without `force_noise_std`",
+         make=variant("zeroforce", replace("experiment.toml", "force_noise_std = 0.01\n", "")),
+         argv=cmp("zeroforce"), pattern=r"force.csv: every force is 0 and \[data\] "
+         "force_noise_std is not given, so the misfit has no force scale"),
+    dict(id="names-collide", klass="experiment names equal as file names (`cao 115`, `cao_115`)",
+         make=lambda base: [variant(n, replace("experiment.toml", '"synthetic"', f'"{v}"'))(base)
+                            for n, v in (("cao1", "cao 115"), ("cao2", "cao_115"))],
+         argv=["compare", "cao1", "cao2", "--terms", TERMS, "--out", "out"],
+         pattern=r"experiments 'cao 115' and 'cao_115' \(experiment.toml: name\) give the same "
+         "file name prefix 'cao_115_' in --out"),
     dict(id="missing-data", klass="a DATA directory that does not exist", make=nothing,
          argv=cmp("nodata"), pattern=r"nodata: not a directory"),
     dict(id="out-is-file", klass="`--out` is an existing file", make=make_file_out,

@@ -63,6 +63,16 @@ def _setup(args):
     if len(set(names)) != len(names):
         raise InputError(f"experiments must have distinct names (experiment.toml: name), got "
                          f"{names} from {', '.join(map(str, args.data))}")
+    if len(names) > 1:
+        from fabricsurf.inverse.plots.outputs import slug
+
+        seen: dict[str, str] = {}
+        for n in names:
+            other = seen.setdefault(slug(n).casefold(), n)
+            if other != n:
+                raise InputError(f"experiments '{other}' and '{n}' (experiment.toml: name) "
+                                 f"give the same file name prefix '{slug(n)}_' in --out, so "
+                                 "one set of figures would overwrite the other; rename one")
     check_h(args.h, exps)
     return exps, model, params
 

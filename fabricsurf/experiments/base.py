@@ -82,6 +82,20 @@ class ExperimentSetup(ABC):
         """Reject specimens the test cannot have (e.g. a non-square picture frame)."""
 
     @classmethod
+    def check_path(cls, steps, path, where: str) -> None:
+        """Reject load-path values (one per step, in mm or the factor) the test does not model.
+        Default, a test driven by a displacement ("length"): it models extension (the
+        specimen pulled), so no value may be negative."""
+        if cls.path_unit != "length":
+            return
+        neg = [k for k, v in enumerate(path) if v < 0]
+        if neg:
+            k = neg[0]
+            raise DataError(f"{where}: step {int(steps[k])}: {cls.path_label} {path[k]:g} is "
+                            f"negative; the '{cls.name}' test models extension (the specimen "
+                            "pulled, displacements ≥ 0), not compression")
+
+    @classmethod
     def default_h(cls, setup: Setup) -> float:
         """Default element size (mm)."""
         return min(setup.length, setup.width) / 10.0

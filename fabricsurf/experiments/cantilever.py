@@ -110,6 +110,16 @@ class CantileverTest(ExperimentSetup):
         return {"areal_density_g_m2": rho}
 
     @classmethod
+    def check_path(cls, steps, path, where: str) -> None:
+        """The self-weight factor lies in (0, 1]: a fraction of the weight, downward."""
+        bad = [k for k, v in enumerate(path) if not 0 < v <= 1]
+        if bad:
+            k = bad[0]
+            raise DataError(f"{where}: step {int(steps[k])}: self-weight factor {path[k]:g} "
+                            "is outside (0, 1]; the cantilever sags under a fraction t of its "
+                            "own weight (t = 1: the full weight)")
+
+    @classmethod
     def default_h(cls, setup: Setup) -> float:
         return min(setup.length / 16.0, setup.width / 2.0)
 

@@ -3,8 +3,6 @@ the file, line or key and what to check (unit mix-ups are the common cause of ab
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from fabricsurf.errors import DataError
@@ -13,13 +11,19 @@ MAX_SPECIMEN_MM = 5000.0
 MIN_SPECIMEN_MM = 0.5
 MAX_FORCE_N = 1e7
 MIN_FIELD_EXTENT = 0.02
+MIN_FIBRE_ANGLE_DEG = 5.0
+"""Least angle between the two fibre families (as lines): nearly parallel ones make the
+membrane nearly singular across them, so a fit could trade one family against the other."""
 
 
 def fibre_angles(angles: tuple[float, float]) -> None:
-    """The two fibre families must not be parallel."""
-    if abs(math.sin(math.radians(angles[0] - angles[1]))) < 1e-6:
+    """The two fibre families must cross at MIN_FIBRE_ANGLE_DEG or more (as lines: mod 180°)."""
+    apart = abs(angles[0] - angles[1]) % 180.0
+    apart = min(apart, 180.0 - apart)
+    if apart < MIN_FIBRE_ANGLE_DEG:
         raise DataError(f"experiment.toml: [specimen] fibre_angles_deg = {list(angles)}: the "
-                        "two fibre families are parallel")
+                        f"two fibre families are {apart:.3g}° apart, nearly parallel; they "
+                        f"must cross at {MIN_FIBRE_ANGLE_DEG:g}° or more")
 
 
 def steps(values: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
@@ -95,6 +99,20 @@ def magnitudes(exp, length_unit: str) -> None:
     if exp.force_noise_std is not None and exp.force_noise_std > MAX_FORCE_N:
         raise DataError(f"experiment.toml: [data] force_noise_std = "
                         f"{exp.force_noise_std:.3g} N is not plausible (check [units] force)")
+
+
+def zero_data(exp, field_name: str | None, force_name: str | None) -> None:
+    """A measured curve (or field) that is all zero, without its noise level, has no misfit
+    scale: the default, 1 % of the largest measured value, would be 0."""
+    if exp.has_force and exp.force_noise_std is None and not np.any(exp.force):
+        raise DataError(f"{force_name}: every force is 0 and [data] force_noise_std is not "
+                        "given, so the misfit has no force scale (the default is 1 % of the "
+                        "largest |force|); check the force column or give force_noise_std (N)")
+    if exp.has_field and exp.noise_std is None and not np.any(exp.u):
+        raise DataError(f"{field_name}: every displacement is 0 and [data] noise_std is not "
+                        "given, so the misfit has no displacement scale (the default is 1 % "
+                        "of the largest displacement); check the columns or give noise_std "
+                        "(length units)")
 
 
 def field_displacements(u: np.ndarray, lines: np.ndarray, size: float, name: str) -> None:

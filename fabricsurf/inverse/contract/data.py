@@ -142,6 +142,8 @@ def load_experiment(directory: str | Path) -> Experiment:
         steps, path, force = _force_file(d, str(gname), pscale, fs)
     else:
         (steps, path), force = _path_from_toml(t, pscale), None
+    plugin.check_path(steps, path, str(gname) if gname is not None
+                      else "experiment.toml: [loading] path")
     noise = {k: (number_option(t, "data", k, "experiment.toml") * s if k in data else None)
              for k, s in (("noise_std", ls), ("force_noise_std", fs))}
     name = t.get("name", d.name)
@@ -153,14 +155,18 @@ def load_experiment(directory: str | Path) -> Experiment:
                      files=tuple(str(d / f) for f in ("experiment.toml", fname, gname)
                                  if f is not None))
     if fname is not None:
-        _read_field(exp, d / str(fname), ls)
+        _read_field(exp, d / str(fname), ls, plugin.d)
     checks.magnitudes(exp, lu)
+    checks.zero_data(exp, fname and str(fname), gname and str(gname))
     return exp
 
 
-def _read_field(exp: Experiment, path: Path, ls: float) -> None:
+def _read_field(exp: Experiment, path: Path, ls: float, d: int) -> None:
     f = read_csv(path, FIELD_COLUMNS, optional=("uz",))
     name = path.name
+    if d == 3 and "uz" not in f:
+        raise DataError(f"{name}: no column uz; the '{exp.test}' test is out of plane (its "
+                        "data are the deflection uz): give step,X,Y,ux,uy,uz")
     f["step"] = checks.steps(f["step"], f["_line"], name)
     f["X"], f["Y"] = f["X"] * ls, f["Y"] * ls
     checks.field_rows(f, exp.steps, exp.length, exp.width, name,

@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import codecs
 import csv
+import errno
 import io
 import math
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -24,11 +26,29 @@ import numpy as np
 from fabricsurf.errors import DataError
 
 
+def require_file(path: Path) -> None:
+    """``path`` is a readable file; a symbolic link that loops or dangles is named as such."""
+    if path.is_file():
+        return
+    name = path.name
+    if path.is_symlink():
+        try:
+            os.stat(path)
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                raise DataError(f"{name}: a symbolic link that loops ({name} -> "
+                                f"{os.readlink(path)}) in {path.parent}, not a file") from None
+        raise DataError(f"{name}: a symbolic link to {os.readlink(path)}, which does not exist "
+                        f"(in {path.parent})")
+    if path.is_dir():
+        raise DataError(f"{name}: a directory, not a file (in {path.parent})")
+    raise DataError(f"{name}: file not found in {path.parent}")
+
+
 def read_toml(path: Path) -> dict:
     """The TOML file as a dict (a UTF-8 byte-order mark is accepted)."""
     name = path.name
-    if not path.is_file():
-        raise DataError(f"{name}: file not found in {path.parent}")
+    require_file(path)
     text = _decode(path)
     try:
         return tomllib.loads(text)
@@ -64,8 +84,7 @@ def _number(cell: str, decimal_comma: bool) -> float:
 def read_csv(path: Path, columns: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
     """Numeric columns of a CSV file as arrays, plus ``"_line"``: each row's line number."""
     name = path.name
-    if not path.is_file():
-        raise DataError(f"{name}: file not found in {path.parent}")
+    require_file(path)
     lines = _decode(path).splitlines()
     numbered = [(i + 1, s) for i, s in enumerate(lines) if s.strip()]
     if not numbered:
