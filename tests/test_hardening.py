@@ -256,6 +256,16 @@ CASES = [
          argv=["compare", "cao1", "cao2", "--terms", TERMS, "--out", "out"],
          pattern=r"experiments 'cao 115' and 'cao_115' \(experiment.toml: name\) give the same "
          "file name prefix 'cao_115_' in --out"),
+    dict(id="fit-underdetermined", klass="`fit` of more moduli than measured values",
+         make=variant("onepoint", edits(replace("experiment.toml", 'field = "field.csv"\n', ""),
+                                        replace("force.csv", "\n2,1.6,0.0", ""))),
+         argv=["fit", "onepoint", "--terms", TERMS, "--out", "out"],
+         pattern=r"--terms fibre_stretch,shear: 3 moduli to fit \(fibre_stretch.k_l, "
+         r"fibre_stretch.k_m, shear.k_s\) from 1 measured value \('synthetic': 1 force "
+         r"value\): fewer data than moduli, the fit is under-determined"),
+    dict(id="diagnose-underdetermined", klass="`diagnose` of more free moduli than measured "
+         "values", make=nothing, argv=["diagnose", "onepoint", "--terms", TERMS, "--out", "out"],
+         pattern=r"3 moduli to fit .* from 1 measured value .*\(fewer --terms, or --fixed\)"),
     dict(id="missing-data", klass="a DATA directory that does not exist", make=nothing,
          argv=cmp("nodata"), pattern=r"nodata: not a directory"),
     dict(id="out-is-file", klass="`--out` is an existing file", make=make_file_out,

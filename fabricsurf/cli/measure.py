@@ -84,6 +84,34 @@ def _inputs(args, exps: list) -> tuple[tuple[str, str], ...]:
     return tuple(found + ([(f"--params {args.params}", args.params)] if args.params else []))
 
 
+def _enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None:
+    """Refuse a fit of more moduli than there are data (under-determined: its ± would be
+    meaningless). Data: every force value, and every field row times the components the
+    test compares."""
+    from fabricsurf.experiments import get_test
+
+    free = [f"{t.name}.{p}" for t in model if t.name not in (fixed or []) for p in t.values()]
+    counts, n = [], 0
+    for e in exps:
+        nf = len(e.force) if e.has_force else 0
+        comps = min(get_test(e.test).d, e.u.shape[1])
+        nu = len(e.X) * comps if e.has_field else 0
+        n += nf + nu
+        rows = len(e.X)
+        counts.append(f"'{e.name}': " + ", ".join(
+            ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
+            + ([f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
+               if e.has_field else [])))
+    if n < len(free):
+        raise InputError(f"--terms {','.join(t.name for t in model)}: {len(free)} moduli to fit "
+                         f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
+                         f"({'; '.join(counts)}): fewer data than moduli, the fit is "
+                         "under-determined; give more data (load steps, field points) or fit "
+                         "fewer moduli"
+                         + (" (fewer --terms, or --fixed)" if fixed is not None else
+                            " (fewer --terms)"))
+
+
 def _positive_start(model, args) -> None:
     """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move."""
     for t in model:
@@ -176,6 +204,7 @@ def cmd_fit(args) -> int:
 
     exps, model, _ = _setup(args)
     _positive_start(model, args)
+    _enough_data(exps, model)
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
                    inputs=_inputs(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
@@ -272,6 +301,7 @@ def cmd_diagnose(args) -> int:
     _positive_start(model, args)
     depths = _grip_depths(args.grip_depths, exps)
     candidates, fixed = _diagnose_options(args, exps, model, params)
+    _enough_data(exps, model, fixed or [])
     params = {t.name: t.values() for t in model}
     od = OutputDir(args.out, COMM, files=("diagnosis.json",),
                    inputs=_inputs(args, exps))
