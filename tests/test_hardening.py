@@ -517,6 +517,26 @@ def test_publish_all_or_nothing_and_collective(tmp_path):
     assert sorted(p.name for p in stage.iterdir()) == ["a.json", "b.csv"]
 
 
+def test_out_symlink_resolved(tmp_path):
+    """Issue 26 row 5: --out a symbolic link to a directory elsewhere (or not yet made): the
+    link is resolved first, the staging directory is made beside the target (a rename cannot
+    cross file systems) and the results land in the target; no staging directory is left."""
+    base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
+    if COMM.rank == 0:
+        (base / "elsewhere" / "target").mkdir(parents=True)
+        (base / "links").mkdir()
+        (base / "links" / "out").symlink_to(base / "elsewhere" / "target")
+    COMM.barrier()
+    with OutputDir(base / "links" / "out", COMM) as stage:
+        assert stage.parent == base / "elsewhere"
+        write_json(COMM, stage / "a.json", {"x": 1})
+    COMM.barrier()
+    assert (base / "elsewhere" / "target" / "a.json").is_file()
+    assert (base / "links" / "out").is_symlink()
+    assert sorted(p.name for p in (base / "elsewhere").iterdir()) == ["target"]
+    assert sorted(p.name for p in (base / "links").iterdir()) == ["out"]
+
+
 def test_failure_on_one_rank_raised_on_all(tmp_path):
     """An exception on the last rank only, inside the output context, is raised on every rank
     with the same message, and nothing is published."""

@@ -94,8 +94,10 @@ def _check(out: Path, files: tuple[str, ...],
         why = _clash(out / name, will_be_dir=False)
         if why:
             raise InputError(f"--out {out}: {why}")
-    real.parent.mkdir(parents=True, exist_ok=True)
-    stage = tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=real.parent)
+    # beside the real OUT (a rename cannot cross file systems), named as given when it is there
+    parent = out.parent if out.parent.resolve() == real.parent else real.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    stage = tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=parent)
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
