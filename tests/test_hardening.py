@@ -351,6 +351,15 @@ CASES = [
          argv=["bias", "--length", "40", "--width", "20", "--h", "10", "--out", "clash"],
          pattern=r"--out clash: clash/bias_steps.csv is a directory where a file of the same "
          "name is to be written"),
+    dict(id="bias-too-many-elements", klass="`bias --h` too fine for the memory (element "
+         "count estimated before meshing)", make=nothing,
+         argv=["bias", "--length", "230", "--width", "115", "--h", "0.05", "--out", "out"],
+         pattern=r"--h 0.05: about 21,160,000 elements \(specimen 230 x 115 mm\), more than "
+         r"--max-elements 400,000; they would take about 1,058 GB of memory"),
+    dict(id="compare-too-many-elements", klass="`--h` too fine for the memory", make=nothing,
+         argv=cmp("good", "--h", "0.01"),
+         pattern=r"--h 0.01: about 16,000,000 elements \('synthetic' 40 x 20 mm\), more than "
+         r"--max-elements 400,000"),
     dict(id="usage", klass="a missing argument (usage error)", make=nothing,
          argv=["fit", "good", "--out", "out"],
          pattern=r"the following arguments are required: --terms"),
@@ -515,6 +524,17 @@ def test_publish_all_or_nothing_and_collective(tmp_path):
     assert str(stage) in str(e.value)
     assert sorted(p.name for p in out.iterdir()) == ["b.csv"]
     assert sorted(p.name for p in stage.iterdir()) == ["a.json", "b.csv"]
+
+
+def test_max_elements_overrides_the_size_guard():
+    """Issue 26 row 6: --max-elements raises the limit (the estimate is 2 per h × h square);
+    a limit below 1 is refused naming the option."""
+    args = cli.build_parser().parse_args(["bias", "--length", "230", "--width", "115", "--h",
+                                          "0.05", "--max-elements", "30000000"])
+    assert cli.bias_cli._check(args) == 0.25 * 230
+    args.max_elements = 0
+    with pytest.raises(InputError, match=r"--max-elements 0: must be at least 1"):
+        cli.bias_cli._check(args)
 
 
 def test_out_symlink_resolved(tmp_path):

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from fabricsurf.cli.measure import add_max_elements, check_size
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
@@ -52,6 +53,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "model of --terms)")
     p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
                    help="gradient: u and its normal derivative held; position: u only")
+    add_max_elements(p)
 
 
 def _model(args) -> list:
@@ -69,6 +71,7 @@ def _check(args) -> float:
     if not 0 < args.h <= 0.5 * min(args.length, args.width):
         raise InputError(f"--h {args.h}: must lie in (0, {0.5 * min(args.length, args.width):g}]"
                          " mm (at least two elements across the width)")
+    check_size(args.h, [("specimen", args.length, args.width)], args.max_elements)
     if not 1 <= args.steps <= 1000:
         raise InputError(f"--steps {args.steps}: must lie in [1, 1000]")
     ubar = 0.25 * args.length if args.ubar is None else args.ubar

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 from collections.abc import Iterator
 
 from mpi4py import MPI
@@ -24,6 +25,11 @@ from fabricsurf.inverse.fitting.params import load_params, parse_model, provenan
 from fabricsurf.model.terms import EFFECTS
 
 COMM = MPI.COMM_WORLD
+MAX_ELEMENTS = 400_000
+"""Default of ``--max-elements``: about 20 GB at KB_PER_ELEMENT, what a 24 GB machine holds."""
+KB_PER_ELEMENT = 50.0
+"""Memory per triangle, all ranks together: measured 26 kB (11 000 elements) and 38 kB (23 000;
+bias test, second-gradient model, MUMPS), rising with the direct solver's fill-in."""
 
 
 def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
@@ -41,6 +47,31 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
     p.add_argument("--h", type=float, default=None,
                    help="element size in mm (default: the test's own: min(length, width)/10 "
                    "for bias_extension, length/8 for picture_frame)")
+    add_max_elements(p)
+
+
+def add_max_elements(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
+                   help="refuse a --h whose meshes would have more elements than this, "
+                   f"estimated before meshing (~{KB_PER_ELEMENT:g} kB of memory each)")
+
+
+def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int) -> None:
+    """Refuse ``--h`` when the meshes of ``specimens`` ((name, length, width) in mm) would
+    have more than ``max_elements`` triangles in all, estimated as 2 per h × h square before
+    any meshing, with the memory they would take."""
+    if max_elements < 1:
+        raise InputError(f"--max-elements {max_elements}: must be at least 1")
+    n = sum(2 * math.ceil(L / h) * math.ceil(W / h) for _, L, W in specimens)
+    if n > max_elements:
+        what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
+        gb = n * KB_PER_ELEMENT / 1e6
+        gb = f"{gb:,.0f}" if gb >= 10 else f"{gb:.2g}"
+        raise InputError(f"--h {h:g}: about {n:,} elements ({what}), more than --max-elements "
+                         f"{max_elements:,}; they would take about "
+                         f"{gb} GB of memory (~{KB_PER_ELEMENT:g} kB "
+                         "per element): give a larger --h, or raise --max-elements if the "
+                         "machine has the memory")
 
 
 def check_h(h: float | None, exps: list | None = None) -> None:
@@ -74,6 +105,9 @@ def _setup(args):
                                  f"give the same file name prefix '{slug(n)}_' in --out, so "
                                  "one set of figures would overwrite the other; rename one")
     check_h(args.h, exps)
+    if args.h is not None:
+        check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
+                   args.max_elements)
     return exps, model, params
 
 
