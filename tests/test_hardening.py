@@ -614,6 +614,87 @@ def test_rank0_only_failure_under_mpirun(command, tmp_path):
     assert seconds < 120
 
 
+def test_interrupt_cleanup_by_one_rank_without_mpi(tmp_path):
+    """Issue 26 rows 17, 18: the clean-up the signal handler runs (every rank calls it, no MPI
+    call): exactly one rank removes the staging directory (or publishes it with its report)
+    and gets the message; nothing else is left."""
+    import fabricsurf.cli.outdir as outdir
+
+    base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
+    msgs = {}
+    for name, keep in (("a", False), ("b", True)):
+        od = OutputDir(base / name, COMM, keep_on_error=keep)
+        stage = od.__enter__()
+        write_json(COMM, stage / "x.json", {})
+        od.on_interrupt = lambda st: (st / "failure.json").write_text("{}") and "; see failure.json"
+        msgs[name] = COMM.allgather(outdir.interrupted("SIGTERM"))
+        outdir._OPEN.remove(od)
+        COMM.barrier()
+    assert [m for m in msgs["a"] if m] == ["interrupted by SIGTERM; nothing was published to "
+                                           f"{base / 'a'}"]
+    assert [m for m in msgs["b"] if m] == ["interrupted by SIGTERM; see failure.json"]
+    assert sorted(p.name for p in base.iterdir()) == ["b"]
+    assert sorted(p.name for p in (base / "b").iterdir()) == ["failure.json", "x.json"]
+
+
+def _interrupt(args: list[str], ranks: int, cwd: Path, after: str) -> tuple[int, str]:
+    """Start ``fabricsurf ARGS`` (under ``mpirun -n ranks`` when ranks > 1), send SIGINT once
+    its output shows ``after``; the exit status and the output."""
+    import signal
+
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    cmd = [sys.executable, "-m", "fabricsurf", *args]
+    log = cwd / "log.txt"
+    with open(log, "w") as fh:
+        p = subprocess.Popen(["mpirun", "-n", str(ranks), *cmd] if ranks > 1 else cmd,
+                             cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
+        t0 = time.perf_counter()
+        while after not in log.read_text() and p.poll() is None:
+            assert time.perf_counter() - t0 < 180, log.read_text()
+            time.sleep(0.1)
+        assert p.poll() is None, "ended before the interrupt: " + log.read_text()
+        p.send_signal(signal.SIGINT)
+        p.wait(timeout=120)
+    text = log.read_text()
+    log.unlink()
+    return p.returncode, text
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_interrupted_bias_publishes_converged_steps(ranks, tmp_path):
+    """Issue 26 row 18: SIGINT during ``bias`` (mpirun turns it into SIGTERM on every rank):
+    one message "interrupted … at step k", the converged steps and a failure.json that says
+    "interrupted at step k" are published, and no staging directory is left."""
+    rc, out = _interrupt(["bias", "--length", "40", "--width", "20", "--h", "2", "--steps",
+                          "400", "--ubar", "20", "--terms", TERMS, "--out", "D"], ranks,
+                         tmp_path, "step 3/400")
+    lines = [ln for ln in out.splitlines() if "interrupted" in ln]
+    assert rc != 0 and len(lines) == 1, out
+    m = re.fullmatch(r"fabricsurf bias: interrupted by SIG(INT|TERM) at step (\d+) of 400; the "
+                     r"(\d+) converged steps and failure.json are in D", lines[0])
+    assert m and int(m[2]) == int(m[3]) + 1 and int(m[3]) >= 3, lines
+    report = json.loads((tmp_path / "D" / "failure.json").read_text())
+    assert report["error"] == f"interrupted at step {m[2]}"
+    assert report["converged_steps"] == int(m[3]) and report["provenance"]["ranks"] == ranks
+    rows = list(csv.DictReader((tmp_path / "D" / "bias_steps.csv").open()))
+    assert len(rows) >= int(m[3])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["D"]
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
+def test_interrupted_fit_under_mpirun_leaves_nothing(tmp_path):
+    """Issue 26 row 17: SIGINT to ``mpirun -n 2 … fit``: one message on every way out, no
+    output and no staging directory."""
+    write_experiment(tmp_path / "good", good_experiment())
+    rc, out = _interrupt(["fit", "good", "--terms", TERMS, "--h", "0.5", "--out", "D"], 2,
+                         tmp_path, "fit iteration 1")
+    lines = [ln for ln in out.splitlines() if "interrupted" in ln]
+    assert rc != 0 and lines == ["fabricsurf fit: interrupted by SIGTERM; nothing was published "
+                                 "to D"], out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good"]
+
+
 # -- quiet compiler, help, vocabulary ----------------------------------------------------------
 def _compile_new_form(args) -> int:
     """A form no cache holds (a value drawn on rank 0): the JIT compiles it."""

@@ -2,7 +2,10 @@
 fabricsurf``; every command runs under ``mpirun -n P``).
 
 Bad input ends with one message naming the file, key or option and exit status 2 on every rank
-(usage errors too); an unexpected failure on one rank aborts all ranks instead of leaving the
+(usage errors too); SIGINT or SIGTERM (what ``mpirun`` sends every rank on a Ctrl-C) ends
+every rank at once with one message and status 130, the output directory published (``bias``:
+its converged steps and a failure.json) or removed (:func:`fabricsurf.cli.outdir.interrupted`);
+an unexpected failure on one rank aborts all ranks instead of leaving the
 others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
 through the root logger) are hidden unless ``--verbose``.
 """
@@ -13,13 +16,15 @@ import argparse
 import contextlib
 import io
 import logging
+import os
+import signal
 import sys
 from collections.abc import Iterator
 
 from mpi4py import MPI
 
 from fabricsurf.cli import bias as bias_cli
-from fabricsurf.cli import measure
+from fabricsurf.cli import measure, outdir
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.errors import InputError
 
@@ -96,6 +101,38 @@ def compiler_messages(verbose: bool) -> Iterator[None]:
             logging.getLogger(n).setLevel(level)
 
 
+@contextlib.contextmanager
+def interruptible(command: str) -> Iterator[None]:
+    """SIGINT and SIGTERM end this process at once (status 130), after
+    :func:`~fabricsurf.cli.outdir.interrupted` cleaned up: no exception unwinds through code
+    that may call MPI, which could wait forever for a rank that has already stopped. The
+    previous handlers are restored on exit."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.getsignal(s) for s in signals}
+
+    def handler(signum, frame):
+        for s in signals:
+            signal.signal(s, signal.SIG_IGN)
+        msg = outdir.interrupted(signal.Signals(signum).name)
+        if msg:
+            print(f"fabricsurf {command}: {msg}", flush=True)
+        sys.stderr.flush()
+        os._exit(130)
+
+    for s in signals:
+        signal.signal(s, handler)
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
 def _parse(argv: list[str] | None) -> argparse.Namespace | int:
     """The arguments, or the exit status of --help / a usage error (printed by rank 0 only)."""
     quiet = contextlib.ExitStack()
@@ -115,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     if isinstance(args, int):
         return args
     try:
-        with compiler_messages(args.verbose):
+        with interruptible(args.command), compiler_messages(args.verbose):
             return args.func(args)
     except (InputError, OSError) as e:
         rank0_print(COMM, f"fabricsurf {args.command}: error: {e}")

@@ -93,8 +93,18 @@ def run(args: argparse.Namespace) -> int:
     with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
         summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp}
+        done: list[int] = []
+
+        def report(stage_dir: Path) -> str:  # from the signal handler: no MPI call
+            k = len(done) + 1
+            write_json(MPI.COMM_SELF, stage_dir / "failure.json", summary | {
+                "error": f"interrupted at step {k}", "converged_steps": len(done)})
+            return (f" at step {k} of {args.steps}; the {len(done)} converged steps and "
+                    f"failure.json are in {args.out}")
+
+        od.on_interrupt = report
         try:
-            res = test.run(ubar, args.steps, out=stage)
+            res = test.run(ubar, args.steps, out=stage, on_step=lambda k, u: done.append(k))
         except LoadStepError as e:
             write_json(comm, stage / "failure.json", summary | {"error": str(e)})
             raise RuntimeError(f"{e}; the converged steps are in {args.out}") from None

@@ -18,6 +18,8 @@ import errno
 import os
 import shutil
 import tempfile
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from mpi4py import MPI
@@ -123,6 +125,42 @@ def _publish(stage: Path, out: Path) -> None:
     shutil.rmtree(stage)
 
 
+INTERRUPT_WAIT = 0.8
+"""Seconds a rank waits for the one cleaning up after an interrupt (``mpirun`` kills every rank
+1 s after its SIGTERM)."""
+_OPEN: list[OutputDir] = []
+"""The output directories being written (innermost last), for :func:`interrupted`."""
+
+
+def interrupted(signame: str) -> str | None:
+    """Clean up after SIGINT or SIGTERM, from the signal handler, without any MPI call (the
+    ranks may be anywhere, some blocked in a collective call another has left): the rank that
+    claims the open OutputDir's staging directory (renames it, which only one can do)
+    publishes it (``keep_on_error``, after its ``on_interrupt`` report) or removes it, and gets
+    the message; the others wait for it to finish and get None. With no OutputDir open, rank 0
+    gets the message."""
+    if not _OPEN:
+        return f"interrupted by {signame}" if MPI.COMM_WORLD.rank == 0 else None
+    od = _OPEN[-1]
+    claimed = od.stage.with_name(od.stage.name + ".interrupted")
+    try:
+        os.rename(od.stage, claimed)  # atomic: one rank only succeeds
+    except OSError:
+        t0 = time.monotonic()
+        while claimed.exists() and time.monotonic() - t0 < INTERRUPT_WAIT:
+            time.sleep(0.01)
+        return None
+    try:
+        if od.keep:
+            note = od.on_interrupt(claimed) if od.on_interrupt else ""
+            _publish(claimed, od.out)
+            return f"interrupted by {signame}{note}"
+        shutil.rmtree(claimed, ignore_errors=True)
+        return f"interrupted by {signame}; nothing was published to {od.out}"
+    except (InputError, OSError) as e:
+        return f"interrupted by {signame}; {e}"
+
+
 class OutputDir:
     """``with OutputDir(out, comm) as stage:`` write into ``stage``; published on exit.
 
@@ -131,20 +169,26 @@ class OutputDir:
     (module docstring). ``keep_on_error``: publish what was written
     even when the body raises (failed runs keep their converged steps and the failure report);
     otherwise a failure discards it all. Collective: an exception on some ranks only is raised
-    on the others too (same message), so every rank ends the same way.
+    on the others too (same message), so every rank ends the same way. After SIGINT or
+    SIGTERM, :func:`interrupted` publishes or removes it (``on_interrupt(stage)``: writes a
+    report there and returns what to add to the message); no staging directory outlives
+    the run.
     """
 
     def __init__(self, out: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
                  keep_on_error: bool = False, files: tuple[str, ...] = (),
                  inputs: tuple[tuple[str, Path], ...] = ()) -> None:
         self.out, self.comm, self.keep = Path(out), comm, keep_on_error
+        self.on_interrupt: Callable[[Path], str] | None = None
         self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out, tuple(files),
                                               tuple(inputs)), root=0))
 
     def __enter__(self) -> Path:
+        _OPEN.append(self)
         return self.stage
 
     def __exit__(self, exc_type, exc, tb) -> bool:
+        _OPEN.remove(self)
         mine = None if exc is None else (isinstance(exc, InputError), str(exc))
         first = next((m for m in self.comm.allgather(mine) if m is not None), None)
         if first is None or self.keep:
