@@ -509,6 +509,40 @@ def test_solver_failure_reports_step_from_1(in_root, capsys):
     assert sorted(p.name for p in (in_root / "failed").iterdir()) == ["failure.json"]
 
 
+def test_start_failure_names_experiment_step_and_load():
+    """Issue 26 row 19 (its last part): a fit whose starting model cannot follow the load path
+    says with which moduli, in which experiment, at which step and load (and keeps what had
+    converged for failure.json)."""
+    from fabricsurf.discretise.solver import LoadStepError
+    from fabricsurf.inverse.fitting.fit import fit
+
+    class Diverging:  # a forward model whose start fails at step 3 of experiment 'strip45'
+        names, comm, forward_runs = ["normal_bending.k_b"], COMM, 0
+
+        def __init__(self):
+            self.params, self.v = [(EFFECTS["normal_bending"](), "k_b")], np.array([1e-4])
+
+        def values(self):
+            return self.v.copy()
+
+        def set_values(self, v):
+            self.v = np.array(v, float)
+
+        def run(self, sens=False):
+            e = LoadStepError("load step 3 (target 0.75) failed: DIVERGED_LINE_SEARCH (-6)",
+                              step=3, target=0.75, last_load=0.5, reason=-6)
+            e.experiment, e.partial = "strip45", "converged"
+            raise e
+
+    with pytest.raises(LoadStepError) as err:
+        fit(Diverging(), scale_start=False, verbose=False)
+    assert str(err.value) == ("fit: the initial model (normal_bending.k_b = 0.0001) does not "
+                              "follow the load path of experiment 'strip45': load step 3 "
+                              "(target 0.75) failed: DIVERGED_LINE_SEARCH (-6)")
+    e = err.value
+    assert (e.experiment, e.step, e.target, e.partial) == ("strip45", 3, 0.75, "converged")
+
+
 def test_publish_all_or_nothing_and_collective(tmp_path):
     """A publish that would replace a directory by a file moves nothing, keeps the staging
     directory and raises the same InputError on every rank (it runs on rank 0 only)."""

@@ -186,6 +186,8 @@ def _failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
         partial, by_name = getattr(e, "partial", None), {x.name: x for x in exps}
         kept = {} if partial is None else {"experiment": e.experiment, "converged_steps":
                                            converged_steps(by_name[e.experiment], partial)}
+        if e.step:  # where the load path stopped
+            kept |= {"step": e.step, "load": e.target}
         write_json(COMM, stage / "failure.json",
                    {"error": str(e)} | kept | {"provenance": provenance(
                        model, [str(d) for d in args.data], args.h and [args.h])})

@@ -81,6 +81,26 @@ def _try(fm: Forward, free: list[int], vals: np.ndarray):
     return pred, (r, Jr), float(r @ r)
 
 
+def _start(fm: Forward, free: list[int], vals: np.ndarray):
+    """:func:`_try` at the start, where a failure ends the fit: the error names the starting
+    moduli, the experiment, the step and the load (and keeps what had converged)."""
+    moduli = ", ".join(f"{fm.names[k]} = {vals[k]:.4g}" for k in free)
+    fm.set_values(vals)
+    try:
+        pred = fm.run(sens=free)
+    except LoadStepError as e:
+        exp = getattr(e, "experiment", None)
+        err = LoadStepError(f"fit: the initial model ({moduli}) does not follow the load path"
+                            + (f" of experiment '{exp}'" if exp else "") + f": {e}", e.step,
+                            e.target, e.last_load, e.reason, e.attempts)
+        err.experiment, err.partial = exp, e.partial
+        raise err from None
+    r, Jr = fm.residuals(pred)
+    if not np.isfinite(r).all():
+        raise LoadStepError(f"fit: the initial model ({moduli}) gives non-finite residuals")
+    return pred, (r, Jr), float(r @ r)
+
+
 def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
     """(JᵀJ)⁻¹, scaled by the reduced χ² when the noise level is not known."""
     n, P = Jt.shape
@@ -122,9 +142,7 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         if verbose:
             rank0_print(fm.comm, "  fit: start after the scale scan: " + "  ".join(
                 f"{fm.names[k]} = {vals[k]:.4g}" for k in free))
-    pred, rj, chi2 = _try(fm, free, vals)
-    if pred is None:
-        raise LoadStepError("fit: the initial model does not follow the load path")
+    pred, rj, chi2 = _start(fm, free, vals)
     r, Jr = rj
     lam, hist, it = 1e-3, [], 0
     at_bound = np.zeros(len(free), bool)
