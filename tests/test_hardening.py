@@ -543,6 +543,50 @@ def test_start_failure_names_experiment_step_and_load():
     assert (e.experiment, e.step, e.target, e.partial) == ("strip45", 3, 0.75, "converged")
 
 
+def test_undetermined_moduli_named_not_given_a_plus_minus():
+    """Issue 26 row 4 (identifiability): data that see only the product k_l·k_m (a rank-1
+    Fisher matrix for two moduli) give no ± of 1e-13: the fit names the undetermined
+    combination and the printed result says so; a ± that spans zero is not printed either."""
+    from fabricsurf.cli.measure import result_lines
+    from fabricsurf.inverse.fitting.fit import fit
+
+    class Product:  # r = log k_l + log k_m - log 6, measured twice with noise 1
+        names, comm, forward_runs, noise_known = ["a.k_l", "a.k_m"], COMM, 0, True
+
+        def __init__(self):
+            self.params, self.v = [(None, "k_l"), (None, "k_m")], np.array([1.0, 1.0])
+
+        def values(self):
+            return self.v.copy()
+
+        def set_values(self, v):
+            self.v = np.array(v, float)
+
+        def run(self, sens=False):
+            return self.v.copy()
+
+        def residuals(self, pred):
+            r = np.full(2, np.log(pred[0]) + np.log(pred[1]) - np.log(6.0))
+            return r, np.tile(1.0 / pred, (2, 1))
+
+        def misfit(self, pred):
+            return {}
+
+    res = fit(Product(), scale_start=False, verbose=False)
+    assert np.isclose(res.values.prod(), 6.0)
+    assert res.undetermined == ["0.71 log a.k_l - 0.71 log a.k_m"]
+    assert res.as_dict()["undetermined"] == res.undetermined
+    assert result_lines(res) == [
+        f"  a.k_l = {res.values[0]:.5g} (not determined by the data: see below)",
+        f"  a.k_m = {res.values[1]:.5g} (not determined by the data: see below)",
+        "  not determined by the data (rank-deficient Fisher matrix): 0.71 log a.k_l - 0.71 "
+        "log a.k_m"]
+    res.undetermined, res.std = [], np.array([3.0, 0.5]) * res.values
+    assert result_lines(res)[0].endswith("(not determined by the data: the ± "
+                                         f"{res.std[0]:.2g} spans zero)")
+    assert result_lines(res)[1] == f"  a.k_m = {res.values[1]:.5g} ± {res.std[1]:.2g}"
+
+
 def test_publish_all_or_nothing_and_collective(tmp_path):
     """A publish that would replace a directory by a file moves nothing, keeps the staging
     directory and raises the same InputError on every rank (it runs on rank 0 only)."""

@@ -11,8 +11,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import re
 from collections.abc import Iterator
 
+import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli.outdir import OutputDir
@@ -233,6 +235,25 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def result_lines(res) -> list[str]:
+    """The fitted moduli, each with its ±, except where the data do not determine it: a
+    modulus in a null direction of the Fisher matrix (its ± would be a meaningless 1e-13) or
+    whose ± spans zero is said to be undetermined, with the combinations."""
+    lost = {n for c in res.undetermined for n in re.findall(r"log (\S+)", c)}
+    lines = []
+    for n, v, s in zip(res.names, res.values, res.std):
+        if n in lost:
+            lines.append(f"  {n} = {v:.5g} (not determined by the data: see below)")
+        elif not np.isfinite(s) or s >= v:
+            lines.append(f"  {n} = {v:.5g} (not determined by the data: the ± {s:.2g} spans "
+                         "zero)")
+        else:
+            lines.append(f"  {n} = {v:.5g} ± {s:.2g}")
+    for c in res.undetermined:
+        lines.append(f"  not determined by the data (rank-deficient Fisher matrix): {c}")
+    return lines
+
+
 def cmd_fit(args) -> int:
     from fabricsurf.inverse.fitting.fit import fit
     from fabricsurf.inverse.fitting.forward import ForwardSet
@@ -249,8 +270,8 @@ def cmd_fit(args) -> int:
         write_json(COMM, stage / "fit.json", res.as_dict() | _prov(model, fs, args))
         label = "fit: " + "+".join(t.name for t in model)
         write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
-    for n, v, s in zip(res.names, res.values, res.std):
-        rank0_print(COMM, f"  {n} = {v:.5g} ± {s:.2g}")
+    for line in result_lines(res):
+        rank0_print(COMM, line)
     rank0_print(COMM, _summary(label, res.misfit))
     return 0
 

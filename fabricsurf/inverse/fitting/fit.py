@@ -49,6 +49,8 @@ class FitResult:
     iterations: int
     forward_runs: int
     history: list = field(default_factory=list)
+    undetermined: list = field(default_factory=list)
+    """Combinations of log-moduli the data do not determine (:func:`undetermined`)."""
 
     def params(self) -> dict:
         """{term: {param: value}} (the --params file format)."""
@@ -63,7 +65,8 @@ class FitResult:
         return {"terms": list(self.params()), "params": self.params(),
                 "std": {n: float(s) for n, s in zip(self.names, self.std)},
                 "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
-                "forward_runs": self.forward_runs, "history": self.history}
+                "forward_runs": self.forward_runs, "history": self.history,
+                "undetermined": self.undetermined}
 
 
 Forward = ForwardModel | ForwardSet
@@ -99,6 +102,32 @@ def _start(fm: Forward, free: list[int], vals: np.ndarray):
     if not np.isfinite(r).all():
         raise LoadStepError(f"fit: the initial model ({moduli}) gives non-finite residuals")
     return pred, (r, Jr), float(r @ r)
+
+
+RANK_TOL = 1e-8
+"""Singular values of the scaled Jacobian below this fraction of the largest are null
+directions: the data do not determine that combination of log-moduli."""
+
+
+def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
+    """The null directions of the scaled Jacobian Jt = dr/d(log p) (a rank-deficient Fisher
+    matrix JtᵀJt), each as its combination of log-moduli, e.g. "0.71 log a.k - 0.71 log b.k"
+    (the ratio a.k/b.k is not determined)."""
+    P = Jt.shape[1]
+    if P == 0:
+        return []
+    _, sv, Vt = np.linalg.svd(Jt, full_matrices=True)
+    sv = np.concatenate([sv, np.zeros(P - len(sv))])
+    top = sv[0] if sv[0] > 0 else 1.0
+    out = []
+    for sval, v in zip(sv, Vt):
+        if sval <= RANK_TOL * top:
+            terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
+            if terms[0][0] < 0:  # the first term positive
+                terms = [(-c, n) for c, n in terms]
+            out.append(" ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
+                                for c, n in terms).lstrip("+ "))
+    return out
 
 
 def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
@@ -190,7 +219,8 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     std = np.zeros(len(vals))
     std[free] = vals[free] * np.sqrt(np.maximum(np.diag(C), 0.0))
     return FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it,
-                     fm.forward_runs - runs0, hist)
+                     fm.forward_runs - runs0, hist,
+                     undetermined(list(np.array(fm.names)[free]), Jt))
 
 
 def strip_rows(m: dict) -> dict:
