@@ -543,6 +543,57 @@ def test_start_failure_names_experiment_step_and_load():
     assert (e.experiment, e.step, e.target, e.partial) == ("strip45", 3, 0.75, "converged")
 
 
+def test_scanned_start_that_breaks_the_model_falls_back(capsys):
+    """Issue 26 row 19: the decade scan ranks starts on the scout mesh; when the scanned start
+    does not follow the load path on the fit's mesh (a modulus the data hardly see, scanned
+    down to where the model breaks), the fit says so and starts from the given moduli."""
+    from types import SimpleNamespace
+
+    from fabricsurf.discretise.solver import LoadStepError
+    from fabricsurf.inverse.fitting.fit import fit
+
+    class Membrane:  # chi2 = (log k - log best)^2; the fine model fails below k = 0.01
+        names, comm, forward_runs, noise_known, experiments = ["a.k"], COMM, 0, True, []
+
+        def __init__(self, best, floor):
+            self.best, self.floor, self.v = best, floor, np.array([1.0])
+            self.params = [(SimpleNamespace(name="a"), "k")]
+
+        def coarse(self, factor):
+            return self.scout
+
+        def values(self):
+            return self.v.copy()
+
+        def set_values(self, v):
+            self.v = np.array(v, float)
+
+        def run(self, sens=False):
+            if self.v[0] < self.floor:
+                e = LoadStepError(f"load step 2 (target 0.5) failed at k = {self.v[0]:g}",
+                                  step=2, target=0.5)
+                e.experiment = "strip45"
+                raise e
+            return self.v.copy()
+
+        def residuals(self, pred):
+            return np.log(pred / self.best), np.array([[1.0 / pred[0]]])
+
+        def misfit(self, pred):
+            return {}
+
+    fm = Membrane(best=0.05, floor=0.01)
+    fm.scout = Membrane(best=1e-4, floor=0.0)  # the scout mesh carries (and prefers) 1e-4
+    res = fit(fm, verbose=True)
+    out = capsys.readouterr().out if COMM.rank == 0 else ""
+    assert np.isclose(res.values[0], 0.05, rtol=1e-4)
+    if COMM.rank == 0:
+        assert "start after the scale scan: a.k = 0.0001" in out
+        assert ("the scanned start fails (fit: the initial model (a.k = 0.0001) does not "
+                "follow the load path of experiment 'strip45': load step 2 (target 0.5) "
+                "failed at k = 0.0001); starting from the given moduli instead") in out
+
+
 def test_undetermined_moduli_named_not_given_a_plus_minus():
     """Issue 26 row 4 (identifiability): data that see only the product k_l·k_m (a rank-1
     Fisher matrix for two moduli) give no ± of 1e-13: the fit names the undetermined

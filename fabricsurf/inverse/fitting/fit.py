@@ -165,13 +165,24 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     if np.any(vals[free] <= 0):
         raise ValueError("fit: initial moduli must be > 0 (log-parametrisation): "
                          f"{dict(zip(fm.names, vals))}")
-    runs0 = fm.forward_runs
+    runs0, given = fm.forward_runs, vals.copy()
     if scale_start:
         vals = scan_terms(fm, free, vals)
         if verbose:
             rank0_print(fm.comm, "  fit: start after the scale scan: " + "  ".join(
                 f"{fm.names[k]} = {vals[k]:.4g}" for k in free))
-    pred, rj, chi2 = _start(fm, free, vals)
+    try:
+        pred, rj, chi2 = _start(fm, free, vals)
+    except LoadStepError as e:
+        # the scout mesh carried the scanned moduli, the fit's mesh does not (moduli the data
+        # hardly see, e.g. a cantilever's membrane, scanned down): start from those given
+        if not scale_start or np.array_equal(vals, given):
+            raise
+        if verbose:
+            rank0_print(fm.comm, f"  fit: the scanned start fails ({e}); starting from the "
+                        "given moduli instead")
+        vals = given
+        pred, rj, chi2 = _start(fm, free, vals)
     r, Jr = rj
     lam, hist, it = 1e-3, [], 0
     at_bound = np.zeros(len(free), bool)
