@@ -35,23 +35,29 @@ from geometry.specimen import (
 ANGLE_TOLERANCE_DEG = 0.05
 """Largest difference between the mesh's lattice angle and the requested fibre angle."""
 
+SIZE_WINDOW = 1.4
+"""The lattice's number of rows may differ from the one ``h`` asks for by this factor either
+way (about 2× in cell count); beyond it the specimen gets no aligned mesh at this h."""
+
 
 def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
                       tol_deg: float = ANGLE_TOLERANCE_DEG) -> tuple[int, int]:
     """Even numbers (P, Q) of lattice steps along x and y with atan((W/Q)/(L/P)) = θ within
-    ``tol_deg`` and a fibre edge length as close to ``h`` as such pairs allow.
+    ``tol_deg``, Q within :data:`SIZE_WINDOW` of the count q0 that fibre edges of length ``h``
+    give (so the mesh has about the requested size), and Q as close to q0 as such pairs allow.
 
-    Raises ValueError, naming the nearest angle a lattice can have, when no pair with at most
-    four times the requested number of steps fits.
+    Raises ValueError, naming the nearest angle a lattice in that window can have, when none
+    fits (a rectangle whose sides are in no simple ratio to the fibre angle at this h).
     """
     check_positive(length=length, width=width, h=h)
     if not 0.0 < theta_deg < 90.0:
         raise ValueError(f"geometry: fibre angle ±{theta_deg:g}° must lie strictly between 0° "
                          "and 90° for a fibre-aligned mesh")
     t = math.radians(theta_deg)
-    q0 = max(2, 2 * round(width / (2 * h * math.sin(t))))
+    q0 = width / (h * math.sin(t))
+    lo, hi = max(2, math.ceil(q0 / SIZE_WINDOW)), max(2, math.floor(q0 * SIZE_WINDOW))
     best, nearest = None, None
-    for q in range(2, 4 * q0 + 1, 2):
+    for q in range(lo + lo % 2, hi + 1, 2):
         p = max(2, 2 * round(length * math.tan(t) * q / (2 * width)))
         err = abs(math.degrees(math.atan((width / q) / (length / p))) - theta_deg)
         if nearest is None or err < nearest[0]:
@@ -59,6 +65,9 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
         if err <= tol_deg and (best is None or abs(q - q0) < abs(best[1] - q0)):
             best = (p, q)
     if best is None:
+        if nearest is None:
+            raise ValueError(f"geometry: no even number of lattice rows of a {width:g} mm "
+                             f"width lies within {SIZE_WINDOW:g}× of {q0:.1f} (h = {h:g})")
         _, p, q = nearest
         ang = math.degrees(math.atan((width / q) / (length / p)))
         raise ValueError(f"geometry: no fibre-aligned lattice of a {length:g} × {width:g} "
