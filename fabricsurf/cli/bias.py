@@ -15,7 +15,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from fabricsurf.cli.measure import add_max_elements, check_size
+from fabricsurf.cli.options import add_max_elements, check_size
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError

@@ -1,0 +1,186 @@
+"""Checks of the command-line options of ``fabricsurf compare|fit|diagnose|bias``, against
+each other and against the data, made before any computation: every message names the option.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from fabricsurf.errors import InputError
+from fabricsurf.model.terms import EFFECTS
+
+MAX_ELEMENTS = 400_000
+"""Default of ``--max-elements``: about 20 GB at KB_PER_ELEMENT, what a 24 GB machine holds."""
+KB_PER_ELEMENT = 50.0
+"""Memory per triangle, all ranks together: measured 26 kB (11 000 elements) and 38 kB (23 000;
+bias test, second-gradient model, MUMPS), rising with the direct solver's fill-in."""
+
+
+def add_max_elements(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
+                   help="refuse a --h whose meshes would have more elements than this, "
+                   f"estimated before meshing (~{KB_PER_ELEMENT:g} kB of memory each)")
+
+
+def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int) -> None:
+    """Refuse ``--h`` when the meshes of ``specimens`` ((name, length, width) in mm) would
+    have more than ``max_elements`` triangles in all, estimated as 2 per h × h square before
+    any meshing, with the memory they would take."""
+    if max_elements < 1:
+        raise InputError(f"--max-elements {max_elements}: must be at least 1")
+    n = sum(2 * math.ceil(L / h) * math.ceil(W / h) for _, L, W in specimens)
+    if n > max_elements:
+        what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
+        gb = n * KB_PER_ELEMENT / 1e6
+        gb = f"{gb:,.0f}" if gb >= 10 else f"{gb:.2g}"
+        raise InputError(f"--h {h:g}: about {n:,} elements ({what}), more than --max-elements "
+                         f"{max_elements:,}; they would take about "
+                         f"{gb} GB of memory (~{KB_PER_ELEMENT:g} kB "
+                         "per element): give a larger --h, or raise --max-elements if the "
+                         "machine has the memory")
+
+
+def check_h(h: float | None, exps: list | None = None) -> None:
+    """``--h`` positive and at most half the smallest specimen side (two elements across)."""
+    if h is None:
+        return
+    limit = 0.5 * min(min(e.length, e.width) for e in exps) if exps else float("inf")
+    if not 0 < h <= limit:
+        raise InputError(f"--h {h:g}: must be a positive element size in mm"
+                         + (f", at most {limit:g} (two elements across the narrowest specimen)"
+                            if exps else ""))
+
+
+def input_paths(args, exps: list) -> tuple[tuple[str, str], ...]:
+    """(label, path) of every input, which --out must keep apart from (cli.outdir)."""
+    found = [(f"DATA directory {d}", d) for d in args.data]
+    found += [(f"file {f} of DATA {d}", f) for d, e in zip(args.data, exps) for f in e.files]
+    return tuple(found + ([(f"--params {args.params}", args.params)] if args.params else []))
+
+
+def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None:
+    """Refuse a fit of more moduli than there are data (under-determined: its ± would be
+    meaningless). Data: every force value, and every field row times the components the
+    test compares."""
+    from fabricsurf.experiments import get_test
+
+    free = [f"{t.name}.{p}" for t in model if t.name not in (fixed or []) for p in t.values()]
+    counts, n = [], 0
+    for e in exps:
+        nf = len(e.force) if e.has_force else 0
+        comps = min(get_test(e.test).d, e.u.shape[1])
+        nu = len(e.X) * comps if e.has_field else 0
+        n += nf + nu
+        rows = len(e.X)
+        counts.append(f"'{e.name}': " + ", ".join(
+            ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
+            + ([f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
+               if e.has_field else [])))
+    if n < len(free):
+        raise InputError(f"--terms {','.join(t.name for t in model)}: {len(free)} moduli to fit "
+                         f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
+                         f"({'; '.join(counts)}): fewer data than moduli, the fit is "
+                         "under-determined; give more data (load steps, field points) or fit "
+                         "fewer moduli"
+                         + (" (fewer --terms, or --fixed)" if fixed is not None else
+                            " (fewer --terms)"))
+
+
+def positive_start(model, args) -> None:
+    """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move."""
+    for t in model:
+        for p, v in t.values().items():
+            if v <= 0:
+                raise InputError(f"--params {args.params}: {t.name}.{p} = {v:g}: fit and "
+                                 "diagnose start from these moduli in log scale; give a "
+                                 "positive starting value")
+
+
+def number_list(spec: str, option: str, cast: type, what: str):
+    """``spec`` split at commas and converted by ``cast``; a bad item names the option."""
+    try:
+        return [cast(s) for s in spec.split(",")]
+    except ValueError:
+        raise InputError(f"{option} {spec}: expected comma-separated {what}") from None
+
+
+def error_map_steps(spec: str | None, exps: list) -> list[int] | None:
+    if spec is None:
+        return None
+    steps = number_list(spec, "--steps", int, "step numbers, e.g. 1,3")
+    for e in exps:
+        bad = [s for s in steps if s not in set(int(k) for k in e.steps)]
+        if bad:
+            raise InputError(f"--steps {spec}: step {bad[0]} is not a step of experiment "
+                             f"'{e.name}' (steps {int(e.steps[0])}..{int(e.steps[-1])})")
+    return steps
+
+
+def name_list(spec: str | None) -> list[str] | None:
+    return None if spec is None else [n.strip() for n in spec.split(",") if n.strip()]
+
+
+def grip_depths(spec: str | None, exps: list) -> list[float] | None:
+    """``--grip-depths``: comma-separated depths in mm, checked against the experiments."""
+    if spec is None:
+        return None
+    from fabricsurf.inverse.fitting.nuisance import check_depths
+
+    depths = number_list(spec, "--grip-depths", float, "depths in mm, e.g. 0,0.5,1")
+    try:
+        check_depths(exps, depths, f"--grip-depths {spec}")
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    return depths
+
+
+def diagnose_options(args, exps: list, model: list, params: dict
+                      ) -> tuple[list[str] | None, list[str] | None]:
+    """--candidates and --fixed, checked against the vocabulary, the baseline (--terms), the
+    data and --params: no combination that silently answers another question."""
+    from fabricsurf.inverse.fitting.diagnose import visible_effects
+
+    baseline = [t.name for t in model]
+    terms = f"--terms {','.join(baseline)}"
+    cands, fixed = name_list(args.candidates), name_list(args.fixed)
+    for option, spec, names in (("--candidates", args.candidates, cands),
+                                ("--fixed", args.fixed, fixed)):
+        if names is None:
+            continue
+        if not names:
+            raise InputError(f"{option} {spec!r}: names no effect")
+        bad = [n for n in names if n not in EFFECTS]
+        if bad:
+            raise InputError(f"{option} {spec}: unknown term '{bad[0]}'; valid terms are: "
+                             f"{', '.join(EFFECTS)}")
+        dup = [n for n in names if names.count(n) > 1]
+        if dup:
+            raise InputError(f"{option} {spec}: '{dup[0]}' is given twice")
+    if fixed is not None:
+        outside = [n for n in fixed if n not in baseline]
+        if outside:
+            raise InputError(f"--fixed {args.fixed}: '{outside[0]}' is not a baseline term "
+                             f"({terms}); only baseline terms can be held fixed")
+        if set(fixed) == set(baseline):
+            raise InputError(f"--fixed {args.fixed}: every baseline term ({terms}) is fixed, "
+                             "so the baseline has no modulus to fit; leave at least one free "
+                             "(compare evaluates a model with given moduli)")
+        missing = [f"{n}.{p}" for n in fixed for p in EFFECTS[n].parameters()
+                   if p not in params.get(n, {})]
+        if missing:
+            where = f"in --params {args.params}" if args.params else "(no --params file)"
+            raise InputError(f"--fixed {args.fixed}: a fixed term is held at its moduli from "
+                             f"--params, and {', '.join(missing)} is not given {where}; give "
+                             "the known moduli of every fixed term")
+    if cands is not None:
+        hidden = [c for c in cands if c not in visible_effects(exps)]
+        if hidden:
+            raise InputError(f"--candidates {args.candidates}: these data cannot see "
+                             f"{', '.join(hidden)} (planar data cannot see out-of-plane "
+                             "effects)")
+        if all(c in baseline for c in cands):
+            raise InputError(f"--candidates {args.candidates}: every candidate is already in "
+                             f"the baseline ({terms}), so nothing would be tested; name "
+                             "effects that are not in --terms")
+    return cands, fixed
