@@ -54,7 +54,9 @@ class ExperimentSetup(ABC):
     plane), ``path_unit`` ("length": the load path is a displacement converted with the length
     unit; "1": a dimensionless factor), ``has_reaction`` (whether a force column may be given),
     ``path_label``/``reaction_label`` (axis labels), ``keys`` ({table: {key: help}}: the
-    plug-in's own keys of experiment.toml).
+    plug-in's own keys of experiment.toml), ``weak_terms`` (effects whose moduli the test
+    hardly determines: a fit's start scan leaves them at their given values instead of moving
+    them by decades into values that break the forward model).
     """
 
     name: ClassVar[str] = ""
@@ -64,6 +66,7 @@ class ExperimentSetup(ABC):
     path_label: ClassVar[str] = "load path"
     reaction_label: ClassVar[str] = "reaction (N)"
     keys: ClassVar[dict[str, dict[str, str]]] = {}
+    weak_terms: ClassVar[tuple[str, ...]] = ()
 
     problem: FabricProblem
     solver: SNESSolver

@@ -33,7 +33,7 @@ import numpy as np
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
-from fabricsurf.inverse.fitting.start import scan_terms
+from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 
 
 @dataclass
@@ -168,6 +168,10 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     runs0, given = fm.forward_runs, vals.copy()
     if scale_start:
         vals = scan_terms(fm, free, vals)
+        held = held_terms(fm, free)
+        if verbose and held:
+            rank0_print(fm.comm, f"  fit: {', '.join(held)} held at the given moduli in the "
+                        "scale scan (the experiments hardly see them)")
         if verbose:
             rank0_print(fm.comm, "  fit: start after the scale scan: " + "  ".join(
                 f"{fm.names[k]} = {vals[k]:.4g}" for k in free))

@@ -80,9 +80,20 @@ def _chi2(fm, vals: np.ndarray, scale: bool) -> tuple[float, np.ndarray]:
     return chi2, vals * c
 
 
+def held_terms(fm, free: list[int]) -> list[str]:
+    """The free terms that every experiment of ``fm`` declares weakly seen (its plug-in's
+    ``weak_terms``, e.g. a cantilever's membrane): the scan keeps their given moduli."""
+    exps = fm.experiments
+    names = {fm.params[i][0].name for i in free}
+    return sorted(n for n in names
+                  if exps and all(n in get_test(e.test).weak_terms for e in exps))
+
+
 def scan_terms(fm, free: list[int], vals: np.ndarray) -> np.ndarray:
     """Coordinate scan of each free term's moduli by decades, on the scout mesh (module
-    docstring)."""
+    docstring); the moduli of :func:`held_terms` are not scanned."""
+    held = held_terms(fm, free)
+    free = [i for i in free if fm.params[i][0].name not in held]
     fm = scout(fm)
     fixed_nonzero = any(vals[i] != 0 for i in range(len(vals)) if i not in free)
     scale = not fixed_nonzero
