@@ -14,7 +14,6 @@ names, the --params file), so an input is never overwritten.
 
 from __future__ import annotations
 
-import errno
 import os
 import shutil
 import tempfile
@@ -26,6 +25,7 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import on_rank0
 from fabricsurf.errors import InputError
+from fabricsurf.inverse.contract.tables import broken_link
 
 
 def _existing_ancestor(path: Path) -> Path:
@@ -41,13 +41,11 @@ def _resolve(out: Path) -> Path:
     probe = Path()
     for part in out.parts:
         probe = probe / part
-        if probe.is_symlink() and not probe.exists():
-            try:
-                os.stat(probe)
-            except OSError as e:
-                if e.errno == errno.ELOOP:
-                    raise InputError(f"--out {out}: {probe} is a symbolic link that loops "
-                                     f"(-> {os.readlink(probe)})") from None
+        link = broken_link(probe)
+        if link == "loops":
+            raise InputError(f"--out {out}: {probe} is a symbolic link that loops "
+                             f"(-> {os.readlink(probe)})")
+        if link:
             raise InputError(f"--out {out}: {probe} is a symbolic link to "
                              f"{os.readlink(probe)}, which does not exist")
     return out.resolve()

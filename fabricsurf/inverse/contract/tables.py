@@ -26,18 +26,28 @@ import numpy as np
 from fabricsurf.errors import DataError
 
 
+def broken_link(path: Path) -> str | None:
+    """"loops" or "dangles" when ``path`` is a symbolic link that loops or leads nowhere, else
+    None."""
+    if not path.is_symlink() or path.exists():
+        return None
+    try:
+        os.stat(path)
+    except OSError as e:
+        return "loops" if e.errno == errno.ELOOP else "dangles"
+    return None
+
+
 def require_file(path: Path) -> None:
     """``path`` is a readable file; a symbolic link that loops or dangles is named as such."""
     if path.is_file():
         return
     name = path.name
-    if path.is_symlink():
-        try:
-            os.stat(path)
-        except OSError as e:
-            if e.errno == errno.ELOOP:
-                raise DataError(f"{name}: a symbolic link that loops ({name} -> "
-                                f"{os.readlink(path)}) in {path.parent}, not a file") from None
+    link = broken_link(path)
+    if link == "loops":
+        raise DataError(f"{name}: a symbolic link that loops ({name} -> "
+                        f"{os.readlink(path)}) in {path.parent}, not a file")
+    if link:
         raise DataError(f"{name}: a symbolic link to {os.readlink(path)}, which does not exist "
                         f"(in {path.parent})")
     if path.is_dir():
