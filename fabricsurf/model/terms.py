@@ -174,8 +174,10 @@ class ShearLocking(Term):
 
 @dataclass
 class GeodesicBending(Term):
-    """½A_g[(λ²η_l)² + (μ²η_m)²]: in-plane fibre bending (Steigmann & dell'Isola 2015 §1, eqs. 23,
-    58)."""
+    """½A_g[(λ²η_l)² + (μ²η_m)²]: in-plane (geodesic) fibre bending.
+
+    Steigmann & dell'Isola 2015 §1, eqs. 23 and 58.
+    """
 
     A_g: float = 1.0
     name: ClassVar[str] = "geodesic_bending"
@@ -188,8 +190,10 @@ class GeodesicBending(Term):
 
 @dataclass
 class StretchGradient(Term):
-    """½A_s[(∂_Lλ)² + (∂_Mμ)²]: tangential stretch gradients (Steigmann & dell'Isola 2015 §3, eq.
-    58)."""
+    """½A_s[(∂_Lλ)² + (∂_Mμ)²]: tangential stretch gradients along the fibres.
+
+    Steigmann & dell'Isola 2015 §3, eq. 58.
+    """
 
     A_s: float = 1.0
     name: ClassVar[str] = "stretch_gradient"
@@ -216,8 +220,10 @@ class ShearGradient(Term):
 
 @dataclass
 class NormalBending(Term):
-    """½k_b(K_L² + K_M²): out-of-plane fibre bending (Steigmann & dell'Isola 2015 eqs. 60, 61); 3D
-    only."""
+    """½k_b(K_L² + K_M²): out-of-plane fibre bending; 3D only.
+
+    Steigmann & dell'Isola 2015 eqs. 60 and 61.
+    """
 
     k_b: float = 1.0
     name: ClassVar[str] = "normal_bending"
