@@ -31,7 +31,7 @@ from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import Term
 
 TABLE3_MACRO = {"K_S": 0.034, "K_E": 330.0, "K_F": 900.0}
-"""Seed 000 Table 3, macro model, in N/mm, N·mm, N·mm."""
+"""Barchiesi et al. 2020 Table 3, macro model, in N/mm, N·mm, N·mm."""
 
 
 def _pivot(rho, c, gamma):
