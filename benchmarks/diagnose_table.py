@@ -1,8 +1,8 @@
-"""The four cases of the issue-12 table at the issue's own size (docs/diagnosis.md).
+"""The stiff-fibre diagnosis table on the full bias specimen: four cases (docs/diagnosis.md).
 
 Hencky-lattice bias-extension data of a nearly inextensible fabric: 187 × 119 mm, lattice
 spacing 2.5 mm (the generator takes the nearest spacing whose held layers sit on both specimen
-ends: 2.4949 mm at ±45°, 2.4909 mm at ±40°), k_l = 1000 N/mm, k_s = 0.4 N/mm
+ends), k_l = 1000 N/mm, k_s = 0.4 N/mm
 (k_l/k_s = 2500), geodesic bending A_g = 40 N·mm (l_b = √(A_g/k_s) = 10 mm), grips holding
 two node columns, 12 steps to 15 % of the length, noise 0.05 mm and 0.05 N. The cases
 (hidden effect → baseline given):
@@ -14,8 +14,8 @@ two node columns, 12 steps to 15 % of the length, noise 0.05 mm and 0.05 N. The 
 * ``angles40_m_kn``: as ``weak_geodesic`` with fibres at ±40°, the data written in m and kN and
   read back by the loader.
 
-Every ``--every``-th lattice node (grip and clamp layers excluded) is a measurement point (4:
-867 points per step, 10 404 field rows). Prints progress on rank 0 and, per case, the outcome,
+Every ``--every``-th lattice node (grip and clamp layers excluded) is a measurement point.
+Prints progress on rank 0 and, per case, the outcome,
 ``adequate``, the misfit path, the ranking (score, refit misfit, significant), the
 discretisation check (h against h/2) and the wall time; writes OUT/diagnose_table.json after
 every case. ``--truth`` also runs the complete model at the true moduli (the lattice–continuum
@@ -42,8 +42,10 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.network import spanning_spacing
+from geometry.specimen import BIAS_LENGTH as LENGTH
+from geometry.specimen import BIAS_WIDTH as WIDTH
 
-LENGTH, WIDTH, SPACING, STEPS, STRAIN = 187.0, 119.0, 2.5, 12, 0.15
+SPACING, STEPS, STRAIN = 2.5, 12, 0.15
 K_L, K_S, A_G = 1000.0, 0.4, 40.0
 NOISE_MM, NOISE_N = 0.05, 0.05
 COMPLETE = ["fibre_stretch", "shear", "geodesic_bending"]

@@ -17,15 +17,16 @@ import numpy as np
 from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
 from fabricsurf.network.linsolve import FreeDofSolver
 from fabricsurf.network.solver import Dirichlet, solve_steps
+from geometry.specimen import BIAS_LENGTH, BIAS_WIDTH
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cols", type=int, default=560, help="node columns along x (187 mm)")
+    ap.add_argument("--cols", type=int, default=560, help="node columns along the specimen length")
     ap.add_argument("--steps", type=int, default=2, help="load steps")
     ap.add_argument("--u", type=float, default=4.0, help="final grip displacement (mm)")
     a = ap.parse_args()
-    length, width = 187.0, 119.0
+    length, width = BIAS_LENGTH, BIAS_WIDTH
     eps = np.sqrt(2) * length / a.cols  # +-45 deg fibres: x pitch eps/sqrt(2)
     k = lattice_from_continuum(k_l=10.0, k_s=0.05, A_g=5.0, spacing=eps)
     t0 = time.perf_counter()

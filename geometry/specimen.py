@@ -19,6 +19,9 @@ from dolfinx.io import gmshio
 from mpi4py import MPI
 
 EDGE_TAGS = {"clamp": 1, "grip": 2, "bottom": 3, "top": 4}
+BIAS_LENGTH, BIAS_WIDTH = 187.0, 119.0
+"""The bias-extension specimen of Barchiesi et al. 2020 (Fig. 4), length × width in mm: the
+default of the bias-test plug-in and of the studies that compare with that paper."""
 
 
 @dataclass

@@ -20,10 +20,11 @@ from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.materials import bipantographic
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear
 from fabricsurf.network import solve_steps
+from geometry.specimen import BIAS_LENGTH as LENGTH
+from geometry.specimen import BIAS_WIDTH as WIDTH
 
-LENGTH, WIDTH = 187.0, 119.0  # mm
 EPS_EXACT = LENGTH / (11 * math.sqrt(2))
-"""12.0208 mm: 11 × 7 cells of side √2 ε = 17 mm tile the 187 × 119 mm specimen exactly
+"""12.0208 mm: 11 × 7 cells of side √2 ε = 17 mm tile the specimen (187 × 119 mm) exactly
 (Barchiesi et al. 2020 round it to ε = 12.02 mm)."""
 IDENTIFIED_K_E = 1e6
 """N·mm: "K_E → ∞" (a_θ(1) = K_F / (1 + 18 K_F/K_E): within 2e-4 of K_F)."""

@@ -7,12 +7,12 @@ from mpi4py import MPI
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.terms import Term
-from geometry.specimen import Specimen, structured_rectangle
+from geometry.specimen import BIAS_LENGTH, BIAS_WIDTH, Specimen, structured_rectangle
 from research.verification.rates import richardson_summary
 
 
-def graded_specimen(level: int, grading: float = 0.6, length: float = 187.0,
-                    width: float = 119.0, base: tuple[int, int] = (11, 7),
+def graded_specimen(level: int, grading: float = 0.6, length: float = BIAS_LENGTH,
+                    width: float = BIAS_WIDTH, base: tuple[int, int] = (11, 7),
                     comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
     """Nested graded mesh of refinement ``level``: base[0]·level × base[1]·level crossed cells
     (squares of 17 mm / level for the Barchiesi et al. 2020 specimen and the default base), refined
@@ -23,8 +23,8 @@ def graded_specimen(level: int, grading: float = 0.6, length: float = 187.0,
 
 
 def force_convergence(model: list[Term], levels: list[int], ubar: float, steps: int,
-                      grading: float = 0.6, length: float = 187.0, width: float = 119.0,
-                      base: tuple[int, int] = (11, 7),
+                      grading: float = 0.6, length: float = BIAS_LENGTH,
+                      width: float = BIAS_WIDTH, base: tuple[int, int] = (11, 7),
                       comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
     """Grip force at ``ubar`` on the nested graded meshes of :func:`graded_specimen`, with the
     observed rates and Richardson limit of :func:`~research.verification.rates.richardson_summary`
