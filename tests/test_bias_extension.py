@@ -112,8 +112,8 @@ def test_regularised_energy_continues_eq2_beyond_the_limit_stretch(unit_square):
 def test_penalty_follows_the_stretch_up_to_the_limit(rho_c):
     """The interior-penalty stretch ρ_p stays above the largest stretch of the solution and
     inside eq. (2)'s domain however close the stretch comes to the limit ρ cos γ = 1: a fixed
-    ceiling ρ_p cos γ ≤ 0.97 fell below the corner stretch of the level-8 run (0.971) and
-    Newton stalled (bipantographic_range module docstring). ρ + margin where that is inside."""
+    ceiling ρ_p cos γ ≤ 0.97 fell below the corner stretch of the finest position-clamp run and
+    Newton stalled (docs/bipantographic.md, "Interior penalty"). ρ + margin where that is inside."""
     from research.studies.bipantographic_range import penalty_stretch
 
     gamma = math.pi / 6

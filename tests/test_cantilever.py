@@ -1,4 +1,5 @@
-"""Rung 8 (DESIGN §8): the cantilever bending test against independent limits.
+"""Independent limits (docs/verification.md): the cantilever bending test against the elastica,
+Peirce and the narrow-strip rigidity.
 
 Every test uses one model term list, fibre_stretch + shear + normal_bending + twist (vocabulary
 order, unused moduli at 0), d = 3, degree 2, so the whole file compiles one set of forms per
@@ -11,9 +12,8 @@ Checks:
 * Peirce's small-deflection relation δ = L⁴/(8c³), c = (k_b/ρ_A g)^(1/3), and his bending-length
   formula from the chord angle;
 * the 0° strip against the heavy elastica (scipy solve_bvp, research.verification.elastica)
-  at a tip angle of 66°: the centre-line error falls at rate ≥ 2.5 (measured 2.9, 3.9 on these
-  meshes; 3.35 at n = 96 in demos/demo_bending.py, 3.15 at n = 192 in docs/bending.md), with a
-  recorded 1-rank value of the tip deflection that 2 ranks must reproduce;
+  at a tip angle of 66°: the centre-line error falls at rate ≥ 2.5 (the rates observed are in
+  docs/verification.md, "Margins of the tests"), with a recorded 1-rank value of the tip deflection that 2 ranks must reproduce;
 * the ±45° strip: the narrow-strip rigidity 2k_b k_t/(k_t + 2k_b) (docs/bending.md) approached as
   w/L → 0 (the clamp's cylindrical boundary layer makes the error O(w/L)); without twist the
   near-mechanism: a warning, and a strip many times softer;
@@ -112,7 +112,7 @@ def test_elastica_convergence():
 
 def test_bias_strip_narrow_rigidity():
     """±45°, k_t = k_b/2: D_eff = q L⁴/(8δ) in the linear range approaches 2k_b k_t/(k_t + 2k_b)
-    = 0.008 N·mm as w/L = 1/6, 1/12, 1/24 (errors ≈ 15, 8, 5 %, halving with w/L)."""
+    = 0.008 N·mm as w/L = 1/6, 1/12, 1/24, the error halving with w/L (O(w/L))."""
     L, t_max, k_t = 60.0, 1.5e-3, 0.01
     target = narrow_strip_rigidity(K_B, k_t, BIAS)
     assert target == pytest.approx(2 * K_B * k_t / (k_t + 2 * K_B), rel=1e-12)
@@ -144,8 +144,8 @@ def test_bias_strip_mechanism_without_twist():
 def test_loader_and_sensitivities(tmp_path):
     """A field-only 3D measurement directory round-trips; uz makes twist a candidate; du/dk_b and
     du/dk_t from the tangent solves match central differences. Had the dead load entered ∂R/∂p
-    (R with the moduli e_p), they would be off by K⁻¹f, i.e. by 100 %; what remains (measured
-    0.2 %) is the Jacobian's omitted term [[∂_n r]]·{D²M_nn}, of the size of the gradient jumps
+    (R with the moduli e_p), they would be off by K⁻¹f, i.e. by 100 %; what remains is the
+    Jacobian's omitted term [[∂_n r]]·{D²M_nn}, of the size of the gradient jumps
     (discretisation error; energy.py), hence the 1 % bound."""
     from mpi4py import MPI
 

@@ -1,4 +1,5 @@
-"""Rung 2: C0-IP convergence on manufactured solutions of the nonlinear fabric energy.
+"""C0-IP convergence on manufactured solutions of the nonlinear fabric energy
+(docs/verification.md).
 
 Theory for degree-2 C0 interior penalty on fourth-order problems (Brenner & Sung 2005;
 Engel et al. 2002): broken-H2 error O(h), H1 and L2 errors O(h²) (for k = 2 duality gives no

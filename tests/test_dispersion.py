@@ -1,8 +1,8 @@
-"""Dispersion of the seed-002 chain and of the Hencky lattice against (gradient) continua.
+"""Dispersion of the 1D chain of Mühlhaus & Oka 1996 and of the Hencky lattice against
+(gradient) continua.
 
 Each assertion compares a computed quantity with Mühlhaus & Oka 1996 eqs. (12), (14), (15) or with
-the
-closed-form lattice/continuum relations derived in demos/demo_dispersion.py, to the order in qD
+the closed-form lattice/continuum relations derived in demos/demo_dispersion.py, to the order in qD
 that the expansion promises. Runs serially and under ``mpirun -n 2`` (dolfinx parts gather to
 rank 0 and broadcast, so every rank asserts the same numbers).
 """

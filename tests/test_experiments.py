@@ -1,4 +1,4 @@
-"""Experiment plug-ins through one pipeline (issue: experiments as plug-ins).
+"""Experiment plug-ins through one pipeline: compare, fit and diagnose work for every plug-in.
 
 * picture frame: the homogeneous pure shear is exact for every energy of the vocabulary, so the
   crosshead force and its sensitivities equal the closed form a² W′(γ)/(a sin φ) to solver

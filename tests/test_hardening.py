@@ -1,4 +1,4 @@
-"""Issue 14, hardening: every bad input ends with one message naming the file, key or option and
+"""Hardening of the command line: every bad input ends with one message naming the file, key or option and
 exit status 2, on 1 rank and on 2 ranks alike (the status and the message are compared across
 ranks); nothing given is silently ignored; --out is checked before any computation and written
 atomically; a failure on rank 0 alone ends every rank (subprocess under ``mpirun -n 2``); the
@@ -510,8 +510,7 @@ def test_solver_failure_reports_step_from_1(in_root, capsys):
 
 
 def test_start_failure_names_experiment_step_and_load():
-    """Issue 26 row 19 (its last part): a fit whose starting model cannot follow the load path
-    says with which moduli, in which experiment, at which step and load (and keeps what had
+    """A fit whose starting model cannot follow the load path says with which moduli, in which experiment, at which step and load (and keeps what had
     converged for failure.json)."""
     from fabricsurf.discretise.solver import LoadStepError
     from fabricsurf.inverse.fitting.fit import fit
@@ -544,7 +543,7 @@ def test_start_failure_names_experiment_step_and_load():
 
 
 def test_scanned_start_that_breaks_the_model_falls_back(capsys):
-    """Issue 26 row 19: the decade scan ranks starts on the scout mesh; when the scanned start
+    """The decade scan ranks starts on the scout mesh; when the scanned start
     does not follow the load path on the fit's mesh (a modulus the data hardly see, scanned
     down to where the model breaks), the fit says so and starts from the given moduli."""
     from types import SimpleNamespace
@@ -656,7 +655,7 @@ def test_publish_all_or_nothing_and_collective(tmp_path):
 
 
 def test_max_elements_overrides_the_size_guard():
-    """Issue 26 row 6: --max-elements raises the limit (the estimate is 2 per h × h square);
+    """--max-elements raises the limit (the estimate is 2 per h × h square);
     a limit below 1 is refused naming the option."""
     args = cli.build_parser().parse_args(["bias", "--length", "230", "--width", "115", "--h",
                                           "0.05", "--max-elements", "30000000"])
@@ -667,7 +666,7 @@ def test_max_elements_overrides_the_size_guard():
 
 
 def test_out_symlink_resolved(tmp_path):
-    """Issue 26 row 5: --out a symbolic link to a directory elsewhere (or not yet made): the
+    """--out a symbolic link to a directory elsewhere (or not yet made): the
     link is resolved first, the staging directory is made beside the target (a rename cannot
     cross file systems) and the results land in the target; no staging directory is left."""
     base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
@@ -744,7 +743,7 @@ def test_rank0_only_failure_under_mpirun(command, tmp_path):
 
 
 def test_interrupt_cleanup_by_one_rank_without_mpi(tmp_path):
-    """Issue 26 rows 17, 18: the clean-up the signal handler runs (every rank calls it, no MPI
+    """The clean-up the signal handler runs (every rank calls it, no MPI
     call): exactly one rank removes the staging directory (or publishes it with its report)
     and gets the message; nothing else is left."""
     import fabricsurf.cli.outdir as outdir
@@ -792,7 +791,7 @@ def _interrupt(args: list[str], ranks: int, cwd: Path, after: str) -> tuple[int,
 @pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_interrupted_bias_publishes_converged_steps(ranks, tmp_path):
-    """Issue 26 row 18: SIGINT during ``bias`` (mpirun turns it into SIGTERM on every rank):
+    """SIGINT during ``bias`` (mpirun turns it into SIGTERM on every rank):
     one message "interrupted … at step k", the converged steps and a failure.json that says
     "interrupted at step k" are published, and no staging directory is left."""
     rc, out = _interrupt(["bias", "--length", "40", "--width", "20", "--h", "2", "--steps",
@@ -813,7 +812,7 @@ def test_interrupted_bias_publishes_converged_steps(ranks, tmp_path):
 
 @pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
 def test_interrupted_fit_under_mpirun_leaves_nothing(tmp_path):
-    """Issue 26 row 17: SIGINT to ``mpirun -n 2 … fit``: one message on every way out, no
+    """SIGINT to ``mpirun -n 2 … fit``: one message on every way out, no
     output and no staging directory."""
     write_experiment(tmp_path / "good", good_experiment())
     rc, out = _interrupt(["fit", "good", "--terms", TERMS, "--h", "0.5", "--out", "D"], 2,
@@ -840,7 +839,7 @@ def _compile_new_form(args) -> int:
 def test_compiler_quiet_unless_verbose(capfd, caplog, monkeypatch):
     """The C compiler lines that cffi logs through the root logger (INFO, "running build_ext",
     the gcc command lines) are not even emitted by default; --verbose lets them through.
-    (Compiles two tiny forms, ~0.5 s each.)"""
+    (Compiles two tiny forms.)"""
     monkeypatch.setattr(cli, "cmd_terms", _compile_new_form)
     assert main(["terms"]) == 0
     quiet = capfd.readouterr()

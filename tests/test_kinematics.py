@@ -1,4 +1,4 @@
-"""Rung 1: kinematic quantities of closed-form placements equal their exact values
+"""Kinematic quantities of closed-form placements equal their exact values
 (docs/verification.md).
 
 The placements are UFL expressions of the reference coordinates, so F = ∇r and H = ∇∇r are
