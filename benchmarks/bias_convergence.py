@@ -7,8 +7,8 @@ Continuum (a) of demos/demo_bias_extension.py (fibre_stretch k_l = 30, shear k_s
 geodesic_bending A_g = 40; gradient clamps) on nested meshes of 11·n × 7·n crossed squares,
 graded towards the edges (``--grading 0`` for uniform meshes). Prints, per level, the force,
 the shear angles at A and B, the time, and the observed rates log2(d_n / d_2n) of the force
-differences with the Richardson estimate of the limit. Level 16 (square side 1.06 mm) has
-about 320,000 DOFs and takes about 3.5 minutes on 2 ranks.
+differences with the Richardson estimate of the limit. The finest level is the costly one (its
+size and time are in docs/verification.md).
 """
 
 import argparse

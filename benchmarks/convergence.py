@@ -1,4 +1,4 @@
-"""C0-IP convergence of the manufactured solutions in 2D and 3D (verification rung 2).
+"""C0-IP convergence of the manufactured solutions in 2D and 3D (docs/verification.md).
 
 The 3D case holds all seven terms; its forms take minutes to compile on a cold cache, so it runs
 here rather than in the test suite (which checks the 2D case). Prints the errors and observed

@@ -1,4 +1,4 @@
-"""Diagnosis cost benchmark (docs/verification.md, issue #6 item 9).
+"""Diagnosis cost benchmark: a diagnosis counted in forward solves (docs/verification.md).
 
 Makes bias-extension data with a hidden effect (continuum, fibre_stretch + shear +
 geodesic_bending on a finer mesh, noise), diagnoses it with the baseline fibre_stretch + shear

@@ -1,4 +1,5 @@
-"""Grip force of the continuum bias test under refinement on nested graded meshes (rung 5)."""
+"""Grip force of the continuum bias test under refinement on nested graded meshes
+(docs/verification.md, bias extension)."""
 
 from __future__ import annotations
 

@@ -7,17 +7,17 @@ What makes the homogenised energy (Barchiesi et al. 2020, eq. 2) followable to �
 * the interior-penalty scale follows the largest fibre stretch of the solution
   (:class:`PenaltyFollower`, after every converged step; fem.Constant, no recompilation) —
   with the scale frozen at ρ = 1 the discrete energy loses coercivity near the grip corners
-  and Newton stalls (ū ≈ 19.8 mm on level 2), whatever the line search or Jacobian. The
-  scale must keep following up to the limit: with a fixed ceiling ρ_p cos γ ≤ 0.97 it stopped
-  once the corner stretch passed 0.97, and the position clamps on level 8 stalled at
-  ū = 46.33 mm (ρ cos γ = 0.971); the ceiling is now halfway from ρ to the limit;
+  and Newton stalls, whatever the line search or Jacobian. The scale must keep following up
+  to the limit: with a fixed ceiling ρ_p cos γ ≤ 0.97 it stopped once the corner stretch passed
+  0.97 and the finest position-clamp run stalled; the ceiling is now halfway from ρ to the
+  limit;
 * the domain-aware solver options (:data:`~fabricsurf.discretise.solver.DOMAIN_AWARE`):
   a backtracking line search that shrinks steps leaving ρ cos γ < 1.
 
-With these, the default Jacobian (no extra form to compile) converges in 3–6 Newton
-iterations per step (level 2, gradient clamps, 20 steps). The exact Jacobian
-(``jacobian: exact``) gives 3–4 but its kernels for the gradient clamps take several CPU
-minutes to compile, so it is not used here.
+With these, the default Jacobian (no extra form to compile) converges in a few Newton
+iterations per step. The exact Jacobian (``jacobian: exact``) needs hardly fewer, but its
+kernels for the gradient clamps take minutes to compile, so it is not used here
+(docs/verification.md).
 """
 
 from __future__ import annotations

@@ -146,7 +146,7 @@ class GradientContinuum1D:
     with rho ω² = a q² + b q⁴ + c q⁶ (Mühlhaus & Oka 1996 eqs. 10, 15). Moduli live in fem.Constant.
 
     With b < 0 the b-penalty is negative too; for c > 0 the c-penalty must dominate it,
-    h² < c·s0/(|b|·s1) (h < 0.9 D for the seed-002 moduli and degree 5), else spurious
+    h² < c·s0/(|b|·s1) (h < 0.9 D for the moduli of Mühlhaus & Oka 1996 and degree 5), else spurious
     negative modes appear. Low modes are accurate to round-off, about eps·max|λ|/ω_1².
     """
 

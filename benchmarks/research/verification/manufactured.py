@@ -1,4 +1,5 @@
-"""Manufactured solutions for the discrete second-gradient energy (verification ladder rung 2).
+"""Manufactured solutions for the discrete second-gradient energy (the C0-IP rung of
+docs/verification.md).
 
 For an exact displacement u_e (a UFL expression of X), the load is ℓ(v) = R_h(u_e)[v]: the
 discrete residual evaluated at u_e. Because u_e is smooth its gradient jumps vanish, so ℓ is the

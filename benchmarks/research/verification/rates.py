@@ -1,4 +1,5 @@
-"""Observed convergence rates and Richardson extrapolation (verification ladder rungs 2 and 5)."""
+"""Observed convergence rates and Richardson extrapolation (the C0-IP and bias-extension rungs
+of docs/verification.md)."""
 
 from __future__ import annotations
 
