@@ -13,7 +13,8 @@ Checks:
   formula from the chord angle;
 * the 0° strip against the heavy elastica (scipy solve_bvp, research.verification.elastica)
   at a tip angle of 66°: the centre-line error falls at rate ≥ 2.5 (the rates observed are in
-  docs/verification.md, "Margins of the tests"), with a recorded 1-rank value of the tip deflection that 2 ranks must reproduce;
+  docs/verification.md, "Margins of the tests"), with a recorded 1-rank value of the tip
+  deflection that 2 ranks must reproduce;
 * the ±45° strip: the narrow-strip rigidity 2k_b k_t/(k_t + 2k_b) (docs/bending.md) approached as
   w/L → 0 (the clamp's cylindrical boundary layer makes the error O(w/L)); without twist the
   near-mechanism: a warning, and a strip many times softer;

@@ -1,6 +1,6 @@
-"""Hardening of the command line: every bad input ends with one message naming the file, key or option and
-exit status 2, on 1 rank and on 2 ranks alike (the status and the message are compared across
-ranks); nothing given is silently ignored; --out is checked before any computation and written
+"""Hardening of the command line: every bad input ends with one message naming the file, key or
+option and exit status 2, on 1 rank and on 2 ranks alike (the status and the message are
+compared across ranks); nothing given is silently ignored; --out is checked before any computation and written
 atomically; a failure on rank 0 alone ends every rank (subprocess under ``mpirun -n 2``); the
 JIT compiler is quiet unless --verbose; --help shows defaults and units.
 
@@ -510,8 +510,8 @@ def test_solver_failure_reports_step_from_1(in_root, capsys):
 
 
 def test_start_failure_names_experiment_step_and_load():
-    """A fit whose starting model cannot follow the load path says with which moduli, in which experiment, at which step and load (and keeps what had
-    converged for failure.json)."""
+    """A fit whose starting model cannot follow the load path says with which moduli, in which
+    experiment, at which step and load (and keeps what had converged for failure.json)."""
     from fabricsurf.discretise.solver import LoadStepError
     from fabricsurf.inverse.fitting.fit import fit
 
