@@ -1,8 +1,8 @@
 """Hardening of the command line: every bad input ends with one message naming the file, key or
 option and exit status 2, on 1 rank and on 2 ranks alike (the status and the message are
-compared across ranks); nothing given is silently ignored; --out is checked before any computation and written
-atomically; a failure on rank 0 alone ends every rank (subprocess under ``mpirun -n 2``); the
-JIT compiler is quiet unless --verbose; --help shows defaults and units.
+compared across ranks); nothing given is silently ignored; --out is checked before any
+computation and written atomically; a failure on rank 0 alone ends every rank (subprocess under
+``mpirun -n 2``); the JIT compiler is quiet unless --verbose; --help shows defaults and units.
 
 The table of rejected inputs in docs/input_errors.md is generated from the real messages here:
 ``FABRICSURF_REGENERATE=1 pytest tests/test_hardening.py -k table`` rewrites it.
