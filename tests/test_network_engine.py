@@ -8,15 +8,17 @@ from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, react
 
 
 def random_network(seed=0, n=12, locking=False):
-    """Random pre-stressed network; ``locking`` adds quartic and sextic rotational terms."""
+    """Random pre-stressed network; ``locking`` adds quartic, sextic and saturating (friction)
+    rotational terms."""
     rng = np.random.default_rng(seed)
     X = rng.uniform(0, 10, (n, 2))
     ext = np.array([(i, (i + 1) % n) for i in range(n)] + [(i, (i + 5) % n) for i in range(n)])
     rot = np.array([(i, (i + 1) % n, (i + 2) % n) for i in range(n)]
                    + [(i, (i + 3) % n, (i + 7) % n) for i in range(n)])
-    k4, k6 = (rng.uniform(1, 3, (2, len(rot))) if locking else (0.0, 0.0))
+    k4, k6, mf = (rng.uniform(1, 3, (3, len(rot))) if locking else (0.0, 0.0, 0.0))
     net = SpringNetwork(X, ext, rng.uniform(1, 3, len(ext)), rot=rot,
-                        k_rot=rng.uniform(1, 3, len(rot)), k_rot4=k4, k_rot6=k6)
+                        k_rot=rng.uniform(1, 3, len(rot)), k_rot4=k4, k_rot6=k6,
+                        m_fric=mf, phi_f=0.3)
     # rest state different from reference: springs are pre-stressed
     net.l0 *= rng.uniform(0.8, 1.2, len(ext))
     net.phi0 = rng.uniform(-np.pi, np.pi, len(rot))
@@ -91,6 +93,24 @@ def test_nonlinear_rotational_spring_energy_is_the_polynomial():
     f = net.gradient(x)[2]  # dE/dx_k = E'(d) (perpendicular to the arm, |arm| = 1)
     assert np.allclose(f, (k * d + k4 * d**3 + k6 * d**5) * np.array([-np.sin(d), np.cos(d)]),
                        rtol=1e-13, atol=0)
+
+
+def test_friction_spring_energy_and_moment_saturate():
+    """One friction spring turned by d: E = m φ ln cosh(d/φ), moment E' = m tanh(d/φ), which
+    is m (to 1e-12) once d ≫ φ and whose slope at d = 0 is m/φ."""
+    m, phi = 2.0, 0.02
+    X = np.array([[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]])
+    net = SpringNetwork(X, np.zeros((0, 2)), 1.0, rot=[[0, 1, 2]], m_fric=m, phi_f=phi)
+    for d in (0.01, 0.6):
+        x = X.copy()
+        x[2] = [np.cos(d), np.sin(d)]
+        assert abs(net.energy(x) - m * phi * np.log(np.cosh(d / phi))) < 1e-13
+        f = net.gradient(x)[2]
+        assert np.allclose(f, m * np.tanh(d / phi) * np.array([-np.sin(d), np.cos(d)]),
+                           rtol=1e-13, atol=0)
+    assert abs(np.linalg.norm(f) - m) < 1e-12
+    H = net.hessian(X).toarray()  # at d = 0: k_eff = m/φ on the free node's normal direction
+    assert abs(H[5, 5] - m / phi) < 1e-9 * m / phi
 
 
 def chain(n=11, length=10.0):

@@ -13,7 +13,7 @@ from mpi4py import MPI
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
-from fabricsurf.model.terms import FibreStretch, Shear, ShearLocking
+from fabricsurf.model.terms import CrossoverFriction, FibreStretch, Shear, ShearLocking
 from fabricsurf.network.hencky import (
     continuum_from_lattice,
     fibre_directions,
@@ -26,6 +26,7 @@ from fabricsurf.network.solver import Dirichlet, solve_steps
 
 K_L, K_S, A_G = 1.0, 0.3, 0.5  # N/mm, N/mm, N mm
 K4, K6 = 0.4, 0.2  # shear_locking moduli, N/mm
+TAU_F, GAMMA_F = 0.05, 0.03  # crossover_friction: saturated stress (N/mm), shape angle (rad)
 
 # ------------------------------------------------------------ smooth periodic placement
 P = 10.0  # period (mm) in both skew fibre coordinates (s, t), X = s L + t M
@@ -118,13 +119,15 @@ def test_energy_density_of_smooth_placements_converges_as_eps_squared(angles):
 def test_large_homogeneous_shear_matches_continuum_shear_and_locking(angles):
     """Affine placement with γ = 0.75 rad (±40°), 0.59 rad (±30°): the energy of each
     interior node (its L and M springs, four quadrant springs) equals the density of
-    fibre_stretch + shear + shear_locking (the UFL terms, γ = θ0 − θ) times the node area
-    eps² sin θ0, exactly."""
+    fibre_stretch + shear + shear_locking + crossover_friction (the UFL terms, γ = θ0 − θ)
+    times the node area eps² sin θ0, exactly."""
     eps, F = 0.5, np.array([[1.5, 0.0], [0.0, 0.6]])  # pure shear plus fibre stretch
-    k = lattice_from_continuum(K_L, K_S, A_G, eps, angles, k4=K4, k6=K6)
+    k = lattice_from_continuum(K_L, K_S, A_G, eps, angles, k4=K4, k6=K6, tau_f=TAU_F,
+                               gamma_f=GAMMA_F)
     back = continuum_from_lattice(spacing=eps, angles_deg=angles, **k)
-    assert np.allclose([back[n] for n in ("k_l", "k_s", "A_g", "k4", "k6")],
-                       [K_L, K_S, A_G, K4, K6], rtol=1e-14), "identification round trip"
+    assert np.allclose([back[n] for n in ("k_l", "k_s", "A_g", "k4", "k6", "tau_f", "gamma_f")],
+                       [K_L, K_S, A_G, K4, K6, TAU_F, GAMMA_F], rtol=1e-14), \
+        "identification round trip"
     lat = hencky_lattice(8.0, 6.0, eps, angles, **k)
     net = lat.net
     ee, er = net.spring_energies(net.X @ F.T)
@@ -136,7 +139,8 @@ def test_large_homogeneous_shear_matches_continuum_shear_and_locking(angles):
     x = ufl.SpatialCoordinate(msh)
     kin = Kinematics(ufl.grad(ufl.as_matrix(F.tolist()) * x), None,
                      *kn.fibre_directions(*angles))
-    model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), ShearLocking(k4=K4, k6=K6)]
+    model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), ShearLocking(k4=K4, k6=K6),
+             CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)]
     dens = fem.Expression(ufl.as_vector([kin.gamma, sum(t.density(kin) for t in model)]),
                           np.array([[1 / 3, 1 / 3]]))
     gam, w = dens.eval(np.arange(msh.topology.index_map(2).size_local, dtype=np.int32))[0]

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabricsurf.network.hencky import FRICTION_ANGLE
+
 
 def lock_displacement(length: float, width: float) -> float:
     """d at which the zone-C angle of Cao et al. 2008 eq. 13 reaches 90° (mm)."""
@@ -72,11 +74,14 @@ def normalised_shear_force(d, force, length: float, width: float
 
 
 def shear_moment(gamma, params: dict) -> np.ndarray:
-    """τ = dW/dγ (N/mm) of ``shear`` + ``shear_locking``: k_s γ + k₄γ³ + k₆γ⁵."""
+    """τ = dW/dγ (N/mm) of ``shear`` + ``shear_locking`` + ``crossover_friction``:
+    k_s γ + k₄γ³ + k₆γ⁵ + τ_f tanh(γ/γ_f), γ_f the friction term's default shape angle."""
     g = np.asarray(gamma, float)
     ks = params.get("shear", {}).get("k_s", 0.0)
     lk = params.get("shear_locking", {})
-    return ks * g + lk.get("k4", 0.0) * g**3 + lk.get("k6", 0.0) * g**5
+    tau_f = params.get("crossover_friction", {}).get("tau_f", 0.0)
+    return (ks * g + lk.get("k4", 0.0) * g**3 + lk.get("k6", 0.0) * g**5
+            + tau_f * np.tanh(g / FRICTION_ANGLE))
 
 
 def constitutive_shear_force(gamma, params: dict) -> np.ndarray:

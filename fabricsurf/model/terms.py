@@ -23,6 +23,7 @@ import ufl
 from dolfinx import fem
 
 from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.network.hencky import FRICTION_ANGLE
 
 
 @dataclass
@@ -173,6 +174,38 @@ class ShearLocking(Term):
 
 
 @dataclass
+class CrossoverFriction(Term):
+    """τ_f γ_f ln cosh(γ/γ_f): inter-yarn friction at the crossovers, as an elastic equivalent.
+
+    Its shear stress τ_f tanh(γ/γ_f) rises over the first γ_f of shear and then stays at τ_f
+    (N/mm): the resistance the yarns' contact at every crossover puts up before they turn
+    (Kawabata 1980; the initial knee of woven-fabric shear curves, Cao et al. 2008). Elastic,
+    so it holds for monotonic loading only: the friction it stands for dissipates on
+    unloading. Linear in τ_f; the shape angle γ_f (rad) is a fixed option, not a fitted modulus.
+    """
+
+    tau_f: float = 1.0
+    gamma_f: float = FRICTION_ANGLE
+    name: ClassVar[str] = "crossover_friction"
+    units: ClassVar[dict[str, str]] = {"tau_f": "N/mm"}
+    options: ClassVar[tuple[str, ...]] = ("gamma_f",)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        g = self.gamma_f
+        if not (isinstance(g, (int, float)) and math.isfinite(g) and 0.0 < g <= math.pi / 4):
+            raise ValueError(f"term '{self.name}': shape angle gamma_f = {g!r} must be a number "
+                             "in (0, π/4] rad (the friction is mobilised within 45°)")
+
+    def density(self, kin: Kinematics):
+        g = kin.gamma
+        # ln cosh x = x + ln(1 + e^(-2x)) - ln 2 for x = |γ|/γ_f ≥ 0: no overflow at any γ.
+        # |γ| as a conditional, whose derivative ±1 is defined at γ = 0 (that of abs is not).
+        x = ufl.conditional(ufl.ge(g, 0.0), g, -g) / self.gamma_f
+        return self.p("tau_f") * self.gamma_f * (x + ufl.ln(1 + ufl.exp(-2 * x)) - math.log(2))
+
+
+@dataclass
 class GeodesicBending(Term):
     """½A_g[(λ²η_l)² + (μ²η_m)²]: in-plane (geodesic) fibre bending.
 
@@ -249,8 +282,8 @@ class Twist(Term):
 
 EFFECTS: dict[str, type[Term]] = {
     cls.name: cls
-    for cls in (FibreStretch, Shear, ShearLocking, GeodesicBending, StretchGradient,
-                ShearGradient, NormalBending, Twist)
+    for cls in (FibreStretch, Shear, ShearLocking, CrossoverFriction, GeodesicBending,
+                StretchGradient, ShearGradient, NormalBending, Twist)
 }
 """The vocabulary of effects, by exact name (docs/theory.md)."""
 

@@ -72,10 +72,14 @@ class SpringNetwork:
         ``phi0=None`` takes the reference turning angle.
     k_rot4, k_rot6 : (m_r,) arrays or scalars
         Quartic and sextic coefficients (N mm) of the rotational springs (default 0: linear).
+    m_fric, phi_f : (m_r,) array or scalar, and a positive scalar
+        Saturating (friction-like) part of the rotational springs: energy
+        ``m_fric phi_f ln cosh(d / phi_f)``, moment ``m_fric tanh(d / phi_f)`` (N mm), rising
+        over the first ``phi_f`` (rad) of rotation and then constant (default 0: none).
     """
 
     def __init__(self, X, ext, k_ext, l0=None, rot=None, k_rot=0.0, phi0=None,
-                 k_rot4=0.0, k_rot6=0.0) -> None:
+                 k_rot4=0.0, k_rot6=0.0, m_fric=0.0, phi_f: float = 1.0) -> None:
         self.X = np.asarray(X, dtype=float).reshape(-1, 2)
         self.ext = np.asarray(ext, dtype=np.int64).reshape(-1, 2)
         self.rot = np.asarray(rot if rot is not None else [], dtype=np.int64).reshape(-1, 3)
@@ -84,6 +88,10 @@ class SpringNetwork:
         self.k_rot = np.broadcast_to(np.asarray(k_rot, float), (mr,)).copy()
         self.k_rot4 = np.broadcast_to(np.asarray(k_rot4, float), (mr,)).copy()
         self.k_rot6 = np.broadcast_to(np.asarray(k_rot6, float), (mr,)).copy()
+        self.m_fric = np.broadcast_to(np.asarray(m_fric, float), (mr,)).copy()
+        if not (np.isfinite(phi_f) and phi_f > 0.0):
+            raise ValueError(f"SpringNetwork: friction shape angle phi_f = {phi_f!r} must be > 0")
+        self.phi_f = float(phi_f)
         self.l0 = self.lengths(self.X) if l0 is None else np.broadcast_to(
             np.asarray(l0, float), (me,)).copy()
         self.phi0 = self.turning_angles(self.X) if phi0 is None else np.broadcast_to(
@@ -126,8 +134,11 @@ class SpringNetwork:
         """Per-spring energies (N mm): extensional [B (10)] and rotational [B (16)]."""
         x = np.asarray(x, float).reshape(-1, 2)
         ee = 0.5 * self.k_ext * (self.lengths(x) - self.l0) ** 2
-        d2 = self.angle_deviations(x) ** 2
+        d = self.angle_deviations(x)
+        d2 = d * d
         er = (0.5 * self.k_rot + (0.25 * self.k_rot4 + self.k_rot6 / 6.0 * d2) * d2) * d2
+        y = np.abs(d) / self.phi_f  # ln cosh y without overflow
+        er = er + self.m_fric * self.phi_f * (y + np.log1p(np.exp(-2.0 * y)) - np.log(2.0))
         return ee, er
 
     def energy(self, x: np.ndarray) -> float:
@@ -147,8 +158,10 @@ class SpringNetwork:
         dphi = np.concatenate([ga, -ga - gb, gb], axis=1)  # (m_r, 6), [B (15)]
         d = self.angle_deviations(x)
         d2 = d * d
-        moment = (self.k_rot + (self.k_rot4 + self.k_rot6 * d2) * d2) * d  # E_r'(d)
-        stiff = self.k_rot + (3.0 * self.k_rot4 + 5.0 * self.k_rot6 * d2) * d2  # E_r''(d)
+        t = np.tanh(d / self.phi_f)
+        moment = (self.k_rot + (self.k_rot4 + self.k_rot6 * d2) * d2) * d + self.m_fric * t
+        stiff = (self.k_rot + (3.0 * self.k_rot4 + 5.0 * self.k_rot6 * d2) * d2
+                 + self.m_fric * (1.0 - t * t) / self.phi_f)  # E_r'(d), E_r''(d)
         return a, b, dphi, moment, stiff
 
     def gradient(self, x: np.ndarray) -> np.ndarray:

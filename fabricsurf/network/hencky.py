@@ -68,6 +68,10 @@ import numpy as np
 from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.solver import Dirichlet
 
+FRICTION_ANGLE = float(np.radians(1.0))
+"""Default shape angle γ_f (rad) of the friction springs: that of the continuum
+``crossover_friction`` term (the same default, so lattice and continuum data match)."""
+
 
 @dataclass
 class Lattice:
@@ -115,17 +119,20 @@ def _sin_theta0(angles_deg):
 
 def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
                            angles_deg: tuple[float, float] = (45.0, -45.0),
-                           k4: float = 0.0, k6: float = 0.0) -> dict:
+                           k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0,
+                           gamma_f: float = FRICTION_ANGLE) -> dict:
     """Lattice stiffnesses for continuum moduli (module docstring), ready for
-    :func:`hencky_lattice`: ``k_e`` (N/mm), ``k_sh``, ``k_sh4``, ``k_sh6``, ``k_b`` (N mm).
+    :func:`hencky_lattice`: ``k_e`` (N/mm), ``k_sh``, ``k_sh4``, ``k_sh6``, ``k_b``, ``m_shf``
+    (N mm) and ``gamma_f`` (rad).
 
     ``k_l`` (N/mm, both families), ``k_s`` and the ``shear_locking`` moduli ``k4``, ``k6``
-    (N/mm), ``A_g`` (N mm); spacing eps (mm). The node area ``eps^2 sin θ0`` scales all.
+    (N/mm), ``A_g`` (N mm); the ``crossover_friction`` modulus ``tau_f`` (N/mm) and its shape
+    angle ``gamma_f``; spacing eps (mm). The node area ``eps^2 sin θ0`` scales all.
     """
     s0 = _sin_theta0(angles_deg)[0]
     cell = s0 * spacing**2
     return {"k_e": k_l * s0, "k_sh": k_s * cell, "k_b": A_g * s0,
-            "k_sh4": k4 * cell, "k_sh6": k6 * cell}
+            "k_sh4": k4 * cell, "k_sh6": k6 * cell, "m_shf": tau_f * cell, "gamma_f": gamma_f}
 
 
 def spanning_spacing(length: float, spacing: float,
@@ -143,12 +150,14 @@ def spanning_spacing(length: float, spacing: float,
 
 def continuum_from_lattice(k_e: float, k_sh: float, k_b: float, spacing: float,
                            angles_deg: tuple[float, float] = (45.0, -45.0),
-                           k_sh4: float = 0.0, k_sh6: float = 0.0) -> dict:
-    """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g", "k4", "k6"}``."""
+                           k_sh4: float = 0.0, k_sh6: float = 0.0, m_shf: float = 0.0,
+                           gamma_f: float = FRICTION_ANGLE) -> dict:
+    """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g", "k4", "k6",
+    "tau_f", "gamma_f"}``."""
     s0 = _sin_theta0(angles_deg)[0]
     cell = s0 * spacing**2
     return {"k_l": k_e / s0, "k_s": k_sh / cell, "A_g": k_b / s0,
-            "k4": k_sh4 / cell, "k6": k_sh6 / cell}
+            "k4": k_sh4 / cell, "k6": k_sh6 / cell, "tau_f": m_shf / cell, "gamma_f": gamma_f}
 
 
 def _crossings(length, width, eps, L, M, origin):
@@ -193,7 +202,8 @@ def hencky_lattice(length: float, width: float, spacing: float,
                    angles_deg: tuple[float, float] = (45.0, -45.0), k_e: float = 1.0,
                    k_sh: float = 1.0, k_b: float = 1.0,
                    origin: tuple[float, float] = (0.0, 0.0),
-                   k_sh4: float = 0.0, k_sh6: float = 0.0) -> Lattice:
+                   k_sh4: float = 0.0, k_sh6: float = 0.0, m_shf: float = 0.0,
+                   gamma_f: float = FRICTION_ANGLE) -> Lattice:
     """Build the Hencky-type fabric lattice of the module docstring.
 
     Parameters
@@ -207,6 +217,8 @@ def hencky_lattice(length: float, width: float, spacing: float,
     origin : one node position (mm), default the lower-left corner.
     k_sh4, k_sh6 : quartic and sextic shear (locking) stiffnesses per crossing (N mm/rad^4,
         N mm/rad^6), split like ``k_sh``.
+    m_shf, gamma_f : saturated friction moment per crossing (N mm) and its shape angle (rad):
+        the shear springs' moment ``m_shf tanh(d / gamma_f)``, split like ``k_sh``.
     """
     L, M = fibre_directions(angles_deg)
     grid, X = _crossings(length, width, spacing, L, M, np.asarray(origin, float))
@@ -218,11 +230,11 @@ def hencky_lattice(length: float, width: float, spacing: float,
     rot = np.concatenate(bend + [shear])
     nb = len(bend[0]) + len(bend[1])
     k_rot = np.concatenate([np.full(nb, float(k_b)), np.full(len(shear), k_sh / 4.0)])
-    k_rot4, k_rot6 = (np.concatenate([np.zeros(nb), np.full(len(shear), k / 4.0)])
-                      for k in (k_sh4, k_sh6))
+    k_rot4, k_rot6, m_fric = (np.concatenate([np.zeros(nb), np.full(len(shear), k / 4.0)])
+                              for k in (k_sh4, k_sh6, m_shf))
     phi0 = np.concatenate([np.zeros(nb), np.full(len(shear), np.nan)])
     net = SpringNetwork(X, ext, k_e, l0=spacing, rot=rot, k_rot=k_rot, phi0=phi0,
-                        k_rot4=k_rot4, k_rot6=k_rot6)
+                        k_rot4=k_rot4, k_rot6=k_rot6, m_fric=m_fric, phi_f=gamma_f)
     ref = net.turning_angles(X)
     net.phi0[nb:] = ref[nb:]
     w = spacing * max(abs(L[0]), abs(M[0]))
