@@ -1,7 +1,6 @@
 """The diagnosis in the regime of real fabrics (as the stiff-fibre table of docs/diagnosis.md:
-nearly inextensible fibres,
-k_l/k_s = 2500, large shear, grips holding node columns, model-form error above the noise),
-on Hencky-lattice data of our own generator at a small size:
+nearly inextensible fibres, k_l/k_s = 2500, large shear, grips holding node columns, model-form
+error above the noise), on Hencky-lattice data of our own generator at a small size:
 
 * the complete model (fibre_stretch + shear + geodesic_bending, the lattice's continuum limit)
   gives no verdict — the lattice–continuum form error (several noise levels) is not taken for a
