@@ -80,7 +80,8 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
 
 
 def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: float,
-                 every: int = 1, k4: float = 0.0, k6: float = 0.0) -> Experiment:
+                 every: int = 1, k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0
+                 ) -> Experiment:
     """Replace ``exp`` by the Hencky lattice's response (Barchiesi et al. 2020 clamps: two held
     layers).
 
@@ -88,14 +89,15 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
     held layers sit on both ends of the specimen: the grips are where the experiment says). The
     measurement points are the lattice nodes (every ``every``-th, clamp/grip layers excluded);
     continuum moduli map to lattice stiffnesses by ``lattice_from_continuum`` (``k4``, ``k6``:
-    the ``shear_locking`` moduli, nonlinear shear springs at the crossings).
+    the ``shear_locking`` moduli, ``tau_f``: the ``crossover_friction`` modulus, nonlinear
+    shear springs at the crossings).
     """
     from fabricsurf.network import hencky
     from fabricsurf.network.solver import solve_steps
 
     angles = tuple(exp.fibre_angles_deg)
     spacing = hencky.spanning_spacing(exp.length, spacing, angles)
-    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6)
+    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6, tau_f=tau_f)
     lat = hencky.hencky_lattice(exp.length, exp.width, spacing, angles, **k)
     X = lat.net.X
     span = (float(X[:, 0].min()), float(X[:, 0].max()))
