@@ -54,9 +54,7 @@ columns x = 0 and x = eps/sqrt(2); for 0/90 degrees the columns x = 0 and x = ep
 The outer layers sit on the specimen ends only when ``length`` is a whole number of column
 steps w (:func:`spanning_spacing` gives the nearest such eps). Otherwise the grip layer lies
 up to w inside the specimen: a grip mismatch that a continuum model of the specimen's length
-reads as stiffer fibres (measured at 187 x 119 mm, +-40 degrees: with eps = 2.5 mm the grip
-layer is 1.2 mm short and the lattice's force 5-19 % above the continuum's at the lattice's
-own moduli; with the spanning eps = 2.491 mm it is within -6 to +7 %).
+reads as stiffer fibres (measured in docs/diagnosis.md, "The generator's grip layer").
 """
 
 from __future__ import annotations

@@ -54,7 +54,8 @@ def nested_dissection(xy: np.ndarray, graph: sp.csr_matrix) -> np.ndarray:
 
 class MumpsLU:
     """Symmetric (LDLᵀ, indefinite allowed) factorisation of a lattice Hessian block with MUMPS
-    on one process — 30 % faster than its LU on the benchmark lattice; ``solve(b)`` like splu."""
+    on one process — cheaper than its LU on the benchmark lattice (docs/network.md); ``solve(b)``
+    like splu."""
 
     def __init__(self, A: sp.spmatrix) -> None:
         from petsc4py import PETSc
