@@ -1,5 +1,8 @@
 """Least-squares fit with tangent sensitivities: recovers the moduli of noisy data made with the
-same discretisation within three standard deviations; the fit CLI saves a reusable model."""
+same discretisation within three standard deviations each (for four moduli a fresh noise draw
+breaks this with probability about 1 %; the draw here is fixed), at a misfit of the noise level
+(1 within about three of its standard deviations, 1/√(2n) for n residuals); the fit CLI saves a
+reusable model."""
 
 import json
 from pathlib import Path
@@ -34,7 +37,7 @@ def test_fit_recovers_moduli():
     truth = np.array([TRUTH[t.name][p] for t, p in fm.params if t.name in TRUTH])
     z = (res.values[idx] - truth) / res.std[idx]
     print("fitted", res.values[idx], "+-", res.std[idx], "z", z, "runs", res.forward_runs)
-    assert np.all(np.abs(z) < 4.0)
+    assert np.all(np.abs(z) < 3.0)
     assert 0.8 < res.misfit["combined"] < 1.2
 
 
