@@ -1,0 +1,115 @@
+"""Rewrite docs/input_errors.md from the real messages of today's code.
+
+Every rejected input of tests/test_hardening.py (its ``CASES``: a defective data directory,
+params file or option each) goes through the ``fabricsurf`` command line in a scratch
+directory, and its last line of output becomes a row of the table. The test
+``test_errors_table_is_up_to_date`` builds the same text with :func:`errors_table` and fails
+when the file differs: this command is how the file is brought up to date, not a mode of the
+test.
+
+Run serially from the repository root: ``python benchmarks/regenerate_input_errors.py``
+(``--check`` only reports whether the file is up to date, exit status 1 if not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "input_errors.md"
+COMMAND = "python benchmarks/regenerate_input_errors.py"
+
+
+def table_row(case: dict, message: str) -> str:
+    """One row: the input class, the command and its last line of output."""
+    cmd = " ".join(str(a) for a in case["argv"])
+    return f"| {case['klass']} | `fabricsurf {cmd}` | `{message.splitlines()[-1]}` |"
+
+
+def errors_table(rows: list[str]) -> str:
+    """The whole of docs/input_errors.md around its ``rows``."""
+    return "\n".join([
+        "# Inputs that are rejected, and the message each gives",
+        "",
+        "Generated from the real messages of the cases of `tests/test_hardening.py` (regenerate",
+        f"with `{COMMAND}`). Every rejection",
+        "ends with exit status 2 on every MPI rank, prints one message (rank 0), and happens",
+        "before any solve; nothing is written to `--out`. DATA directories hold the",
+        "`experiment.toml`, `field.csv` and `force.csv` of measurement contract 2; `good` is a",
+        "valid one and each other name a copy with one defect.",
+        "",
+        "| input | command | message |",
+        "|---|---|---|",
+        *rows,
+        "",
+        "Accepted as they are (same values as the plain file): a UTF-8 byte-order mark in",
+        "`experiment.toml` or a CSV; UTF-16 CSV files with their byte-order mark; blank lines",
+        "(e.g. a trailing one) in a CSV; CRLF line ends; semicolon-separated CSV with a decimal",
+        "comma or a decimal point.",
+        "",
+    ])
+
+
+def run_cli(argv: list) -> tuple[int, str]:
+    """Exit status and output (stdout and stderr) of ``fabricsurf ARGV`` in this process."""
+    from fabricsurf.cli import main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+        rc = main([str(a) for a in argv])
+    return rc, buf.getvalue().strip()
+
+
+def current_table() -> str:
+    """The table of today's messages, made in a scratch directory (the working directory while
+    the cases run, so that messages hold relative names only)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    import test_hardening as th  # the cases and their inputs
+
+    from fabricsurf.inverse.contract.data import write_experiment
+
+    rows, cwd = [], Path.cwd()
+    with tempfile.TemporaryDirectory(prefix="input_errors-") as tmp:
+        base = Path(tmp)
+        write_experiment(base / "good", th.good_experiment())
+        for case in th.CASES:
+            case["make"](base)
+        os.chdir(base)
+        try:
+            for case in th.CASES:
+                rc, msg = run_cli(case["argv"])
+                if rc != 2:
+                    raise SystemExit(f"case {case['id']}: exit status {rc}, not 2:\n{msg}")
+                rows.append(table_row(case, msg))
+        finally:
+            os.chdir(cwd)
+    return errors_table(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--check", action="store_true", help="only report whether it is stale")
+    args = ap.parse_args(argv)
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.size > 1:
+        raise SystemExit("run serially: the messages are those of rank 0 anyway")
+    text = current_table()
+    stale = not DOC.exists() or DOC.read_text() != text
+    if args.check:
+        print(f"{DOC.relative_to(ROOT)}: {'stale' if stale else 'up to date'}")
+        return int(stale)
+    if stale:
+        DOC.write_text(text)
+    print(f"{DOC.relative_to(ROOT)}: {'rewritten' if stale else 'already up to date'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
