@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi4py import MPI
+from scipy import stats
 
 import fabricsurf.cli as cli
 from fabricsurf.cli import main
@@ -594,13 +595,16 @@ def test_scanned_start_that_breaks_the_model_falls_back(capsys):
 
 
 def test_undetermined_moduli_named_not_given_a_plus_minus():
-    """Issue 26 row 4 (identifiability): data that see only the product k_l·k_m (a rank-1
-    Fisher matrix for two moduli) give no ± of 1e-13: the fit names the undetermined
-    combination and the printed result says so; a ± that spans zero is not printed either."""
+    """Data that see only the product k_l·k_m (a rank-1 Fisher matrix for two moduli) give no ±
+    of 1e-13: the fit names the undetermined combination, reports the product's geometric mean
+    (the combination that is determined) with its interval, and the printed result gives
+    neither modulus a ±; a modulus whose interval would span zero is not identifiable."""
     from fabricsurf.cli.measure import result_lines
     from fabricsurf.inverse.fitting.fit import fit
 
-    class Product:  # r = log k_l + log k_m - log 6, measured twice with noise 1
+    noise = np.array([0.1, -0.1, 0.05, -0.05, 0.2, -0.2, 0.0, 0.0])
+
+    class Product:  # r = log k_l + log k_m - log 6 + noise, measured 8 times (noise 1)
         names, comm, forward_runs, noise_known = ["a.k_l", "a.k_m"], COMM, 0, True
 
         def __init__(self):
@@ -616,8 +620,8 @@ def test_undetermined_moduli_named_not_given_a_plus_minus():
             return self.v.copy()
 
         def residuals(self, pred):
-            r = np.full(2, np.log(pred[0]) + np.log(pred[1]) - np.log(6.0))
-            return r, np.tile(1.0 / pred, (2, 1))
+            r = np.log(pred[0]) + np.log(pred[1]) - np.log(6.0) + noise
+            return r, np.tile(1.0 / pred, (8, 1))
 
         def misfit(self, pred):
             return {}
@@ -625,16 +629,23 @@ def test_undetermined_moduli_named_not_given_a_plus_minus():
     res = fit(Product(), scale_start=False, verbose=False)
     assert np.isclose(res.values.prod(), 6.0)
     assert res.undetermined == ["0.71 log a.k_l - 0.71 log a.k_m"]
-    assert res.as_dict()["undetermined"] == res.undetermined
-    assert result_lines(res) == [
-        f"  a.k_l = {res.values[0]:.5g} (not determined by the data: see below)",
-        f"  a.k_m = {res.values[1]:.5g} (not determined by the data: see below)",
-        "  not determined by the data (rank-deficient Fisher matrix): 0.71 log a.k_l - 0.71 "
-        "log a.k_m"]
-    res.undetermined, res.std = [], np.array([3.0, 0.5]) * res.values
-    assert result_lines(res)[0].endswith("(not determined by the data: the ± "
-                                         f"{res.std[0]:.2g} spans zero)")
-    assert result_lines(res)[1] == f"  a.k_m = {res.values[1]:.5g} ± {res.std[1]:.2g}"
+    u = res.as_dict()
+    assert u["undetermined"] == res.undetermined
+    assert not u["moduli"]["a.k_l"]["identifiable"] and not u["moduli"]["a.k_m"]["identifiable"]
+    (comb,) = u["identifiable_combinations"]
+    # σ of log(k_l k_m)/2 is (1/2)/√8 (8 unit-noise data), Student's t with 8 - 2 dof
+    half = stats.t.ppf(0.975, 6) * 0.5 / np.sqrt(8.0)
+    assert np.isclose(comb["value"], np.sqrt(6.0))
+    assert np.allclose(comb["ci95"], np.sqrt(6.0) * np.exp([-half, half]))
+    assert np.allclose([comb["weights"]["a.k_l"], comb["weights"]["a.k_m"]], 0.5)
+    lines = result_lines(u)
+    assert lines[:2] == [
+        f"  a.k_l = {res.values[0]:.5g} (not determined by the data on its own)",
+        f"  a.k_m = {res.values[1]:.5g} (not determined by the data on its own)"]
+    assert lines[2].startswith("  determined combination: a.k_l^0.5 · a.k_m^0.5 = 2.4495")
+    assert lines[3] == ("  not determined by the data (rank-deficient Fisher matrix): 0.71 log "
+                        "a.k_l - 0.71 log a.k_m")
+    assert not any("±" in ln for ln in lines)
 
 
 def test_publish_all_or_nothing_and_collective(tmp_path):

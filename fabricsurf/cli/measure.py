@@ -10,10 +10,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import re
 from collections.abc import Iterator
 
-import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli.options import (
@@ -138,22 +136,35 @@ def cmd_compare(args) -> int:
     return 0
 
 
-def result_lines(res) -> list[str]:
-    """The fitted moduli, each with its ±, except where the data do not determine it: a
-    modulus in a null direction of the Fisher matrix (its ± would be a meaningless 1e-13) or
-    whose ± spans zero is said to be undetermined, with the combinations."""
-    lost = {n for c in res.undetermined for n in re.findall(r"log (\S+)", c)}
+def _num(x: float | None) -> str:
+    return "not measured" if x is None else f"{x:.2g}"
+
+
+def result_lines(u: dict) -> list[str]:
+    """The fitted moduli of a fit.json or a diagnosis's final model ``u``: each identifiable
+    one with its 95 % interval and the parts of its uncertainty; one that is not gets no ± (it
+    would span zero or be a meaningless 1e-13), and the combinations the data do determine are
+    given with their intervals, then those they do not."""
     lines = []
-    for n, v, s in zip(res.names, res.values, res.std):
-        if n in lost:
-            lines.append(f"  {n} = {v:.5g} (not determined by the data: see below)")
-        elif not np.isfinite(s) or s >= v:
-            lines.append(f"  {n} = {v:.5g} (not determined by the data: the ± {s:.2g} spans "
-                         "zero)")
+    for n, m in u["moduli"].items():
+        if m.get("fixed"):
+            lines.append(f"  {n} = {m['value']:.5g} (held)")
+        elif m["identifiable"]:
+            lo, hi = m["ci95"]
+            lines.append(f"  {n} = {m['value']:.5g}, 95 % interval [{lo:.4g}, {hi:.4g}] "
+                         f"(statistical σ {m['std_statistical']:.2g}, mesh "
+                         f"{_num(m['systematic_mesh'])}, model form "
+                         f"{_num(m['systematic_model'])})")
         else:
-            lines.append(f"  {n} = {v:.5g} ± {s:.2g}")
-    for c in res.undetermined:
+            lines.append(f"  {n} = {m['value']:.5g} (not determined by the data on its own)")
+    for c in u["identifiable_combinations"]:
+        lo, hi = c["ci95"]
+        lines.append(f"  determined combination: {c['combination']} = {c['value']:.5g}, "
+                     f"95 % interval [{lo:.4g}, {hi:.4g}]")
+    for c in u.get("undetermined", []):
         lines.append(f"  not determined by the data (rank-deficient Fisher matrix): {c}")
+    for w in u["weak_directions"]:
+        lines.append(f"  weak direction (log-moduli, σ {w['std_log']:.2g}): {w['direction']}")
     return lines
 
 
@@ -170,10 +181,11 @@ def cmd_fit(args) -> int:
     with od as stage, _failure_report(od, stage, model, args, exps):
         fs = ForwardSet(exps, model, h=args.h, comm=COMM)
         res = fit(fs, verbose=True)
+        res.check_mesh(fs)
         write_json(COMM, stage / "fit.json", res.as_dict() | _prov(model, fs, args))
         label = "fit: " + "+".join(t.name for t in model)
         write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
-    for line in result_lines(res):
+    for line in result_lines(res.as_dict()):
         rank0_print(COMM, line)
     rank0_print(COMM, _summary(label, res.misfit))
     return 0
@@ -223,9 +235,12 @@ def cmd_diagnose(args) -> int:
     rank0_print(COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
     for r in d.ranking:
         rank0_print(COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
-                    f"{r['refit_misfit']}  significant {r['significant']}")
+                    f"{r['refit_misfit']}  Wald p {r.get('wald_p')}  significant "
+                    f"{r['significant']}")
     rank0_print(COMM, f"verdict: {d.verdict}; final {'+'.join(d.terms)} misfit "
                 f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}")
+    for line in result_lines(out["final"]):
+        rank0_print(COMM, line)
     lead = (d.unexplained or {}).get("best_lead")
     if lead:
         rank0_print(COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "

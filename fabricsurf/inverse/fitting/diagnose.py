@@ -34,13 +34,13 @@ from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.fit import FitResult, fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.fitting.nuisance import grip_profile, with_depth
 from fabricsurf.inverse.fitting.report import (
     Diagnosis,
     best_lead,
-    discretisation_chi2,
     where_unexplained,
 )
 from fabricsurf.inverse.fitting.start import candidate_start
@@ -106,6 +106,14 @@ def _refit(fs: ForwardSet, cur: FitResult, free: list[int], idx: list[int], esti
     return res
 
 
+def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
+    """The Wald test of a refit's candidate moduli ``idx`` against zero on the refit's
+    correlated-residual covariance (:func:`~.uncertainty.wald`)."""
+    pos = [rf.free.index(i) for i in idx]
+    st = rf.statistical
+    return unc.wald(rf.values[idx], st.cov[np.ix_(pos, pos)], st.dof)
+
+
 def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, verbose: bool):
     fs.set_values(cur.values)
     r, Jr = fs.residuals(fs.run(sens=True))
@@ -121,12 +129,17 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
                "refit_misfit": None, "significant": None}
         if c in refits:
             rf = refits[c]
+            F, p = candidate_wald(rf, cand[c])
             row.update(refit_misfit=rf.misfit["combined"], refit_chi2=rf.chi2,
                        refit_params=rf.params()[c],
                        refit_std={k: float(s) for k, s in zip(rf.names, rf.std)
                                   if k.startswith(c + ".")},
+                       wald_F=F, wald_p=p,
+                       share_of_excess=sg.share_of_excess(cur.chi2, len(free), rf.chi2, n),
+                       f_test_passed=sg.f_test(cur.chi2, len(free), rf.chi2,
+                                               len(free) + len(cand[c]), n),
                        significant=sg.significant(cur.chi2, len(free), rf.chi2,
-                                                  len(free) + len(cand[c]), n))
+                                                  len(free) + len(cand[c]), n, wald_p=p))
         rows.append(row)
     rows.sort(key=lambda q: (1, -q["score"]) if q["refit_misfit"] is None
               else (0, q["refit_misfit"]))
@@ -197,7 +210,10 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         path.append({"added": c, "misfit": cur.misfit["combined"], "chi2": cur.chi2})
         say(f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
     fs.set_values(cur.values)
-    chi2_h = discretisation_chi2(fs, comm) if check_discretisation else None
+    chi2_h = None
+    if check_discretisation:
+        cur.check_mesh(fs)
+        chi2_h = cur.chi2_h
     ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
     invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
                  for n in EFFECTS if n not in seen and n not in baseline]

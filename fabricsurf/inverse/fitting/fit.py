@@ -1,4 +1,4 @@
-"""Least-squares fit of the moduli (Levenberg–Marquardt in log-moduli) with tangent sensitivities.
+"""Least-squares fit of the moduli (Levenberg–Marquardt) with tangent sensitivities.
 
 Each iteration is one forward run along the recorded load path that also returns
 du/dp = −J⁻¹ ∂R/∂p at every converged step (:class:`~.forward.ForwardModel`): the
@@ -10,35 +10,38 @@ cross it cuts the modulus by ``BOUND_CUT``), for nested refits that start at an 
 candidate near zero: there log steps crawl (∂χ²/∂θ = p ∂χ²/∂p vanishes at p → 0) and the valley
 along which a stiffness trades against another (reactions are linear in the moduli) is straight
 in p but curved in θ. The same holds after the scale scan, which leaves every modulus within a
-decade of its optimum: the diagnosis fits its baseline in the moduli too. Measured on the
-issue-12 lattice (187 × 119 mm, k_l/k_s = 2500, complete model, h = 8 mm): log steps took 16
-iterations and 26 forward runs (about every other trial rejected along the curved valley),
-moduli steps 5 iterations and 6 runs, to the same optimum (χ² = 98670).
+decade of its optimum: the diagnosis fits its baseline in the moduli too (docs/diagnosis.md
+compares the two on a stiff-fibre lattice).
 A small relative χ² change does not stop a step that was cut to ``max_step`` (a modulus far
 from its optimum, e.g. a candidate effect started near zero, changes χ² little per step); the
 fit stops when not even the Gauss–Newton step promises a relative decrease of ``tol`` (at the
 optimum every trial step would be rejected, each costing a forward run).
-Uncertainties: Cov(θ) = (JᵀJ)⁻¹ — the residuals are already divided by the noise level — times
-the reduced χ² when the data give no ``noise_std``; σ_p = p σ_θ (first order).
+Uncertainties (docs/uncertainty.md): the cluster-robust sandwich covariance over blocks of
+residuals (:mod:`~.uncertainty`), the model-form spread between parts of the data and, after
+:meth:`FitResult.check_mesh`, the mesh shift (:mod:`~.systematic`), combined into intervals and
+identifiable combinations (:mod:`~.intervals`).
 """
 
 from __future__ import annotations
 
-import json
+import re
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.inverse.fitting import intervals, systematic
+from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 
 
 @dataclass
 class FitResult:
-    """Fitted moduli (by parameter name "term.param"), their standard deviations, misfits."""
+    """Fitted moduli (by parameter name "term.param"), their statistical standard deviations,
+    misfits; ``J``, ``r``, ``blocks``: the sensitivities dr/dp of the ``free`` moduli, the
+    residuals and their block labels at the optimum (for the uncertainty)."""
 
     names: list
     values: np.ndarray
@@ -51,6 +54,13 @@ class FitResult:
     history: list = field(default_factory=list)
     undetermined: list = field(default_factory=list)
     """Combinations of log-moduli the data do not determine (:func:`undetermined`)."""
+    free: list = field(default_factory=list)
+    J: np.ndarray | None = None
+    r: np.ndarray | None = None
+    statistical: unc.Statistical | None = None
+    model_form: np.ndarray | None = None
+    mesh_shift: np.ndarray | None = None
+    chi2_h: float | None = None
 
     def params(self) -> dict:
         """{term: {param: value}} (the --params file format)."""
@@ -60,10 +70,42 @@ class FitResult:
             out.setdefault(t, {})[p] = float(v)
         return out
 
+    def check_mesh(self, fm: Forward, d: np.ndarray | None = None) -> None:
+        """The mesh part (:func:`~.systematic.mesh_shift`): the residual difference ``d``
+        between h and h/2 at the fitted moduli, run here when not given."""
+        if self.J is None:
+            return
+        d = systematic.mesh_difference(fm, self.prediction, fm.comm) if d is None else d
+        self.chi2_h = float(d @ d)
+        self.mesh_shift = systematic.mesh_shift(self.J, d)
+
+    def uncertainty(self) -> dict:
+        """The per-modulus intervals and identifiable combinations (:mod:`~.intervals`)."""
+        if self.statistical is None:
+            return {"moduli": {}, "identifiable_combinations": [], "weak_directions": []}
+        free = self.free
+        lost = {n for c in self.undetermined for n in re.findall(r"log (\S+)", c)}
+        out = intervals.summarise([self.names[k] for k in free], self.values[free],
+                                  self.statistical.cov, self.statistical.t95(),
+                                  self.model_form, self.mesh_shift, lost)
+        for k, n in enumerate(self.names):
+            if k not in free and self.values[k] > 0:  # held at a given modulus
+                out["moduli"][n] = {"value": float(self.values[k]), "fixed": True}
+        cov = {"names": [self.names[k] for k in free],
+               "statistical": self.statistical.cov.tolist()}
+        return out | {"statistics": self.statistical.as_dict(len(self.r)),
+                      "chi2_h_vs_h2": self.chi2_h, "covariance": cov}
+
     def as_dict(self) -> dict:
         m = strip_rows(self.misfit)
+        u = self.uncertainty()
         return {"terms": list(self.params()), "params": self.params(),
                 "std": {n: float(s) for n, s in zip(self.names, self.std)},
+                "moduli": u["moduli"],
+                "identifiable_combinations": u["identifiable_combinations"],
+                "weak_directions": u["weak_directions"],
+                "uncertainty": {k: u.get(k) for k in ("statistics", "chi2_h_vs_h2",
+                                                      "covariance")},
                 "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
                 "forward_runs": self.forward_runs, "history": self.history,
                 "undetermined": self.undetermined}
@@ -137,6 +179,18 @@ def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
     return C if noise_known else C * chi2 / max(n - P, 1)
 
 
+LAMBDA_START = 1e-3
+"""Marquardt's damping at the first iteration (a nearly Gauss–Newton step)."""
+LAMBDA_DOWN, LAMBDA_UP = 5.0, 8.0
+"""The damping divided by LAMBDA_DOWN after an accepted step, multiplied by LAMBDA_UP after a
+rejected one (asymmetric, so that a rejected region is left quickly)."""
+LAMBDA_MIN, LAMBDA_MAX = 1e-7, 1e8
+"""The damping's floor, and the ceiling at which the step search gives up (no decrease)."""
+DIAG_FLOOR = 1e-12
+"""Marquardt's scaling diag(JᵀJ) plus this fraction of its trace (a modulus with no
+sensitivity still gets a bounded step)."""
+STALL = 1e-5
+"""The fit stops when no modulus (off the bound) moves by more than this in log."""
 BOUND_CUT = 1e-3
 """Linear steps: a modulus the step would make ≤ 0 is cut by this factor instead (a few steps
 take it to where it no longer matters: the bound at zero)."""
@@ -188,7 +242,7 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         vals = given
         pred, rj, chi2 = _start(fm, free, vals)
     r, Jr = rj
-    lam, hist, it = 1e-3, [], 0
+    lam, hist, it = LAMBDA_START, [], 0
     at_bound = np.zeros(len(free), bool)
     for it in range(1, max_iter + 1):
         q_scale, update = _steps(space, vals, free)
@@ -197,12 +251,12 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         act = ~(at_bound & (g > 0))  # a modulus at the bound that would go on down is held
         Ja = Jt[:, act]
         JTJ = Ja.T @ Ja
-        D = np.diag(np.diag(JTJ)) + 1e-12 * np.trace(JTJ) * np.eye(len(JTJ))
+        D = np.diag(np.diag(JTJ)) + DIAG_FLOOR * np.trace(JTJ) * np.eye(len(JTJ))
         gn = np.linalg.lstsq(Ja, -r, rcond=None)[0]
         if float(r @ r - (r + Ja @ gn) @ (r + Ja @ gn)) < tol * chi2:
             break  # not even the Gauss-Newton step promises a relative decrease of tol
         accepted = False
-        while lam < 1e8:
+        while lam < LAMBDA_MAX:
             step = np.zeros(len(free))
             step[act] = np.linalg.solve(JTJ + lam * D, -g[act])
             if space == "log":
@@ -211,9 +265,9 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
             trial[free] = update(vals[free], step)
             p2, rj2, chi2_new = _try(fm, free, trial)
             if chi2_new < chi2:
-                accepted, lam = True, max(lam / 5, 1e-7)
+                accepted, lam = True, max(lam / LAMBDA_DOWN, LAMBDA_MIN)
                 break
-            lam *= 8
+            lam *= LAMBDA_UP
         if not accepted:
             fm.set_values(vals)
             break
@@ -226,16 +280,24 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
             rank0_print(fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
                         + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
         moving = space == "log" and np.max(dlog) >= max_step * (1 - 1e-9)  # cut: go on
-        if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < 1e-5:
+        if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < STALL:
             break
     fm.set_values(vals)
-    Jt = Jr * vals[free]
-    C = covariance(Jt, chi2, fm.noise_known)
+    return _result(fm, free, vals, pred, r, Jr, chi2, it, fm.forward_runs - runs0, hist)
+
+
+def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
+            Jr: np.ndarray, chi2: float, it: int, runs: int, hist: list) -> FitResult:
+    """The FitResult at the optimum: statistical covariance over blocks of residuals and the
+    model-form spread between parts of the data (module docstring)."""
+    labels = unc.blocks(fm, pred)
+    stat = unc.sandwich(Jr, r, labels, fm.noise_known)
     std = np.zeros(len(vals))
-    std[free] = vals[free] * np.sqrt(np.maximum(np.diag(C), 0.0))
-    return FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it,
-                     fm.forward_runs - runs0, hist,
-                     undetermined(list(np.array(fm.names)[free]), Jt))
+    std[free] = np.sqrt(np.maximum(np.diag(stat.cov), 0.0))
+    tau = systematic.model_form(Jr, r, systematic.parts(fm, pred), labels, fm.noise_known)
+    return FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it, runs, hist,
+                     undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
+                     free=list(free), J=Jr, r=r, statistical=stat, model_form=tau)
 
 
 def strip_rows(m: dict) -> dict:
@@ -245,10 +307,3 @@ def strip_rows(m: dict) -> dict:
         out["experiments"] = [strip_rows(e) for e in out["experiments"]]
     return out
 
-
-def load_params(path: str | Path | None) -> dict:
-    """{term: {param: value}} from a JSON file: a plain mapping or a saved fit (key "params")."""
-    if not path:
-        return {}
-    data = json.loads(Path(path).read_text())
-    return data.get("params", data)

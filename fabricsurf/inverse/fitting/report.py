@@ -5,11 +5,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from mpi4py import MPI
 
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.fit import FitResult, strip_rows
-from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
+
+UNCERTAINTY_KEYS = ("moduli", "identifiable_combinations", "weak_directions", "undetermined",
+                    "uncertainty")
+"""The keys of a fit's intervals (:meth:`~.fit.FitResult.as_dict`) in the final model."""
 
 
 @dataclass
@@ -56,8 +58,9 @@ class Diagnosis:
             "ranking": self.ranking, "rounds": self.rounds, "verdict": self.verdict,
             "indistinguishable_from_verdict": self.alternatives, "adequate": self.adequate,
             "outcome": self.outcome(), "path": self.path,
-            "final": {"terms": self.terms, "params": f.params(), "std": f.as_dict()["std"],
-                      "misfit": strip_rows(f.misfit)},
+            "final": {"terms": self.terms, "params": f.params(), "std": f.as_dict()["std"]}
+            | {k: v for k, v in f.as_dict().items() if k in UNCERTAINTY_KEYS}
+            | {"misfit": strip_rows(f.misfit)},
             "not_identifiable": self.not_identifiable, "unexplained": self.unexplained,
             "discretisation": {
                 "chi2_h_vs_h2": self.discretisation_chi2,
@@ -70,19 +73,6 @@ class Diagnosis:
                              "rule": sg.__doc__.split("*Adequate*")[1].strip()},
             "grip_depth": self.grip_depth,
             "seconds": {"baseline_fit": self.fit_seconds}}
-
-
-def discretisation_chi2(fs: ForwardSet, comm: MPI.Comm) -> float:
-    """Σ((prediction at h − prediction at h/2)/noise)² at the current moduli: the part of the
-    misfit the mesh explains (every experiment's plug-in mesh refined by 2)."""
-    total = 0.0
-    for m in fs.models:
-        fine = ForwardModel(m.exp, fs.model, h=m.h / 2, comm=comm)
-        r_h, _ = m.residuals(m.run())
-        r_f, _ = fine.residuals(fine.run())
-        if r_h.shape == r_f.shape:
-            total += float(np.sum((r_h - r_f) ** 2))
-    return total
 
 
 def _force_ranges(exp, per_step: list, s_F: float) -> list:
@@ -124,7 +114,8 @@ def best_lead(rows: list, res: FitResult, p: int) -> dict | None:
     return {"effect": q["effect"], "refit_misfit": q["refit_misfit"],
             "share_of_excess": sg.share_of_excess(res.chi2, p, q["refit_chi2"], n),
             "share_needed": sg.FRACTION_OF_EXCESS,
-            "f_test_passed": sg.f_test(res.chi2, p, q["refit_chi2"], p + k, n)}
+            "f_test_passed": sg.f_test(res.chi2, p, q["refit_chi2"], p + k, n),
+            "wald_p": q.get("wald_p"), "wald_p_needed": 1.0 - sg.LEVEL}
 
 
 def where_unexplained(exps: list, res: FitResult, lead: dict | None = None) -> dict:

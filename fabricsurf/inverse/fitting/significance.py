@@ -10,20 +10,20 @@ level; the floor 1.1² (an RMS misfit of 1.1 noise levels) is there because a st
 is itself an estimate, good to about 10 %: with thousands of data the 3σ band alone would call a
 model inadequate for a systematic error of a tenth of the noise. The credit χ²_h is capped at the
 band itself, (bound − 1)ν: a mesh whose own error is larger than that (the mesh is too coarse for
-the data, :func:`too_coarse`) cannot show that a model explains the data. Measured at the
-issue-12 size with h = 6 mm: the fitted model's χ²_h/ν = 25.6 (h against h/2), larger than its
-χ²/ν = 4.4, and the uncapped rule called it adequate.
+the data, :func:`too_coarse`) cannot show that a model explains the data. (docs/diagnosis.md
+gives a stiff-fibre case where the uncapped rule called a model adequate.)
 
-*Significant* (nested models, k added moduli): both
-1. an F-test at the 0.999 level against the residual variance actually left,
-   F = (Δχ²/k) / s² with s² = max(1, χ²_new/ν_new) (the noise, inflated by the model-form error
-   still present — with known noise and an adequate refit this is the χ²_k test Δχ² > 10.83);
+*Significant* (nested models, k added moduli ≥ 0): both
+1. a Wald test on the same residual model as the moduli's intervals (:mod:`~.uncertainty`):
+   the added moduli against zero with the refit's cluster-robust covariance, one-sided
+   (Student's t with the blocks' degrees of freedom for k = 1, F(k, G − P) otherwise) at the
+   0.999 level. Correlated residuals (DIC subsets, model-form error smooth in space) widen
+   the covariance instead of passing as many independent data. Without a refit's covariance
+   (a caller with χ² only) the F-test of part 1 is F = (Δχ²/k)/s², s² = max(1, χ²_new/ν_new);
 2. the effect removes at least a quarter of the baseline's excess misfit,
-   Δχ² ≥ ¼ (χ²_base − ν_base). Model-form error (a lattice against a continuum, grips of finite
-   depth, large shear) leaves spatially correlated residuals: many points, few independent
-   ones. Any extra modulus then fits a little of that error, and the F-test, which assumes
-   independent residuals, calls it significant. An effect that is really missing removes most
-   of the excess; one that only absorbs model-form error removes a small part.
+   Δχ² ≥ ¼ (χ²_base − ν_base): an effect that is really missing removes most of the excess,
+   one that only absorbs model-form error a small part (docs/uncertainty.md gives the
+   measurements that keep this part).
 """
 
 from __future__ import annotations
@@ -85,9 +85,12 @@ def f_test(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -
                 > stats.f.ppf(LEVEL, k, nu_new))
 
 
-def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
-    """The two-part rule of the module docstring."""
+def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int,
+                wald_p: float | None = None) -> bool:
+    """The two-part rule of the module docstring; ``wald_p``: the one-sided p-value of the
+    added moduli on the correlated-residual model (None: the F-test instead)."""
     if chi2_base - chi2_new <= 0:
         return False
-    return (f_test(chi2_base, p_base, chi2_new, p_new, n)
-            and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS)
+    part1 = (f_test(chi2_base, p_base, chi2_new, p_new, n) if wald_p is None
+             else wald_p < 1.0 - LEVEL)
+    return part1 and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS

@@ -44,11 +44,44 @@ def template(length: float, width: float, displacements, points: np.ndarray,
                       np.zeros((len(d) * len(pts), 2)))
 
 
-def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: int
-              ) -> Experiment:
-    """Gaussian noise on every displacement component and force (same draw on every rank)."""
+def correlated_field(points: np.ndarray, length: float, rng: np.random.Generator,
+                     components: int) -> np.ndarray:
+    """Zero-mean Gaussian random field of unit variance at ``points`` with the squared-
+    exponential correlation exp(−|x − x'|²/(2 ℓ²)), ℓ = ``length``: the smoothing of DIC
+    subsets. One independent field per component (Cholesky factor of the correlation matrix,
+    a small diagonal added for the factor to exist)."""
+    d2 = ((points[:, None, :] - points[None, :, :]) ** 2).sum(axis=-1)
+    K = np.exp(-0.5 * d2 / length**2) + JITTER * np.eye(len(points))
+    return np.linalg.cholesky(K) @ rng.normal(size=(len(points), components))
+
+
+JITTER = 1e-8
+"""Added to the correlation matrix's diagonal (its factor exists for closely spaced points)."""
+
+MAX_CORRELATED_POINTS = 8000
+"""The largest point cloud per step that gets a correlated field (a dense Cholesky factor)."""
+
+
+def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: int,
+              correlation_length: float = 0.0) -> Experiment:
+    """Gaussian noise on every displacement component and force (same draw on every rank).
+    ``correlation_length`` > 0 (mm): the displacement noise is a Gaussian random field of that
+    correlation length (:func:`correlated_field`), drawn independently at every step, as DIC
+    subsets leave; 0: independent at every point."""
     rng = np.random.default_rng(seed)
-    exp.u = exp.u + rng.normal(0.0, noise_std, exp.u.shape)
+    if correlation_length > 0 and exp.has_field:
+        noise = np.zeros(exp.u.shape)
+        for s in exp.steps:
+            rows = exp.step_rows(s)
+            if len(rows) > MAX_CORRELATED_POINTS:
+                raise ValueError(f"add_noise: {len(rows)} points at step {s}: a correlated "
+                                 f"field is drawn for at most {MAX_CORRELATED_POINTS}")
+            if len(rows):
+                noise[rows] = noise_std * correlated_field(exp.X[rows, :2], correlation_length,
+                                                           rng, exp.u.shape[1])
+        exp.u = exp.u + noise
+    else:
+        exp.u = exp.u + rng.normal(0.0, noise_std, exp.u.shape)
     if exp.has_force:
         exp.force = exp.force + rng.normal(0.0, force_noise_std, exp.force.shape)
         exp.force_noise_std = float(force_noise_std)
@@ -57,10 +90,10 @@ def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: i
     return exp
 
 
-def noisy_copy(exp: Experiment, noise_std: float, force_noise_std: float, seed: int
-               ) -> Experiment:
+def noisy_copy(exp: Experiment, noise_std: float, force_noise_std: float, seed: int,
+               correlation_length: float = 0.0) -> Experiment:
     """:func:`add_noise` on a copy: ``exp`` (clean data, drawn on again) stays as it is."""
-    return add_noise(replace(exp), noise_std, force_noise_std, seed)
+    return add_noise(replace(exp), noise_std, force_noise_std, seed, correlation_length)
 
 
 def continuum_data(exp: Experiment, model: list[Term], h: float,

@@ -1,0 +1,225 @@
+"""Calibration of the moduli's intervals and of the significance rule (docs/uncertainty.md).
+
+Hencky-lattice bias data (60 × 30 mm, lattice spacing 1 mm, every other node measured, three
+steps), soft fibres (k_l/k_s = 60) and nearly inextensible ones (k_l/k_s = 2500), geodesic
+bending of bending length 5 mm, with white noise or DIC-like noise (a Gaussian random field of
+correlation length ``--corr`` mm) whose standard deviation is the lattice–continuum form
+error (the RMS field difference of the continuum at the lattice's moduli):
+
+- ``coverage``: the complete model fitted; the share of the 95 % intervals of the
+  identifiable moduli that contain the lattice's (k_l, k_m = k_l, k_s, A_g), new and
+  classical ((JᵀJ)⁻¹ at the stated noise), with the median relative half-widths;
+- ``null``: diagnoses of the complete model on its own lattice data (any verdict is a false
+  alarm), the confirmed candidate's statistics recorded so that the Wald rule with and
+  without the quarter-of-the-excess part and the old F-test rule are counted on the same sets;
+- ``detect``: geodesic bending hidden from a fibre_stretch + shear baseline at bending lengths
+  ``--bending-lengths``; the signal √(misfit_base² − misfit_floor²) in noise units as in
+  benchmarks/diagnose_calibration.py; a detection is the verdict geodesic_bending.
+
+Every part appends its rows to OUT/uncertainty_calibration.json (parts can run as separate
+processes, which also frees the memory each diagnosis leaves behind):
+
+    mpirun -n 2 .venv/bin/python benchmarks/calibrate_uncertainty.py --part coverage --count 4
+    mpirun -n 2 .venv/bin/python benchmarks/calibrate_uncertainty.py --part null --count 10
+    mpirun -n 2 .venv/bin/python benchmarks/calibrate_uncertainty.py --part detect --count 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.network import ConvergenceError
+
+LENGTH, WIDTH = 60.0, 30.0
+REGIMES = {"soft": (30.0, 0.5, 0.05), "stiff": (1000.0, 0.4, 0.12)}  # k_l, k_s, strain
+BENDING_LENGTH = 5.0
+COMPLETE = ["fibre_stretch", "shear", "geodesic_bending"]
+NOISE_KINDS = ("white", "dic")
+
+
+def truth(k_l: float, k_s: float, l_b: float) -> dict:
+    return {"fibre_stretch": {"k_l": k_l, "k_m": k_l}, "shear": {"k_s": k_s},
+            "geodesic_bending": {"A_g": k_s * l_b**2}}
+
+
+def lattice(k_l: float, k_s: float, strain: float, l_b: float, steps: int = 3):
+    path = list(np.linspace(strain * LENGTH / steps, strain * LENGTH, steps))
+    exp = sy.template(LENGTH, WIDTH, path, np.zeros((0, 2)), name="calibration")
+    return sy.lattice_data(exp, 1.0, k_l=k_l, k_s=k_s, A_g=k_s * l_b**2, every=2)
+
+
+def form_error(exp, params: dict, h: float, comm) -> float:
+    """RMS field difference (mm) of the continuum at the lattice's moduli."""
+    p = ForwardModel(exp, full_model(COMPLETE, params), h=h, comm=comm).run()
+    return float(np.sqrt(np.nanmean((p.u - exp.u[:, :2]) ** 2)))
+
+
+def noisy(exp, std: float, kind: str, seed: int, corr: float):
+    s_F = 0.01 * float(np.max(np.abs(exp.force))) + 1e-3
+    return sy.noisy_copy(exp, std, s_F, seed, corr if kind == "dic" else 0.0)
+
+
+def cases(a, comm, l_b: float = BENDING_LENGTH):
+    """(regime, noise kind, seed, noisy data, true moduli, form error) for every case."""
+    for regime, (k_l, k_s, strain) in REGIMES.items():
+        params = truth(k_l, k_s, l_b)
+        clean = lattice(k_l, k_s, strain, l_b)
+        e_f = form_error(clean, params, a.h, comm)
+        for kind, seed in itertools.product(NOISE_KINDS, range(a.seed, a.seed + a.count)):
+            yield regime, kind, seed, noisy(clean, e_f, kind, 1000 + seed, a.corr), params, e_f
+
+
+def coverage_row(res, params: dict) -> dict:
+    """Per modulus: inside the new interval, inside the classical one, relative widths."""
+    u = res.uncertainty()["moduli"]
+    naive = np.sqrt(np.diag(res.statistical.cov_naive))
+    out = {}
+    for k, n in enumerate(res.free):
+        name = res.names[n]
+        t, p = name.split(".")
+        true = params[t][p]
+        m = u[name]
+        lo, hi = m["ci95"]
+        out[name] = {"truth": true, "value": m["value"], "identifiable": m["identifiable"],
+                     "covered": bool(lo <= true <= hi),
+                     "covered_classical": bool(abs(m["value"] - true) <= 1.96 * naive[k]),
+                     "half_width_rel": (hi - lo) / 2 / true,
+                     "half_width_rel_classical": 1.96 * naive[k] / true,
+                     "std_statistical": m["std_statistical"],
+                     "systematic_mesh": m["systematic_mesh"],
+                     "systematic_model": m["systematic_model"]}
+    return out
+
+
+def part_coverage(a, comm, say) -> list[dict]:
+    rows = []
+    for regime, kind, seed, exp, params, e_f in cases(a, comm):
+        t0 = time.perf_counter()
+        start = {t: {p: 1.3 * v for p, v in q.items()} for t, q in params.items()}
+        fm = ForwardModel(exp, full_model(COMPLETE, start), h=a.h, comm=comm)
+        free = [i for i, (t, _) in enumerate(fm.params) if t.name in COMPLETE]
+        res = fit(fm, free, verbose=False, scale_start=False, space="linear")
+        res.check_mesh(fm)
+        st = res.statistical
+        rows.append({"regime": regime, "noise": kind, "seed": seed, "noise_mm": e_f,
+                     "moduli": coverage_row(res, params), "design_effect": st.design_effect,
+                     "blocks": st.n_blocks, "misfit": res.misfit["combined"],
+                     "seconds": time.perf_counter() - t0})
+        cov = {n: (m["covered"], m["covered_classical"]) for n, m in rows[-1]["moduli"].items()}
+        say(f"coverage {regime} {kind} {seed}: (new, classical) {cov}; deff "
+            f"{st.design_effect:.2f}; {rows[-1]['seconds']:.0f} s")
+    return rows
+
+
+def candidate(d) -> dict:
+    """The confirmed candidate's statistics under the three rules (module docstring)."""
+    row = next((r for r in d.ranking if r.get("refit_chi2") is not None), None)
+    if row is None:
+        return {}
+    gain = d.base_fit.chi2 - row["refit_chi2"] > 0
+    share = row["share_of_excess"] >= sg.FRACTION_OF_EXCESS
+    wald = row["wald_p"] < 1.0 - sg.LEVEL
+    return {"effect": row["effect"], "wald_p": row["wald_p"],
+            "share_of_excess": row["share_of_excess"], "f_test_passed": row["f_test_passed"],
+            "rule_wald": bool(gain and wald), "rule_wald_and_share": bool(gain and wald and share),
+            "rule_old": bool(gain and row["f_test_passed"] and share)}
+
+
+def part_null(a, comm, say) -> list[dict]:
+    rows = []
+    for regime, kind, seed, exp, _, e_f in cases(a, comm):
+        t0 = time.perf_counter()
+        d = diagnose(exp, COMPLETE, h=a.h, confirm=1, max_effects=1,
+                     check_discretisation=False, comm=comm, verbose=False)
+        rows.append({"regime": regime, "noise": kind, "seed": seed, "noise_mm": e_f,
+                     "verdict": d.verdict, "candidate": candidate(d),
+                     "seconds": time.perf_counter() - t0})
+        say(f"null {regime} {kind} {seed}: verdict {d.verdict}; {rows[-1]['candidate']}")
+    return rows
+
+
+def part_detect(a, comm, say) -> list[dict]:
+    rows = []
+    for l_b in (float(x) for x in a.bending_lengths.split(",")):
+        try:
+            for regime, kind, seed, exp, params, e_f in cases(a, comm, l_b):
+                d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1,
+                             max_effects=1, check_discretisation=False, comm=comm,
+                             verbose=False)
+                fm = ForwardModel(exp, full_model(COMPLETE, params), h=a.h, comm=comm)
+                floor = fm.misfit(fm.run())["combined"]
+                base = d.base_fit.misfit["combined"]
+                signal = float(np.sqrt(max(base**2 - floor**2, 0.0)))
+                rows.append({"regime": regime, "noise": kind, "seed": seed, "l_b_mm": l_b,
+                             "signal_over_noise": signal, "verdict": d.verdict,
+                             "candidate": candidate(d)})
+                say(f"detect {regime} {kind} l_b={l_b} {seed}: signal {signal:.2f}, verdict "
+                    f"{d.verdict}; {rows[-1]['candidate']}")
+        except ConvergenceError as e:
+            say(f"detect l_b={l_b}: the lattice generator failed ({e}); left out")
+    return rows
+
+
+def summary(data: dict) -> dict:
+    """The rates over every row in OUT (module docstring)."""
+    out = {}
+    cov = data.get("coverage", [])
+    for key in ("covered", "covered_classical"):
+        hits = [m[key] for r in cov for m in r["moduli"].values() if m["identifiable"]]
+        out[key] = float(np.mean(hits)) if hits else None
+    for key in ("half_width_rel", "half_width_rel_classical"):
+        w = [m[key] for r in cov for m in r["moduli"].values() if m["identifiable"]]
+        out["median_" + key] = float(np.median(w)) if w else None
+    out["coverage_intervals"] = sum(m["identifiable"] for r in cov for m in r["moduli"].values())
+    null = data.get("null", [])
+    for rule in ("rule_wald", "rule_wald_and_share", "rule_old"):
+        out["false_alarms_" + rule] = (float(np.mean([bool(r["candidate"].get(rule))
+                                                      for r in null])) if null else None)
+    out["null_sets"] = len(null)
+    strong = [r for r in data.get("detect", []) if r["signal_over_noise"] > 3]
+    for rule in ("rule_wald", "rule_wald_and_share", "rule_old"):
+        out["detection_" + rule] = (float(np.mean([
+            r["candidate"].get("effect") == "geodesic_bending" and bool(r["candidate"].get(rule))
+            for r in strong])) if strong else None)
+    out["strong_sets"] = len(strong)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="out/calibrate_uncertainty")
+    ap.add_argument("--part", required=True, choices=("coverage", "null", "detect"))
+    ap.add_argument("--count", type=int, default=2, help="noise draws per regime and kind")
+    ap.add_argument("--seed", type=int, default=0, help="first noise draw (runs that add to OUT "
+                    "give a new one)")
+    ap.add_argument("--h", type=float, default=3.0, help="model element size (mm)")
+    ap.add_argument("--corr", type=float, default=3.0, help="DIC noise correlation length")
+    ap.add_argument("--bending-lengths", default="2,5,10", help="hidden l_b (mm) of detect")
+    a = ap.parse_args()
+    comm = MPI.COMM_WORLD
+    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    path = Path(a.out) / "uncertainty_calibration.json"
+    data = json.loads(path.read_text()) if path.exists() else {}
+    run = {"coverage": part_coverage, "null": part_null, "detect": part_detect}[a.part]
+    data[a.part] = data.get(a.part, []) + run(a, comm, say)
+    data["summary"] = summary(data)
+    for k, v in data["summary"].items():
+        say(f"{k}: {v}")
+    write_json(comm, path, data)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,88 @@
+"""Prediction band of a force curve from a fitted params file (docs/uncertainty.md).
+
+The moduli's uncertainty of a fit.json (or model_best.json) is carried linearly through the
+exact sensitivities g = dF/dp of a forward run at the fitted moduli, part by part as in the
+moduli's intervals (:mod:`~.intervals`):
+    half-width = √(t² gᵀCg + 1.96² Σ_i (g_i τ_i)²) + MESH_FACTOR |gᵀδ|,
+C the statistical covariance, τ the model-form and δ the mesh parts. The linearisation is
+checked with one more run at the moduli moved along the covariance's leading direction to its
+95 % extent: where the actual force change differs from gᵀΔp by more than NONLINEAR of the
+band, the band is flagged unreliable (a refit, not a linear band, is then the answer).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.fitting.intervals import MESH_FACTOR, Z95
+
+NONLINEAR = 0.2
+"""The largest departure from linearity, as a share of the band, for which it is reliable."""
+
+
+def _saved(params_file: str | Path | dict) -> dict:
+    if isinstance(params_file, dict):
+        return params_file
+    return json.loads(Path(params_file).read_text(encoding="utf-8"))
+
+
+def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = True) -> dict:
+    """The predicted force curve of ``fm`` (its own set-up and load path, e.g. another
+    specimen size) at the moduli of ``params_file`` with its 95 % band (module docstring).
+
+    Returns {"load", "force", "lower", "upper", "half_width", "parts": {"statistical",
+    "model_form", "mesh"}, "nonlinearity", "reliable"}; "nonlinearity" (the largest departure
+    from the linear change, as a share of the half-width) and "reliable" are None without
+    ``check``. The moduli of ``fm`` are set to the file's and left there."""
+    saved = _saved(params_file)
+    unc = saved.get("uncertainty") or {}
+    cov = unc.get("covariance")
+    if cov is None or not fm.exp.has_force:
+        raise ValueError("force_band: the params file has no covariance (a fit.json or "
+                         "model_best.json written by fit or diagnose) or the experiment no force")
+    vals = fm.values()
+    for k, (t, p) in enumerate(fm.params):
+        vals[k] = saved["params"].get(t.name, {}).get(p, vals[k])
+    fm.set_values(vals)
+    idx = [fm.names.index(n) for n in cov["names"]]
+    pred = fm.run(sens=idx)
+    g, C = pred.dforce, np.asarray(cov["statistical"])
+    moduli = saved["moduli"]
+    tau = np.array([moduli[n].get("systematic_model") or 0.0 for n in cov["names"]])
+    shift = np.array([moduli[n].get("mesh_shift_h_to_h2") or 0.0 for n in cov["names"]])
+    t = unc["statistics"]["t95"]
+    stat = t * np.sqrt(np.maximum(np.einsum("ki,ij,kj->k", g, C, g), 0.0))
+    model = Z95 * np.sqrt((g**2 * tau**2).sum(axis=1))
+    mesh = MESH_FACTOR * np.abs(g @ shift)
+    half = np.sqrt(stat**2 + model**2) + mesh
+    out = {"load": fm.exp.path.tolist(), "force": pred.force.tolist(),
+           "lower": (pred.force - half).tolist(), "upper": (pred.force + half).tolist(),
+           "half_width": half.tolist(),
+           "parts": {"statistical": stat.tolist(), "model_form": model.tolist(),
+                     "mesh": mesh.tolist()},
+           "nonlinearity": None, "reliable": None}
+    if check:
+        out["nonlinearity"] = linearity(fm, vals, idx, g, C, t, pred.force, half)
+        out["reliable"] = bool(out["nonlinearity"] <= NONLINEAR)
+    return out
+
+
+def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
+              C: np.ndarray, t: float, force: np.ndarray, half: np.ndarray) -> float:
+    """max_k |F_k(p + Δp) − F_k(p) − g_k·Δp| / half-width_k, Δp the covariance's leading
+    eigenvector at its 95 % extent (kept ≥ 0); the moduli are restored."""
+    lam, V = np.linalg.eigh(C)
+    dp = t * np.sqrt(max(lam[-1], 0.0)) * V[:, -1]
+    moved = vals.copy()
+    moved[idx] = np.maximum(vals[idx] + dp, 0.0)
+    fm.set_values(moved)
+    try:
+        f2 = fm.run().force
+    finally:
+        fm.set_values(vals)
+    lin = g @ (moved[idx] - vals[idx])
+    return float(np.max(np.abs(f2 - force - lin) / np.maximum(half, 1e-300)))

@@ -1,0 +1,121 @@
+"""Intervals of the fitted moduli, and what the data determine (docs/uncertainty.md).
+
+Per modulus: the statistical standard deviation σ (:mod:`~.uncertainty`), the model-form τ and
+the mesh shift δ (:mod:`~.systematic`), combined into
+    ci95 = p ± [√((t σ)² + (1.96 τ)²) + MESH_FACTOR |δ|],
+the random parts in quadrature, the mesh bias added in full (it is an estimate of a bias, not a
+random error). A modulus is *identifiable* when it is not in a null direction of the Fisher
+matrix and its interval excludes zero. For the moduli that are not, the eigenvectors of their
+covariance in log-moduli name the combinations the data do determine, each a weighted geometric
+mean Π p_i^{w_i} (Σ w_i = 1) whose log-interval half-width is below 1 (a relative ± below 100 %,
+the same criterion to first order); the other directions are not determined. The weak
+directions of the whole fit are the eigenvectors of the covariance of the log-moduli whose
+95 % half-width exceeds WEAK.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MESH_FACTOR = 2.0
+"""The error at h is this multiple of the shift from h to h/2 when the error halves with h:
+the slowest convergence accepted, so the bound is conservative for faster rates."""
+
+WEAK = 0.5
+"""A direction of log-moduli known only to ± 50 % or worse (95 %) is weak."""
+
+Z95 = 1.959963984540054
+
+NULL_TOL = 1e-12
+"""Covariance eigenvalues below this fraction of the largest are the zeros the pseudo-inverse
+puts in the null directions of the Fisher matrix: not determined, not known exactly."""
+
+
+def half_width(sd: np.ndarray, t: float, tau: np.ndarray | None, shift: np.ndarray | None
+               ) -> np.ndarray:
+    """The combined 95 % half-width of the module docstring."""
+    tau = np.zeros_like(sd) if tau is None else tau
+    shift = np.zeros_like(sd) if shift is None else shift
+    return np.sqrt((t * sd) ** 2 + (Z95 * tau) ** 2) + MESH_FACTOR * np.abs(shift)
+
+
+def _text(v: np.ndarray, names: list[str]) -> str:
+    terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
+    return " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
+                    for c, n in terms).lstrip("+ ")
+
+
+def _log_cov(values, cov, tau, shift):
+    p = np.maximum(values, 1e-300)
+    C = cov / np.outer(p, p)
+    t2 = np.zeros(len(p)) if tau is None else (tau / p) ** 2
+    s = np.zeros(len(p)) if shift is None else shift / p
+    return C, t2, s
+
+
+def combinations(names, values, cov, t, tau, shift, which: list[int]) -> list[dict]:
+    """The determined combinations of the moduli ``which`` (module docstring)."""
+    if len(which) < 2:
+        return []
+    C, t2, s = _log_cov(values[which], cov[np.ix_(which, which)],
+                        None if tau is None else tau[which],
+                        None if shift is None else shift[which])
+    lam, V = np.linalg.eigh(C)
+    out = []
+    for k in range(len(which)):
+        if lam[k] <= NULL_TOL * max(lam[-1], 1e-300):
+            continue  # a null direction of the Fisher matrix (zero in its pseudo-inverse)
+        v = V[:, k]
+        w = v / v.sum() if abs(v.sum()) > 0.1 * np.abs(v).sum() else v / np.abs(v).max()
+        sd = float(np.sqrt(max(w @ C @ w, 0.0)))
+        half = float(np.sqrt((t * sd) ** 2 + Z95**2 * (np.abs(w) @ np.sqrt(t2)) ** 2)
+                     + MESH_FACTOR * abs(w @ s))
+        if half >= 1.0:
+            continue
+        logv = float(w @ np.log(values[which]))
+        sub = [names[i] for i in which]
+        out.append({"combination": " · ".join(f"{n}^{c:.3g}" for c, n in zip(w, sub)
+                                              if abs(c) > 1e-3),
+                    "weights": {n: float(c) for c, n in zip(w, sub)},
+                    "value": float(np.exp(logv)),
+                    "ci95": [float(np.exp(logv - half)), float(np.exp(logv + half))],
+                    "std_log": sd})
+    return out
+
+
+def weak_directions(names, values, cov) -> list[dict]:
+    """Eigen-directions of the log-moduli covariance known worse than ± WEAK (95 %)."""
+    pos = [i for i in range(len(values)) if values[i] > 0]
+    if not pos:
+        return []
+    C, _, _ = _log_cov(values[pos], cov[np.ix_(pos, pos)], None, None)
+    lam, V = np.linalg.eigh(C)
+    sub = [names[i] for i in pos]
+    return [{"direction": _text(V[:, k] * np.sign(V[np.argmax(np.abs(V[:, k])), k]), sub),
+             "std_log": float(np.sqrt(max(lam[k], 0.0)))}
+            for k in range(len(pos))[::-1] if Z95 * np.sqrt(max(lam[k], 0.0)) > WEAK]
+
+
+def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
+              tau: np.ndarray | None, shift: np.ndarray | None, lost: set[str]) -> dict:
+    """{"moduli": {name: {value, ci95, std_statistical, systematic_mesh, systematic_model,
+    identifiable}}, "identifiable_combinations", "weak_directions"} for the fitted moduli;
+    ``lost``: the moduli in a null direction of the Fisher matrix."""
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    half = half_width(sd, t, tau, shift)
+    moduli, weak = {}, []
+    for i, n in enumerate(names):
+        ok = bool(n not in lost and np.isfinite(half[i]) and values[i] - half[i] > 0)
+        moduli[n] = {"value": float(values[i]),
+                     "ci95": [float(max(values[i] - half[i], 0.0)), float(values[i] + half[i])],
+                     "std_statistical": float(sd[i]),
+                     "systematic_mesh": None if shift is None else float(
+                         MESH_FACTOR * abs(shift[i])),
+                     "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),
+                     "systematic_model": None if tau is None else float(tau[i]),
+                     "identifiable": ok}
+        if not ok and values[i] > 0:
+            weak.append(i)
+    return {"moduli": moduli,
+            "identifiable_combinations": combinations(names, values, cov, t, tau, shift, weak),
+            "weak_directions": weak_directions(names, values, cov)}
