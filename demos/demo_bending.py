@@ -21,7 +21,7 @@
 # 2. "Measurements": 3D profiles (ux, uy, uz at a grid of points, along the self-weight ramp) of
 #    a 0° and a 45° strip from the continuum with normal_bending **and twist** on a mesh twice
 #    as fine as the model's, plus noise, written as field-only measurement directories
-#    (DESIGN §6, `[loading] path`) and read back.
+#    (docs/contracts.md, `[loading] path`) and read back.
 # 3. The baseline fibre_stretch + shear + normal_bending, fitted to each strip alone, explains
 #    the 0° strip and fails on the 45° strip.
 # 4. The diagnosis on both strips at once names `twist`; adding it brings the error to the
@@ -42,9 +42,6 @@
 # adequacy test, on their own.
 
 # %%
-import argparse
-import itertools
-import math
 import sys
 import time
 from pathlib import Path
@@ -55,29 +52,27 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
-from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
-from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.experiments.cantilever import rigidity_uNm, weight_per_area
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
-from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
-from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.rigidity import narrow_strip_rigidity
-from research.verification.elastica import (
-    bending_length,
-    peirce_bending_length,
-    solve_elastica,
+from research.demos.bending_parts import (
+    elastica_study,
+    figures,
+    fit_each_alone,
+    strip_data,
+    write_strips,
 )
+from research.demos.checks import verify
+from research.demos.common import demo_parser, parse
+from research.verification.elastica import bending_length
 
 comm = MPI.COMM_WORLD
-ap = argparse.ArgumentParser()
-ap.add_argument("--out", default="out/bending")
-ap.add_argument("--quick", action="store_true", help="coarse meshes, two load steps, twist "
-                "the only candidate")
+ap = demo_parser(__doc__, "out/bending")  # --quick: coarse meshes, two load steps, twist alone
 ap.add_argument("--noise", type=float, default=0.05, help="displacement noise std (mm)")
-args, _ = ap.parse_known_args()
-out = Path(args.out)
+args = parse(ap)
+out = args.out
 say = lambda *a: rank0_print(comm, *a)  # noqa: E731
 t_start = time.perf_counter()
 seconds: dict[str, float] = {}
@@ -87,6 +82,7 @@ def lap(section: str) -> None:
     """Record the wall time since the previous lap (summary.json "seconds")."""
     seconds[section] = time.perf_counter() - t_start - sum(seconds.values())
 
+
 # %% [markdown]
 # ## 0. The fabric and the strips
 # Areal density 200 g/m² (ρ_A g = 1.962e-6 N/mm²), k_b = 0.02 N·mm (20 µN·m),
@@ -95,11 +91,9 @@ def lap(section: str) -> None:
 # 66°, far beyond the small-deflection range. The diagnosis uses 20 × 10 mm strips (L/c = 0.92
 # at 0°, 1.25 at 45°: tip angles of about 10° and 20°), model mesh h = 1.25 mm (16 × 8 cells),
 # data mesh h/2. Why so small: the 45° strip converges slowly under refinement (the clamp's
-# boundary layer of length ~w, the anticlastic cross-curvature). Its tip sag, measured: 30 × 15 mm
-# strip 13.00, 13.84, 13.90 mm at h = 2.5, 1.25, 0.94 (a trial fit at h = 2.5 against data at
-# h/2 absorbed the 0.9 mm mesh error, 18 noise levels, into a k_t 24 % low); 20 × 10 mm strip
-# 3.344, 3.464, 3.486 mm at h = 2.5, 1.25, 0.625, i.e. an error of ≈ 0.02 mm at h = 1.25, below
-# the noise.
+# boundary layer of length ~w, the anticlastic cross-curvature); on this strip the mesh error of
+# the tip sag at h = 1.25 mm stays below the noise, which a larger strip at this h would not
+# (its mesh error would be absorbed into a k_t biased low).
 
 # %%
 RHO = 200.0
@@ -130,27 +124,13 @@ def model_with(params: dict) -> list:
 # cylindrically at every width (no K_L·K_M coupling), so the width does not enter.
 
 # %%
-el = solve_elastica(LENGTH, c0)
-X = np.linspace(LENGTH / 8, LENGTH, 8)
-ref = el.displacement(X)
-study = []
-for n in ((12, 24) if args.quick else (12, 24, 48, 96)):
-    setup = sy.template(LENGTH, WIDTH, [1.0], np.zeros((0, 2)), angles=(0.0, 90.0),
-                        test="cantilever", options={"areal_density_g_m2": RHO}).setup
-    strip = CantileverTest(setup, model_with(TRUTH | {"twist": {"k_t": 0.0}}), LENGTH / n)
-    t0 = time.perf_counter()
-    strip.run(1.0, steps=4)
-    u = strip.displacement_at(np.column_stack([X, np.full(8, WIDTH / 2)]))
-    err = float(np.max(np.hypot(u[:, 0] - ref[:, 0], u[:, 2] - ref[:, 1])))
-    study.append({"n": n, "h": LENGTH / n, "error_mm": err, "tip_fe": strip.tip_deflection(),
-                  "seconds": time.perf_counter() - t0})
-rates = [math.log2(a["error_mm"] / b["error_mm"]) for a, b in itertools.pairwise(study)]
-say(f"elastica: tip deflection {el.tip_deflection:.4f} mm, tip angle "
-    f"{math.degrees(el.tip_angle):.1f}°")
+tip, study, rates = elastica_study(model_with(TRUTH | {"twist": {"k_t": 0.0}}), LENGTH, WIDTH,
+                                   RHO, c0, (12, 24) if args.quick else (12, 24, 48, 96))
+say(f"elastica: tip deflection {tip['tip_deflection']:.4f} mm, tip angle "
+    f"{tip['tip_angle_deg']:.1f}°")
 for row in study:
     say(f"  n = {row['n']:3d}: error {row['error_mm']:.3e} mm, tip {row['tip_fe']:.4f} mm")
 say(f"  rates {np.round(rates, 2).tolist()}")
-assert all(r >= 2.5 for r in rates), rates
 lap("elastica")
 
 # %% [markdown]
@@ -160,20 +140,10 @@ lap("elastica")
 # the data are not the model's own discretisation.
 
 # %%
-exps = {}
-for i, (name, angles) in enumerate(STRIPS.items()):
-    pts = sy.grid_points(SHORT, NARROW, 10, 5)
-    exp = sy.template(SHORT, NARROW, PATH, pts, angles=angles, name=name, test="cantilever",
-                      options={"areal_density_g_m2": RHO}, force=False)
-    sy.continuum_data(exp, model_with(TRUTH), h=H / 2)  # collective; same noise on every rank
-    sy.add_noise(exp, args.noise, 0.0, seed=31 + i)
-    exp.source = {"note": "continuum normal_bending + twist on a mesh h/2, plus noise"}
-    if comm.rank == 0:
-        write_experiment(out / "data" / name, exp, overwrite=True)
-    comm.barrier()
-    exps[name] = load_experiment(out / "data" / name)
-    sag = -exps[name].u[:, 2].min()
-    say(f"{name}: {len(exps[name].X)} rows (ux, uy, uz), largest sag {sag:.2f} mm")
+exps = strip_data(comm, out, STRIPS, model_with(TRUTH), (SHORT, NARROW), PATH, RHO, H / 2,
+                  args.noise)
+for name, exp in exps.items():
+    say(f"{name}: {len(exp.X)} rows (ux, uy, uz), largest sag {-exp.u[:, 2].min():.2f} mm")
 lap("data")
 
 # %% [markdown]
@@ -186,31 +156,13 @@ lap("data")
 # different shape, not only a softer strip.
 
 # %%
-
-
-def peirce_rigidity(exp) -> float:
-    """ρ_A g c³ (N·mm) with Peirce's c from the mean chord angle of the outermost points at
-    the last load factor (the overhang l is their reference x)."""
-    rows = exp.step_rows(exp.steps[-1])
-    far = rows[np.isclose(exp.X[rows, 0], exp.X[rows, 0].max())]
-    x, u = exp.X[far, 0].mean(), exp.u[far].mean(axis=0)
-    c = peirce_bending_length(x, math.atan2(-u[2], x + u[0]))
-    return exp.path[-1] * weight_per_area(RHO) * c**3
-
-
 START = {n: TRUTH[n] for n in FIXED} | {"normal_bending": {"k_b": 1.0}}
-alone = {}
-for name, exp in exps.items():
-    k0 = peirce_rigidity(exp)
-    fm = ForwardModel(exp, model_with(START | {"normal_bending": {"k_b": k0}}), h=H)
-    res = fit(fm, [fm.names.index("normal_bending.k_b")], verbose=False, scale_start=False)
-    n_r = res.misfit["n"]
-    alone[name] = {"peirce_rigidity": k0, "misfit": res.misfit["combined"],
-                   "k_b": res.params()["normal_bending"]["k_b"],
-                   "adequate": sg.adequate(res.chi2, n_r, 1), "forward_runs": res.forward_runs}
-    say(f"baseline on {name} alone: Peirce rigidity {k0:.4g} N·mm; fit misfit "
-        f"{alone[name]['misfit']:.3f} (RMS residual / noise), k_b = {alone[name]['k_b']:.4g} "
-        f"N·mm, adequate: {alone[name]['adequate']} ({res.forward_runs} runs)")
+alone = fit_each_alone(exps, lambda k0: model_with(START | {"normal_bending": {"k_b": k0}}),
+                       H, RHO)
+for name, a in alone.items():
+    say(f"baseline on {name} alone: Peirce rigidity {a['peirce_rigidity']:.4g} N·mm; misfit "
+        f"{a['misfit']:.3f} (RMS residual / noise), k_b = {a['k_b']:.4g} N·mm, adequate: "
+        f"{a['adequate']} ({a['forward_runs']} runs)")
 assert alone["strip_00"]["adequate"] and not alone["strip_45"]["adequate"], alone
 lap("baseline_alone")
 
@@ -224,9 +176,8 @@ lap("baseline_alone")
 # strip alone (section 3) are what locate the failure at 45°. After adding twist, each strip is
 # at the noise level and k_b, k_t lie within 3 standard deviations of the truth: with the mesh
 # error below the noise (section 0), the noise and not a discretisation bias limits them.
-# In the full run the linearised scores of shear_gradient and twist are nearly equal (5412 and
-# 5356): only the confirming refits tell them apart (misfit 1.61 with A_Γ = 120 N·mm against
-# 1.00), which is why `confirm=2` refits both.
+# In the full run the linearised scores of shear_gradient and twist are nearly equal: only the
+# confirming refits tell them apart, which is why `confirm=2` refits both.
 
 # %%
 d = diagnose(list(exps.values()), BASELINE, h=H, params=START, candidates=CANDIDATES,
@@ -264,52 +215,15 @@ for (v, s), truth in ((kb, 0.02), (kt, 0.01)):  # the noise, not a bias, limits 
 # `strip_*.xdmf`: the fitted model along the ramp with λ, μ, γ, J, K_L, K_M, T for ParaView.
 
 # %%
+preds = {"baseline": base.prediction, f"+ {d.verdict}": final.prediction}
 if comm.rank == 0:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(12, 9))
-    preds = {"baseline": base.prediction, f"+ {d.verdict}": final.prediction}
-    for row, (name, exp) in enumerate(exps.items()):
-        rows = exp.step_rows(exp.steps[-1])
-        for col, (label, pr) in enumerate(preds.items()):
-            ax = fig.add_subplot(2, 2, 2 * row + col + 1, projection="3d")
-            P = exp.X[rows] + exp.u[rows, :2]
-            ax.scatter(P[:, 0], P[:, 1], exp.u[rows, 2], c="k", s=8, label="measured")
-            Um = pr[row].u[rows]
-            M = exp.X[rows] + Um[:, :2]
-            ax.plot_trisurf(M[:, 0], M[:, 1], Um[:, 2], alpha=0.5, color="tab:orange")
-            err = np.sqrt(np.mean(np.sum((Um - exp.u[rows]) ** 2, axis=1)))
-            ax.set(title=f"{name}, {label}: RMS error {err:.3f} mm", xlabel="x (mm)",
-                   ylabel="y (mm)", zlabel="z (mm)")
-    fig.tight_layout()
-    fig.savefig(out / "shapes_3d.png", dpi=110)
-    plt.close(fig)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-    for ax, (row, (name, exp)) in zip(axes, enumerate(exps.items())):
-        rows = exp.step_rows(exp.steps[-1])
-        for (label, pr), mk in zip(preds.items(), ("x", "o")):
-            ax.plot(exp.X[rows, 0], pr[row].u[rows, 2] - exp.u[rows, 2], mk, ms=4, label=label)
-        ax.axhspan(-2 * args.noise, 2 * args.noise, color="0.85", label="±2 noise std")
-        ax.set(title=f"{name}, full weight", xlabel="x (mm)", ylabel="model − measured u_z (mm)")
-        ax.legend()
-    fig.tight_layout()
-    fig.savefig(out / "residuals_uz.png", dpi=110)
-    plt.close(fig)
+    figures(out, exps, preds, args.noise)
 comm.barrier()
-params = final.params()
-for name, exp in exps.items():
-    strip = CantileverTest(exp.setup, model_with(params), H)
-    writer = FieldWriter(out / f"{name}.xdmf", strip.problem.u, strip.problem.energy.kin)
-    strip.run(1.0, steps=len(PATH), on_step=lambda k, t, w=writer: w.write(t))
-    writer.close()
+write_strips(out, exps, model_with(final.params()), H, len(PATH))
 summary = {
     "truth": TRUTH, "areal_density_g_m2": RHO, "bending_length_mm": c0, "h": H,
     "noise_std": args.noise, "candidates": CANDIDATES, "fixed": FIXED,
-    "elastica": {"tip_deflection": el.tip_deflection,
-                 "tip_angle_deg": math.degrees(el.tip_angle), "study": study, "rates": rates},
+    "elastica": {**tip, "study": study, "rates": rates},
     "baseline_alone": alone, "verdict": d.verdict, "adequate": d.adequate,
     "baseline_misfit": base.misfit["combined"], "final_misfit": final.misfit["combined"],
     "per_experiment_misfit": per,
@@ -320,5 +234,18 @@ summary = {
 lap("output")
 seconds["total"] = sum(seconds.values())
 write_json(comm, out / "summary.json", summary)
+
+# %% [markdown]
+# ## Checks
+# The summary's contract (also read by tests/test_demos.py): the P2 displacement error against
+# the elastica falls at rate 3 (at least 2.5 asserted), the 0° strip alone is explained by the
+# baseline and the 45° strip is not, the verdict is `twist`, the final model is adequate. The
+# per-strip adequacy and the 3σ recovery of k_b, k_t are asserted in section 4.
+
+# %%
+CHECKS = {"elastica/rates/*": (2.5, None), "baseline_alone/strip_00/adequate": True,
+          "baseline_alone/strip_45/adequate": False, "verdict": "twist", "adequate": True,
+          "fitted/k_b": ..., "fitted/k_t": ..., "seconds/total": (0.0, None)}
+verify(summary, CHECKS)
 say(f"figures, XDMF, diagnosis.json, summary.json in {out} ({seconds['total']:.0f} s: "
     + ", ".join(f"{k} {v:.0f}" for k, v in seconds.items() if k != "total") + ")")

@@ -25,10 +25,13 @@
 # 3. Add the verdict and refit (Python API) — does the error fall to the noise level?
 
 # %%
-import argparse
 import json
+import sys
 import time
 from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
@@ -41,21 +44,20 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.terms import parse_terms
+from research.demos.checks import verify
+from research.demos.common import demo_parser, parse
 
 comm = MPI.COMM_WORLD
-ap = argparse.ArgumentParser()
-ap.add_argument("--out", default="out/hidden_effect")
+ap = demo_parser(__doc__, "out/hidden_effect")
 ap.add_argument("--spacing", type=float, default=0.5, help="lattice spacing (mm)")
 ap.add_argument("--noise", type=float, default=0.02, help="displacement noise std (mm)")
 ap.add_argument("--h", type=float, default=None,
                 help="element size of the fitted model (mm; default 3, quick 4)")
-ap.add_argument("--quick", action="store_true",
-                help="coarser lattice (1 mm), fewer points, one diagnosis round (test suite)")
-args, _ = ap.parse_known_args()
+args = parse(ap)  # --quick: coarser lattice (1 mm), fewer points, one diagnosis round
 if args.quick:
     args.spacing = 1.0
 args.h = args.h or (4.0 if args.quick else 3.0)
-out = Path(args.out)
+out = args.out
 say = lambda *a: rank0_print(comm, *a)  # noqa: E731
 t_start = time.perf_counter()
 
@@ -151,10 +153,14 @@ write_json(comm, out / "summary.json", summary)
 # %% [markdown]
 # ## Checks
 # The hidden effect is named, the model with it is adequate (at the noise level, misfit ≤ 1.1)
-# and the misfit fell from the baseline's.
+# and the misfit fell from the baseline's. `CHECKS` is the summary's contract, also read by
+# tests/test_demos.py; the relations between its entries are asserted below it.
 
 # %%
-assert verdict == "geodesic_bending", verdict
+CHECKS = {"verdict": "geodesic_bending", "refit_params/geodesic_bending/A_g": (0.0, None),
+          "baseline_misfit": (0.0, None), "refit_misfit": (0.0, None), "adequate": ...,
+          "ranking": ..., "refit_std": ..., "misfit_complete_model_at_truth": (0.0, None)}
+verify(summary, CHECKS)
 assert a["combined"] < b["misfit"] and len(diag["path"]) == 2
 assert a["combined"] <= form * 1.05, (a["combined"], form)  # the fit is as good as the truth
 if not args.quick:
