@@ -20,8 +20,8 @@ from fabricsurf.model.terms import (
     parse_terms,
 )
 
-VOCABULARY = ["fibre_stretch", "shear", "shear_locking", "geodesic_bending", "stretch_gradient",
-              "shear_gradient", "normal_bending", "twist"]
+VOCABULARY = ["fibre_stretch", "shear", "shear_locking", "crossover_friction", "geodesic_bending",
+              "stretch_gradient", "shear_gradient", "normal_bending", "twist"]
 
 
 def test_vocabulary_is_exact():
