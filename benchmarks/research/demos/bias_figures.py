@@ -26,6 +26,17 @@ def plt_agg():
 def figures(out: Path, results: dict, extras: dict, conv: dict) -> None:
     """curves.png, deformed_*.png, rho_y_*.png, zones_*.png and force_convergence.png."""
     plt = plt_agg()
+    curves_figure(plt, out, results, extras)
+    for nm, ex in extras.items():
+        deformed_figure(plt, out, nm, ex)
+        rho_figure(plt, out, nm, ex)
+        zones_figure(plt, out, nm, ex)
+    if conv and len(conv["levels"]) > 2:
+        convergence_figure(plt, out, conv)
+
+
+def curves_figure(plt, out: Path, results: dict, extras: dict) -> None:
+    """Force and shear angles at A and B against ū, continuum and lattice, per comparison."""
     names = [nm for nm, r in results.items() if isinstance(r, dict) and "curves" in r]
     fig, ax = plt.subplots(len(names), 3, figsize=(14, 3.8 * len(names)), squeeze=False)
     for row, nm in enumerate(names):
@@ -47,77 +58,89 @@ def figures(out: Path, results: dict, extras: dict, conv: dict) -> None:
     fig.savefig(out / "curves.png", dpi=110)
     plt.close(fig)
 
-    for nm, ex in extras.items():
-        lat, nodes, Xn = ex["lat_obj"], ex["nodes"], ex["Xn"]
-        steps = len(ex["samples"])
-        ks = sorted({max(0, steps // 3 - 1), max(0, 2 * steps // 3 - 1), steps - 1})
-        fig, ax = plt.subplots(1, len(ks), figsize=(5.5 * len(ks), 4.2), squeeze=False)
-        for a, k in zip(ax[0], ks):
-            xl = ex["lat"]["x"][k][nodes]
-            xc = Xn + ex["samples"][k]["u"]
-            a.plot(*xl.T, "o", ms=2.5, mfc="none", color="C1", label="lattice p_ij")
-            a.plot(*xc.T, "+", ms=3, color="C0", label="continuum χ(x_i, y_j)")
-            a.set(title=f"{nm}: ū = {ex['lat']['ubar'][k]:.1f} mm", xlabel="x (mm)",
-                  ylabel="y (mm)")
-            a.set_aspect("equal")
-        ax[0, 0].legend(loc="upper left", fontsize=7)
-        fig.tight_layout()
-        fig.savefig(out / f"deformed_{nm}.png", dpi=110)
-        plt.close(fig)
 
-        xk = ex["lat"]["x"][-1]
-        gf = grid_fields(lat.grid, lat.net.X, xk, lat.spacing)
-        okg = lat.grid >= 0
-        rho_lat = gf["rho_y"][okg]
-        pos_lat = xk[lat.grid[okg]]
-        rho_c = ex["samples"][-1]["f"][:, 1]
-        pos_c = Xn + ex["samples"][-1]["u"]
-        vmin = float(np.nanmin([np.nanmin(rho_lat), np.nanmin(rho_c)]))
-        vmax = float(np.nanmax([np.nanmax(rho_lat), np.nanmax(rho_c)]))
-        fig, ax = plt.subplots(1, 2, figsize=(12, 4.2))
-        for a, pos, val, t in ((ax[0], pos_lat, rho_lat, "lattice (eq. 4)"),
-                               (ax[1], pos_c, rho_c, "continuum μ")):
-            sc = a.scatter(*pos.T, c=val, s=12 if len(pos) > 2000 else 40, cmap="viridis",
-                           vmin=vmin, vmax=vmax)
-            a.set(title=f"{nm}: ρ_y, {t}, ū = {ex['lat']['ubar'][-1]:.1f} mm",
-                  xlabel="x (mm)", ylabel="y (mm)")
-            a.set_aspect("equal")
-            fig.colorbar(sc, ax=a, shrink=0.8)
-        fig.tight_layout()
-        fig.savefig(out / f"rho_y_{nm}.png", dpi=110)
-        plt.close(fig)
-
-        fig, a = plt.subplots(figsize=(7, 4.2))
-        gam = np.degrees(ex["samples"][-1]["f"][:, 2])
-        sc = a.scatter(*Xn.T, c=gam, s=12 if len(Xn) > 2000 else 40, cmap="magma")
-        W, L = WIDTH, LENGTH
-        for xs, ys in (([0, W / 2, 0], [0, W / 2, W]), ([L, L - W / 2, L], [0, W / 2, W]),
-                       ([W / 2, L / 2, L - W / 2, L / 2, W / 2],
-                        [W / 2, W / 2 - (L - W) / 2, W / 2, W / 2 + (L - W) / 2, W / 2])):
-            a.plot(xs, ys, "w--", lw=1)
-        fig.colorbar(sc, ax=a, label="shear angle γ (deg)")
-        a.set(title=f"{nm}: continuum shear angle on the reference, ū = "
-                    f"{ex['lat']['ubar'][-1]:.1f} mm (ideal zones dashed)", xlabel="x (mm)",
+def deformed_figure(plt, out: Path, nm: str, ex: dict) -> None:
+    """Continuum χ(x_i, y_j) against the lattice nodes p_ij at three loads."""
+    nodes, Xn = ex["nodes"], ex["Xn"]
+    steps = len(ex["samples"])
+    ks = sorted({max(0, steps // 3 - 1), max(0, 2 * steps // 3 - 1), steps - 1})
+    fig, ax = plt.subplots(1, len(ks), figsize=(5.5 * len(ks), 4.2), squeeze=False)
+    for a, k in zip(ax[0], ks):
+        xl = ex["lat"]["x"][k][nodes]
+        xc = Xn + ex["samples"][k]["u"]
+        a.plot(*xl.T, "o", ms=2.5, mfc="none", color="C1", label="lattice p_ij")
+        a.plot(*xc.T, "+", ms=3, color="C0", label="continuum χ(x_i, y_j)")
+        a.set(title=f"{nm}: ū = {ex['lat']['ubar'][k]:.1f} mm", xlabel="x (mm)",
               ylabel="y (mm)")
-        a.title.set_fontsize(8)
         a.set_aspect("equal")
-        fig.tight_layout()
-        fig.savefig(out / f"zones_{nm}.png", dpi=110)
-        plt.close(fig)
+    ax[0, 0].legend(loc="upper left", fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / f"deformed_{nm}.png", dpi=110)
+    plt.close(fig)
 
-    if conv and len(conv["levels"]) > 2:
-        fig, a = plt.subplots(figsize=(5, 4))
-        h = np.array(conv["h_nominal_mm"][:-1])
-        d = np.array(conv["differences"])
-        a.loglog(h, d, "o-", label="|F_h − F_{h/2}|")
-        for r, ls in ((1, ":"), (2, "--")):
-            a.loglog(h, d[-1] * (h / h[-1]) ** r, ls, color="grey", label=f"rate {r}")
-        a.set(xlabel="square side h (mm, graded)", ylabel="force difference (N)",
-              title=f"grip force at ū = {conv['ubar']:.1f} mm, mesh convergence")
-        a.legend()
-        fig.tight_layout()
-        fig.savefig(out / "force_convergence.png", dpi=110)
-        plt.close(fig)
+
+def rho_figure(plt, out: Path, nm: str, ex: dict) -> None:
+    """The y-stretch ρ_y of the lattice (eq. 4) and of the continuum at the last load."""
+    lat, Xn = ex["lat_obj"], ex["Xn"]
+    xk = ex["lat"]["x"][-1]
+    gf = grid_fields(lat.grid, lat.net.X, xk, lat.spacing)
+    okg = lat.grid >= 0
+    rho_lat = gf["rho_y"][okg]
+    pos_lat = xk[lat.grid[okg]]
+    rho_c = ex["samples"][-1]["f"][:, 1]
+    pos_c = Xn + ex["samples"][-1]["u"]
+    vmin = float(np.nanmin([np.nanmin(rho_lat), np.nanmin(rho_c)]))
+    vmax = float(np.nanmax([np.nanmax(rho_lat), np.nanmax(rho_c)]))
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.2))
+    for a, pos, val, t in ((ax[0], pos_lat, rho_lat, "lattice (eq. 4)"),
+                           (ax[1], pos_c, rho_c, "continuum μ")):
+        sc = a.scatter(*pos.T, c=val, s=12 if len(pos) > 2000 else 40, cmap="viridis",
+                       vmin=vmin, vmax=vmax)
+        a.set(title=f"{nm}: ρ_y, {t}, ū = {ex['lat']['ubar'][-1]:.1f} mm",
+              xlabel="x (mm)", ylabel="y (mm)")
+        a.set_aspect("equal")
+        fig.colorbar(sc, ax=a, shrink=0.8)
+    fig.tight_layout()
+    fig.savefig(out / f"rho_y_{nm}.png", dpi=110)
+    plt.close(fig)
+
+
+def zones_figure(plt, out: Path, nm: str, ex: dict) -> None:
+    """The continuum shear angle on the reference, the ideal zones dashed."""
+    Xn = ex["Xn"]
+    fig, a = plt.subplots(figsize=(7, 4.2))
+    gam = np.degrees(ex["samples"][-1]["f"][:, 2])
+    sc = a.scatter(*Xn.T, c=gam, s=12 if len(Xn) > 2000 else 40, cmap="magma")
+    W, L = WIDTH, LENGTH
+    for xs, ys in (([0, W / 2, 0], [0, W / 2, W]), ([L, L - W / 2, L], [0, W / 2, W]),
+                   ([W / 2, L / 2, L - W / 2, L / 2, W / 2],
+                    [W / 2, W / 2 - (L - W) / 2, W / 2, W / 2 + (L - W) / 2, W / 2])):
+        a.plot(xs, ys, "w--", lw=1)
+    fig.colorbar(sc, ax=a, label="shear angle γ (deg)")
+    a.set(title=f"{nm}: continuum shear angle on the reference, ū = "
+                f"{ex['lat']['ubar'][-1]:.1f} mm (ideal zones dashed)", xlabel="x (mm)",
+          ylabel="y (mm)")
+    a.title.set_fontsize(8)
+    a.set_aspect("equal")
+    fig.tight_layout()
+    fig.savefig(out / f"zones_{nm}.png", dpi=110)
+    plt.close(fig)
+
+
+def convergence_figure(plt, out: Path, conv: dict) -> None:
+    """Force differences between nested meshes against h, with rates 1 and 2."""
+    fig, a = plt.subplots(figsize=(5, 4))
+    h = np.array(conv["h_nominal_mm"][:-1])
+    d = np.array(conv["differences"])
+    a.loglog(h, d, "o-", label="|F_h − F_{h/2}|")
+    for r, ls in ((1, ":"), (2, "--")):
+        a.loglog(h, d[-1] * (h / h[-1]) ** r, ls, color="grey", label=f"rate {r}")
+    a.set(xlabel="square side h (mm, graded)", ylabel="force difference (N)",
+          title=f"grip force at ū = {conv['ubar']:.1f} mm, mesh convergence")
+    a.legend()
+    fig.tight_layout()
+    fig.savefig(out / "force_convergence.png", dpi=110)
+    plt.close(fig)
 
 
 def range_figure(out: Path, rng: dict) -> None:

@@ -118,26 +118,40 @@ def fabric_waves(comm: MPI.Comm, cont, q: np.ndarray, moduli: dict, betas: np.nd
     for name, (k2, A, w_lat) in continua.items():
         vp_ratio[name] = np.sqrt(np.maximum(dp.fabric_omega2(qg, k2, A, rho), 0.0) / w_lat)
         res["departure_qeps_vp_1pct"][name] = agreed(comm, dp.departure_point(xg, vp_ratio[name]))
-    # A stiff A_g makes K ill-conditioned: the low modes are then accurate only to the
-    # round-off floor eps·max|λ|/ω_1², reported with the errors.
     for name, (k2, A) in {"longitudinal A_s>0": (k_l, A_s),
                           "transverse + geodesic_bending": (k_s, A_g)}.items():
-        w2c, _, lam_all, _ = cont.modes(k2, A, 0.0, rho, len(q))
-        rel = np.abs(w2c / dp.fabric_omega2(q, k2, A, rho) - 1)
-        res["fe_max_rel_err_vs_formula"][name] = {
-            "q_eps_le_1.5": agreed(comm, rel[q * eps <= 1.5].max()),
-            "all": agreed(comm, rel.max()),
-            "roundoff_floor": agreed(comm, np.finfo(float).eps * np.abs(lam_all).max()
-                                     / w2c.min())}
-    dep_beta = {"shear": [], "shear + geodesic_bending": []}
-    for b in betas:
-        wt_b = lattice_bloch(k_l, k_s, b * k_s * eps**2, qg, eps, rho)[1]
-        for key, A in (("shear", 0.0), ("shear + geodesic_bending", b * k_s * eps**2)):
-            r = np.sqrt(dp.fabric_omega2(qg, k_s, A, rho) / wt_b)
-            dep_beta[key].append(agreed(comm, dp.departure_point(xg, r)))
-    res["departure_vs_beta"] = {"beta": betas.tolist(), **dep_beta}
+        res["fe_max_rel_err_vs_formula"][name] = fe_against_formula(comm, cont, q * eps, k2, A,
+                                                                    eps, rho)
+    res["departure_vs_beta"] = departure_vs_beta(comm, moduli, betas, xg)
     dep = res["departure_qeps_vp_1pct"]
     res["geodesic_bending_moves_departure_by_factor"] = (
         dep["transverse: + geodesic_bending"] / dep["transverse: shear"])
     return res, {"xg": xg, "qg": qg, "wl": wl, "wt": wt, "continua": list(continua),
                  "vp_ratio": vp_ratio}
+
+
+def fe_against_formula(comm: MPI.Comm, cont, qe: np.ndarray, k2: float, A: float, eps: float,
+                       rho: float) -> dict:
+    """The dolfinx modes of ρω² = k2 q² + A q⁴ against the formula at the wavenumbers qε =
+    ``qe``. A stiff A makes K ill-conditioned: the low modes are then accurate only to the
+    round-off floor eps·max|λ|/ω_1², reported with the errors."""
+    q = qe / eps
+    w2c, _, lam_all, _ = cont.modes(k2, A, 0.0, rho, len(q))
+    rel = np.abs(w2c / dp.fabric_omega2(q, k2, A, rho) - 1)
+    return {"q_eps_le_1.5": agreed(comm, rel[qe <= 1.5].max()), "all": agreed(comm, rel.max()),
+            "roundoff_floor": agreed(comm, np.finfo(float).eps * np.abs(lam_all).max()
+                                     / w2c.min())}
+
+
+def departure_vs_beta(comm: MPI.Comm, moduli: dict, betas: np.ndarray, xg: np.ndarray) -> dict:
+    """The transverse departure point (qε on the grid ``xg``) of the shear-only and of the
+    shear + geodesic_bending continuum from the lattice, for A_g = β k_s ε²."""
+    eps, rho, k_l, k_s = (moduli[n] for n in ("eps_mm", "rho", "k_l", "k_s"))
+    qg = xg / eps
+    dep = {"shear": [], "shear + geodesic_bending": []}
+    for b in betas:
+        wt_b = lattice_bloch(k_l, k_s, b * k_s * eps**2, qg, eps, rho)[1]
+        for key, A in (("shear", 0.0), ("shear + geodesic_bending", b * k_s * eps**2)):
+            r = np.sqrt(dp.fabric_omega2(qg, k_s, A, rho) / wt_b)
+            dep[key].append(agreed(comm, dp.departure_point(xg, r)))
+    return {"beta": betas.tolist(), **dep}
