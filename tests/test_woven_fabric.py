@@ -1,5 +1,5 @@
-"""Woven fabric (issue 16): hidden shear locking is found, the Cao et al. 2008 curve is refitted,
-and the benchmark formulas are exact.
+"""Woven fabric: hidden shear locking is found, the Cao et al. 2008 curve is refitted, and the
+benchmark formulas are exact.
 
 * Lattice data: the Hencky lattice with nonlinear shear springs (k_sh4, k_sh6) on a 48 × 24 mm
   specimen, sheared to a zone-C angle of ~40° (where k₄γ³ ≈ 1.8 k_s γ), field + force, noise
