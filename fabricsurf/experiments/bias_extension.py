@@ -32,6 +32,7 @@ from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
+from fabricsurf.experiments.followers import step_followers
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
 from geometry.aligned import bias_mesh
 from geometry.specimen import Specimen, bias_points, check_positive, shift_x
@@ -83,6 +84,11 @@ class BiasExtension:
     (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) replaces it; its edges must
     carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h``, ``mesh`` are then
     unused (A and B follow ``specimen.length`` and ``specimen.width``).
+
+    ``followers`` are called after each converged step of :meth:`run`: by default those the
+    model's terms need (:func:`~fabricsurf.experiments.followers.step_followers`, e.g. the
+    interior penalty of the bi-pantographic energy following the stretch); replace the list to
+    change them (an empty list freezes those parameters).
     """
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
@@ -104,6 +110,7 @@ class BiasExtension:
             p.clamp_gradient("grip")
         self.problem = p
         self.solver = p.solver()
+        self.followers = step_followers(p, self.model)
         kin = p.energy.kin
         self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
         self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
@@ -140,9 +147,10 @@ class BiasExtension:
             on_step: Callable[[int, float], None] | None = None) -> BiasResult:
         """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``.
 
-        ``on_step(k, ubar)`` is called on every rank after each converged requested step (e.g.
-        to sample :meth:`displacement_at`); collective calls are allowed there. A step that
-        fails raises :class:`LoadStepError` with the converged steps as its ``partial``.
+        After each converged requested step the :attr:`followers` are called, then
+        ``on_step(k, ubar)`` on every rank (e.g. to sample :meth:`displacement_at`); collective
+        calls are allowed there. A step that fails raises :class:`LoadStepError` with the
+        converged steps as its ``partial``.
         """
         comm = self.problem.msh.comm
         res, t0 = BiasResult(), time.perf_counter()
@@ -167,6 +175,8 @@ class BiasExtension:
                 rank0_print(comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
                             f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
                             f"  max fibre tension {t_max:8.4g} N/mm  Newton {its}")
+            for follow in self.followers:
+                follow()
             if on_step is not None:
                 on_step(k, ubar)
 
@@ -231,6 +241,7 @@ class BiasExtensionTest(ExperimentSetup):
                                   setup.options.get("clamp", "gradient"),
                                   tuple(setup.fibre_angles_deg), comm=comm, specimen=specimen)
         self.problem, self.solver = self.bias.problem, self.bias.solver
+        self.followers = self.bias.followers
         self._w = fem.Function(self.problem.V)
         self._w.x.array[self.problem.component_dofs("grip", 0)] = 1.0
 

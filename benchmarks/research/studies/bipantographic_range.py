@@ -5,7 +5,8 @@ What makes the homogenised energy (Barchiesi et al. 2020, eq. 2) followable to �
 (measured and explained in docs/bipantographic.md, "Interior penalty"):
 
 * the interior-penalty scale follows the largest fibre stretch of the solution
-  (:class:`PenaltyFollower`, after every converged step; fem.Constant, no recompilation) —
+  (:class:`~fabricsurf.experiments.followers.PenaltyFollower`, which
+  :meth:`BiasExtension.run` calls after every converged step by default; no recompilation) —
   with the scale frozen at ρ = 1 the discrete energy loses coercivity near the grip corners
   and Newton stalls, whatever the line search or Jacobian. The scale must keep following up
   to the limit: with a fixed ceiling ρ_p cos γ ≤ 0.97 it stopped once the corner stretch passed
@@ -22,18 +23,16 @@ kernels for the gradient clamps take minutes to compile, so it is not used here
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
-import ufl
-from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.discretise.evaluation import interpolate_expression
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import DOMAIN_AWARE, LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.experiments.followers import PenaltyFollower
+from fabricsurf.experiments.followers import penalty_stretch as penalty_stretch  # re-exported
 from fabricsurf.model.materials import PantographBending, bipantographic
 from research.studies.bias_convergence import graded_specimen
 from research.verification.rates import richardson_summary
@@ -42,75 +41,37 @@ RANGE_OPTIONS = dict(DOMAIN_AWARE)
 """Solver options of the whole-range runs (module docstring)."""
 
 
-class PenaltyFollower:
-    """After each converged step: record the largest fibre stretch ρ (and where), and set the
-    interior-penalty stretch ρ_p of the model's :class:`PantographBending` to
-    ρ_p = max(ρ_0, min(ρ + ``margin``, (ρ + 1/cos γ)/2)), ρ_0 the term's own
-    ``penalty_stretch``: above the stretch, and at most halfway from it to the limit
-    ρ cos γ = 1, so ρ_p stays inside the domain and never falls below the stretch of the
-    solution (a fixed ceiling did: the penalty stopped following and Newton stalled, module
-    docstring). By default ρ is the largest stretch anywhere and ρ_p uniform; with ``local``
-    ρ is the largest stretch in each cell and ρ_p a DG0 field, raised only where the stretch
-    concentrates: more accurate on coarse meshes, less robust next to the limit (measured in
-    docs/bipantographic.md). Use as (part of) the ``on_step`` callback of
-    :meth:`BiasExtension.run`; collective."""
-
-    def __init__(self, test: BiasExtension, margin: float = 0.03, local: bool = False):
-        self.test, self.margin, self.local = test, margin, local
-        p = test.problem
-        self.terms = [t for t in test.model if isinstance(t, PantographBending)]
-        self.V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=2)
-        self.expr = ufl.as_vector([p.energy.kin.lam, p.energy.kin.mu])
-        self.X = self.V.tabulate_dof_coordinates()[:, :2]
-        self.cell_nodes = self.V.dofmap.list.array.reshape(-1, self.V.dofmap.dof_layout.num_dofs)
-        self.history: list[dict] = []
-
-    def _stretch_at_nodes(self) -> np.ndarray:
-        return interpolate_expression(self.expr, self.V).x.array.reshape(-1, 2).max(axis=1)
-
-    def max_stretch(self, a: np.ndarray) -> tuple[float, list[float]]:
-        """Largest of the fibre stretches ``a`` at the DG2 nodes and its reference position
-        (all ranks)."""
-        i = int(np.argmax(a)) if len(a) else 0
-        local = (float(a[i]), list(map(float, self.X[i]))) if len(a) else (-1.0, [0.0, 0.0])
-        comm = self.test.problem.msh.comm
-        return max(comm.allgather(local), key=lambda v: v[0])
-
-    def __call__(self, k: int, ubar: float) -> None:
-        a = self._stretch_at_nodes()
-        rho, where = self.max_stretch(a)
-        msh = self.test.problem.msh
-        cells = a[self.cell_nodes].max(axis=1) if self.local else \
-            np.full(len(self.cell_nodes), rho)
-        for t in self.terms:
-            t.set_penalty_stretch(msh, np.maximum(t.penalty_stretch,
-                                                  penalty_stretch(cells, self.margin, t.gamma)))
-        c = math.cos(self.terms[0].gamma) if self.terms else math.cos(math.pi / 6)
-        self.history.append({"ubar": ubar, "max_stretch": rho, "rho_cos_gamma": rho * c,
-                             "at": where})
+def stretch_history(test: BiasExtension) -> list[dict]:
+    """The largest-stretch records of the test's :class:`PenaltyFollower` (empty without one)."""
+    return next((f.history for f in test.followers if isinstance(f, PenaltyFollower)), [])
 
 
 def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
               limit_stretch: float | None = None, grading: float = 0.6,
               comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False,
-              moduli: dict | None = None, local_penalty: bool = False) -> dict:
+              moduli: dict | None = None, local_penalty: bool = False,
+              snes_options: dict | None = RANGE_OPTIONS) -> dict:
     """Eq. (2) (Table 3 moduli, or ``moduli``: K_S, K_E, K_F) on the graded mesh of ``level``
     to ``ubar`` in ``steps`` steps; returns the curves, the largest stretch per step, Newton
     iterations, times, and the failure (step, load, reason) if the path could not be
-    followed. ``local_penalty``: see :class:`PenaltyFollower`. JSON-ready; scalars reduced."""
+    followed. The penalty follows the stretch as in any :class:`BiasExtension` run;
+    ``local_penalty``: cell by cell (:class:`PenaltyFollower` ``local``). ``snes_options``
+    None: the package's defaults, i.e. the plain public API. JSON-ready; scalars reduced."""
     model = bipantographic(limit_stretch=limit_stretch, **(moduli or {}))
     t0 = time.perf_counter()
     test = BiasExtension(model, clamp=clamp, specimen=graded_specimen(level, grading, comm=comm),
-                         snes_options=RANGE_OPTIONS, comm=comm)
+                         snes_options=snes_options, comm=comm)
     setup = time.perf_counter() - t0
-    follow = PenaltyFollower(test, local=local_penalty)
-    step_times, last = [], [time.perf_counter()]
+    if local_penalty:
+        bending = [t for t in model if isinstance(t, PantographBending)]
+        test.followers = [PenaltyFollower(test.problem, bending, local=True)]
+    step_times, loads, last = [], [], [time.perf_counter()]
 
     def on_step(k: int, ub: float) -> None:
         now = time.perf_counter()
         step_times.append(now - last[0])
-        follow(k, ub)
-        last[0] = time.perf_counter()
+        loads.append(ub)
+        last[0] = now
 
     failure = None
     try:
@@ -124,7 +85,8 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
            "moduli": {t.name: t.values() for t in model},
            "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
            "setup_seconds": setup, "step_seconds": step_times,
-           "stretch": follow.history, "failure": failure,
+           "stretch": [{"ubar": u, **h} for u, h in zip(loads, stretch_history(test))],
+           "failure": failure,
            "domain_errors": test.solver.domain_errors}
     if res is not None:
         out |= {"ubar": res.ubar, "force": res.force, "angle_A_deg": res.angle_A_deg,
@@ -158,20 +120,22 @@ def convergence(runs: list[dict], loads: list[float]) -> dict:
     return out
 
 
-def penalty_stretch(rho, margin: float, gamma: float):
-    """min(ρ + margin, (ρ + 1/cos γ)/2) (:class:`PenaltyFollower`), for a float or an array."""
-    return np.minimum(rho + margin, 0.5 * (rho + 1.0 / math.cos(gamma)))
-
-
-def follow_penalty(margin: float = 0.03):
-    """An ``on_step(test, k, ū)`` callback for
-    :func:`research.studies.bias_comparison.compare` that keeps one
-    :class:`PenaltyFollower` per continuum test (built at its first step)."""
-    followers: dict[int, PenaltyFollower] = {}
+def follow_penalty():
+    """An ``on_step(test, k, ū)`` callback for :func:`research.studies.bias_comparison.compare`
+    that records, per continuum test, the largest stretch its penalty follower saw at each step
+    (``followers``: one record holder per test, with ``history`` as in :func:`run_range`)."""
+    followers: dict[int, _StretchRecord] = {}
 
     def on_step(test: BiasExtension, k: int, ubar: float) -> None:
-        f = followers.setdefault(id(test), PenaltyFollower(test, margin))
-        f(k, ubar)
+        rec = followers.setdefault(id(test), _StretchRecord())
+        rec.history.append({"ubar": ubar, **stretch_history(test)[-1]})
 
     on_step.followers = followers
     return on_step
+
+
+class _StretchRecord:
+    """The largest-stretch records of one test, with the load of each."""
+
+    def __init__(self) -> None:
+        self.history: list[dict] = []

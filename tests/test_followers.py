@@ -1,0 +1,74 @@
+"""Step followers (fabricsurf/experiments/followers.py): the bi-pantographic interior penalty
+follows the solution inside :meth:`BiasExtension.run` by default, with no callback."""
+
+import math
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from fabricsurf.discretise.evaluation import interpolate_expression
+from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.experiments.followers import PENALTY_MARGIN, PenaltyFollower, penalty_stretch
+from fabricsurf.model.materials import PantographBending, bipantographic
+
+LENGTH, WIDTH, H = 187.0, 119.0, 17.0
+"""mm: the bias specimen on a coarse fibre-aligned mesh (the forms of the bias demo)."""
+
+
+def small_test(model) -> BiasExtension:
+    return BiasExtension(model, LENGTH, WIDTH, h=H, comm=MPI.COMM_WORLD)  # gradient clamps
+
+
+def largest_stretch(test: BiasExtension) -> float:
+    """max(λ, μ) over the DG2 nodes of all cells of all ranks."""
+    kin = test.problem.energy.kin
+    V = fem.VectorFunctionSpace(test.problem.msh, ("DG", 2), dim=2)
+    f = interpolate_expression(ufl.as_vector([kin.lam, kin.mu]), V)
+    return test.problem.msh.comm.allreduce(float(f.x.array.max()), op=MPI.MAX)
+
+
+def penalty_range(term: PantographBending, msh) -> tuple[float, float]:
+    a = term.penalty_field(msh).x.array
+    return msh.comm.allreduce(float(a.min()), op=MPI.MIN), \
+        msh.comm.allreduce(float(a.max()), op=MPI.MAX)
+
+
+def test_penalty_follows_the_stretch_by_default():
+    """After each step of a plain ``run`` the penalty stretch ρ_p of the bending term is
+    max(1, min(ρ + margin, (ρ + 1/cos γ)/2)) of that step's largest fibre stretch ρ (the
+    follower's rule), uniform over all cells of all ranks; as the specimen is pulled ρ grows,
+    so ρ_p rises above its initial 1 and keeps rising (frozen at 1, the penalty of the
+    bi-pantographic energy loses coercivity where the stretch concentrates)."""
+    model = bipantographic()
+    bending = next(t for t in model if isinstance(t, PantographBending))
+    test = small_test(model)
+    assert [type(f) for f in test.followers] == [PenaltyFollower]
+    msh, seen = test.problem.msh, []
+
+    def on_step(k: int, ubar: float) -> None:
+        seen.append((largest_stretch(test), *penalty_range(bending, msh)))
+
+    test.run(0.06 * LENGTH, 3, verbose=False, on_step=on_step)
+    history = test.followers[0].history
+    assert len(history) == len(seen) == 3
+    for (rho, lo, hi), rec in zip(seen, history):
+        expected = max(1.0, float(penalty_stretch(rho, PENALTY_MARGIN, bending.gamma)))
+        assert lo == hi == pytest.approx(expected, rel=1e-12)
+        assert rec["max_stretch"] == pytest.approx(rho, rel=1e-12)
+        assert rec["rho_cos_gamma"] == pytest.approx(rho * math.cos(bending.gamma), rel=1e-12)
+    rho_p = [lo for _, lo, _ in seen]
+    assert rho_p[0] > 1.0 and np.all(np.diff(rho_p) > 0), seen
+
+
+def test_an_empty_follower_list_freezes_the_penalty():
+    """``followers = []`` leaves ρ_p at the term's value although the stretch grows."""
+    model = bipantographic()
+    bending = next(t for t in model if isinstance(t, PantographBending))
+    test = small_test(model)
+    test.followers = []
+    test.run(0.06 * LENGTH, 1, verbose=False)
+    assert largest_stretch(test) > 1.0
+    assert penalty_range(bending, test.problem.msh) == (1.0, 1.0)
