@@ -22,6 +22,7 @@ from mpi4py import MPI
 
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.three_zone import kinematic_force
+from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.fitting.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model import kinematics as kn
@@ -113,3 +114,15 @@ def test_hidden_friction_in_lattice_data_is_diagnosed(regime, tau_f):
     assert d.verdict == "crossover_friction" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
     assert abs(d.final_fit.params()["crossover_friction"]["tau_f"] / tau_f - 1.0) < 0.10
+
+
+def test_unloading_path_is_warned_about_with_friction_only():
+    """Friction dissipates: a load path that turns back is named (experiment, term, step) when
+    the model holds crossover_friction, and not otherwise, nor for a monotonic path."""
+    friction = [Shear(k_s=1.0), CrossoverFriction(tau_f=1.0)]
+    back = sy.template(48.0, 24.0, [1.0, 2.0, 3.0, 2.5], np.zeros((0, 2)), name="cyclic")
+    msg = unloading_warning(back, friction)
+    assert msg and "cyclic" in msg and "crossover_friction" in msg and "step 4" in msg
+    assert unloading_warning(back, [Shear(k_s=1.0)]) is None
+    mono = sy.template(48.0, 24.0, [1.0, 2.0, 2.0, 3.0], np.zeros((0, 2)), name="monotonic")
+    assert unloading_warning(mono, friction) is None

@@ -34,6 +34,7 @@ class Term:
     order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
     units: ClassVar[dict[str, str]] = {}
     options: ClassVar[tuple[str, ...]] = ()  # fields that are switches, not moduli
+    monotonic_only: ClassVar[bool] = False  # an elastic stand-in for a dissipative effect
     _const: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _bound: list = field(default_factory=list, init=False, repr=False, compare=False)
 
@@ -189,6 +190,7 @@ class CrossoverFriction(Term):
     name: ClassVar[str] = "crossover_friction"
     units: ClassVar[dict[str, str]] = {"tau_f": "N/mm"}
     options: ClassVar[tuple[str, ...]] = ("gamma_f",)
+    monotonic_only: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -130,3 +130,21 @@ def forces(f: np.ndarray, lines: np.ndarray, name: str) -> None:
     if len(big):
         raise DataError(f"{name} line {lines[big[0]]}: force {f[big[0]]:.3g} N is not plausible "
                         "for a fabric test (check [units] force)")
+
+
+def unloading_warning(exp, model) -> str | None:
+    """A warning when ``model`` holds a term valid for monotonic loading only (the elastic
+    stand-in of a dissipative effect, ``Term.monotonic_only``) and the load path of ``exp``
+    turns back: it names the experiment, the term and the first step that unloads."""
+    terms = [t.name for t in model if getattr(t, "monotonic_only", False)]
+    dp = np.diff(np.asarray(exp.path, float))
+    moving = dp[dp != 0.0]
+    if not terms or len(moving) < 2:
+        return None
+    back = np.flatnonzero(np.sign(dp) == -np.sign(moving[0]))
+    if not len(back):
+        return None
+    k = int(back[0]) + 1
+    return (f"{exp.name}: the load path turns back at step {int(exp.steps[k])} (from "
+            f"{exp.path[k - 1]:g} to {exp.path[k]:g}); {', '.join(terms)} is an elastic "
+            "equivalent for monotonic loading and does not describe unloading")
