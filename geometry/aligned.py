@@ -20,14 +20,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import ufl
-from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from geometry.specimen import (
     Specimen,
     check_positive,
     corner_points,
+    distributed_mesh,
     rectangle,
     tag_rectangle_edges,
 )
@@ -117,11 +116,10 @@ def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_d
         x = np.column_stack([verts[:, 0] * dx, verts[:, 1] * dy])
     else:
         x, cells = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", "triangle", 1))
-    msh = dmesh.create_mesh(comm, cells, x, domain, ghost_mode=dmesh.GhostMode.shared_facet)
+    msh = distributed_mesh(comm, x, cells)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, None, ft, float(length), float(width),
+    return Specimen(msh, ft, float(length), float(width),
                     points={**corner_points(length, width), **dict(extra_points or {})})
 
 

@@ -1,7 +1,8 @@
 """gmsh builders for rectangular specimens (bias-extension test, Barchiesi et al. 2020 Fig. 4) and
 squares.
 
-gmsh runs on rank 0 only; the mesh is distributed with ``dolfinx.io.gmshio.model_to_mesh``.
+gmsh runs on rank 0 only; the mesh is distributed from there with shared-facet ghosts
+(:func:`distributed_mesh`).
 Physical groups are named: edges ``clamp`` (x = 0), ``grip`` (x = length), ``bottom`` (y = 0),
 ``top`` (y = width); points ``corner_00``, ``corner_10``, ``corner_11``, ``corner_01`` and, for
 the specimen, ``A`` (centre of the square on the clamped short side) and ``B`` (centre of the
@@ -14,11 +15,13 @@ from dataclasses import dataclass, field
 
 import gmsh
 import numpy as np
+import ufl
 from dolfinx import mesh as dmesh
 from dolfinx.io import gmshio
 from mpi4py import MPI
 
 EDGE_TAGS = {"clamp": 1, "grip": 2, "bottom": 3, "top": 4}
+GMSH_TRIANGLE = 2  # gmsh's element type of the 3-node triangle
 BIAS_LENGTH, BIAS_WIDTH = 187.0, 119.0
 """The bias-extension specimen of Barchiesi et al. 2020 (Fig. 4), length × width in mm: the
 default of the bias-test plug-in and of the studies that compare with that paper."""
@@ -29,7 +32,6 @@ class Specimen:
     """A meshed rectangle [0, length] × [0, width] with named edge tags and points."""
 
     mesh: object
-    cell_tags: object
     facet_tags: object
     length: float
     width: float
@@ -83,6 +85,22 @@ def _build_rectangle(length: float, width: float, h: float, extra_points: dict,
     gmsh.model.mesh.generate(2)
 
 
+def _triangulation() -> tuple[np.ndarray, np.ndarray]:
+    """Nodes (x, y) and 3-node triangles of the meshed gmsh model (rank 0)."""
+    x = gmshio.extract_geometry(gmsh.model)[:, :2]
+    topology = gmshio.extract_topology_and_markers(gmsh.model)
+    return x, np.asarray(topology[GMSH_TRIANGLE]["topology"], dtype=np.int64)
+
+
+def distributed_mesh(comm: MPI.Comm, x: np.ndarray, cells: np.ndarray) -> dmesh.Mesh:
+    """The P1 triangulation held by rank 0 (``x``, ``cells``; empty arrays elsewhere),
+    partitioned over ``comm`` with shared-facet ghosts: the interior-penalty terms are integrals
+    over every interior facet, and those on a partition boundary need the cells on both
+    sides (dolfinx's biharmonic demo sets the same mode)."""
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", "triangle", 1))
+    return dmesh.create_mesh(comm, cells, x, domain, ghost_mode=dmesh.GhostMode.shared_facet)
+
+
 def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_WORLD,
               extra_points: dict | None = None, structured: bool = False) -> Specimen:
     """Mesh the rectangle [0, length] × [0, width] with element size ``h``.
@@ -106,13 +124,15 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
         raise RuntimeError(f"geometry: gmsh failed to mesh the {length} × {width} rectangle "
                            f"(h = {h}) on rank 0: {error}")
     try:
-        msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
-                                           gdim=2)
+        x, cells = _triangulation() if comm.rank == 0 else (np.zeros((0, 2)),
+                                                              np.zeros((0, 3), np.int64))
     finally:
         if comm.rank == 0:
             gmsh.finalize()
+    msh = distributed_mesh(comm, x, cells)
+    ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ct, ft, float(length), float(width),
+    return Specimen(msh, ft, float(length), float(width),
                     points={**corner_points(length, width), **extra})
 
 
@@ -149,7 +169,7 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
         x[:, 1] = width * graded(x[:, 1] / width, grading)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, None, ft, float(length), float(width),
+    return Specimen(msh, ft, float(length), float(width),
                     points=corner_points(length, width))
 
 

@@ -52,7 +52,7 @@ def test_grading_rejected():
 
 def test_gmsh_failure_on_rank0_raises_everywhere(monkeypatch):
     """A gmsh error on rank 0 is broadcast: every rank raises instead of waiting in
-    model_to_mesh (on 2 ranks this test would hang without it)."""
+    the mesh distribution (on 2 ranks this test would hang without it)."""
     import geometry.specimen as spec
 
     def fail(*args):
