@@ -1,0 +1,1 @@
+"""Forming references: the kinematic drape (fishnet) of a hemisphere."""
