@@ -41,7 +41,8 @@ def test_penalty_follows_the_stretch_by_default():
     max(1, min(ρ + margin, (ρ + 1/cos γ)/2)) of that step's largest fibre stretch ρ (the
     follower's rule), uniform over all cells of all ranks; as the specimen is pulled ρ grows,
     so ρ_p rises above its initial 1 and keeps rising (frozen at 1, the penalty of the
-    bi-pantographic energy loses coercivity where the stretch concentrates)."""
+    bi-pantographic energy loses coercivity where the stretch concentrates). ``reset`` returns
+    ρ_p to the term's own value."""
     model = bipantographic()
     bending = next(t for t in model if isinstance(t, PantographBending))
     test = small_test(model)
@@ -61,6 +62,8 @@ def test_penalty_follows_the_stretch_by_default():
         assert rec["rho_cos_gamma"] == pytest.approx(rho * math.cos(bending.gamma), rel=1e-12)
     rho_p = [lo for _, lo, _ in seen]
     assert rho_p[0] > 1.0 and np.all(np.diff(rho_p) > 0), seen
+    test.followers[0].reset()
+    assert penalty_range(bending, msh) == (bending.penalty_stretch, bending.penalty_stretch)
 
 
 def test_an_empty_follower_list_freezes_the_penalty():

@@ -7,16 +7,19 @@ interior-penalty scale at a stretch ρ_p; its stretch-gradient coefficient grows
 stretch concentrates, the discrete energy loses coercivity and Newton stalls part-way along the
 load path (docs/bipantographic.md, "Interior penalty").
 
-A follower is built once per problem from the model terms it serves and called, collectively,
-after every converged load step; it changes fem.Constants or DG0 fields only, so nothing is
-recompiled. :func:`step_followers` builds the followers a model needs from :data:`FOLLOWERS`
-(term class → factory), which a plug-in of terms extends with :func:`register_follower`.
+A follower (:class:`StepFollower`) is built once per problem from the model terms it serves and
+called, collectively, after every converged load step; ``reset()`` returns what it set to the
+terms' own values (for a run restarted from the reference state). It changes fem.Constants or
+DG0 fields only, so nothing is recompiled. :func:`step_followers` builds the followers a model
+needs from :data:`FOLLOWERS` (term class → factory), which a plug-in of terms extends with
+:func:`register_follower`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 import ufl
@@ -30,7 +33,15 @@ PENALTY_MARGIN = 0.03
 """How far above the largest stretch ρ the penalty stretch ρ_p is set (when that is not more
 than halfway to the limit ρ cos γ = 1)."""
 
-StepFollower = Callable[[], None]
+
+class StepFollower(Protocol):
+    """What :func:`step_followers` returns (module docstring)."""
+
+    def __call__(self) -> None: ...
+
+    def reset(self) -> None: ...
+
+
 FollowerFactory = Callable[[FabricProblem, list[Term]], StepFollower]
 
 
@@ -87,6 +98,12 @@ class PenaltyFollower:
         gamma = self.terms[0].gamma if self.terms else math.pi / 6
         self.history.append({"max_stretch": rho, "rho_cos_gamma": rho * math.cos(gamma),
                              "at": where})
+
+    def reset(self) -> None:
+        """ρ_p back to each term's own ``penalty_stretch`` (uniform); the history is kept."""
+        for t in self.terms:
+            t.set_penalty_stretch(self.problem.msh, np.full(len(self._cell_nodes),
+                                                            t.penalty_stretch))
 
 
 FOLLOWERS: dict[type[Term], FollowerFactory] = {PantographBending: PenaltyFollower}
