@@ -13,8 +13,8 @@ from fabricsurf.model.terms import EFFECTS
 MAX_ELEMENTS = 400_000
 """Default of ``--max-elements``: about 20 GB at KB_PER_ELEMENT, what a 24 GB machine holds."""
 KB_PER_ELEMENT = 50.0
-"""Memory per triangle, all ranks together: measured 26 kB (11 000 elements) and 38 kB (23 000;
-bias test, second-gradient model, MUMPS), rising with the direct solver's fill-in."""
+"""Memory per triangle, all ranks together (bias test, second-gradient model, MUMPS), with a
+margin: it rises with the direct solver's fill-in (docs/uncertainty.md, costs)."""
 
 
 def add_max_elements(p: argparse.ArgumentParser) -> None:

@@ -20,10 +20,8 @@ Both rank their trials on a scout mesh :data:`SCOUT_FACTOR` times coarser than t
 (:meth:`~.forward.ForwardSet.coarse`: same forms, a quarter of the unknowns in
 2D): they choose a start among values decades apart, which a coarse mesh ranks as well, and the
 fit itself then runs on the fine mesh. The candidate's chosen start is checked on the fine mesh
-against the fitted model itself, which keeps the guarantee above. Measured at the issue-12 size
-(187 × 119 mm, h = 4 mm, 12 load steps, 13 518 unknowns): a forward run costs 30–40 s on the
-fine mesh and 5–7 s on the scout, and the scan and the grid are 11 and 10 runs of a diagnosis's
-~60.
+against the fitted model itself, which keeps the guarantee above (docs/diagnosis.md gives the
+costs of the scout and the fine mesh).
 """
 
 from __future__ import annotations
