@@ -14,6 +14,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabricsurf.discretise.resources import Owner, destroy
 from fabricsurf.errors import InputError
 from fabricsurf.model.kinematics import Kinematics
 
@@ -31,13 +32,14 @@ def derived_fields(kin: Kinematics) -> dict:
     return fields
 
 
-class FieldWriter:
+class FieldWriter(Owner):
     """Writes u and the derived fields on P1 to ``path`` (XDMF + h5), one time per call.
 
     Derived fields are lumped L2 projections onto P1, f_i = ∫ f φ_i / ∫ φ_i, computed with one
     compiled form for all fields (XDMF in dolfinx 0.5.2 holds P1 data only). ``extra`` adds
     named UFL fields (e.g. the fibre tensions); ``qdeg`` must equal the degree of any
-    quadrature-space coefficient in them (the multipliers of exact constraints).
+    quadrature-space coefficient in them (the multipliers of exact constraints). :meth:`close`
+    closes the file and destroys the two work vectors.
     """
 
     def __init__(self, path: Path, u: fem.Function, kin: Kinematics, qdeg: int = 2,
@@ -59,22 +61,24 @@ class FieldWriter:
         lumped = fem_petsc.assemble_vector(fem.form(ufl.inner(ufl.as_vector([1.0] * k), v) * dx))
         lumped.ghostUpdate(addv=PETSc.InsertMode.ADD,
                            mode=PETSc.ScatterMode.REVERSE)
-        self.lumped = lumped
+        self.lumped, self.b = lumped, lumped.duplicate()
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         self.file = io.XDMFFile(self.comm, str(path), "w")
         self.file.write_mesh(msh)
 
     def project(self) -> None:
-        b = fem_petsc.assemble_vector(self.rhs)
+        b = self.b
+        with b.localForm() as b_local:
+            b_local.set(0.0)
+        fem_petsc.assemble_vector(b, self.rhs)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD,
                       mode=PETSc.ScatterMode.REVERSE)
         b.pointwiseDivide(b, self.lumped)
-        vals = fem.Function(self.Vk)
-        b.copy(vals.vector)
-        vals.x.scatter_forward()
-        arr = vals.x.array.reshape(-1, len(self.names))
-        for i, f in enumerate(self.scalars):
-            f.x.array[:] = arr[:, i]
+        b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with b.localForm() as b_local:
+            arr = b_local.array_r.reshape(-1, len(self.names))
+            for i, f in enumerate(self.scalars):
+                f.x.array[:] = arr[:, i]
 
     def write(self, t: float) -> None:
         self.u1.interpolate(self.u)
@@ -83,8 +87,9 @@ class FieldWriter:
         for f in self.scalars:
             self.file.write_function(f, t)
 
-    def close(self) -> None:
+    def _release(self) -> None:
         self.file.close()
+        destroy(self.lumped, self.b)
 
 
 class StepLog:

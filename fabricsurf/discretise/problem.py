@@ -10,18 +10,20 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, DEFAULT_PENALTY, EnergyForm
+from fabricsurf.discretise.resources import Owner, release_vectors, weak_method
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.kinematics import fibre_directions
 from fabricsurf.model.terms import Term
 
 
-class FabricProblem:
+class FabricProblem(Owner):
     """Displacement u = r − X in a degree-2 vector Lagrange space of dimension d on a specimen.
 
     Boundary data are added with :meth:`fix` (positions), :meth:`clamp_gradient` (zero normal
     derivative, weakly), :meth:`add_traction` and :meth:`add_point_force`; then
     :meth:`solver` builds the SNES solver. Prescribed values are fem.Constants, so they can be
-    changed during load stepping without recompiling.
+    changed during load stepping without recompiling. :meth:`close` destroys the solver's PETSc
+    objects (discretise/resources.py).
     """
 
     def __init__(self, specimen, model: list[Term], d: int = 2, degree: int = 2,
@@ -32,6 +34,7 @@ class FabricProblem:
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
         self.msh = specimen.mesh
+        self.comm = self.msh.comm
         self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)
         self.u = fem.Function(self.V, name="u")
         self.L, self.M = fibre_directions(*fibre_angles, msh=self.msh)
@@ -163,20 +166,25 @@ class FabricProblem:
             self._solver = SNESSolver(
                 self.energy.residual(v), self.energy.jacobian(du, v), self.u, self.bcs,
                 self.prefix, self.snes_options,
-                self._nodal_forces if self._point_forces or self.body_forces else None,
+                weak_method(self._nodal_forces) if self._point_forces or self.body_forces
+                else None,
                 self.energy.multipliers)
         return self._solver
 
     def solve(self) -> tuple[int, int]:
         return self.solver().solve()
 
+    def _release(self) -> None:
+        if self._solver is not None:
+            self._solver.close()
+        release_vectors(self.u)
+
     def reaction(self, edge: str, component: int = 0) -> float:
         """Total reaction on an edge along a component: R·v with v = 1 on its dofs (virtual
         work), so forces carried by edge and corner dofs are included. Reduced over ranks."""
-        R = self.solver().internal_force()
         w = fem.Function(self.V)
         w.x.array[self.component_dofs(edge, component)] = 1.0
-        return float(R.dot(w.vector))
+        return self.solver().virtual_work(w)
 
 
 def boundary_facets(msh) -> np.ndarray:

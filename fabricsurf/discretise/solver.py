@@ -38,6 +38,7 @@ from fabricsurf.discretise.constraints import (
     MAX_MULTIPLIER_UPDATES,
     Multiplier,
 )
+from fabricsurf.discretise.resources import Owner, destroy, dot_function, weak_method
 
 SNES_DEFAULTS: dict[str, object] = {
     "snes_type": "newtonls",
@@ -104,14 +105,15 @@ def _collective_finite(comm: MPI.Comm, array: np.ndarray) -> bool:
     return bool(comm.allreduce(bool(np.isfinite(array).all()), op=MPI.LAND))
 
 
-class SNESSolver:
+class SNESSolver(Owner):
     """Newton for R(u) = 0 with Jacobian ``jacobian`` (both UFL forms, usually from EnergyForm).
 
     ``nodal_forces`` is an optional callable returning (dofs, values) of dead point forces
     (corner forces) added to the external load: R ← R − f at those local dofs. ``options`` are
     PETSc options without the prefix (over :data:`SNES_DEFAULTS`), plus the keys of
     :data:`SOLVER_KEYS`. ``domain_errors`` counts the residual evaluations that left the
-    energy's domain (module docstring).
+    energy's domain (module docstring). It owns its SNES, matrix and vectors
+    (:meth:`close`, discretise/resources.py).
     """
 
     def __init__(self, residual: ufl.Form, jacobian: ufl.Form, u: fem.Function,
@@ -134,12 +136,16 @@ class SNESSolver:
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
         self.b = fem_petsc.create_vector(self.L)
         self.A = fem_petsc.create_matrix(self.a)
-        self.x = u.vector.copy()
+        self.x = self.b.duplicate()
+        self.force = self.b.duplicate()
         self.domain_errors = 0
         self.snes = PETSc.SNES().create(V.mesh.comm)
-        self.snes.setFunction(self._F, self.b)
-        self.snes.setJacobian(self._J, self.A)
+        self.snes.setFunction(weak_method(self._F), self.b)
+        self.snes.setJacobian(weak_method(self._J), self.A)
         self.set_options(options)
+
+    def _release(self) -> None:
+        destroy(self.snes, self.A, self.b, self.x, self.force)
 
     def set_options(self, options: dict) -> None:
         """Apply PETSc options (over :data:`SNES_DEFAULTS`) under this solver's prefix; the
@@ -162,9 +168,10 @@ class SNESSolver:
                     opts[self.prefix + k] = before[k]
 
     def _update_u(self, x: PETSc.Vec) -> None:
+        """u ← x, ghosts included (through the arrays: no PETSc vector wrapped around u)."""
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        x.copy(self.u.vector)
-        self.u.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with x.localForm() as x_local:
+            self.u.x.array[:] = x_local.array_r
 
     def _F(self, snes, x, b) -> None:
         self._update_u(x)
@@ -209,7 +216,8 @@ class SNESSolver:
         """One SNES solve; a linear-solver failure (e.g. MUMPS on a singular tangent raises a
         PETSc error rather than returning a reason) counts as DIVERGED_LINEAR_SOLVE, so the
         load stepper cuts the step and reports it like any other divergence."""
-        self.u.vector.copy(self.x)
+        with self.x.localForm() as x_local:
+            x_local.array[:] = self.u.x.array
         try:
             self.snes.solve(None, self.x)
         except PETSc.Error:
@@ -251,10 +259,19 @@ class SNESSolver:
             m.restore(s)
 
     def internal_force(self) -> PETSc.Vec:
-        """R(u) assembled without boundary conditions or nodal forces (owned entries complete)."""
-        b = fem_petsc.assemble_vector(self.L)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        return b
+        """R(u) assembled without boundary conditions or nodal forces (owned entries complete),
+        into the solver's own work vector :attr:`force`: the next call overwrites it, and the
+        solver destroys it."""
+        with self.force.localForm() as f_local:
+            f_local.set(0.0)
+        fem_petsc.assemble_vector(self.force, self.L)
+        self.force.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return self.force
+
+    def virtual_work(self, w: fem.Function) -> float:
+        """R(u)·w of the internal force (e.g. a reaction, w the boundary motion), reduced over
+        ranks."""
+        return dot_function(self.internal_force(), w)
 
 
 class LoadStepError(RuntimeError):

@@ -28,6 +28,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.discretise.resources import Owner, release_vectors
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.errors import DataError
 from fabricsurf.model.terms import Term
@@ -47,7 +48,7 @@ class Setup:
     options: dict = field(default_factory=dict)
 
 
-class ExperimentSetup(ABC):
+class ExperimentSetup(Owner, ABC):
     """Base class of the experiment plug-ins (module docstring).
 
     Class attributes: ``name`` (the ``[loading] test`` value), ``d`` (2: planar, 3: out of
@@ -57,6 +58,9 @@ class ExperimentSetup(ABC):
     plug-in's own keys of experiment.toml), ``weak_terms`` (effects whose moduli the test
     hardly determines: a fit's start scan leaves them at their given values instead of moving
     them by decades into values that break the forward model).
+
+    A plug-in owns its problem's PETSc objects: :meth:`close` (or ``with``) destroys them when
+    a run ends (discretise/resources.py).
     """
 
     name: ClassVar[str] = ""
@@ -116,7 +120,13 @@ class ExperimentSetup(ABC):
         w = self.reaction_weight()
         if w is None:
             raise ValueError(f"experiment '{self.name}' has no reaction")
-        return float(self.solver.internal_force().dot(w.vector))
+        return self.solver.virtual_work(w)
+
+    def _release(self) -> None:
+        problem = getattr(self, "problem", None)
+        if problem is not None:
+            problem.close()
+            release_vectors(self.reaction_weight())
 
 
 def choice_option(tables: dict, table: str, key: str, allowed: tuple[str, ...], default: str,

@@ -8,6 +8,8 @@ C0-IP consistency and penalty terms) is linear in the vector of moduli, so ∂R/
 assembled residual with that modulus 1 and all others 0; the reaction R·w then has the
 sensitivity (∂R/∂p + K du/dp)·w. :class:`ForwardSet` runs several experiments with one set of
 moduli (the same term objects, bound to each experiment's mesh): one material, several tests.
+Both own the plug-ins they build, and with them every PETSc object: ``close()`` (or ``with``)
+destroys them when a fit or diagnosis ends (discretise/resources.py).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.discretise.resources import Owner, copy_to_function, destroy, dot_function
 from fabricsurf.discretise.solver import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
@@ -42,10 +45,11 @@ class Prediction:
     seconds: float = 0.0
 
 
-class ForwardModel:
+class ForwardModel(Owner):
     """One experiment with a given model (list of vocabulary terms); see the module docstring.
 
     ``params`` lists every modulus of every term in model order; ``names`` "term.param".
+    :meth:`close` closes its plug-in and its coarse scout.
     """
 
     def __init__(self, exp: Experiment, model: list[Term], h: float | None = None,
@@ -68,6 +72,11 @@ class ForwardModel:
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
         self.forward_runs = 0
         self._coarse: ForwardModel | None = None
+
+    def _release(self) -> None:
+        for owner in (self.test, self._coarse):
+            if owner is not None:
+                owner.close()
 
     def coarse(self, factor: float = 2.0) -> ForwardModel:
         """The same experiment and moduli (the term objects are shared) on a mesh ``factor``
@@ -95,7 +104,7 @@ class ForwardModel:
 
     # -- solves --------------------------------------------------------------------------
     def _dR_dp(self, k: int) -> PETSc.Vec:
-        """∂R/∂p_k at the current u (no boundary conditions)."""
+        """∂R/∂p_k at the current u (no boundary conditions), in the solver's work vector."""
         vals = self.values()
         self.set_values(np.eye(len(vals))[k])
         try:
@@ -113,20 +122,18 @@ class ForwardModel:
         out, x, Kdu = [], s.x.duplicate(), s.x.duplicate()
         for k in which:
             b = self._dR_dp(k)
-            dF = b.dot(w.vector) if w is not None else 0.0
+            dF = dot_function(b, w) if w is not None else 0.0
             b.scale(-1.0)
             with b.localForm() as loc:
                 loc.array[self._bc_dofs] = 0.0
             ksp.solve(b, x)
             if w is not None:
                 A_full.mult(x, Kdu)
-                dF += Kdu.dot(w.vector)
+                dF += dot_function(Kdu, w)
             du = fem.Function(self.test.problem.V)
-            x.copy(du.vector)
-            du.x.scatter_forward()
+            copy_to_function(x, du)
             out.append((du, dF))
-        for v in (A_full, x, Kdu):
-            v.destroy()
+        destroy(A_full, x, Kdu)
         return out
 
     def run(self, sens: bool | list[int] = False) -> Prediction:
@@ -149,7 +156,7 @@ class ForwardModel:
                 u[rows] = eval_points(sol.u, pts)[:, :c]
             w = self.test.reaction_weight() if with_force else None
             if w is not None:
-                force[k] = float(sol.internal_force().dot(w.vector))
+                force[k] = sol.virtual_work(w)
             for j, (duj, dfj) in enumerate(self._sensitivities(which, w)):
                 if len(rows):
                     du[rows, :, j] = eval_points(duj, pts)[:, :c]
@@ -177,8 +184,9 @@ class ForwardModel:
         return mf.misfit(self.exp, pred) | ({"ignored": self.ignored} if self.ignored else {})
 
 
-class ForwardSet:
-    """Several experiments, one set of moduli: runs, stacked residuals, joint misfit."""
+class ForwardSet(Owner):
+    """Several experiments, one set of moduli: runs, stacked residuals, joint misfit;
+    :meth:`close` closes every model and the coarse scouts."""
 
     def __init__(self, exps: list[Experiment], model: list[Term],
                  h: float | list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
@@ -189,6 +197,11 @@ class ForwardSet:
         first = self.models[0]
         self.model, self.comm, self.params, self.names = model, comm, first.params, first.names
         self._coarse: ForwardSet | None = None
+
+    def _release(self) -> None:
+        for owner in [*self.models, self._coarse]:
+            if owner is not None:
+                owner.close()
 
     def coarse(self, factor: float = 2.0) -> ForwardSet:
         """Every experiment on a mesh ``factor`` times coarser (:meth:`ForwardModel.coarse`)."""
