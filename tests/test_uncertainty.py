@@ -179,3 +179,46 @@ def test_force_band_of_a_linear_model():
     assert np.allclose(band["force"], A @ [2.0, 3.0])
     assert np.allclose(band["half_width"], half)
     assert band["nonlinearity"] < 1e-12 and band["reliable"]
+
+
+def test_fit_contract_and_params_read_back(tmp_path):
+    """A fit of continuum data made with the fitted model itself: fit.json carries the
+    contract object per modulus, every modulus identifiable with an interval containing the
+    truth, the mesh part measured, and the file still reads back as --params."""
+    import json
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from fabricsurf.cli.measure import result_lines
+    from fabricsurf.discretise.output import write_json
+    from fabricsurf.inverse.fitting.diagnose import full_model
+    from fabricsurf.inverse.fitting.fit import fit
+    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.fitting.params import load_params
+
+    comm = MPI.COMM_WORLD
+    truth = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4}}
+    exp = sy.template(48.0, 24.0, [1.0, 2.0], sy.grid_points(48.0, 24.0, 8, 4))
+    sy.continuum_data(exp, full_model(list(truth), truth), h=4.0, comm=comm)
+    sy.add_noise(exp, 0.005, 0.005, 5)
+    fm = ForwardModel(exp, full_model(list(truth), truth), h=4.0, comm=comm)
+    free = [i for i, (t, _) in enumerate(fm.params) if t.name in truth]
+    res = fit(fm, free, verbose=False, scale_start=False)
+    res.check_mesh(fm)
+    saved = res.as_dict()
+    assert set(saved["moduli"]) == {"fibre_stretch.k_l", "fibre_stretch.k_m", "shear.k_s"}
+    for name, m in saved["moduli"].items():
+        t, p = name.split(".")
+        assert {"value", "ci95", "std_statistical", "systematic_mesh", "identifiable"} <= set(m)
+        assert m["identifiable"] and m["ci95"][0] <= truth[t][p] <= m["ci95"][1], (name, m)
+        assert m["systematic_mesh"] is not None
+    assert saved["identifiable_combinations"] == [] and saved["undetermined"] == []
+    st = saved["uncertainty"]["statistics"]
+    assert st["blocks"] == 2 * 16 + 2  # 4 x 4 regions x 2 steps, and 2 forces
+    assert np.isclose(saved["uncertainty"]["chi2_h_vs_h2"], res.chi2_h)
+    assert all("95 % interval" in ln for ln in result_lines(saved))
+    path = Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None)) / "fit.json"
+    write_json(comm, path, saved)
+    comm.barrier()
+    assert load_params(path) == json.loads(path.read_text())["params"]
