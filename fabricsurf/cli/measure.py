@@ -244,8 +244,8 @@ def cmd_diagnose(args) -> int:
     lead = (d.unexplained or {}).get("best_lead")
     if lead:
         rank0_print(COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
-                    f"the excess misfit ({lead['share_needed']:.0%} needed; F-test passed: "
-                    f"{lead['f_test_passed']})")
+                    f"the excess misfit; its Wald p = {lead['wald_p']:.3g} (below "
+                    f"{lead['wald_p_needed']:.3g} needed)")
     return 0
 
 

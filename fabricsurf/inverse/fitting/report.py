@@ -67,7 +67,7 @@ class Diagnosis:
                 "misfit": (None if self.discretisation_chi2 is None
                            else float(np.sqrt(self.discretisation_chi2 / max(n, 1)))),
                 "too_coarse": self.too_coarse()},
-            "significance": {"level": sg.LEVEL, "fraction_of_excess": sg.FRACTION_OF_EXCESS,
+            "significance": {"level": sg.LEVEL, "test": "Wald, cluster-robust covariance",
                              "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
                              "noise_known": self.noise_known,
                              "rule": sg.__doc__.split("*Adequate*")[1].strip()},
@@ -113,7 +113,6 @@ def best_lead(rows: list, res: FitResult, p: int) -> dict | None:
     n, k = res.misfit["n"], len(q.get("refit_std") or {}) or 1
     return {"effect": q["effect"], "refit_misfit": q["refit_misfit"],
             "share_of_excess": sg.share_of_excess(res.chi2, p, q["refit_chi2"], n),
-            "share_needed": sg.FRACTION_OF_EXCESS,
             "f_test_passed": sg.f_test(res.chi2, p, q["refit_chi2"], p + k, n),
             "wald_p": q.get("wald_p"), "wald_p_needed": 1.0 - sg.LEVEL}
 

@@ -13,17 +13,20 @@ band itself, (bound − 1)ν: a mesh whose own error is larger than that (the me
 the data, :func:`too_coarse`) cannot show that a model explains the data. (docs/diagnosis.md
 gives a stiff-fibre case where the uncapped rule called a model adequate.)
 
-*Significant* (nested models, k added moduli ≥ 0): both
-1. a Wald test on the same residual model as the moduli's intervals (:mod:`~.uncertainty`):
-   the added moduli against zero with the refit's cluster-robust covariance, one-sided
-   (Student's t with the blocks' degrees of freedom for k = 1, F(k, G − P) otherwise) at the
-   0.999 level. Correlated residuals (DIC subsets, model-form error smooth in space) widen
-   the covariance instead of passing as many independent data. Without a refit's covariance
-   (a caller with χ² only) the F-test of part 1 is F = (Δχ²/k)/s², s² = max(1, χ²_new/ν_new);
+*Significant* (nested models, k added moduli ≥ 0): a Wald test on the same residual model as
+the moduli's intervals (:mod:`~.uncertainty`): the added moduli against zero with the refit's
+cluster-robust covariance, one-sided (Student's t with the blocks' degrees of freedom for
+k = 1, F(k, G − P) otherwise) at the 0.999 level, and a decrease of χ². Correlated residuals
+(DIC subsets, model-form error smooth in space) widen the covariance instead of passing as many
+independent data, so the rule needs no allowance for them (docs/uncertainty.md measures that
+the former "quarter of the excess" part adds nothing to it).
+
+Without a refit's covariance (a caller with χ² only) the former two-part rule applies:
+1. an F-test at the 0.999 level against the residual variance actually left,
+   F = (Δχ²/k) / s² with s² = max(1, χ²_new/ν_new);
 2. the effect removes at least a quarter of the baseline's excess misfit,
-   Δχ² ≥ ¼ (χ²_base − ν_base): an effect that is really missing removes most of the excess,
-   one that only absorbs model-form error a small part (docs/uncertainty.md gives the
-   measurements that keep this part).
+   Δχ² ≥ ¼ (χ²_base − ν_base): the F-test assumes independent residuals and calls an extra
+   modulus that absorbs a little model-form error significant; this part stops that.
 """
 
 from __future__ import annotations
@@ -87,10 +90,11 @@ def f_test(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -
 
 def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int,
                 wald_p: float | None = None) -> bool:
-    """The two-part rule of the module docstring; ``wald_p``: the one-sided p-value of the
-    added moduli on the correlated-residual model (None: the F-test instead)."""
+    """The rule of the module docstring; ``wald_p``: the one-sided p-value of the added moduli
+    on the correlated-residual model (None: the former two-part rule)."""
     if chi2_base - chi2_new <= 0:
         return False
-    part1 = (f_test(chi2_base, p_base, chi2_new, p_new, n) if wald_p is None
-             else wald_p < 1.0 - LEVEL)
-    return part1 and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS
+    if wald_p is not None:
+        return wald_p < 1.0 - LEVEL
+    return (f_test(chi2_base, p_base, chi2_new, p_new, n)
+            and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS)
