@@ -5,8 +5,11 @@ follow and the moduli covariance of the benchmark. The three-zone kinematics and
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from fabricsurf.experiments import three_zone as tz
 from fabricsurf.experiments.three_zone import zone_c_shear_angle
 
 KNEE = "initial knee (friction at the crossovers: no elastic term starts with a finite force)"
@@ -64,3 +67,126 @@ def moduli_covariance(fm, free: list[int]) -> tuple[object, np.ndarray]:
     r, Jr = fm.residuals(pred)
     C = covariance(Jr * vals[free], float(r @ r), fm.noise_known)
     return pred, C * np.outer(vals[free], vals[free])
+
+
+def up_to_angle(exp, max_deg: float):
+    """A copy of the force-only bias experiment ``exp`` with the points whose zone-C angle
+    (Cao et al. 2008 eq. 13) is at most ``max_deg``."""
+    keep = np.degrees(zone_c_shear_angle(exp.path, exp.length, exp.width)) <= max_deg
+    n = int(keep.sum())
+    return replace(exp, steps=np.arange(1, n + 1), path=exp.path[keep].copy(),
+                   force=exp.force[keep].copy())
+
+
+def range_errors(d, model, measured, lo: float, hi: float) -> dict:
+    """:func:`force_errors` on the points with ``lo`` ≤ d ≤ ``hi`` (mm): the percentages are
+    of the largest measured force in that range (``*_pct``) and of the whole curve's
+    (``*_pct_of_curve``)."""
+    d, model, measured = (np.asarray(a, float) for a in (d, model, measured))
+    sel = (d >= lo) & (d <= hi)
+    e = force_errors(model[sel], measured[sel])
+    share = np.max(np.abs(measured[sel])) / np.max(np.abs(measured))
+    return {**e, "rms_pct_of_curve": e["rms_pct"] * share,
+            "max_pct_of_curve": e["max_pct"] * share, "points": int(sel.sum()),
+            "range_mm": [lo, hi]}
+
+
+def _angle_axis(ax, length: float, width: float) -> None:
+    lock = tz.lock_displacement(length, width)
+    sec = ax.secondary_xaxis("top", functions=(
+        lambda d: np.degrees(tz.zone_c_shear_angle(np.clip(d, 0, lock), length, width)),
+        lambda g: tz.displacement_at_angle(np.radians(g), length, width)))
+    sec.set_xlabel("zone-C shear angle, Cao eq. 13 (deg)")
+
+
+def figures(out, exp, curves: dict, knee: tuple[float, float], err_unit: float,
+            prediction: tuple, valid_to: float) -> None:
+    """The woven demo's figures: force and residual against displacement, the normalised shear
+    force (Cao et al. 2008 eq. 18) of the data and of each model with the knee range marked,
+    and the prediction of the other specimen size (rank 0 only)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    H, W, d, F = exp.length, exp.width, exp.path, exp.force
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.3))
+    ax[0].plot(d, F, "ko", ms=4, label="Cao et al. 2008 (digitised)")
+    for k, v in curves.items():
+        ax[0].plot(d[:len(v)], v, "-", label=k)
+        ax[1].plot(d[:len(v)], v - F[:len(v)], "o-", ms=3, label=k)
+    ax[1].axhspan(-3 * err_unit, 3 * err_unit, color="0.85", label="±3 error units")
+    for a in ax:
+        a.axvspan(*knee, color="C3", alpha=0.1, label="knee range")
+        _angle_axis(a, H, W)
+        a.set_xlabel("crosshead displacement d (mm)")
+    ax[0].set(ylabel="force (N)")
+    ax[1].set(ylabel="force residual model − data (N)", ylim=(-2, 2))
+    ax[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "residual_vs_displacement.png", dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    g, fsh = tz.normalised_shear_force(d, F, H, W)
+    ax.plot(np.degrees(g), fsh, "ko", ms=4, label="data, eq. 18")
+    for k, v in curves.items():
+        gm, fm = tz.normalised_shear_force(d[:len(v)], v, H, W)
+        ax.plot(np.degrees(gm), fm, "-", label=f"{k}, eq. 18")
+    ax.axvspan(*np.degrees(tz.zone_c_shear_angle(np.array(knee), H, W)), color="C3",
+               alpha=0.1, label="knee range")
+    ax.set(xlabel="zone-C shear angle γ (deg)", ylabel="normalised shear force (N/mm)",
+           xlim=(0, 75), ylim=(0, 0.06))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "normalised_shear_force.png", dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    (dp, Fp, half), (Lp, Wp) = prediction, (450.0, 150.0)
+    ax.plot(dp, Fp, "-", label="150 × 450 mm, prediction")
+    ax.fill_between(dp, Fp - half, Fp + half, alpha=0.3, label="95 % band (linearised)")
+    ax.axvspan(valid_to, max(dp), color="0.85", label="beyond the model's own validity")
+    ax.set(xlabel="crosshead displacement d (mm)", ylabel="force (N)")
+    ax.legend(fontsize=8)
+    _angle_axis(ax, Lp, Wp)
+    fig.tight_layout()
+    fig.savefig(out / "prediction_150x450.png", dpi=120)
+    plt.close(fig)
+
+
+def read_json(comm, path) -> dict:
+    """A JSON file written by rank 0, read there and broadcast."""
+    import json
+    from pathlib import Path
+
+    return comm.bcast(json.loads(Path(path).read_text()) if comm.rank == 0 else None)
+
+
+def write_band(path, d, band: dict) -> None:
+    """The prediction band as CSV: ``displacement,force,lower,upper`` (mm, N)."""
+    np.savetxt(path, np.column_stack([d, band["force"], band["lower"], band["upper"]]),
+               delimiter=",", fmt="%.6g", header="displacement,force,lower,upper", comments="")
+
+
+def write_curve(path, d, force) -> None:
+    """A force curve as CSV with the columns ``displacement,force`` (mm, N)."""
+    np.savetxt(path, np.column_stack([d, force]), delimiter=",", fmt="%.6g",
+               header="displacement,force", comments="")
+
+
+def prediction_band(fit: dict, terms: list[str], params: dict, d, length: float, width: float,
+                    h: float, comm, clamp: str = "gradient") -> dict:
+    """The force curve of a bias specimen ``length`` × ``width`` along the displacements ``d``
+    at the moduli of ``fit`` (a fit's ``as_dict()``), with the 95 % band of
+    :func:`fabricsurf.inverse.fitting.band.force_band` (statistical, model-form and mesh
+    parts, and whether the linearisation holds)."""
+    from fabricsurf.inverse.fitting.band import force_band
+    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.synthetic.generate import template
+    from fabricsurf.model.terms import parse_terms
+
+    exp = template(length, width, d, np.zeros((0, 2)), clamp=clamp,
+                   name=f"prediction {width:g} x {length:g} mm")
+    return force_band(ForwardModel(exp, parse_terms(",".join(terms), params), h=h, comm=comm),
+                      fit)
