@@ -63,7 +63,9 @@ def test_context_manager_and_del_destroy():
         objs, ref = petsc_objects(s), weakref.ref(s)
         del s
         assert ref() is None
-        assert destroyed(objs)
+        # the __del__ fallback destroys in serial only: in parallel destroying is collective and
+        # an owner may go on one rank alone (an error unwinding there), so close() does it
+        assert destroyed(objs) == (MPI.COMM_WORLD.size == 1)
     finally:
         gc.enable()
 
@@ -91,7 +93,7 @@ def test_forward_set_goes_by_reference_counting_and_destroys():
         objs, ref = petsc_objects(fs.models[0].test.solver), weakref.ref(fs)
         del fs
         assert ref() is None
-        assert destroyed(objs)
+        assert destroyed(objs) == (MPI.COMM_WORLD.size == 1)  # as above
     finally:
         gc.enable()
     with ForwardSet([small_experiment()], full_model(list(BASE), BASE), h=10.0) as fs:

@@ -17,7 +17,6 @@ there, since a collective destroy on one rank only could deadlock; its owner mus
 
 from __future__ import annotations
 
-import gc
 import sys
 import weakref
 from collections.abc import Callable
@@ -26,15 +25,6 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-_collecting = [False]
-
-
-def _track_collection(phase: str, info: dict) -> None:
-    _collecting[0] = phase == "start"
-
-
-gc.callbacks.append(_track_collection)
 
 
 def destroy(*objs) -> None:
@@ -106,7 +96,9 @@ class Owner:
             if sys.is_finalizing() or PETSc.Sys.isFinalized():
                 return
             comm = getattr(self, "comm", None)
-            if comm is not None and (comm.size == 1 or not _collecting[0]):
+            # destroying a distributed object is collective: in parallel only close() does
+            # it, since an owner can go on one rank alone (an error unwinding there)
+            if comm is not None and comm.size == 1:
                 self.close()
         except Exception:  # a fallback at teardown must never raise
             pass
