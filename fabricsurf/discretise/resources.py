@@ -9,10 +9,9 @@ hand can never be freed; a dolfinx 0.5.2 ``Function`` never destroys the PETSc v
 
 So every class here that makes PETSc objects is an :class:`Owner`: ``close()`` destroys them
 (collective: call it at the same point on every rank), ``with`` closes on exit, and ``__del__``
-closes as a fallback when that is safe, i.e. when the destruction happens at the same point on
-every rank: in serial, or when the last reference went by reference counting. An owner freed by
-Python's cycle collector (whose timing differs between ranks) in parallel is not destroyed
-there, since a collective destroy on one rank only could deadlock; its owner must close it.
+closes as a fallback in serial only. In parallel a destroy is collective, and an owner can go
+on one rank alone (an error unwinding there, or the cycle collector, whose timing differs
+between ranks): a destroy then would deadlock, so there its owner must close it.
 """
 
 from __future__ import annotations
