@@ -31,6 +31,7 @@ from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.model.terms import FibreStretch, Shear
+from research.studies import woven as wv
 
 
 def model(k_yarn: float, k_s: float = 0.02) -> list:
@@ -47,9 +48,7 @@ def main() -> None:
     a = ap.parse_args()
     comm = MPI.COMM_WORLD
     full = load_experiment(cao2008_plain_weave())
-    exp = load_experiment(cao2008_plain_weave())
-    keep = np.degrees(tz.zone_c_shear_angle(exp.path, exp.length, exp.width)) <= a.max_angle
-    exp.steps, exp.path, exp.force = np.arange(1, keep.sum() + 1), exp.path[keep], exp.force[keep]
+    exp = wv.up_to_angle(full, a.max_angle)
     rows, fitted = [], {}
     for h in (a.h, a.h / 2, a.h / 4):
         t0 = time.perf_counter()
@@ -65,7 +64,7 @@ def main() -> None:
                      "rms_all_N": float(np.sqrt(np.mean(err_all**2))), "all_steps": n_all,
                      "seconds": time.perf_counter() - t0})
         rank0_print(comm, f"h = {h:7.4f}: k_s = {fitted[h]:.5f} N/mm  chi2 {r.chi2:8.2f}  "
-                    f"RMS {rows[-1]['rms_N']:.3f} N on {keep.sum()} points (<= "
+                    f"RMS {rows[-1]['rms_N']:.3f} N on {len(exp.path)} points (<= "
                     f"{a.max_angle:g} deg), {rows[-1]['rms_all_N']:.3f} N on all {n_all}; "
                     f"{rows[-1]['seconds']:.0f} s")
     ks = np.array(list(fitted.values()))

@@ -29,6 +29,7 @@ from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.errors import InputError
+from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.misfit import converged_steps
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
@@ -73,6 +74,10 @@ def _setup(args):
                                  f"give the same file name prefix '{slug(n)}_' in --out, so "
                                  "one set of figures would overwrite the other; rename one")
     check_h(args.h, exps)
+    for e in exps:
+        warning = unloading_warning(e, model)
+        if warning:
+            rank0_print(COMM, f"warning: {warning}")
     if args.h is not None:
         check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
                    args.max_elements)

@@ -10,7 +10,6 @@ from dataclasses import replace
 import numpy as np
 
 from fabricsurf.experiments import three_zone as tz
-from fabricsurf.experiments.three_zone import zone_c_shear_angle
 
 KNEE = "initial knee (friction at the crossovers: no elastic term starts with a finite force)"
 BEYOND = "beyond locking (yarn slip, wrinkling: softer than any elastic shear response)"
@@ -44,7 +43,7 @@ def unexplained_ranges(d, error, measured, s_F: float, length: float, width: flo
             j += 1
         quiet_before = bool(np.all(np.abs(measured[:k]) < 3.0 * s_F))
         kind = KNEE if quiet_before else BEYOND if j == len(d) - 1 else MIDDLE
-        g = np.degrees(zone_c_shear_angle(d[[k, j]], length, width))
+        g = np.degrees(tz.zone_c_shear_angle(d[[k, j]], length, width))
         out.append({"kind": kind, "displacement_mm": [float(d[k]), float(d[j])],
                     "zone_c_angle_deg": [float(g[0]), float(g[1])],
                     "points": int(j - k + 1),
@@ -55,24 +54,10 @@ def unexplained_ranges(d, error, measured, s_F: float, length: float, width: flo
     return out
 
 
-def moduli_covariance(fm, free: list[int]) -> tuple[object, np.ndarray]:
-    """One forward run of ``fm`` at its current moduli with sensitivities: (prediction,
-    covariance of the moduli ``free``), Cov(p) = P Cov(θ) P with P = diag(p), θ = log p, as
-    :func:`fabricsurf.inverse.fitting.fit.covariance` (scaled by the reduced χ² without a stated
-    noise level). Used for combinations of moduli, e.g. the mean fibre stiffness (k_l + k_m)/2."""
-    from fabricsurf.inverse.fitting.fit import covariance
-
-    vals = fm.values()
-    pred = fm.run(sens=free)
-    r, Jr = fm.residuals(pred)
-    C = covariance(Jr * vals[free], float(r @ r), fm.noise_known)
-    return pred, C * np.outer(vals[free], vals[free])
-
-
 def up_to_angle(exp, max_deg: float):
     """A copy of the force-only bias experiment ``exp`` with the points whose zone-C angle
     (Cao et al. 2008 eq. 13) is at most ``max_deg``."""
-    keep = np.degrees(zone_c_shear_angle(exp.path, exp.length, exp.width)) <= max_deg
+    keep = np.degrees(tz.zone_c_shear_angle(exp.path, exp.length, exp.width)) <= max_deg
     n = int(keep.sum())
     return replace(exp, steps=np.arange(1, n + 1), path=exp.path[keep].copy(),
                    force=exp.force[keep].copy())
