@@ -8,7 +8,12 @@ error (the RMS field difference of the continuum at the lattice's moduli):
 
 - ``coverage``: the complete model fitted; the share of the 95 % intervals of the
   identifiable moduli that contain the lattice's (k_l, k_m = k_l, k_s, A_g), new and
-  classical ((JᵀJ)⁻¹ at the stated noise), with the median relative half-widths;
+  classical ((JᵀJ)⁻¹ at the stated noise), with the median relative half-widths and the
+  normalised errors z = (value − truth)/σ (σ = half-width / t95: RMS 1 when calibrated).
+  The lattice–continuum form error of one configuration is the same for every noise draw, so
+  draws of one configuration are not independent trials of the interval: ``--design
+  configurations`` varies the specimen, the lattice spacing and the bending length instead
+  (:data:`CONFIGURATIONS`, one draw each, white and DIC noise alternating);
 - ``null``: diagnoses of the complete model on its own lattice data (any verdict is a false
   alarm), the confirmed candidate's statistics recorded so that the Wald rule with and
   without the quarter-of-the-excess part and the old F-test rule are counted on the same sets;
@@ -48,6 +53,12 @@ REGIMES = {"soft": (30.0, 0.5, 0.05), "stiff": (1000.0, 0.4, 0.12)}  # k_l, k_s,
 BENDING_LENGTH = 5.0
 COMPLETE = ["fibre_stretch", "shear", "geodesic_bending"]
 NOISE_KINDS = ("white", "dic")
+CONFIGURATIONS = [  # regime, length, width (mm), lattice spacing (mm), bending length (mm)
+    (regime, length, width, spacing, l_b)
+    for regime in REGIMES
+    for (length, width, spacing), l_b in zip(
+        [(60.0, 30.0, 1.0), (48.0, 24.0, 1.0), (60.0, 30.0, 1.5), (72.0, 24.0, 1.5),
+         (54.0, 36.0, 1.0), (66.0, 22.0, 1.0)], (3.0, 4.0, 5.0, 6.0, 7.0, 8.0))]
 
 
 def truth(k_l: float, k_s: float, l_b: float) -> dict:
@@ -55,15 +66,17 @@ def truth(k_l: float, k_s: float, l_b: float) -> dict:
             "geodesic_bending": {"A_g": k_s * l_b**2}}
 
 
-def lattice(k_l: float, k_s: float, strain: float, l_b: float, steps: int = 3):
-    path = list(np.linspace(strain * LENGTH / steps, strain * LENGTH, steps))
-    exp = sy.template(LENGTH, WIDTH, path, np.zeros((0, 2)), name="calibration")
-    return sy.lattice_data(exp, 1.0, k_l=k_l, k_s=k_s, A_g=k_s * l_b**2, every=2)
+def lattice(k_l: float, k_s: float, strain: float, l_b: float, steps: int = 3,
+            size: tuple[float, float] = (LENGTH, WIDTH), spacing: float = 1.0):
+    path = list(np.linspace(strain * size[0] / steps, strain * size[0], steps))
+    exp = sy.template(*size, path, np.zeros((0, 2)), name="calibration")
+    return sy.lattice_data(exp, spacing, k_l=k_l, k_s=k_s, A_g=k_s * l_b**2, every=2)
 
 
 def form_error(exp, params: dict, h: float, comm) -> float:
     """RMS field difference (mm) of the continuum at the lattice's moduli."""
-    p = ForwardModel(exp, full_model(COMPLETE, params), h=h, comm=comm).run()
+    with ForwardModel(exp, full_model(COMPLETE, params), h=h, comm=comm) as fm:
+        p = fm.run()
     return float(np.sqrt(np.nanmean((p.u - exp.u[:, :2]) ** 2)))
 
 
@@ -72,8 +85,28 @@ def noisy(exp, std: float, kind: str, seed: int, corr: float):
     return sy.noisy_copy(exp, std, s_F, seed, corr if kind == "dic" else 0.0)
 
 
+def configuration_cases(a, comm):
+    """One case per configuration of :data:`CONFIGURATIONS` (module docstring)."""
+    for k, (regime, length, width, spacing, l_b) in enumerate(CONFIGURATIONS):
+        k_l, k_s, strain = REGIMES[regime]
+        params = truth(k_l, k_s, l_b)
+        try:
+            clean = lattice(k_l, k_s, strain, l_b, size=(length, width), spacing=spacing)
+        except ConvergenceError as e:
+            rank0_print(comm, f"configuration {k}: the lattice generator failed ({e}); left out")
+            continue
+        e_f = form_error(clean, params, a.h, comm)
+        kind = NOISE_KINDS[k % 2]
+        label = f"{regime} {length:g}x{width:g} a={spacing:g} l_b={l_b:g} {kind}"
+        yield label, kind, a.seed + k, noisy(clean, e_f, kind, 2000 + a.seed + k, a.corr), \
+            params, e_f
+
+
 def cases(a, comm, l_b: float = BENDING_LENGTH):
     """(regime, noise kind, seed, noisy data, true moduli, form error) for every case."""
+    if getattr(a, "design", "seeds") == "configurations":
+        yield from configuration_cases(a, comm)
+        return
     for regime, (k_l, k_s, strain) in REGIMES.items():
         params = truth(k_l, k_s, l_b)
         clean = lattice(k_l, k_s, strain, l_b)
@@ -95,6 +128,8 @@ def coverage_row(res, params: dict) -> dict:
         lo, hi = m["ci95"]
         out[name] = {"truth": true, "value": m["value"], "identifiable": m["identifiable"],
                      "covered": bool(lo <= true <= hi),
+                     "z": (m["value"] - true) / max((hi - lo) / 2 / res.statistical.t95(),
+                                                    1e-300),
                      "covered_classical": bool(abs(m["value"] - true) <= 1.96 * naive[k]),
                      "half_width_rel": (hi - lo) / 2 / true,
                      "half_width_rel_classical": 1.96 * naive[k] / true,
@@ -113,8 +148,10 @@ def part_coverage(a, comm, say) -> list[dict]:
         free = [i for i, (t, _) in enumerate(fm.params) if t.name in COMPLETE]
         res = fit(fm, free, verbose=False, scale_start=False, space="linear")
         res.check_mesh(fm)
+        fm.close()
         st = res.statistical
-        rows.append({"regime": regime, "noise": kind, "seed": seed, "noise_mm": e_f,
+        rows.append({"regime": regime, "design": a.design, "noise": kind, "seed": seed,
+                     "noise_mm": e_f,
                      "moduli": coverage_row(res, params), "design_effect": st.design_effect,
                      "blocks": st.n_blocks, "misfit": res.misfit["combined"],
                      "seconds": time.perf_counter() - t0})
@@ -161,6 +198,7 @@ def part_detect(a, comm, say) -> list[dict]:
                              verbose=False)
                 fm = ForwardModel(exp, full_model(COMPLETE, params), h=a.h, comm=comm)
                 floor = fm.misfit(fm.run())["combined"]
+                fm.close()
                 base = d.base_fit.misfit["combined"]
                 signal = float(np.sqrt(max(base**2 - floor**2, 0.0)))
                 rows.append({"regime": regime, "noise": kind, "seed": seed, "l_b_mm": l_b,
@@ -184,6 +222,13 @@ def summary(data: dict) -> dict:
         w = [m[key] for r in cov for m in r["moduli"].values() if m["identifiable"]]
         out["median_" + key] = float(np.median(w)) if w else None
     out["coverage_intervals"] = sum(m["identifiable"] for r in cov for m in r["moduli"].values())
+    z = [m["z"] for r in cov for m in r["moduli"].values() if m["identifiable"] and "z" in m]
+    out["rms_z"] = float(np.sqrt(np.mean(np.square(z)))) if z else None
+    for design in ("seeds", "configurations"):
+        hits = [m["covered"] for r in cov if r.get("design", "seeds") == design
+                for m in r["moduli"].values() if m["identifiable"]]
+        out[f"covered_{design}"] = float(np.mean(hits)) if hits else None
+        out[f"intervals_{design}"] = len(hits)
     null = data.get("null", [])
     for rule in ("rule_wald", "rule_wald_and_share", "rule_old"):
         out["false_alarms_" + rule] = (float(np.mean([bool(r["candidate"].get(rule))
@@ -203,6 +248,9 @@ def main() -> None:
     ap.add_argument("--out", default="out/calibrate_uncertainty")
     ap.add_argument("--part", required=True, choices=("coverage", "null", "detect"))
     ap.add_argument("--count", type=int, default=2, help="noise draws per regime and kind")
+    ap.add_argument("--design", default="seeds", choices=("seeds", "configurations"),
+                    help="coverage over noise draws of two configurations, or over the "
+                    "configurations of CONFIGURATIONS (one draw each)")
     ap.add_argument("--seed", type=int, default=0, help="first noise draw (runs that add to OUT "
                     "give a new one)")
     ap.add_argument("--h", type=float, default=3.0, help="model element size (mm)")

@@ -180,19 +180,19 @@ with io.XDMFFile(comm, out / "dispersion_modes.xdmf", "w") as xdmf:
 # ½β(qε)² = 1 %), `geodesic_bending` moves it far out, and A_s > 0 moves the longitudinal one in.
 
 # %%
-summary = {"part1_chain_seed002": res1, "part2_hencky_fabric": res2}
+summary = {"part1_chain": res1, "part2_hencky_fabric": res2}
 if comm.rank == 0:
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
 CHECKS = {
-    "part1_chain_seed002/chain_engine_max_rel_err_vs_eq12": (0.0, 1e-12),
-    "part1_chain_seed002/continuum/2/fe_max_rel_err_vs_formula_qD_le_1.5": (0.0, 1e-9),
-    "part1_chain_seed002/continuum/4/fe_max_rel_err_vs_formula_qD_le_1.5": (0.0, 1e-6),
-    "part1_chain_seed002/continuum/6/fe_max_rel_err_vs_formula_qD_le_1.5": (0.0, 1e-5),
-    "part1_chain_seed002/continuum/2/omega2_error_order_measured": (3.9, 4.1),
-    "part1_chain_seed002/continuum/4/omega2_error_order_measured": (5.9, 6.1),
-    "part1_chain_seed002/continuum/6/omega2_error_order_measured": (7.9, 8.1),
-    "part1_chain_seed002/ill_posedness/order4_min_eigenvalue_exponent_in_h": (-4.1, -3.9),
-    "part1_chain_seed002/ill_posedness/min_eigenvalue_order6/*": (0.0, None),
+    "part1_chain/chain_engine_max_rel_err_vs_eq12": (0.0, 1e-12),
+    "part1_chain/continuum/2/fe_max_rel_err_vs_formula_qD_le_1.5": (0.0, 1e-9),
+    "part1_chain/continuum/4/fe_max_rel_err_vs_formula_qD_le_1.5": (0.0, 1e-6),
+    "part1_chain/continuum/6/fe_max_rel_err_vs_formula_qD_le_1.5": (0.0, 1e-5),
+    "part1_chain/continuum/2/omega2_error_order_measured": (3.9, 4.1),
+    "part1_chain/continuum/4/omega2_error_order_measured": (5.9, 6.1),
+    "part1_chain/continuum/6/omega2_error_order_measured": (7.9, 8.1),
+    "part1_chain/ill_posedness/order4_min_eigenvalue_exponent_in_h": (-4.1, -3.9),
+    "part1_chain/ill_posedness/min_eigenvalue_order6/*": (0.0, None),
     "part2_hencky_fabric/bloch_vs_closed_form_max_rel_err": (0.0, 1e-6),
     "part2_hencky_fabric/fe_max_rel_err_vs_formula/*/all": (0.0, 1e-4),
     "part2_hencky_fabric/geodesic_bending_moves_departure_by_factor": (5.0, None),

@@ -37,6 +37,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
+from fabricsurf.cli.measure import result_lines
 from fabricsurf.discretise.output import rank0_print, write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
@@ -111,6 +112,7 @@ verdict = diag["verdict"]
 terms = "fibre_stretch,shear" + (f",{verdict}" if verdict else "")
 fm = ForwardModel(exp, parse_terms(terms, diag["final"]["params"]), h=args.h)
 refit = fit(fm, verbose=False, scale_start=False)
+refit.check_mesh(fm)  # the mesh part of the moduli's intervals (one run at h/2)
 BiasExtension(fm.model, exp.length, exp.width, args.h).run(
     float(exp.path[-1]), len(exp.path), out=out / "final_model", verbose=False)  # XDMF
 
@@ -138,17 +140,23 @@ say(f"verdict: {verdict}; not identifiable from planar data: "
     f"{[r['effect'] for r in diag['not_identifiable']]}")
 say(f"after adding {verdict}: combined misfit {a['combined']:.3f}, field RMS "
     f"{a['field_rms']:.4f} mm (noise {exp.noise_std} mm), force RMS {a['force_rms']:.4f} N")
-for n, v, s in zip(refit.names, refit.values, refit.std):
-    say(f"  {n:22s} = {v:8.4g} ± {s:.2g}   lattice value {TRUTH[n.split('.')[1][:3]]:g}"
-        if n.split(".")[1][:3] in TRUTH else f"  {n:22s} = {v:8.4g} ± {s:.2g}")
+final = refit.as_dict()
+for line in result_lines(final):  # 95 % intervals with their parts, as the CLI prints them
+    say(line)
+say(f"  lattice values: k_l = k_m = {TRUTH['k_l']:g} N/mm, k_s = {TRUTH['k_s']:g} N/mm, "
+    f"A_g = {TRUTH['A_g']:g} N·mm")
 summary = {"truth": TRUTH, "baseline_misfit": b["misfit"], "verdict": verdict,
            "ranking": [(r["effect"], r["score"], r["refit_misfit"]) for r in diag["ranking"]],
            "refit_misfit": a["combined"], "refit_params": refit.params(),
-           "refit_std": refit.as_dict()["std"], "adequate": diag["adequate"],
+           "refit_std": final["std"], "adequate": diag["adequate"],
+           "final": {k: final[k] for k in ("moduli", "identifiable_combinations",
+                                           "weak_directions", "undetermined", "uncertainty")},
            "misfit_complete_model_at_truth": form, "spacing": args.spacing, "noise": args.noise,
            "path": diag["path"],
            "seconds": time.perf_counter() - t_start}
 write_json(comm, out / "summary.json", summary)
+fm.close()
+fm_true.close()
 
 # %% [markdown]
 # ## Checks
@@ -159,7 +167,10 @@ write_json(comm, out / "summary.json", summary)
 # %%
 CHECKS = {"verdict": "geodesic_bending", "refit_params/geodesic_bending/A_g": (0.0, None),
           "baseline_misfit": (0.0, None), "refit_misfit": (0.0, None), "adequate": ...,
-          "ranking": ..., "refit_std": ..., "misfit_complete_model_at_truth": (0.0, None)}
+          "ranking": ..., "refit_std": ..., "misfit_complete_model_at_truth": (0.0, None),
+          "final/moduli/geodesic_bending.A_g/ci95": ...,
+          "final/moduli/fibre_stretch.k_l/identifiable": True,
+          "final/moduli/shear.k_s/systematic_mesh": (0.0, None)}
 verify(summary, CHECKS)
 assert a["combined"] < b["misfit"] and len(diag["path"]) == 2
 assert a["combined"] <= form * 1.05, (a["combined"], form)  # the fit is as good as the truth

@@ -9,7 +9,7 @@
 # %% [markdown]
 # # The hyperbolic paraboloid: an exact solution of the fabric-surface theory
 #
-# Seed 001 §5 (Steigmann & dell'Isola 2015) shows that the generalised hyperbolic paraboloids
+# Steigmann & dell'Isola 2015 (§5) show that the generalised hyperbolic paraboloids
 #
 # $$ r(\theta) = a\,\theta^1\theta^2 + b\,\theta^1 + c\,\theta^2 + d \qquad (98) $$
 #

@@ -45,6 +45,7 @@ from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.fitting.band import write_band
 from fabricsurf.inverse.fitting.diagnose import diagnose
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
@@ -187,7 +188,7 @@ ideal = {k: float(tz.kinematic_force(float(k), 450.0, 150.0, final_params)) for 
 band = wv.prediction_band(final.as_dict(), diag.terms, final_params, d_pred, 450.0, 150.0,
                           H_MESH, comm, clamp=full.setup.options.get("clamp", "gradient"))
 half = np.array(band["half_width"])
-on_rank0(comm, wv.write_band, out / "prediction_150x450_band.csv", d_pred, band)
+on_rank0(comm, write_band, out / "prediction_150x450_band.csv", band)
 say("prediction 150 x 450: " + ", ".join(
     f"F({k} mm) = {v:.2f} ± {np.interp(float(k), d_pred, half):.2f} N" for k, v in at.items())
     + f"; valid to {valid_to:.1f} mm (zone-C angle {valid_deg:.1f} deg)")

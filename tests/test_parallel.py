@@ -1,4 +1,4 @@
-"""Results agree between 1 and 2 ranks (docs/theory.md, §8).
+"""Results agree between 1 and 2 ranks (docs/verification.md, "Parallel").
 
 The same bias-extension problem (gmsh builds the identical mesh on any number of ranks) is
 solved on a distributed mesh and on the whole mesh in one process: the reaction force, the

@@ -1,4 +1,4 @@
-"""Observed rates and Richardson extrapolation (verification.rates.richardson_summary)."""
+"""Observed rates and Richardson extrapolation (research.verification.rates.richardson_summary)."""
 
 import pytest
 

@@ -222,3 +222,37 @@ def test_fit_contract_and_params_read_back(tmp_path):
     write_json(comm, path, saved)
     comm.barrier()
     assert load_params(path) == json.loads(path.read_text())["params"]
+    bands_from_the_saved_fit(path, exp, truth, comm)
+
+
+def bands_from_the_saved_fit(fit_json, exp, truth: dict, comm) -> None:
+    """compare and bias with --params fit.json carry the fit's uncertainty into their force
+    curves: compare's band around the fitted prediction contains the force of the true moduli
+    at every step (their interval contains the truth, and the force is linear in them here);
+    bias, whose own solve is another code path, predicts the band's centre."""
+    import json
+
+    from fabricsurf.cli import main
+    from fabricsurf.inverse.contract.data import write_experiment
+    from fabricsurf.inverse.fitting.diagnose import full_model
+    from fabricsurf.inverse.fitting.forward import ForwardModel
+
+    root = fit_json.parent
+    if comm.rank == 0:
+        write_experiment(root / "data", exp)
+    comm.barrier()
+    assert main(["compare", str(root / "data"), "--params", str(fit_json), "--h", "4",
+                 "--out", str(root / "cmp")]) == 0
+    comm.barrier()
+    band = np.loadtxt(root / "cmp" / "force_band.csv", delimiter=",", skiprows=1)
+    info = json.loads((root / "cmp" / "misfit.json").read_text())["force_bands"][exp.name]
+    assert info["reliable"] and (root / "cmp" / "force_band.png").is_file()
+    with ForwardModel(exp, full_model(list(truth), truth), h=4.0, comm=comm) as fm:
+        f_true = fm.run().force
+    assert np.all((band[:, 2] <= f_true) & (f_true <= band[:, 3])), (band, f_true)
+    assert main(["bias", "--params", str(fit_json), "--length", "48", "--width", "24",
+                 "--h", "4", "--ubar", "2", "--steps", "2", "--out", str(root / "bias")]) == 0
+    comm.barrier()
+    s = json.loads((root / "bias" / "summary.json").read_text())
+    assert np.allclose(s["force_band"]["force"], s["force"], rtol=1e-6)
+    assert (root / "bias" / "force_band.csv").is_file()

@@ -5,14 +5,19 @@
 
 ``--params`` is a JSON file {"term": {"parameter": value}} (units: N/mm, N·mm). Writes
 OUT/bias.xdmf (u, λ, μ, γ, J per step), OUT/bias_steps.csv|json, OUT/bias_curve.json,
-OUT/force.png and OUT/summary.json.
+OUT/force.png and OUT/summary.json. When ``--params`` is a saved fit (fit.json or
+model_best.json, with the moduli's covariance), the force curve also gets its 95 %
+prediction band (docs/uncertainty.md): OUT/force_band.csv, OUT/force_band.png and
+``force_band`` in summary.json; ``--no-band`` skips it (it costs two more forward runs).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli.options import add_max_elements, check_size
@@ -25,7 +30,7 @@ from fabricsurf.inverse.fitting.params import load_params, parse_model, provenan
 from fabricsurf.model.terms import EFFECTS
 
 OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
-           "force.png", "summary.json", "failure.json")
+           "force.png", "force_band.csv", "force_band.png", "summary.json", "failure.json")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -53,6 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "model of --terms)")
     p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
                    help="gradient: u and its normal derivative held; position: u only")
+    p.add_argument("--no-band", action="store_true",
+                   help="no prediction band even when --params is a saved fit")
     add_max_elements(p)
 
 
@@ -63,6 +70,46 @@ def _model(args) -> list:
     if args.terms or params:
         return parse_model(args.terms, params)
     return default_model()
+
+
+def _saved_fit(args) -> dict | None:
+    """The --params file's contents when they carry a covariance (a band can be given)."""
+    from fabricsurf.inverse.fitting.band import has_covariance
+
+    if args.params is None or args.no_band:
+        return None
+    saved = json.loads(args.params.read_text(encoding="utf-8"))
+    return saved if has_covariance(saved) else None
+
+
+def predicted_band(saved: dict, model: list, length: float, width: float, path, h: float,
+                   clamp: str = "gradient", comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """The force curve of a ``length`` × ``width`` bias specimen along the grip displacements
+    ``path`` at the moduli of a saved fit, with its 95 % band
+    (:func:`~fabricsurf.inverse.fitting.band.force_band`: statistical, model-form and mesh
+    parts, and whether the linearisation holds)."""
+    from fabricsurf.inverse.fitting.band import force_band
+    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.synthetic.generate import template
+
+    exp = template(length, width, path, np.zeros((0, 2)), clamp=clamp,
+                   name=f"prediction {length:g} x {width:g} mm")
+    with ForwardModel(exp, model, h=h, comm=comm) as fm:
+        return force_band(fm, saved)
+
+
+def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dict:
+    """The band of this run's force curve (:func:`predicted_band`), with its CSV and figure."""
+    from fabricsurf.inverse.fitting.band import write_band
+    from fabricsurf.inverse.plots.figures import force_band as band_figure
+
+    band = predicted_band(saved, model, args.length, args.width,
+                          np.linspace(ubar / args.steps, ubar, args.steps), args.h, args.clamp,
+                          comm)
+    on_rank0(comm, write_band, stage / "force_band.csv", band)
+    on_rank0(comm, band_figure, band, stage / "force_band.png",
+             f"bias {args.length:g} x {args.width:g} mm at the moduli of {args.params.name}")
+    return band
 
 
 def _check(args) -> float:
@@ -85,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     ubar = _check(args)
     model = _model(args)
+    saved = _saved_fit(args)
     od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS,
                    inputs=((f"--params {args.params}", args.params),) if args.params else ())
     rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
@@ -111,6 +159,12 @@ def run(args: argparse.Namespace) -> int:
         summary |= {"ubar": res.ubar, "force": res.force, "angle_A_deg": res.angle_A_deg,
                     "angle_B_deg": res.angle_B_deg, "newton_iterations": res.newton,
                     "seconds": res.seconds, "ranks": comm.size}
+        if saved is not None:
+            band = summary["force_band"] = _band(args, model, ubar, saved, stage, comm)
+            half, F = band["half_width"][-1], band["force"][-1]
+            rank0_print(comm, f"prediction band at ubar = {ubar:g} mm: {F:.4g} ± {half:.2g} N "
+                              f"(95 %; linearisation "
+                              f"{'holds' if band['reliable'] else 'fails: refit instead'})")
         write_json(comm, stage / "summary.json", summary)
         on_rank0(comm, plot_curves, res, stage / "force.png")
     rank0_print(comm, f"done in {res.seconds:.1f} s; XDMF, force curve and summary in {args.out}")

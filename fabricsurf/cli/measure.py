@@ -122,21 +122,41 @@ def _prov(model, fs, args) -> dict:
                                      [m.h for m in fs.models])}
 
 
+def _saved_fit(args) -> dict | None:
+    """The --params file's contents when it is a saved fit with a covariance (and the band is
+    wanted), else None."""
+    import json
+
+    from fabricsurf.inverse.fitting.band import has_covariance
+
+    if args.params is None or args.no_band:
+        return None
+    with open(args.params, encoding="utf-8") as f:
+        saved = json.load(f)
+    return saved if has_covariance(saved) else None
+
+
 def cmd_compare(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
-    from fabricsurf.inverse.plots.outputs import write_comparison
+    from fabricsurf.inverse.plots.outputs import write_bands, write_comparison
 
     exps, model, _ = _setup(args)
     steps = error_map_steps(args.steps, exps)
+    saved = _saved_fit(args)
     od = OutputDir(args.out, COMM, files=("misfit.json",),
                    inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
-        fs = ForwardSet(exps, model, h=args.h, comm=COMM)
-        preds = fs.run()
-        m = fs.misfit(preds)
+        with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
+            preds = fs.run()
+            m = fs.misfit(preds)
+            extra = _prov(model, fs, args)
+            if saved is not None:
+                try:
+                    extra["force_bands"] = write_bands(stage, fs, saved, COMM)
+                except ValueError as e:
+                    raise InputError(f"--params {args.params}: {e}") from None
         label = "+".join(t.name for t in model)
-        write_comparison(stage, exps, [(label, preds)], [(label, m)], steps,
-                         extra=_prov(model, fs, args))
+        write_comparison(stage, exps, [(label, preds)], [(label, m)], steps, extra=extra)
     rank0_print(COMM, _summary(label, m))
     return 0
 
@@ -184,10 +204,11 @@ def cmd_fit(args) -> int:
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
                    inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
-        fs = ForwardSet(exps, model, h=args.h, comm=COMM)
-        res = fit(fs, verbose=True)
-        res.check_mesh(fs)
-        write_json(COMM, stage / "fit.json", res.as_dict() | _prov(model, fs, args))
+        with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
+            res = fit(fs, verbose=True)
+            res.check_mesh(fs)
+            extra = _prov(model, fs, args)
+        write_json(COMM, stage / "fit.json", res.as_dict() | extra)
         label = "fit: " + "+".join(t.name for t in model)
         write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
     for line in result_lines(res.as_dict()):
@@ -260,6 +281,9 @@ def add_parsers(sub, formatter) -> None:
     add_common(p, terms_required=False)
     p.add_argument("--steps", default=None, help="comma-separated step numbers (as in the "
                    "data files, from 1) for the error map (default: the middle and the last)")
+    p.add_argument("--no-band", action="store_true", help="no prediction band of the force "
+                   "curves even when --params is a saved fit (fit.json, model_best.json: the "
+                   "band costs two more forward runs per experiment)")
     p.set_defaults(func=cmd_compare)
     p = sub.add_parser("fit", formatter_class=formatter,
                        help="least-squares fit of the moduli (log-parametrised)")

@@ -55,7 +55,8 @@ def nested_dissection(xy: np.ndarray, graph: sp.csr_matrix) -> np.ndarray:
 class MumpsLU:
     """Symmetric (LDLᵀ, indefinite allowed) factorisation of a lattice Hessian block with MUMPS
     on one process — cheaper than its LU on the benchmark lattice (docs/network.md); ``solve(b)``
-    like splu."""
+    like splu. Its PETSc objects live on one process, so :meth:`close` (also run when it goes)
+    is safe at any time."""
 
     def __init__(self, A: sp.spmatrix) -> None:
         from petsc4py import PETSc
@@ -78,6 +79,18 @@ class MumpsLU:
         self.b.array[:] = b
         self.ksp.solve(self.b, self.x)
         return self.x.array.copy()
+
+    def close(self) -> None:
+        """Destroy the factorisation, the matrix and the work vectors."""
+        for obj in (self.ksp, self.mat, self.x, self.b):
+            if obj.handle:
+                obj.destroy()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # a fallback at teardown must never raise
+            pass
 
 
 def factorise(A: sp.spmatrix):
@@ -109,6 +122,8 @@ class FreeDofSolver:
         self.stats = {"factorisations": 0, "krylov_iterations": 0}
 
     def _factorise(self, A: sp.csc_matrix) -> None:
+        if isinstance(self.lu, MumpsLU):
+            self.lu.close()
         self.lu = factorise(A)
         self.stats["factorisations"] += 1
 

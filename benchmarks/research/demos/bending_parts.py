@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricsurf.experiments.cantilever import CantileverTest, weight_per_area
+from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
 from fabricsurf.inverse.synthetic import generate as sy
 from research.verification.elastica import peirce_bending_length, solve_elastica
 
@@ -138,3 +138,24 @@ def fit_each_alone(exps: dict, model_for, h: float, rho: float) -> dict:
                        "adequate": sg.adequate(res.chi2, res.misfit["n"], 1),
                        "forward_runs": res.forward_runs}
     return alone
+
+
+def report_diagnosis(d, say, seconds: float) -> tuple[dict, dict]:
+    """Print the diagnosis of the two strips (verdict, per-strip misfits, ranking, fitted
+    moduli against the truth); return the fitted (value, std) by "term.param" and the
+    per-experiment misfits of the baseline and final fits."""
+    base, final = d.base_fit, d.final_fit
+    fitted = {n: (float(v), float(s)) for n, v, s in zip(final.names, final.values, final.std)}
+    per = {"baseline": {e["experiment"]: e["combined"] for e in base.misfit["experiments"]},
+           "final": {e["experiment"]: e["combined"] for e in final.misfit["experiments"]}}
+    say(f"verdict: {d.verdict}; adequate: {d.adequate}; misfit {base.misfit['combined']:.3f} -> "
+        f"{final.misfit['combined']:.3f} ({seconds:.0f} s, "
+        f"{base.forward_runs + final.forward_runs} forward runs in the two fits)")
+    for name in per["baseline"]:
+        say(f"  {name}: misfit {per['baseline'][name]:.3f} -> {per['final'][name]:.3f}")
+    for r in d.ranking:
+        say(f"  {r['effect']:15s} score {r['score']:10.1f} refit misfit {r['refit_misfit']}")
+    kb, kt = fitted["normal_bending.k_b"], fitted.get("twist.k_t", (0.0, 0.0))
+    say(f"k_b = {kb[0]:.5f} ± {kb[1]:.5f} N·mm (truth 0.02; {rigidity_uNm(kb[0]):.2f} µN·m), "
+        f"k_t = {kt[0]:.5f} ± {kt[1]:.5f} N·mm (truth 0.01)")
+    return fitted, per

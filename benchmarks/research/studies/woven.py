@@ -148,12 +148,6 @@ def read_json(comm, path) -> dict:
     return comm.bcast(json.loads(Path(path).read_text()) if comm.rank == 0 else None)
 
 
-def write_band(path, d, band: dict) -> None:
-    """The prediction band as CSV: ``displacement,force,lower,upper`` (mm, N)."""
-    np.savetxt(path, np.column_stack([d, band["force"], band["lower"], band["upper"]]),
-               delimiter=",", fmt="%.6g", header="displacement,force,lower,upper", comments="")
-
-
 def write_curve(path, d, force) -> None:
     """A force curve as CSV with the columns ``displacement,force`` (mm, N)."""
     np.savetxt(path, np.column_stack([d, force]), delimiter=",", fmt="%.6g",
@@ -163,15 +157,10 @@ def write_curve(path, d, force) -> None:
 def prediction_band(fit: dict, terms: list[str], params: dict, d, length: float, width: float,
                     h: float, comm, clamp: str = "gradient") -> dict:
     """The force curve of a bias specimen ``length`` × ``width`` along the displacements ``d``
-    at the moduli of ``fit`` (a fit's ``as_dict()``), with the 95 % band of
-    :func:`fabricsurf.inverse.fitting.band.force_band` (statistical, model-form and mesh
-    parts, and whether the linearisation holds)."""
-    from fabricsurf.inverse.fitting.band import force_band
-    from fabricsurf.inverse.fitting.forward import ForwardModel
-    from fabricsurf.inverse.synthetic.generate import template
+    at the moduli of ``fit`` (a fit's ``as_dict()``) with its 95 % band, as ``fabricsurf bias
+    --params`` gives it (:func:`fabricsurf.cli.bias.predicted_band`)."""
+    from fabricsurf.cli.bias import predicted_band
     from fabricsurf.model.terms import parse_terms
 
-    exp = template(length, width, d, np.zeros((0, 2)), clamp=clamp,
-                   name=f"prediction {width:g} x {length:g} mm")
-    return force_band(ForwardModel(exp, parse_terms(",".join(terms), params), h=h, comm=comm),
-                      fit)
+    return predicted_band(fit, parse_terms(",".join(terms), params), length, width, d, h, clamp,
+                          comm)

@@ -71,6 +71,20 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
     return out
 
 
+def has_covariance(saved: dict) -> bool:
+    """Whether a params file's contents carry the covariance a band needs (fit.json or
+    model_best.json written by fit or diagnose)."""
+    return bool((saved.get("uncertainty") or {}).get("covariance"))
+
+
+def write_band(path: str | Path, band: dict, load_label: str = "displacement") -> None:
+    """The band as CSV with the columns ``<load_label>,force,lower,upper`` (the load path's
+    unit, N); rank 0 writes (call it there)."""
+    rows = np.column_stack([band["load"], band["force"], band["lower"], band["upper"]])
+    np.savetxt(path, rows, delimiter=",", fmt="%.6g",
+               header=f"{load_label},force,lower,upper", comments="")
+
+
 def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
               C: np.ndarray, t: float, force: np.ndarray, half: np.ndarray) -> float:
     """max_k |F_k(p + Δp) − F_k(p) − g_k·Δp| / half-width_k, Δp the covariance's leading

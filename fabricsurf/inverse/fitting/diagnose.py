@@ -179,50 +179,50 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         exps, grip_depths, lambda: full_model(baseline, params, visible),
         [n for n in baseline if n not in fixed], h, comm, verbose)
     exps = exps if grip is None else [with_depth(e, grip["best_mm"]) for e in exps]
-    fs = ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm)
-    idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
-    free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
-    say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
-    t0 = MPI.Wtime()
-    cur = base = fit(fs, free, verbose=verbose, space="linear")
-    t_fit = MPI.Wtime() - t0
-    terms, path, rankings, added, alternatives = list(baseline), [], [], [], []
-    path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})
-    say(f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
-    while True:
-        cand = {n: idx_of[n] for n in visible if n not in terms and idx_of[n]}
-        ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
-        if not cand or (ok and rankings) or len(added) >= max_effects:
-            break
-        rows, refits = _rank_round(fs, cur, free, cand, confirm, verbose)
-        rankings.append(rows)
-        sig = [q for q in rows if q["significant"]]
-        if ok or not sig:
-            break
-        c = sig[0]["effect"]
-        if not added:
-            s2 = max(1.0, sg.reduced(sig[0]["refit_chi2"], cur.misfit["n"], len(free) + 1))
-            alternatives = [q["effect"] for q in sig[1:]
-                            if q["refit_chi2"] - sig[0]["refit_chi2"] < sg.CHI2_CRIT * s2]
-        cur, free = refits[c], sorted(free + cand[c])
-        terms.append(c)
-        added.append(c)
-        path.append({"added": c, "misfit": cur.misfit["combined"], "chi2": cur.chi2})
-        say(f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
-    fs.set_values(cur.values)
-    chi2_h = None
-    if check_discretisation:
-        cur.check_mesh(fs)
-        chi2_h = cur.chi2_h
-    ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
-    invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
-                 for n in EFFECTS if n not in seen and n not in baseline]
-    return Diagnosis(
-        baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
-        ranking=rankings[0] if rankings else [], rounds=rankings,
-        verdict=added[0] if added else None, alternatives=alternatives, adequate=ok, path=path,
-        not_identifiable=invisible, discretisation_chi2=chi2_h,
-        unexplained=None if ok else where_unexplained(
-            exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not
-            any(q["significant"] for q in rankings[-1]) else None),
-        fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip)
+    with ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm) as fs:
+        idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
+        free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
+        say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
+        t0 = MPI.Wtime()
+        cur = base = fit(fs, free, verbose=verbose, space="linear")
+        t_fit = MPI.Wtime() - t0
+        terms, path, rankings, added, alternatives = list(baseline), [], [], [], []
+        path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})
+        say(f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
+        while True:
+            cand = {n: idx_of[n] for n in visible if n not in terms and idx_of[n]}
+            ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
+            if not cand or (ok and rankings) or len(added) >= max_effects:
+                break
+            rows, refits = _rank_round(fs, cur, free, cand, confirm, verbose)
+            rankings.append(rows)
+            sig = [q for q in rows if q["significant"]]
+            if ok or not sig:
+                break
+            c = sig[0]["effect"]
+            if not added:
+                s2 = max(1.0, sg.reduced(sig[0]["refit_chi2"], cur.misfit["n"], len(free) + 1))
+                alternatives = [q["effect"] for q in sig[1:]
+                                if q["refit_chi2"] - sig[0]["refit_chi2"] < sg.CHI2_CRIT * s2]
+            cur, free = refits[c], sorted(free + cand[c])
+            terms.append(c)
+            added.append(c)
+            path.append({"added": c, "misfit": cur.misfit["combined"], "chi2": cur.chi2})
+            say(f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
+        fs.set_values(cur.values)
+        chi2_h = None
+        if check_discretisation:
+            cur.check_mesh(fs)
+            chi2_h = cur.chi2_h
+        ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
+        invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
+                     for n in EFFECTS if n not in seen and n not in baseline]
+        return Diagnosis(
+            baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
+            ranking=rankings[0] if rankings else [], rounds=rankings,
+            verdict=added[0] if added else None, alternatives=alternatives, adequate=ok, path=path,
+            not_identifiable=invisible, discretisation_chi2=chi2_h,
+            unexplained=None if ok else where_unexplained(
+                exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not
+                any(q["significant"] for q in rankings[-1]) else None),
+            fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip)

@@ -79,9 +79,10 @@ def grip_profile(exps: list[Experiment], depths: list[float],
     common = [outside_grips(e, max(depths)) for e in exps]
     rows = []
     for d in sorted(set(float(x) for x in depths)):
-        fs = ForwardSet([with_depth(e, d) for e in common], make_model(), h=h, comm=comm)
-        free = [i for i, (t, _) in enumerate(fs.params) if t.name in free_terms]
-        res = fit(fs, free, verbose=verbose, space="linear")
+        with ForwardSet([with_depth(e, d) for e in common], make_model(), h=h,
+                        comm=comm) as fs:
+            free = [i for i, (t, _) in enumerate(fs.params) if t.name in free_terms]
+            res = fit(fs, free, verbose=verbose, space="linear")
         rows.append({"depth_mm": d, "chi2": res.chi2, "misfit": res.misfit["combined"],
                      "n": res.misfit["n"], "params": res.params()})
         if verbose:

@@ -36,7 +36,8 @@ def mesh_difference(fm, preds, comm) -> np.ndarray:
     preds = preds if isinstance(preds, list) else [preds]
     out = []
     for m, p in zip(_models(fm), preds):
-        fine = ForwardModel(m.exp, m.model, h=m.h / 2, comm=comm).run()
+        with ForwardModel(m.exp, m.model, h=m.h / 2, comm=comm) as fm_fine:
+            fine = fm_fine.run()
         u = np.where(np.isfinite(fine.u).all(axis=1)[:, None], fine.u, p.u)
         r_h, _ = mf.residuals(m.exp, p)
         r_f, _ = mf.residuals(m.exp, Prediction(u, fine.force))

@@ -60,6 +60,27 @@ def force_curves(exp: Experiment, preds: list[tuple[str, object]], path: Path) -
     plt.close(fig)
 
 
+def force_band(band: dict, path: Path, title: str, measured: tuple | None = None,
+               xlabel: str = "grip displacement (mm)") -> None:
+    """A predicted force curve with its 95 % band (:func:`~fabricsurf.inverse.fitting.band.
+    force_band`), and measured points ``(load, force)`` when given; the title says whether the
+    linearisation held."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    ax.fill_between(band["load"], band["lower"], band["upper"], color="C0", alpha=0.3,
+                    label="95 % band")
+    ax.plot(band["load"], band["force"], "C0-", label="prediction")
+    if measured is not None:
+        ax.plot(*measured, "ko", ms=3, label="measured")
+    note = {True: "linear band checked", False: "band unreliable (nonlinear)",
+            None: "linearity not checked"}[band["reliable"]]
+    ax.set(xlabel=xlabel, ylabel="force (N)", title=f"{title}\n{note}")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def error_vs_step(exp: Experiment, misfits: list[tuple[str, dict]], path: Path) -> None:
     """Field RMS error (mm) and |force error| (N) per step, with the noise levels."""
     plt = _plt()

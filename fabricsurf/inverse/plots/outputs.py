@@ -9,6 +9,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import on_rank0, write_json
+from fabricsurf.experiments import get_test
+from fabricsurf.inverse.fitting.band import force_band, write_band
 from fabricsurf.inverse.fitting.fit import strip_rows
 from fabricsurf.inverse.plots import figures
 
@@ -54,3 +56,28 @@ def write_comparison(out: Path, exps: list, preds: list[tuple[str, list]],
         per_m = [(lab, mm["experiments"][i]) for lab, mm in misfits]
         per_p = [(lab, pp[i]) for lab, pp in preds]
         on_rank0(comm, _figures, out, exp, per_p, per_m, steps, pre)
+
+
+def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """The 95 % prediction band of every measured force curve of the ForwardSet ``fs`` at the
+    moduli of a saved fit ``saved`` (:func:`~fabricsurf.inverse.fitting.band.force_band`):
+    ``{prefix}force_band.csv`` and ``.png`` per experiment (prefixed as in
+    :func:`write_comparison`); returns {experiment: {"half_width", "reliable",
+    "nonlinearity"}}. The saved fit's moduli must all be in the model."""
+    missing = sorted(set(saved["uncertainty"]["covariance"]["names"]) - set(fs.names))
+    if missing:
+        raise ValueError(f"the saved fit's moduli {missing} are not in the model; a band "
+                         "needs the fitted model's terms")
+    bands = {}
+    for m in fs.models:
+        if not m.exp.has_force:
+            continue
+        band = force_band(m, saved)
+        pre = "" if len(fs.models) == 1 else f"{slug(m.exp.name)}_"
+        label = get_test(m.exp.test).path_label
+        on_rank0(comm, write_band, out / f"{pre}force_band.csv", band, "load")
+        on_rank0(comm, figures.force_band, band, out / f"{pre}force_band.png",
+                 f"{m.exp.name}: prediction at the saved fit", (m.exp.path, m.exp.force),
+                 xlabel=label)
+        bands[m.exp.name] = {k: band[k] for k in ("half_width", "reliable", "nonlinearity")}
+    return bands

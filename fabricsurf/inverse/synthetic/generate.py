@@ -103,7 +103,8 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
     from fabricsurf.inverse.fitting.forward import ForwardModel
 
     exp.u = np.zeros((len(exp.field_step), get_test(exp.test).d))
-    pred = ForwardModel(exp, model, h=h, comm=comm).run()
+    with ForwardModel(exp, model, h=h, comm=comm) as fm:
+        pred = fm.run()
     if not np.isfinite(pred.u).all():
         raise RuntimeError("synthetic data: a measurement point lies outside the mesh")
     exp.u = pred.u.copy()
