@@ -142,20 +142,22 @@ def test_correlated_noise_has_its_correlation_length():
 
 
 def test_force_band_of_a_linear_model():
-    """A force linear in the moduli: the band is t·√(gᵀCg) (+ the parts), the linearisation
-    check finds no departure."""
+    """A force and displacements linear in the moduli: the band of each is t·√(gᵀCg) (+ the
+    parts), the linearisation check finds no departure."""
     from types import SimpleNamespace
 
     from fabricsurf.inverse.fitting.band import force_band
 
     A = np.array([[1.0, 0.5], [2.0, 1.0], [3.0, 2.5]])  # dF/dp at three loads
+    D = np.array([[[0.1, 0.0], [0.0, 0.2]], [[0.3, 0.1], [0.2, 0.0]]])  # du/dp: 2 rows × 2
 
     class Linear:
         names = ["a.k", "b.k"]
 
         def __init__(self):
             self.params = [(SimpleNamespace(name="a"), "k"), (SimpleNamespace(name="b"), "k")]
-            self.exp = SimpleNamespace(has_force=True, path=np.array([1.0, 2.0, 3.0]))
+            self.exp = SimpleNamespace(has_force=True, has_field=True,
+                                       path=np.array([1.0, 2.0, 3.0]))
             self.v = np.zeros(2)
 
         def values(self):
@@ -165,7 +167,8 @@ def test_force_band_of_a_linear_model():
             self.v = np.array(v, float)
 
         def run(self, sens=False):
-            return SimpleNamespace(force=A @ self.v, dforce=A if sens else None)
+            return SimpleNamespace(force=A @ self.v, dforce=A if sens else None,
+                                   u=D @ self.v, du=D if sens else None)
 
     C = np.array([[0.04, 0.01], [0.01, 0.09]])
     saved = {"params": {"a": {"k": 2.0}, "b": {"k": 3.0}},
@@ -179,6 +182,10 @@ def test_force_band_of_a_linear_model():
     assert np.allclose(band["force"], A @ [2.0, 3.0])
     assert np.allclose(band["half_width"], half)
     assert band["nonlinearity"] < 1e-12 and band["reliable"]
+    stat_u = 2.1 * np.sqrt(np.einsum("rci,ij,rcj->rc", D, C, D))
+    half_u = np.sqrt(stat_u**2 + (intervals.Z95 * 0.1 * D[..., 0]) ** 2) + 2 * 0.05 * np.abs(
+        D[..., 0])
+    assert np.allclose(band["field_half_width"], half_u)
 
 
 def test_fit_contract_and_params_read_back(tmp_path):
@@ -247,6 +254,9 @@ def bands_from_the_saved_fit(fit_json, exp, truth: dict, comm) -> None:
     band = np.loadtxt(root / "cmp" / "force_band.csv", delimiter=",", skiprows=1)
     info = json.loads((root / "cmp" / "misfit.json").read_text())["force_bands"][exp.name]
     assert info["reliable"] and (root / "cmp" / "force_band.png").is_file()
+    field = np.loadtxt(root / "cmp" / "field_band.csv", delimiter=",", skiprows=1)
+    assert field.shape == (len(exp.X), 5) and np.all(field[:, 3:] > 0)
+    assert np.isclose(field[:, 3:].max(), info["field_half_width_max"])
     with ForwardModel(exp, full_model(list(truth), truth), h=4.0, comm=comm) as fm:
         f_true = fm.run().force
     assert np.all((band[:, 2] <= f_true) & (f_true <= band[:, 3])), (band, f_true)

@@ -30,43 +30,56 @@ def _saved(params_file: str | Path | dict) -> dict:
     return json.loads(Path(params_file).read_text(encoding="utf-8"))
 
 
+def _half_widths(g: np.ndarray, C: np.ndarray, tau: np.ndarray, shift: np.ndarray,
+                 t: float) -> tuple[np.ndarray, ...]:
+    """(statistical, model-form, mesh, combined) 95 % half-widths of quantities with
+    sensitivities ``g`` (..., P) (module docstring)."""
+    stat = t * np.sqrt(np.maximum(np.einsum("...i,ij,...j->...", g, C, g), 0.0))
+    model = Z95 * np.sqrt((g**2 * tau**2).sum(axis=-1))
+    mesh = MESH_FACTOR * np.abs(g @ shift)
+    return stat, model, mesh, np.sqrt(stat**2 + model**2) + mesh
+
+
 def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = True) -> dict:
     """The predicted force curve of ``fm`` (its own set-up and load path, e.g. another
-    specimen size) at the moduli of ``params_file`` with its 95 % band (module docstring).
+    specimen size) at the moduli of ``params_file`` with its 95 % band (module docstring), and
+    the band of its displacements at the measurement points when it has a field.
 
     Returns {"load", "force", "lower", "upper", "half_width", "parts": {"statistical",
-    "model_form", "mesh"}, "nonlinearity", "reliable"}; "nonlinearity" (the largest departure
-    from the linear change, as a share of the half-width) and "reliable" are None without
-    ``check``. The moduli of ``fm`` are set to the file's and left there."""
+    "model_form", "mesh"}, "nonlinearity", "reliable", "field_half_width"}: the force entries
+    are None for a test without a measured force; "field_half_width" (rows × components, mm,
+    NaN outside the mesh) is None without a field; "nonlinearity" (the largest departure of
+    the force from its linear change, as a share of the half-width) and "reliable" are None
+    without ``check`` or a force. The moduli of ``fm`` are set to the file's and left there."""
     saved = _saved(params_file)
-    unc = saved.get("uncertainty") or {}
-    cov = unc.get("covariance")
-    if cov is None or not fm.exp.has_force:
+    cov = (saved.get("uncertainty") or {}).get("covariance")
+    if cov is None:
         raise ValueError("force_band: the params file has no covariance (a fit.json or "
-                         "model_best.json written by fit or diagnose) or the experiment no force")
+                         "model_best.json written by fit or diagnose)")
     vals = fm.values()
     for k, (t, p) in enumerate(fm.params):
         vals[k] = saved["params"].get(t.name, {}).get(p, vals[k])
     fm.set_values(vals)
     idx = [fm.names.index(n) for n in cov["names"]]
     pred = fm.run(sens=idx)
-    g, C = pred.dforce, np.asarray(cov["statistical"])
-    moduli = saved["moduli"]
+    C, moduli = np.asarray(cov["statistical"]), saved["moduli"]
     tau = np.array([moduli[n].get("systematic_model") or 0.0 for n in cov["names"]])
     shift = np.array([moduli[n].get("mesh_shift_h_to_h2") or 0.0 for n in cov["names"]])
-    t = unc["statistics"]["t95"]
-    stat = t * np.sqrt(np.maximum(np.einsum("ki,ij,kj->k", g, C, g), 0.0))
-    model = Z95 * np.sqrt((g**2 * tau**2).sum(axis=1))
-    mesh = MESH_FACTOR * np.abs(g @ shift)
-    half = np.sqrt(stat**2 + model**2) + mesh
-    out = {"load": fm.exp.path.tolist(), "force": pred.force.tolist(),
-           "lower": (pred.force - half).tolist(), "upper": (pred.force + half).tolist(),
-           "half_width": half.tolist(),
-           "parts": {"statistical": stat.tolist(), "model_form": model.tolist(),
-                     "mesh": mesh.tolist()},
-           "nonlinearity": None, "reliable": None}
+    t = saved["uncertainty"]["statistics"]["t95"]
+    out = {"load": fm.exp.path.tolist(), "force": None, "lower": None, "upper": None,
+           "half_width": None, "parts": None, "nonlinearity": None, "reliable": None,
+           "field_half_width": None}
+    if fm.exp.has_field and pred.du is not None:
+        out["field_half_width"] = _half_widths(pred.du, C, tau, shift, t)[3].tolist()
+    if not fm.exp.has_force:
+        return out
+    stat, model, mesh, half = _half_widths(pred.dforce, C, tau, shift, t)
+    out |= {"force": pred.force.tolist(), "lower": (pred.force - half).tolist(),
+            "upper": (pred.force + half).tolist(), "half_width": half.tolist(),
+            "parts": {"statistical": stat.tolist(), "model_form": model.tolist(),
+                      "mesh": mesh.tolist()}}
     if check:
-        out["nonlinearity"] = linearity(fm, vals, idx, g, C, t, pred.force, half)
+        out["nonlinearity"] = linearity(fm, vals, idx, pred.dforce, C, t, pred.force, half)
         out["reliable"] = bool(out["nonlinearity"] <= NONLINEAR)
     return out
 

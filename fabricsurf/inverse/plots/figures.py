@@ -45,6 +45,22 @@ def error_map(exp: Experiment, preds: list[tuple[str, object]], steps: list[int]
     plt.close(fig)
 
 
+def field_band(exp: Experiment, half: np.ndarray, path: Path) -> None:
+    """The 95 % half-widths of the predicted displacements at the measurement points of the
+    last step, as the norm |(h_x, h_y[, h_z])| (mm)."""
+    plt = _plt()
+    rows = exp.step_rows(int(exp.steps[-1]))
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    sc = ax.scatter(exp.X[rows, 0], exp.X[rows, 1], c=np.linalg.norm(half[rows], axis=1), s=18,
+                    cmap="magma")
+    ax.set(xlim=(0, exp.length), ylim=(0, exp.width), aspect="equal", xlabel="X (mm)",
+           ylabel="Y (mm)", title=f"{exp.name}: 95 % band of u, step {int(exp.steps[-1])}")
+    fig.colorbar(sc, ax=ax, label="half-width (mm)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def force_curves(exp: Experiment, preds: list[tuple[str, object]], path: Path) -> None:
     """Measured and model reaction against the load path."""
     plt = _plt()

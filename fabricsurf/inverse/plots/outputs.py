@@ -6,6 +6,7 @@ import csv
 import re
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import on_rank0, write_json
@@ -58,26 +59,42 @@ def write_comparison(out: Path, exps: list, preds: list[tuple[str, list]],
         on_rank0(comm, _figures, out, exp, per_p, per_m, steps, pre)
 
 
+def _field_band_csv(path: Path, exp, half: np.ndarray) -> None:
+    comps = ["ux", "uy", "uz"][:half.shape[1]]
+    rows = np.column_stack([exp.field_step, exp.X[:, :2], half])
+    np.savetxt(path, rows, delimiter=",", fmt="%.6g", comments="",
+               header=",".join(["step", "X", "Y", *(f"{c}_half_width" for c in comps)]))
+
+
 def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
-    """The 95 % prediction band of every measured force curve of the ForwardSet ``fs`` at the
-    moduli of a saved fit ``saved`` (:func:`~fabricsurf.inverse.fitting.band.force_band`):
-    ``{prefix}force_band.csv`` and ``.png`` per experiment (prefixed as in
-    :func:`write_comparison`); returns {experiment: {"half_width", "reliable",
-    "nonlinearity"}}. The saved fit's moduli must all be in the model."""
+    """The 95 % prediction bands of every experiment of the ForwardSet ``fs`` at the moduli
+    of a saved fit ``saved`` (:func:`~fabricsurf.inverse.fitting.band.force_band`): the
+    force curve (``{prefix}force_band.csv`` and ``.png``) and the displacements at the
+    measurement points (``{prefix}field_band.csv``, and a map of the last step in ``.png``),
+    prefixed as in :func:`write_comparison`. Returns {experiment: {"half_width",
+    "field_half_width_max", "reliable", "nonlinearity"}}. The saved fit's moduli must all be
+    in the model."""
     missing = sorted(set(saved["uncertainty"]["covariance"]["names"]) - set(fs.names))
     if missing:
         raise ValueError(f"the saved fit's moduli {missing} are not in the model; a band "
                          "needs the fitted model's terms")
     bands = {}
     for m in fs.models:
-        if not m.exp.has_force:
-            continue
         band = force_band(m, saved)
-        pre = "" if len(fs.models) == 1 else f"{slug(m.exp.name)}_"
-        label = get_test(m.exp.test).path_label
-        on_rank0(comm, write_band, out / f"{pre}force_band.csv", band, "load")
-        on_rank0(comm, figures.force_band, band, out / f"{pre}force_band.png",
-                 f"{m.exp.name}: prediction at the saved fit", (m.exp.path, m.exp.force),
-                 xlabel=label)
-        bands[m.exp.name] = {k: band[k] for k in ("half_width", "reliable", "nonlinearity")}
+        exp = m.exp
+        pre = "" if len(fs.models) == 1 else f"{slug(exp.name)}_"
+        if band["force"] is not None:
+            on_rank0(comm, write_band, out / f"{pre}force_band.csv", band, "load")
+            on_rank0(comm, figures.force_band, band, out / f"{pre}force_band.png",
+                     f"{exp.name}: prediction at the saved fit", (exp.path, exp.force),
+                     xlabel=get_test(exp.test).path_label)
+        field = band["field_half_width"]
+        if field is not None:
+            field = np.asarray(field, float)
+            on_rank0(comm, _field_band_csv, out / f"{pre}field_band.csv", exp, field)
+            on_rank0(comm, figures.field_band, exp, field, out / f"{pre}field_band.png")
+        bands[exp.name] = {"half_width": band["half_width"], "reliable": band["reliable"],
+                           "nonlinearity": band["nonlinearity"],
+                           "field_half_width_max": None if field is None else
+                           float(np.nanmax(field))}
     return bands
