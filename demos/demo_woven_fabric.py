@@ -163,8 +163,8 @@ say("spread over the meshes: " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in sp
 
 # %%
 params_file = out / "woven_params.json"
-write_json(comm, params_file, {"terms": list(diag.terms), "params": final_params,
-                               "h_mm": H_MESH, "chi2": final.chi2, "data": exp.name})
+write_json(comm, params_file, final.as_dict() | {"terms": list(diag.terms), "h_mm": H_MESH,
+                                                 "data": exp.name})  # a saved fit: with bands
 comm.barrier()
 assert cli(["compare", str(out / "data_fitted"), "--params", str(params_file), "--h",
             str(H_MESH), "--out", str(out / "compare_params")]) == 0
@@ -173,9 +173,11 @@ steps = 11 if args.quick else 44
 t0 = time.perf_counter()
 pred_rc = cli(["bias", "--params", str(params_file), "--length", "450", "--width", "150",
                "--h", str(H_MESH), "--ubar", "110", "--steps", str(steps),
+               "--clamp", full.setup.options.get("clamp", "gradient"),
                "--out", str(out / "prediction_150x450")])
 seconds["prediction"] = time.perf_counter() - t0
 curve = wv.read_json(comm, out / "prediction_150x450" / "bias_curve.json")
+band = wv.read_json(comm, out / "prediction_150x450" / "summary.json")["force_band"]
 d_pred, F_pred = np.array(curve["ubar"]), np.array(curve["force"])
 on_rank0(comm, wv.write_curve, out / "prediction_150x450.csv", d_pred, F_pred)
 bad = [u["zone_c_angle_deg"][0] for u in unexplained["final"]
@@ -185,8 +187,6 @@ valid_deg = min([MAX_ANGLE, *bad] + ([np.degrees(lock)] if lock else []))
 valid_to = float(tz.displacement_at_angle(np.radians(valid_deg), 450.0, 150.0))
 at = {f"{x:g}": float(np.interp(x, d_pred, F_pred)) for x in (20, 40, 60, 76)}
 ideal = {k: float(tz.kinematic_force(float(k), 450.0, 150.0, final_params)) for k in at}
-band = wv.prediction_band(final.as_dict(), diag.terms, final_params, d_pred, 450.0, 150.0,
-                          H_MESH, comm, clamp=full.setup.options.get("clamp", "gradient"))
 half = np.array(band["half_width"])
 on_rank0(comm, write_band, out / "prediction_150x450_band.csv", band)
 say("prediction 150 x 450: " + ", ".join(

@@ -152,15 +152,3 @@ def write_curve(path, d, force) -> None:
     """A force curve as CSV with the columns ``displacement,force`` (mm, N)."""
     np.savetxt(path, np.column_stack([d, force]), delimiter=",", fmt="%.6g",
                header="displacement,force", comments="")
-
-
-def prediction_band(fit: dict, terms: list[str], params: dict, d, length: float, width: float,
-                    h: float, comm, clamp: str = "gradient") -> dict:
-    """The force curve of a bias specimen ``length`` × ``width`` along the displacements ``d``
-    at the moduli of ``fit`` (a fit's ``as_dict()``) with its 95 % band, as ``fabricsurf bias
-    --params`` gives it (:func:`fabricsurf.cli.bias.predicted_band`)."""
-    from fabricsurf.cli.bias import predicted_band
-    from fabricsurf.model.terms import parse_terms
-
-    return predicted_band(fit, parse_terms(",".join(terms), params), length, width, d, h, clamp,
-                          comm)
