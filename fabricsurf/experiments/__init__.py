@@ -10,10 +10,11 @@ from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup
 from fabricsurf.experiments.bias_extension import BiasExtensionTest
 from fabricsurf.experiments.cantilever import CantileverTest
+from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.experiments.picture_frame import PictureFrameTest
 
 TESTS: dict[str, type[ExperimentSetup]] = {
-    c.name: c for c in (BiasExtensionTest, PictureFrameTest, CantileverTest)
+    c.name: c for c in (BiasExtensionTest, PictureFrameTest, CantileverTest, HemisphereForming)
 }
 ALIASES = {"tensile": "bias_extension"}
 

@@ -1,0 +1,179 @@
+"""Rigid forming tools as analytic signed distances, their penalty contact, and the problem and
+solver that carry it (used by the hemisphere plug-in, experiments/hemisphere.py).
+
+The placement r is in a frame whose origin is the punch axis at the blank's reference plane.
+The punch is a hemisphere of radius R on a cylinder of the same radius, its pole at z = s (s
+the stroke), pushing the blank up into the die. The die (above the blank, face at z = −p_h/k_c,
+so that the flat blank pressed into it is in equilibrium at s = 0 and the die's penalty is
+active there: at d = 0 its stiffness would vanish and leave the vertical motion free) and
+the blank holder (below it, face at z = −g, g the gap) are plates with a circular opening of
+radius R_o and a rounded lip of radius r_d. The holder also presses the flange against the die
+with a pressure p_h, the potential −∫ p_h w(ρ) r_z dX, w rising smoothly (3t² − 2t³) from 0 at
+the end of the lip (ρ = R_o + r_d, ρ the current distance from the axis, where the die's face
+becomes flat) to 1 one lip radius further: it fixes the blank's
+vertical position from the first step (a blank in a gap alone could float up with the punch).
+Contact is the penalty energy
+½ k_c ⟨−d⟩² per unit reference area for each tool's signed distance d (frictionless: the
+fixed die and holder do no work). The punch force is the work conjugate of the stroke,
+F = ∂Π/∂s at fixed u = ∫ k_c ⟨−d_p⟩ n_z dX (n_z: the vertical component of the punch's outward
+normal), so that ∫ F ds = ΔΠ along equilibrium states (the envelope theorem).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, EnergyForm, placement
+from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.model.terms import Term
+from geometry.aligned import lattice_divisions
+from geometry.specimen import Specimen, corner_points, distributed_mesh, tag_rectangle_edges
+
+
+def quarter_blank(half: float, h: float, theta_deg: float, comm) -> Specimen:
+    """The quarter [0, half]² of a square blank meshed along fibres at ±θ (the rhombic lattice
+    of geometry/aligned.py), each lattice rhombus centred at (p, q) cut along x where p > q and
+    along y where p < q: at θ = 45° the mesh is then its own mirror image in the diagonal, so a
+    set-up symmetric about the diagonal has a discrete solution that is symmetric to round-off.
+    """
+    P, Q = lattice_divisions(half, half, h, theta_deg)
+    if comm.rank == 0:
+        index = {(p, q): k for k, (p, q) in enumerate(
+            (p, q) for q in range(Q + 1) for p in range(q % 2, P + 1, 2))}
+        cells = []
+        for q in range(Q + 1):
+            for p in range((q + 1) % 2, P + 1, 2):
+                left, right, down, up = (p - 1, q), (p + 1, q), (p, q - 1), (p, q + 1)
+                have = [v in index for v in (left, right, down, up)]
+                if all(have):
+                    cells += ([(left, right, up), (left, right, down)] if p > q
+                              else [(down, up, left), (down, up, right)])
+                elif sum(have) == 3:
+                    cells.append(tuple(v for v, ok in zip((left, right, down, up), have) if ok))
+        verts = np.array(list(index), dtype=float)
+        x = np.column_stack([verts[:, 0] * half / P, verts[:, 1] * half / Q])
+        tri = np.array([[index[v] for v in c] for c in cells], dtype=np.int64)
+    else:
+        x, tri = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+    msh = distributed_mesh(comm, x, tri)
+    ft = tag_rectangle_edges(msh, half, half)
+    msh.topology.create_connectivity(1, 2)
+    return Specimen(msh, ft, float(half), float(half), points=corner_points(half, half))
+
+
+class Tools:
+    """Punch, die and holder as UFL signed distances of the placement r (module docstring)."""
+
+    def __init__(self, msh, R: float, opening: float, gap: float, lip: float,
+                 k_c: float, pressure: float) -> None:
+        self.R, self.opening, self.gap, self.lip = float(R), float(opening), float(gap), float(lip)
+        self.stroke = fem.Constant(msh, 0.0)
+        self.k_c = fem.Constant(msh, float(k_c))
+        self.p_h = fem.Constant(msh, float(pressure))
+        self.offset = float(pressure) / float(k_c)
+
+    def _rho(self, r):
+        """Distance from the punch axis, regularised on it (its derivative is then finite)."""
+        return ufl.sqrt(r[0] ** 2 + r[1] ** 2 + 1e-12 * self.R**2)
+
+    def punch(self, r):
+        """(signed distance to the punch, the vertical component of its outward normal)."""
+        dz = r[2] - (self.stroke - self.R)
+        rho = self._rho(r)
+        dist = ufl.sqrt(rho**2 + dz**2)
+        cap = ufl.gt(dz, 0.0)
+        return (ufl.conditional(cap, dist - self.R, rho - self.R),
+                ufl.conditional(cap, dz / dist, 0.0))
+
+    def _plate(self, r, side: float):
+        """Signed distance to the die (side = 1, above) or the holder (side = −1, below): a lip
+        torus of tube radius r_d at the opening and, beyond it, the flat face."""
+        rho, rho0 = self._rho(r), self.opening + self.lip
+        face = -self.offset if side > 0 else -self.gap
+        torus = ufl.sqrt((rho - rho0) ** 2 + (r[2] - face - side * self.lip) ** 2) - self.lip
+        return ufl.conditional(ufl.gt(rho, rho0), side * (face - r[2]), torus)
+
+    def penetrations(self, r) -> dict:
+        """⟨−d⟩ of each tool (mm)."""
+        return {"punch": ufl.max_value(-self.punch(r)[0], 0.0),
+                "die": ufl.max_value(-self._plate(r, 1.0), 0.0),
+                "holder": ufl.max_value(-self._plate(r, -1.0), 0.0)}
+
+    def holder_weight(self, r):
+        """w(ρ) of the holder pressure (module docstring)."""
+        t = ufl.min_value(ufl.max_value((self._rho(r) - self.opening) / self.lip - 2.0, 0.0), 1.0)
+        return t**2 * (3.0 - 2.0 * t)
+
+    def energy_density(self, r):
+        """½ k_c Σ ⟨−d⟩² − p_h w r_z (N/mm per unit reference area)."""
+        return (0.5 * self.k_c * sum(p**2 for p in self.penetrations(r).values())
+                - self.p_h * self.holder_weight(r) * r[2])
+
+    def force_density(self, r):
+        """k_c ⟨−d_p⟩ n_z: the punch force per unit reference area (N/mm²)."""
+        return self.k_c * self.penetrations(r)["punch"] * self.punch(r)[1]
+
+    def pressure(self, r):
+        """Contact pressure k_c Σ ⟨−d⟩ (N/mm² of reference area)."""
+        return self.k_c * sum(self.penetrations(r).values())
+
+    def lift(self, X: np.ndarray, u: np.ndarray) -> None:
+        """Raise the nodes below the punch cap (reference X, displacement u, n×3, in place)
+        onto it, vertically: the predictor of a stroke increment."""
+        rho2 = (X[:, 0] + u[:, 0]) ** 2 + (X[:, 1] + u[:, 1]) ** 2
+        top = float(self.stroke.value) - self.R + np.sqrt(np.maximum(self.R**2 - rho2, 0.0))
+        low = (rho2 < self.R**2) & (X[:, 2] + u[:, 2] < top)
+        u[low, 2] = top[low] - X[low, 2]
+
+
+class ContactSolver(SNESSolver):
+    """SNESSolver whose every solve starts from the nodes under the punch lifted onto it."""
+
+    def __init__(self, *args, tools: Tools, **kw) -> None:
+        super().__init__(*args, **kw)
+        self.tools = tools
+        self.X = self.u.function_space.tabulate_dof_coordinates()
+
+    def solve(self) -> tuple[int, int]:
+        self.tools.lift(self.X, self.u.x.array.reshape(-1, 3))
+        return super().solve()
+
+
+class ContactProblem(FabricProblem):
+    """A FabricProblem whose energy also holds the tools' contact penalty; its residual and
+    Jacobian are the variations of that one energy (``ufl.derivative``)."""
+
+    def __init__(self, specimen, model: list[Term], tools: Tools, **kw) -> None:
+        super().__init__(specimen, model, **kw)
+        self.tools = tools
+        self.dx = ufl.Measure("dx", domain=self.msh,
+                              metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
+
+    def contact_energy(self):
+        return self.tools.energy_density(placement(self.u)) * self.dx
+
+    def mirror(self, edge: str, axis: int) -> None:
+        """Mirror symmetry about a straight edge normal to the reference axis ``axis``: the
+        normal component of u vanishes there, and the normal derivatives of the others do
+        (weakly, by the Nitsche terms of ∂_n u = g with g holding ∂_n u_axis itself)."""
+        self.fix(edge, [0.0 if i == axis else None for i in range(3)])
+        n = ufl.FacetNormal(self.msh)
+        dn = ufl.grad(self.u) * n
+        self.clamp_gradient(edge, ufl.as_vector([dn[i] if i == axis else 0.0
+                                                 for i in range(3)]))
+
+    def solver(self) -> SNESSolver:
+        if self._solver is None:
+            self.energy = EnergyForm(self.model, self.u, self.L, self.M, self.specimen.facet_tags,
+                                     self.normal_derivative, self.tractions, self.penalty)
+            v, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
+            dP = ufl.derivative(self.contact_energy(), self.u, v)
+            self._solver = ContactSolver(
+                self.energy.residual(v) + dP,
+                self.energy.jacobian(du, v) + ufl.derivative(dP, self.u, du),
+                self.u, self.bcs, self.prefix, self.snes_options, None, self.energy.multipliers,
+                tools=self.tools)
+        return self._solver

@@ -1,0 +1,239 @@
+"""Forming over a hemispherical punch (the woven-fabric hemisphere benchmark) as a 3D plug-in.
+
+A square blank of side B = ``length`` = ``width`` (mm), centred on the punch axis, with fibres
+at ±θ to its sides, lies at z = 0 between a blank holder and a die with an opening of radius
+R_o = R + clearance; a rigid hemispherical punch of radius R, its pole at z = s (the stroke,
+the load path, mm), pushes it up through the opening (experiments/forming_tools.py: the signed
+distances, the penalty contact, the punch force as the work conjugate of the stroke).
+
+The set-up is symmetric about the blank's mid-lines (the bisectors of ±θ fibres), so one quarter
+[0, B/2]² is solved with mirror conditions on x = 0 and y = 0 (the normal component of u and the
+normal derivatives of the others vanish); these also remove the in-plane rigid motions that
+frictionless tools leave free. Reported forces and energies are those of the whole blank (four
+quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
+fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
+about the diagonal at ±45° (forming_tools.quarter_blank). The contact active set changes from
+step to step and the penalty's second derivative jumps where it does: Newton is then
+semismooth, and full steps (up to :data:`NEWTON_ITERATIONS` of them) follow the active set
+better than a backtracking line search, which stalls at the kinks of the residual.
+
+Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
+tensions, the normal curvatures K_L, K_M, the contact pressure, a wrinkling indicator (a fibre in
+compression, T < −T_w, that bends, |K| > κ_w: compression relieved out of plane) and the region
+beyond the locking angle (|γ| > γ_lock).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, placement
+from fabricsurf.discretise.evaluation import (
+    eval_points,
+    interpolate_expression,
+    max_over_cells,
+    quadrature_expression,
+)
+from fabricsurf.discretise.output import FieldWriter
+from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.errors import DataError
+from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
+from fabricsurf.experiments.forming_tools import ContactProblem, Tools, quarter_blank
+from fabricsurf.model.kinematics import l_dir, m_dir
+from fabricsurf.model.terms import Term
+from geometry.aligned import symmetric_angle
+
+DEFAULTS = {"clearance": 0.1, "die_lip": 0.1, "holder_gap": 0.02}
+"""Tool sizes as fractions of the punch radius R."""
+CONTACT_STIFFNESS = 100.0
+"""Default penalty k_c (N/mm³): a contact pressure p gives a penetration p / k_c."""
+NEWTON_ITERATIONS = 50
+"""Newton iterations per attempt before the load stepper cuts the stroke increment."""
+LOCKING_ANGLE_DEG = 50.0
+"""Default locking angle (woven fabrics lock at about 40–55°, Cao et al. 2008)."""
+
+
+class HemisphereForming(ExperimentSetup):
+    """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
+    stroke s (mm); reaction: the punch force (N)."""
+
+    name = "hemisphere"
+    d = 3
+    path_label = "punch stroke (mm)"
+    reaction_label = "punch force (N)"
+    keys = {"tooling": {
+        "punch_radius": "punch radius R (mm, required)",
+        "clearance": "die opening radius minus R (mm, default R/10)",
+        "die_lip": "lip radius of die and holder (mm, default R/10)",
+        "holder_gap": "gap between holder and die (mm, default R/50)",
+        "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
+        "contact_stiffness": "penalty k_c (N/mm³, default 100)",
+        "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
+        "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, "
+                           "default 1e-3)",
+        "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 0.1/R)"}}
+
+    def __init__(self, setup: Setup, model: list[Term], h: float,
+                 comm: MPI.Comm = MPI.COMM_WORLD, snes_options: dict | None = None) -> None:
+        super().__init__(setup, model, h, comm)
+        o = setup.options
+        self.check_specimen(setup, "hemisphere")
+        self.R, half = o["punch_radius"], 0.5 * setup.length
+        theta = symmetric_angle(tuple(setup.fibre_angles_deg))
+        self.specimen = quarter_blank(half, h, theta, comm)
+        msh = self.specimen.mesh
+        self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
+                           o["contact_stiffness"], o["holder_pressure"])
+        p = ContactProblem(self.specimen, model, self.tools, d=3,
+                           fibre_angles=tuple(setup.fibre_angles_deg),
+                           prefix="fabricsurf_hemisphere_",
+                           snes_options={"snes_max_it": NEWTON_ITERATIONS, **(snes_options or {})})
+        p.mirror("clamp", 0)
+        p.mirror("bottom", 1)
+        self.problem, self.solver = p, p.solver()
+        self.r, kin = placement(p.u), p.energy.kin
+        pen = self.tools.penetrations(self.r)
+        self._forms = {"force": self.tools.force_density(self.r) * p.dx,
+                       "stored": p.energy.internal(), "penalty": p.contact_energy(),
+                       "wrinkle": self._wrinkle(kin) * p.dx, "locked": self._locked(kin) * p.dx}
+        self._forms = {k: fem.form(v) for k, v in self._forms.items()}
+        self._S = fem.FunctionSpace(msh, ("DG", 2))
+        self._pen = pen
+        self._gamma_q = quadrature_expression(kin.gamma, msh, CELL_QUADRATURE_DEGREE)
+        self.stroke: list[float] = []
+        self.force: list[float] = []
+
+    @classmethod
+    def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
+        R = number_option(tables, "tooling", "punch_radius", where) * length_scale
+        out = {"punch_radius": R}
+        for key, frac in DEFAULTS.items():
+            out[key] = number_option(tables, "tooling", key, where, frac * R / length_scale,
+                                     ) * length_scale
+        out["contact_stiffness"] = number_option(tables, "tooling", "contact_stiffness", where,
+                                                 CONTACT_STIFFNESS)
+        out["holder_pressure"] = number_option(tables, "tooling", "holder_pressure", where,
+                                               1e-3)
+        out["locking_angle_deg"] = number_option(tables, "tooling", "locking_angle_deg", where,
+                                                 LOCKING_ANGLE_DEG)
+        out["wrinkle_tension"] = number_option(tables, "tooling", "wrinkle_tension", where, 1e-3)
+        out["wrinkle_curvature"] = number_option(tables, "tooling", "wrinkle_curvature", where,
+                                                 0.1 / R * length_scale) / length_scale
+        return out
+
+    @classmethod
+    def check_specimen(cls, setup: Setup, where: str) -> None:
+        o = setup.options
+        R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
+        if setup.length != setup.width or setup.length <= 2 * (R + c):
+            raise DataError(f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
+                            f"a square wider than the die opening with its lip, 2(R + clearance"
+                            f" + die_lip) = {2 * (R + c):g} mm")
+        if symmetric_angle(tuple(setup.fibre_angles_deg)) is None:
+            raise DataError(f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the "
+                            "hemisphere test needs fibres at ±θ (0 < θ < 90) to the blank's "
+                            "sides, mirror images about its mid-lines")
+
+    @classmethod
+    def default_h(cls, setup: Setup) -> float:
+        return setup.options["punch_radius"] / 6.0
+
+    def set_load(self, t: float) -> None:
+        self.tools.stroke.value = float(t)
+
+    # -- reduced scalars (whole blank) ---------------------------------------------------
+    def _scalar(self, name: str) -> float:
+        return 4.0 * float(self.comm.allreduce(fem.assemble_scalar(self._forms[name]),
+                                               op=MPI.SUM))
+
+    def reaction(self) -> float:
+        """The punch force F = ∂Π/∂s (N, forming_tools.py), reduced over ranks."""
+        return self._scalar("force")
+
+    def energies(self) -> tuple[float, float]:
+        """(stored energy, contact penalty energy) of the whole blank (N·mm)."""
+        return self._scalar("stored"), self._scalar("penalty")
+
+    def area_fractions(self) -> dict[str, float]:
+        """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
+        area = self.setup.length**2
+        return {"wrinkle": self._scalar("wrinkle") / area, "locked": self._scalar("locked") / area}
+
+    def max_penetration(self, tool: str = "punch") -> float:
+        """Largest penetration into a tool at the quadrature points of the contact energy (mm),
+        over all ranks."""
+        expr = quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE)
+        return max_over_cells(expr, self.specimen.mesh)
+
+    # -- fields and profiles ---------------------------------------------------------------
+    def _wrinkle(self, kin):
+        o = self.setup.options
+        tw, kw = o["wrinkle_tension"], o["wrinkle_curvature"]
+        t = self.problem.energy.tension_fields()
+        flags = [ufl.conditional(ufl.And(ufl.lt(t[f"tension_{f}"], -tw), ufl.gt(abs(K), kw)),
+                                 1.0, 0.0) for f, K in (("l", kin.K_L), ("m", kin.K_M))]
+        return ufl.max_value(*flags)
+
+    def _locked(self, kin):
+        lock = math.radians(self.setup.options["locking_angle_deg"])
+        return ufl.conditional(ufl.gt(abs(kin.gamma), lock), 1.0, 0.0)
+
+    def fields(self) -> dict:
+        """Forming fields for FieldWriter(extra=...) (module docstring)."""
+        kin = self.problem.energy.kin
+        fl, fm = l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)
+        out = {"shear_deg": kin.gamma * (180.0 / math.pi),
+               "contact_pressure": self.tools.pressure(self.r),
+               "wrinkle": self._wrinkle(kin), "beyond_locking": self._locked(kin)}
+        out.update({f"{n}_{c}": v[i] for n, v in (("l", fl), ("m", fm))
+                    for i, c in enumerate("xyz")})
+        out.update(self.problem.energy.tension_fields())
+        return out
+
+    def writer(self, path) -> FieldWriter:
+        """An XDMF writer of u and the forming fields (the caller closes it)."""
+        return FieldWriter(path, self.problem.u, self.problem.energy.kin,
+                           qdeg=CELL_QUADRATURE_DEGREE, extra=self.fields())
+
+    def profile(self, direction_deg: float, n: int = 40) -> dict[str, np.ndarray]:
+        """Along the reference ray from the pole at ``direction_deg`` (0: the fibres' bisector,
+        the benchmarks' diagonal; θ: a fibre): reference distance X, arc length from the pole
+        over the deformed sheet's polar angle about the punch centre, R·φ, shear angle γ
+        (deg), and the gap to the punch's cap (mm; negative: penetration). The same on every
+        rank."""
+        t = math.radians(direction_deg)
+        reach = 0.5 * self.setup.length / max(abs(math.cos(t)), abs(math.sin(t)))
+        X = np.linspace(0.0, reach, n)
+        pts = np.column_stack([X * math.cos(t), X * math.sin(t)])
+        kin = self.problem.energy.kin
+        gam = interpolate_expression(kin.gamma * (180.0 / math.pi), self._S)
+        r = np.column_stack([pts, np.zeros(n)]) + eval_points(self.problem.u, pts)
+        r[:, 2] -= float(self.tools.stroke.value) - self.R
+        dist = np.linalg.norm(r, axis=1)
+        phi = np.arccos(np.clip(r[:, 2] / dist, -1.0, 1.0))
+        return {"X": X, "arc": self.R * phi, "shear_deg": eval_points(gam, pts)[:, 0],
+                "gap": np.where(r[:, 2] > 0, dist - self.R, np.inf)}
+
+    def run(self, stroke: float, steps: int = 8,
+            on_step: Callable[[int, float], None] | None = None) -> list[int]:
+        """Move the punch from s = 0 (touching the flat blank) to ``stroke`` in ``steps`` equal
+        requested steps (cut on divergence, LoadStepper); records :attr:`stroke` and
+        :attr:`force` at each. Returns the Newton iterations per step."""
+        self.solver.u.x.array[:] = 0.0
+        self.set_load(0.0)
+        self.stroke, self.force = [0.0], [0.0]
+
+        def done(k: int, s: float, its: int) -> None:
+            self.stroke.append(s)
+            self.force.append(self.reaction())
+            if on_step is not None:
+                on_step(k, s)
+
+        self.stepper = LoadStepper(self.solver, self.set_load, done)
+        return self.stepper.run(np.linspace(stroke / steps, stroke, steps))

@@ -1,0 +1,136 @@
+"""The hemisphere forming plug-in (fabricsurf/experiments/hemisphere.py, docs/forming.md).
+
+One experiment is built per module (one set of compiled forms) and formed once; the checks
+read that run:
+
+* work balance: the punch work ∫ F ds equals the change of the total energy (stored plus
+  tools). The trapezoid rule on the recorded forces errs by O(Δs²), so the error on the steps
+  of the run and on every second step must fall at rate 2, and the Richardson combination of
+  the two must remove most of it: a force that were not the work conjugate of the stroke
+  would leave an error that does not converge with the step;
+* penetration: the largest penetration into the punch is below :data:`PENETRATION_TOL`;
+* symmetry: fibres at ±45° and a mesh that is its own mirror image in the diagonal
+  (forming_tools.quarter_blank) give a field symmetric about the diagonal to the Newton
+  tolerance, though nothing imposes it;
+* 1 = 2 ranks: this file run as a script under ``mpirun -n 2`` gives the serial forces and
+  energies (reduced over ranks) to the Newton tolerance.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.errors import DataError
+from fabricsurf.experiments import get_test
+from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
+
+COMM = MPI.COMM_WORLD
+ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+       "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
+R, BLANK, H = 20.0, 60.0, 4.0
+STROKE, STEPS = 4.0, 4
+PENETRATION_TOL = 5e-3
+"""mm: a fortieth of a percent of the punch radius, far below the mesh size h = 4 mm."""
+TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
+           "holder_pressure": 1e-3, "contact_stiffness": 100.0, "locking_angle_deg": 50.0,
+           "wrinkle_tension": 1e-3, "wrinkle_curvature": 0.1 / R}
+
+
+def model():
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1),
+            Twist(k_t=0.1)]
+
+
+def form(comm) -> tuple[HemisphereForming, dict]:
+    """The experiment formed to STROKE, with its reduced numbers."""
+    e = HemisphereForming(Setup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING)),
+                          model(), H, comm)
+    e.set_load(0.0)
+    start = sum(e.energies())
+    e.run(STROKE, STEPS)
+    stored, tools = e.energies()
+    return e, {"force": list(e.force), "stroke": list(e.stroke), "stored": stored,
+               "tools": tools, "start": start, "penetration": e.max_penetration()}
+
+
+@pytest.fixture(scope="module")
+def formed():
+    e, numbers = form(COMM)
+    yield e, numbers
+    e.close()
+
+
+def test_registered():
+    assert get_test("hemisphere") is HemisphereForming and HemisphereForming.d == 3
+
+
+def test_rejects_bad_set_up():
+    with pytest.raises(DataError, match="fibre_angles_deg"):
+        HemisphereForming.check_specimen(Setup("hemisphere", BLANK, BLANK, (0.0, 90.0),
+                                               dict(TOOLING)), "t")
+    with pytest.raises(DataError, match="square wider"):
+        HemisphereForming.check_specimen(Setup("hemisphere", 40.0, 40.0, (45.0, -45.0),
+                                               dict(TOOLING)), "t")
+
+
+def trapezoid(s, F, every: int) -> float:
+    return float(np.trapz(F[::every], s[::every]))
+
+
+def test_work_balance(formed):
+    _, n = formed
+    s, F = np.array(n["stroke"]), np.array(n["force"])
+    change = n["stored"] + n["tools"] - n["start"]
+    fine, coarse = trapezoid(s, F, 1) - change, trapezoid(s, F, 2) - change
+    rate = np.log2(abs(coarse) / abs(fine))
+    richardson = (4 * trapezoid(s, F, 1) - trapezoid(s, F, 2)) / 3 - change
+    print(f"work {trapezoid(s, F, 1):.6g}, energy change {change:.6g}, errors {coarse:.3g} "
+          f"(2Δs), {fine:.3g} (Δs), rate {rate:.2f}, Richardson {richardson:.3g}")
+    assert F[-1] > 0 and change > 0
+    assert rate > 1.7
+    assert abs(richardson) < 0.25 * abs(fine)
+
+
+def test_penetration(formed):
+    _, n = formed
+    print("max penetration into the punch", n["penetration"], "mm")
+    assert 0.0 < n["penetration"] < PENETRATION_TOL
+
+
+def test_symmetric_about_the_diagonal(formed):
+    e, _ = formed
+    a = np.array([[4.0, 11.0], [7.5, 16.0], [3.0, 26.0], [12.0, 20.0]])
+    u, v = eval_points(e.problem.u, a), eval_points(e.problem.u, a[:, ::-1])
+    scale = np.abs(u).max()
+    assert scale > 1.0
+    assert np.abs(u[:, 0] - v[:, 1]).max() < 1e-7 * scale
+    assert np.abs(u[:, 2] - v[:, 2]).max() < 1e-7 * scale
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
+def test_serial_matches_two_ranks(formed, tmp_path):
+    out = tmp_path / "two_ranks.json"
+    p = subprocess.run(["mpirun", "-n", "2", sys.executable, __file__, str(out)],
+                       env=dict(os.environ, **ENV), capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stdout + p.stderr
+    two = json.loads(out.read_text())
+    assert two["ranks"] == 2
+    _, one = formed
+    for key in ("force", "stored", "tools", "start"):
+        assert np.allclose(two[key], one[key], rtol=1e-7, atol=1e-9), key
+
+
+if __name__ == "__main__":
+    exp, numbers = form(COMM)
+    exp.close()
+    if COMM.rank == 0:
+        with open(sys.argv[1], "w") as fh:
+            json.dump({"ranks": COMM.size, **numbers}, fh)
