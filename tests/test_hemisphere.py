@@ -13,13 +13,21 @@ read that run:
   (forming_tools.quarter_blank) give a field symmetric about the diagonal to the Newton
   tolerance, though nothing imposes it;
 * 1 = 2 ranks: this file run as a script under ``mpirun -n 2`` gives the serial forces and
-  energies (reduced over ranks) to the Newton tolerance.
+  energies (reduced over ranks) to the Newton tolerance;
+* the kinematic limit: with stiff fibres, a shear modulus and bending rigidities a hundred
+  times smaller, the same experiment (its moduli changed, no recompilation) formed to
+  :data:`DEEP` gives shear angles along the diagonal (the fibres' bisector) within 2° of the
+  fishnet drape (benchmarks/research/forming/fishnet.py, an independent construction) wherever
+  the sheet is within :data:`TOUCH` of the punch. The penalty lets the sheet undulate on the
+  punch at the mesh scale by about a tenth of a millimetre, so "touching" is a distance, not
+  a positive pressure at the very point.
 """
 
 import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,6 +39,7 @@ from fabricsurf.experiments import get_test
 from fabricsurf.experiments.base import Setup
 from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
+from research.forming.fishnet import bisector_shear
 
 COMM = MPI.COMM_WORLD
 ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
@@ -39,6 +48,9 @@ R, BLANK, H = 20.0, 60.0, 4.0
 STROKE, STEPS = 4.0, 4
 PENETRATION_TOL = 5e-3
 """mm: a fortieth of a percent of the punch radius, far below the mesh size h = 4 mm."""
+DEEP, DEEP_STEPS = 12.0, 12
+TOUCH = 0.01 * R
+"""mm: points this close to the punch's cap count as on it."""
 TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
            "holder_pressure": 1e-3, "contact_stiffness": 100.0, "locking_angle_deg": 50.0,
            "wrinkle_tension": 1e-3, "wrinkle_curvature": 0.1 / R}
@@ -118,14 +130,35 @@ def test_symmetric_about_the_diagonal(formed):
 @pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
 def test_serial_matches_two_ranks(formed, tmp_path):
     out = tmp_path / "two_ranks.json"
+    research = str(Path(__file__).resolve().parents[1] / "benchmarks")
+    path = os.pathsep.join(filter(None, [research, os.environ.get("PYTHONPATH")]))
     p = subprocess.run(["mpirun", "-n", "2", sys.executable, __file__, str(out)],
-                       env=dict(os.environ, **ENV), capture_output=True, text=True, timeout=600)
+                       env=dict(os.environ, **ENV, PYTHONPATH=path), capture_output=True,
+                       text=True, timeout=600)
     assert p.returncode == 0, p.stdout + p.stderr
     two = json.loads(out.read_text())
     assert two["ranks"] == 2
     _, one = formed
     for key in ("force", "stored", "tools", "start"):
         assert np.allclose(two[key], one[key], rtol=1e-7, atol=1e-9), key
+
+
+def test_kinematic_limit_matches_fishnet(formed):
+    """Run last: it changes the moduli of the module's experiment."""
+    e, _ = formed
+    shear, bending, twist = e.model[1], e.model[2], e.model[3]
+    shear.set(k_s=1e-2)
+    bending.set(k_b=0.05)
+    twist.set(k_t=0.05)
+    e.run(DEEP, DEEP_STEPS)
+    p = e.profile(0.0, 31)
+    on = (p["gap"] < TOUCH) & (p["X"] > 0)
+    kinematic = np.degrees(bisector_shear(R, p["X"][on]))
+    diff = np.abs(p["shear_deg"][on] - kinematic)
+    for row in zip(p["X"][on], p["shear_deg"][on], kinematic, p["gap"][on]):
+        print("X %5.2f  shear %6.2f  fishnet %6.2f  gap %.3f" % row)
+    assert on.sum() >= 8 and kinematic.max() > 10.0  # a real range of shear is compared
+    assert diff.max() < 2.0
 
 
 if __name__ == "__main__":

@@ -160,3 +160,22 @@ def chebyshev_shear(R: float, u: float, v: float, steps: int, theta0: float = ma
                 new = known + hu * hv * K * math.sin(theta0 - mid)
             g[i + 1, j + 1] = new
     return float(g[-1, -1])
+
+
+def bisector_shear(R: float, X: np.ndarray, theta_deg: float = 45.0, a: float | None = None
+                   ) -> np.ndarray:
+    """γ (rad) of the fishnet drape of fibres at ±θ at reference distances ``X`` from the pole
+    along their bisector (the blank's x axis, the forming benchmarks' diagonal): the nodal
+    shear of the nodes (i, i), at X = 2 a i cos θ, interpolated linearly. The net's side ``a``
+    defaults to R/100 (the shear differs from the Chebyshev net's by O(a²))."""
+    a = R / 100.0 if a is None else a
+    X = np.asarray(X, dtype=float)
+    step = 2.0 * a * math.cos(math.radians(theta_deg))
+    n = math.ceil(X.max() / step) + 2
+    if n * a >= 0.5 * math.pi * R * 0.999:
+        raise ValueError(f"fishnet: the bisector to X = {X.max():g} leaves the hemisphere "
+                         f"(R = {R:g})")
+    net = drape(R, a, n, (theta_deg, -theta_deg))
+    g = node_shear(net)
+    i = np.arange(n)
+    return np.interp(X, i * step, g[n - 1 + i, n - 1 + i])
