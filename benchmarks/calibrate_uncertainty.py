@@ -13,7 +13,10 @@ error (the RMS field difference of the continuum at the lattice's moduli):
   The lattice–continuum form error of one configuration is the same for every noise draw, so
   draws of one configuration are not independent trials of the interval: ``--design
   configurations`` varies the specimen, the lattice spacing and the bending length instead
-  (:data:`CONFIGURATIONS`, one draw each, white and DIC noise alternating);
+  (:data:`CONFIGURATIONS`, one draw each, white and DIC noise alternating), and ``--design
+  pairs`` fits each configuration together with a specimen PAIR_SCALE times larger, as a
+  user with two specimen sizes does: the spread of the moduli between the specimens is then
+  the model-form part;
 - ``null``: diagnoses of the complete model on its own lattice data (any verdict is a false
   alarm), the confirmed candidate's statistics recorded so that the Wald rule with and
   without the quarter-of-the-excess part and the old F-test rule are counted on the same sets;
@@ -44,7 +47,7 @@ from fabricsurf.discretise.output import rank0_print, write_json
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.network import ConvergenceError
 
@@ -53,12 +56,16 @@ REGIMES = {"soft": (30.0, 0.5, 0.05), "stiff": (1000.0, 0.4, 0.12)}  # k_l, k_s,
 BENDING_LENGTH = 5.0
 COMPLETE = ["fibre_stretch", "shear", "geodesic_bending"]
 NOISE_KINDS = ("white", "dic")
+PAIR_SCALE = 1.5
+"""The second specimen of a pair is this much larger (the same lattice and spacing)."""
 CONFIGURATIONS = [  # regime, length, width (mm), lattice spacing (mm), bending length (mm)
     (regime, length, width, spacing, l_b)
     for regime in REGIMES
     for (length, width, spacing), l_b in zip(
         [(60.0, 30.0, 1.0), (48.0, 24.0, 1.0), (60.0, 30.0, 1.5), (72.0, 24.0, 1.5),
-         (54.0, 36.0, 1.0), (66.0, 22.0, 1.0)], (3.0, 4.0, 5.0, 6.0, 7.0, 8.0))]
+         (54.0, 36.0, 1.0), (66.0, 22.0, 1.0), (45.0, 30.0, 1.5), (80.0, 40.0, 2.0),
+         (40.0, 20.0, 0.8), (64.0, 32.0, 2.0)],
+        (3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 4.5, 6.5, 3.5, 5.5))]
 
 
 def truth(k_l: float, k_s: float, l_b: float) -> dict:
@@ -97,26 +104,54 @@ def configuration_cases(a, comm):
             continue
         e_f = form_error(clean, params, a.h, comm)
         kind = NOISE_KINDS[k % 2]
-        label = f"{regime} {length:g}x{width:g} a={spacing:g} l_b={l_b:g} {kind}"
+        label = f"{regime} {length:g}x{width:g} a={spacing:g} l_b={l_b:g}"
         yield label, kind, a.seed + k, noisy(clean, e_f, kind, 2000 + a.seed + k, a.corr), \
-            params, e_f
+            params, e_f, clean
+
+
+def pair_cases(a, comm):
+    """Each configuration as two specimens, the second PAIR_SCALE times larger with the same
+    lattice: (label, kind, seed, [noisy data], moduli, form errors, [clean data])."""
+    for k, (regime, length, width, spacing, l_b) in enumerate(CONFIGURATIONS):
+        k_l, k_s, strain = REGIMES[regime]
+        params = truth(k_l, k_s, l_b)
+        try:
+            clean = [lattice(k_l, k_s, strain, l_b, size=(f * length, f * width),
+                             spacing=spacing) for f in (1.0, PAIR_SCALE)]
+        except ConvergenceError as e:
+            rank0_print(comm, f"configuration {k}: the lattice generator failed ({e}); left out")
+            continue
+        for j, c in enumerate(clean):
+            c.name = f"specimen {j + 1}"
+        e_f = [form_error(c, params, a.h, comm) for c in clean]
+        kind = NOISE_KINDS[k % 2]
+        noisy_pair = [noisy(c, e, kind, 3000 + 2 * (a.seed + k) + j, a.corr)
+                      for j, (c, e) in enumerate(zip(clean, e_f))]
+        label = f"{regime} {length:g}x{width:g} and x{PAIR_SCALE:g} a={spacing:g} l_b={l_b:g}"
+        yield label, kind, a.seed + k, noisy_pair, params, e_f, clean
 
 
 def cases(a, comm, l_b: float = BENDING_LENGTH):
-    """(regime, noise kind, seed, noisy data, true moduli, form error) for every case."""
-    if getattr(a, "design", "seeds") == "configurations":
-        yield from configuration_cases(a, comm)
+    """(regime, noise kind, seed, noisy data, true moduli, form error, clean data) for every
+    case."""
+    design = getattr(a, "design", "seeds")
+    if design in ("configurations", "pairs"):
+        yield from (configuration_cases if design == "configurations" else pair_cases)(a, comm)
         return
     for regime, (k_l, k_s, strain) in REGIMES.items():
         params = truth(k_l, k_s, l_b)
         clean = lattice(k_l, k_s, strain, l_b)
         e_f = form_error(clean, params, a.h, comm)
         for kind, seed in itertools.product(NOISE_KINDS, range(a.seed, a.seed + a.count)):
-            yield regime, kind, seed, noisy(clean, e_f, kind, 1000 + seed, a.corr), params, e_f
+            yield (regime, kind, seed, noisy(clean, e_f, kind, 1000 + seed, a.corr), params, e_f,
+                   clean)
 
 
-def coverage_row(res, params: dict) -> dict:
-    """Per modulus: inside the new interval, inside the classical one, relative widths."""
+def coverage_row(res, params: dict, best: dict) -> dict:
+    """Per modulus: inside the new interval, inside the classical one, relative widths, the
+    normalised error z; and against ``best``, the noise-free fit's moduli on the same mesh
+    (the continuum that best represents this lattice): inside the interval, and
+    z_statistical = (value − best)/σ_statistical, the test of the statistical part alone."""
     u = res.uncertainty()["moduli"]
     naive = np.sqrt(np.diag(res.statistical.cov_naive))
     out = {}
@@ -130,6 +165,10 @@ def coverage_row(res, params: dict) -> dict:
                      "covered": bool(lo <= true <= hi),
                      "z": (m["value"] - true) / max((hi - lo) / 2 / res.statistical.t95(),
                                                     1e-300),
+                     "best_continuum": best[name],
+                     "covered_best": bool(lo <= best[name] <= hi),
+                     "z_statistical": (m["value"] - best[name]) / max(m["std_statistical"],
+                                                                     1e-300),
                      "covered_classical": bool(abs(m["value"] - true) <= 1.96 * naive[k]),
                      "half_width_rel": (hi - lo) / 2 / true,
                      "half_width_rel_classical": 1.96 * naive[k] / true,
@@ -139,20 +178,30 @@ def coverage_row(res, params: dict) -> dict:
     return out
 
 
-def part_coverage(a, comm, say) -> list[dict]:
-    rows = []
-    for regime, kind, seed, exp, params, e_f in cases(a, comm):
-        t0 = time.perf_counter()
-        start = {t: {p: 1.3 * v for p, v in q.items()} for t, q in params.items()}
-        fm = ForwardModel(exp, full_model(COMPLETE, start), h=a.h, comm=comm)
+def fitted(exp, params: dict, h: float, comm, mesh: bool = True):
+    """The complete model fitted to ``exp`` (one experiment or a list, one set of moduli) from
+    1.3 × the lattice's moduli (with the mesh part when ``mesh``)."""
+    start = {t: {p: 1.3 * v for p, v in q.items()} for t, q in params.items()}
+    make = ForwardSet if isinstance(exp, list) else ForwardModel
+    with make(exp, full_model(COMPLETE, start), h=h, comm=comm) as fm:
         free = [i for i, (t, _) in enumerate(fm.params) if t.name in COMPLETE]
         res = fit(fm, free, verbose=False, scale_start=False, space="linear")
-        res.check_mesh(fm)
-        fm.close()
+        if mesh:
+            res.check_mesh(fm)
+    return res
+
+
+def part_coverage(a, comm, say) -> list[dict]:
+    rows = []
+    for regime, kind, seed, exp, params, e_f, clean in cases(a, comm):
+        t0 = time.perf_counter()
+        res = fitted(exp, params, a.h, comm)
+        ref = fitted(clean, params, a.h, comm, mesh=False)
+        best = dict(zip(ref.names, ref.values))
         st = res.statistical
         rows.append({"regime": regime, "design": a.design, "noise": kind, "seed": seed,
                      "noise_mm": e_f,
-                     "moduli": coverage_row(res, params), "design_effect": st.design_effect,
+                     "moduli": coverage_row(res, params, best), "design_effect": st.design_effect,
                      "blocks": st.n_blocks, "misfit": res.misfit["combined"],
                      "seconds": time.perf_counter() - t0})
         cov = {n: (m["covered"], m["covered_classical"]) for n, m in rows[-1]["moduli"].items()}
@@ -177,7 +226,7 @@ def candidate(d) -> dict:
 
 def part_null(a, comm, say) -> list[dict]:
     rows = []
-    for regime, kind, seed, exp, _, e_f in cases(a, comm):
+    for regime, kind, seed, exp, _, e_f, _ in cases(a, comm):
         t0 = time.perf_counter()
         d = diagnose(exp, COMPLETE, h=a.h, confirm=1, max_effects=1,
                      check_discretisation=False, comm=comm, verbose=False)
@@ -192,7 +241,7 @@ def part_detect(a, comm, say) -> list[dict]:
     rows = []
     for l_b in (float(x) for x in a.bending_lengths.split(",")):
         try:
-            for regime, kind, seed, exp, params, e_f in cases(a, comm, l_b):
+            for regime, kind, seed, exp, params, e_f, _ in cases(a, comm, l_b):
                 d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1,
                              max_effects=1, check_discretisation=False, comm=comm,
                              verbose=False)
@@ -222,9 +271,13 @@ def summary(data: dict) -> dict:
         w = [m[key] for r in cov for m in r["moduli"].values() if m["identifiable"]]
         out["median_" + key] = float(np.median(w)) if w else None
     out["coverage_intervals"] = sum(m["identifiable"] for r in cov for m in r["moduli"].values())
-    z = [m["z"] for r in cov for m in r["moduli"].values() if m["identifiable"] and "z" in m]
-    out["rms_z"] = float(np.sqrt(np.mean(np.square(z)))) if z else None
-    for design in ("seeds", "configurations"):
+    for key in ("z", "z_statistical"):
+        z = [m[key] for r in cov for m in r["moduli"].values() if m["identifiable"] and key in m]
+        out["rms_" + key] = float(np.sqrt(np.mean(np.square(z)))) if z else None
+    best = [m["covered_best"] for r in cov for m in r["moduli"].values()
+            if m["identifiable"] and "covered_best" in m]
+    out["covered_best_continuum"] = float(np.mean(best)) if best else None
+    for design in ("seeds", "configurations", "pairs"):
         hits = [m["covered"] for r in cov if r.get("design", "seeds") == design
                 for m in r["moduli"].values() if m["identifiable"]]
         out[f"covered_{design}"] = float(np.mean(hits)) if hits else None
@@ -248,9 +301,10 @@ def main() -> None:
     ap.add_argument("--out", default="out/calibrate_uncertainty")
     ap.add_argument("--part", required=True, choices=("coverage", "null", "detect"))
     ap.add_argument("--count", type=int, default=2, help="noise draws per regime and kind")
-    ap.add_argument("--design", default="seeds", choices=("seeds", "configurations"),
-                    help="coverage over noise draws of two configurations, or over the "
-                    "configurations of CONFIGURATIONS (one draw each)")
+    ap.add_argument("--design", default="seeds", choices=("seeds", "configurations", "pairs"),
+                    help="coverage over noise draws of two configurations, over the "
+                    "configurations of CONFIGURATIONS (one draw each), or over the same "
+                    "as pairs of specimen sizes fitted together")
     ap.add_argument("--seed", type=int, default=0, help="first noise draw (runs that add to OUT "
                     "give a new one)")
     ap.add_argument("--h", type=float, default=3.0, help="model element size (mm)")
