@@ -18,9 +18,12 @@ read that run:
   times smaller, the same experiment (its moduli changed, no recompilation) formed to
   :data:`DEEP` gives shear angles along the diagonal (the fibres' bisector) within 2° of the
   fishnet drape (benchmarks/research/forming/fishnet.py, an independent construction) wherever
-  the sheet is within :data:`TOUCH` of the punch. The penalty lets the sheet undulate on the
-  punch at the mesh scale by about a tenth of a millimetre, so "touching" is a distance, not
-  a positive pressure at the very point.
+  the sheet is within :data:`TOUCH` of the punch. The shear of the discrete sheet is nearly
+  constant on each element of the aligned mesh and jumps between elements (a pin-jointed net
+  of cell size h), so it is compared at the element centres on the diagonal
+  (``element_centres``), where an element's value stands for its mean. The penalty lets the
+  sheet undulate on the punch at the mesh scale by about a tenth of a millimetre, so
+  "touching" is a distance, not a positive pressure at the very point.
 """
 
 import json
@@ -151,13 +154,13 @@ def test_kinematic_limit_matches_fishnet(formed):
     bending.set(k_b=0.05)
     twist.set(k_t=0.05)
     e.run(DEEP, DEEP_STEPS)
-    p = e.profile(0.0, 31)
-    on = (p["gap"] < TOUCH) & (p["X"] > 0)
+    p = e.profile(0.0, e.element_centres())
+    on = p["gap"] < TOUCH
     kinematic = np.degrees(bisector_shear(R, p["X"][on]))
     diff = np.abs(p["shear_deg"][on] - kinematic)
     for row in zip(p["X"][on], p["shear_deg"][on], kinematic, p["gap"][on]):
         print("X %5.2f  shear %6.2f  fishnet %6.2f  gap %.3f" % row)
-    assert on.sum() >= 8 and kinematic.max() > 10.0  # a real range of shear is compared
+    assert on.sum() >= 3 and kinematic.max() > 10.0  # a real range of shear is compared
     assert diff.max() < 2.0
 
 

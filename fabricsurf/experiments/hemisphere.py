@@ -47,7 +47,7 @@ from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools, quarter_blank
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import symmetric_angle
+from geometry.aligned import lattice_divisions, symmetric_angle
 
 DEFAULTS = {"clearance": 0.1, "die_lip": 0.1, "holder_gap": 0.02}
 """Tool sizes as fractions of the punch radius R."""
@@ -105,7 +105,7 @@ class HemisphereForming(ExperimentSetup):
         self._forms = {k: fem.form(v) for k, v in self._forms.items()}
         self._S = fem.FunctionSpace(msh, ("DG", 2))
         self._pen = pen
-        self._gamma_q = quadrature_expression(kin.gamma, msh, CELL_QUADRATURE_DEGREE)
+        self._gamma_q = quadrature_expression(abs(kin.gamma), msh, CELL_QUADRATURE_DEGREE)
         self.stroke: list[float] = []
         self.force: list[float] = []
 
@@ -171,6 +171,10 @@ class HemisphereForming(ExperimentSetup):
         expr = quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE)
         return max_over_cells(expr, self.specimen.mesh)
 
+    def max_shear_deg(self) -> float:
+        """max |γ| over the quadrature points of all ranks (deg)."""
+        return math.degrees(max_over_cells(self._gamma_q, self.specimen.mesh))
+
     # -- fields and profiles ---------------------------------------------------------------
     def _wrinkle(self, kin):
         o = self.setup.options
@@ -201,15 +205,28 @@ class HemisphereForming(ExperimentSetup):
         return FieldWriter(path, self.problem.u, self.problem.energy.kin,
                            qdeg=CELL_QUADRATURE_DEGREE, extra=self.fields())
 
-    def profile(self, direction_deg: float, n: int = 40) -> dict[str, np.ndarray]:
+    def element_centres(self) -> np.ndarray:
+        """Reference distances from the pole of the midpoints of the mesh edges on the diagonal
+        (the fibres' bisector, y = 0). With stiff fibres the shear of the discrete sheet is
+        nearly constant on each element of the aligned mesh (it behaves as a pin-jointed net
+        of cell size h) and jumps between elements: there an element's value stands for its
+        mean."""
+        half = 0.5 * self.setup.length
+        theta = symmetric_angle(tuple(self.setup.fibre_angles_deg))
+        dx = half / lattice_divisions(half, half, self.h, theta)[0]
+        return np.arange(dx, half, 2.0 * dx)
+
+    def profile(self, direction_deg: float, X: np.ndarray | None = None,
+                n: int = 40) -> dict[str, np.ndarray]:
         """Along the reference ray from the pole at ``direction_deg`` (0: the fibres' bisector,
-        the benchmarks' diagonal; θ: a fibre): reference distance X, arc length from the pole
-        over the deformed sheet's polar angle about the punch centre, R·φ, shear angle γ
-        (deg), and the gap to the punch's cap (mm; negative: penetration). The same on every
-        rank."""
+        the benchmarks' diagonal; θ: a fibre), at reference distances ``X`` (default n points
+        to the blank's edge): X, the arc length from the pole over the deformed sheet's polar
+        angle about the punch centre, R·φ, the shear angle γ (deg), and the gap to the punch's
+        cap (mm; negative: penetration). The same on every rank."""
         t = math.radians(direction_deg)
         reach = 0.5 * self.setup.length / max(abs(math.cos(t)), abs(math.sin(t)))
-        X = np.linspace(0.0, reach, n)
+        X = np.linspace(0.0, reach, n) if X is None else np.asarray(X, dtype=float)
+        n = len(X)
         pts = np.column_stack([X * math.cos(t), X * math.sin(t)])
         kin = self.problem.energy.kin
         gam = interpolate_expression(kin.gamma * (180.0 / math.pi), self._S)
