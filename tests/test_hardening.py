@@ -578,8 +578,8 @@ def test_undetermined_moduli_named_not_given_a_plus_minus():
     of 1e-13: the fit names the undetermined combination, reports the product's geometric mean
     (the combination that is determined) with its interval, and the printed result gives
     neither modulus a ±; a modulus whose interval would span zero is not identifiable."""
-    from fabricsurf.cli.measure import result_lines
     from fabricsurf.inverse.fitting.fit import fit
+    from fabricsurf.inverse.fitting.report import result_lines
 
     noise = np.array([0.1, -0.1, 0.05, -0.05, 0.2, -0.2, 0.0, 0.0])
 

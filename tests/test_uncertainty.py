@@ -197,12 +197,12 @@ def test_fit_contract_and_params_read_back(tmp_path):
 
     from mpi4py import MPI
 
-    from fabricsurf.cli.measure import result_lines
     from fabricsurf.discretise.output import write_json
     from fabricsurf.inverse.fitting.diagnose import full_model
     from fabricsurf.inverse.fitting.fit import fit
     from fabricsurf.inverse.fitting.forward import ForwardModel
     from fabricsurf.inverse.fitting.params import load_params
+    from fabricsurf.inverse.fitting.report import result_lines
 
     comm = MPI.COMM_WORLD
     truth = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4}}

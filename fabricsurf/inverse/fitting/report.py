@@ -134,3 +134,35 @@ def where_unexplained(exps: list, res: FitResult, lead: dict | None = None) -> d
         out.append(item)
     return {"experiments": out, "best_lead": lead,
             "figure": "error_vs_step.png and error_map.png of the final model"}
+
+
+def _num(x: float | None) -> str:
+    return "not measured" if x is None else f"{x:.2g}"
+
+
+def result_lines(u: dict) -> list[str]:
+    """The fitted moduli of a fit.json or a diagnosis's final model ``u``: each identifiable
+    one with its 95 % interval and the parts of its uncertainty; one that is not gets no ± (it
+    would span zero or be a meaningless 1e-13), and the combinations the data do determine are
+    given with their intervals, then those they do not."""
+    lines = []
+    for n, m in u["moduli"].items():
+        if m.get("fixed"):
+            lines.append(f"  {n} = {m['value']:.5g} (held)")
+        elif m["identifiable"]:
+            lo, hi = m["ci95"]
+            lines.append(f"  {n} = {m['value']:.5g}, 95 % interval [{lo:.4g}, {hi:.4g}] "
+                         f"(statistical σ {m['std_statistical']:.2g}, mesh "
+                         f"{_num(m['systematic_mesh'])}, model form "
+                         f"{_num(m['systematic_model'])})")
+        else:
+            lines.append(f"  {n} = {m['value']:.5g} (not determined by the data on its own)")
+    for c in u["identifiable_combinations"]:
+        lo, hi = c["ci95"]
+        lines.append(f"  determined combination: {c['combination']} = {c['value']:.5g}, "
+                     f"95 % interval [{lo:.4g}, {hi:.4g}]")
+    for c in u.get("undetermined", []):
+        lines.append(f"  not determined by the data (rank-deficient Fisher matrix): {c}")
+    for w in u["weak_directions"]:
+        lines.append(f"  weak direction (log-moduli, σ {w['std_log']:.2g}): {w['direction']}")
+    return lines
