@@ -1,0 +1,148 @@
+"""What demos/demo_forming.py and benchmarks/forming.py share: the forming model built from a
+params file, one experiment reformed with other moduli (no recompilation), profiles against the
+fishnet drape, and the figures."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
+from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.model.terms import (
+    CrossoverFriction,
+    FibreStretch,
+    NormalBending,
+    Shear,
+    ShearLocking,
+    Twist,
+)
+from research.forming.fishnet import bisector_shear
+
+DOCUMENTED_PARAMS = {"terms": ["fibre_stretch", "shear", "crossover_friction"],
+                     "params": {"fibre_stretch": {"k_l": 6000.0, "k_m": 6000.0},
+                                "shear": {"k_s": 0.01863},
+                                "crossover_friction": {"tau_f": 0.00241}},
+                     "source": "docs/woven_fabric.md (Findings: with friction)"}
+"""The fit of demo_woven_fabric.py to the Cao et al. 2008 curve as docs/woven_fabric.md
+records it, for when its params file is not at hand."""
+KINEMATIC = {"shear": {"k_s": 1e-2}, "crossover_friction": {"tau_f": 0.0},
+             "shear_locking": {"k4": 0.0, "k6": 0.0},
+             "normal_bending": {"k_b": 0.05}, "twist": {"k_t": 0.05}}
+"""The inextensible, shear-free limit (stiff fibres kept): shear and bending a hundredth and
+less of the fibres' moduli times the punch radius."""
+TOUCH_FRACTION = 0.01
+"""Points within this fraction of R of the punch's cap count as on it (tests/test_hemisphere)."""
+
+
+def read_params(path: Path | None, out: Path) -> tuple[dict, str]:
+    """The params file of demo_woven_fabric.py, or the documented values written to
+    ``out/woven_params_documented.json``; returns (params, where they came from)."""
+    if path is not None and Path(path).is_file():
+        return json.loads(Path(path).read_text())["params"], str(path)
+    target = Path(out) / "woven_params_documented.json"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(json.dumps(DOCUMENTED_PARAMS, indent=1))
+    return DOCUMENTED_PARAMS["params"], f"{target} (the values of docs/woven_fabric.md)"
+
+
+def forming_model(params: dict, k_b: float, k_t: float) -> list:
+    """The fitted in-plane model, shear locking at zero (switched on by :func:`reform`) and the
+    out-of-plane rigidities, which the in-plane fit cannot give."""
+    fs, sh = params["fibre_stretch"], params["shear"]
+    fr = params.get("crossover_friction", {"tau_f": 0.0})
+    return [FibreStretch(k_l=fs["k_l"], k_m=fs["k_m"]), Shear(k_s=sh["k_s"]),
+            CrossoverFriction(tau_f=fr["tau_f"]), ShearLocking(k4=0.0, k6=0.0),
+            NormalBending(k_b=k_b), Twist(k_t=k_t)]
+
+
+def experiment(R: float, blank: float, h: float, angle: float, model: list, comm,
+               **tooling) -> HemisphereForming:
+    opts = {"punch_radius": R, "clearance": 0.1 * R, "die_lip": 0.1 * R, "holder_gap": 0.02 * R,
+            "holder_pressure": 1e-3, "contact_stiffness": 100.0, "locking_angle_deg": 50.0,
+            "wrinkle_tension": 1e-3, "wrinkle_curvature": 0.1 / R, **tooling}
+    return HemisphereForming(Setup("hemisphere", blank, blank, (angle, -angle), opts),
+                             model, h, comm)
+
+
+def reform(e: HemisphereForming, values: dict, stroke: float, steps: int) -> dict:
+    """Set moduli ({term: {modulus: value}}), form to ``stroke``; the reduced results."""
+    terms = {t.name: t for t in e.model}
+    for name, v in values.items():
+        terms[name].set(**v)
+    t0 = time.perf_counter()
+    its = e.run(stroke, steps)
+    prof = e.profile(0.0, n=61)
+    on = (prof["gap"] < TOUCH_FRACTION * e.R) & (prof["X"] > 0)
+    kin = np.degrees(bisector_shear(e.R, prof["X"][on]))
+    cen = e.profile(0.0, e.element_centres())
+    c_on = cen["gap"] < TOUCH_FRACTION * e.R
+    c_diff = np.abs(cen["shear_deg"][c_on] - np.degrees(bisector_shear(e.R, cen["X"][c_on])))
+    return {"stroke_mm": list(e.stroke), "punch_force_N": list(e.force),
+            "newton_iterations": list(its), "attempts": list(e.stepper.attempts),
+            "seconds": time.perf_counter() - t0,
+            "max_shear_deg": e.max_shear_deg(), **e.area_fractions(),
+            "profile": {"X_mm": prof["X"][on].tolist(), "arc_length_mm": prof["arc"][on].tolist(),
+                        "shear_deg": prof["shear_deg"][on].tolist(),
+                        "kinematic_shear_deg": kin.tolist()},
+            "diagonal_shear_max_diff_deg": float(c_diff.max()) if c_on.any() else float("nan"),
+            "centres_on_punch": int(c_on.sum()),
+            "pointwise_max_diff_deg": (float(np.abs(prof["shear_deg"][on] - kin).max())
+                                       if on.any() else float("nan"))}
+
+
+def shear_grid(e: HemisphereForming, n: int = 41) -> np.ndarray:
+    """γ (deg) on an n × n grid of the quarter's reference points (the same on every rank)."""
+    half = 0.5 * e.setup.length
+    x = np.linspace(0.0, half, n)
+    X, Y = np.meshgrid(x, x, indexing="xy")
+    kin = e.problem.energy.kin
+    gam = interpolate_expression(np.degrees(1.0) * kin.gamma, e._S)
+    return eval_points(gam, np.column_stack([X.ravel(), Y.ravel()]))[:, 0].reshape(n, n)
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figures(out: Path, grid: np.ndarray, blank: float, cases: dict[str, dict],
+            R: float) -> None:
+    """Shear map (the quarter mirrored to the blank), diagonal profiles against the fishnet
+    drape, punch force against stroke (rank 0)."""
+    plt = _plt()
+    full = np.block([[grid[::-1, ::-1], grid[::-1, 1:]], [grid[:, ::-1], grid[:, 1:]]])
+    fig, ax = plt.subplots(figsize=(5, 4.2))
+    h = 0.5 * blank
+    im = ax.imshow(full, origin="lower", extent=(-h, h, -h, h), cmap="viridis")
+    ax.add_patch(plt.Circle((0, 0), R, fill=False, color="w", ls="--"))
+    fig.colorbar(im, label="shear angle (deg)")
+    ax.set(xlabel="x (mm, reference)", ylabel="y (mm, reference)", title="shear angle map")
+    fig.savefig(out / "shear_map.png", dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for name, c in cases.items():
+        p = c["profile"]
+        ax.plot(p["arc_length_mm"], p["shear_deg"], "o-", ms=3, label=name)
+    first = next(iter(cases.values()))["profile"]
+    ax.plot(first["arc_length_mm"], first["kinematic_shear_deg"], "k--", label="fishnet drape")
+    ax.set(xlabel="arc length from the pole (mm)", ylabel="shear angle (deg)",
+           title="diagonal (fibre bisector), on the punch")
+    ax.legend(fontsize=8)
+    fig.savefig(out / "diagonal_shear.png", dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for name, c in cases.items():
+        ax.plot(c["stroke_mm"], c["punch_force_N"], "o-", ms=3, label=name)
+    ax.set(xlabel="stroke (mm)", ylabel="punch force (N)", title="punch force")
+    ax.legend(fontsize=8)
+    fig.savefig(out / "punch_force.png", dpi=120, bbox_inches="tight")
+    plt.close(fig)

@@ -1,0 +1,137 @@
+# ---
+# jupyter:
+#   jupytext:
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+# ---
+
+# %% [markdown]
+# # Forming: the calibrated fabric over a hemispherical punch
+#
+# Run with `mpirun -n 2 python demos/demo_forming.py --out out/forming` (`--quick`: small).
+#
+# The model fitted to the Cao et al. 2008 curve by `demo_woven_fabric.py` (its params file,
+# `--params`; without one, the fitted values recorded in docs/woven_fabric.md, written to
+# `DIR/woven_params_documented.json`, and the summary says so) forms a square blank with its
+# yarns at ±45° to the sides over a hemispherical punch of radius 50 mm through a die, with a
+# blank holder (the `hemisphere` plug-in, docs/forming.md). The in-plane fit says nothing of
+# bending: k_b = k_t = 0.1 N·mm are assumed (stated in the summary).
+#
+# 1. The kinematic check: the same experiment in the inextensible, shear-free limit against the
+#    fishnet drape along the diagonal (the fibres' bisector), where the sheet is on the punch,
+#    at the element centres (with stiff fibres the discrete shear is nearly constant on each
+#    element of the aligned mesh and jumps between them; the largest pointwise difference,
+#    jumps included, is reported too).
+# 2. The fitted model: shear map, diagonal profile against the kinematic drape, punch force,
+#    where it wrinkles and where it passes the locking angle; XDMF for ParaView.
+# 3. Which effects matter (full mode): the profile without bending, and with shear locking
+#    (k₄ chosen so that the model locks at 40°).
+
+# %%
+import sys
+import time
+from pathlib import Path
+
+# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+import csv
+import math
+
+from mpi4py import MPI
+
+from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from research.demos.checks import verify
+from research.demos.common import demo_parser, parse
+from research.forming import parts
+
+comm = MPI.COMM_WORLD
+ap = demo_parser("A fitted woven fabric formed over a hemisphere", "out/forming")
+ap.add_argument("--params", type=Path, default=Path("out/woven/woven_params.json"),
+                help="params file of demo_woven_fabric.py")
+args = parse(ap)
+out = args.out
+t_start = time.perf_counter()
+R, BLANK, H = (20.0, 60.0, 4.0) if args.quick else (50.0, 150.0, 6.25)
+STROKE, STEPS = (0.6 * R, 12) if args.quick else (0.6 * R, 20)
+K_BEND = 0.1
+params, source = on_rank0(comm, parts.read_params, args.params, out) or (None, None)
+params, source = comm.bcast((params, source), root=0)
+rank0_print(comm, f"model from {source}")
+
+# %% [markdown]
+# ## 1. The kinematic check
+# Stiff fibres (the fitted 6·10³ N/mm), shear and bending a hundred times softer: the shear
+# angles along the diagonal against the fishnet drape of the same hemisphere.
+
+# %%
+e = parts.experiment(R, BLANK, H, 45.0, parts.forming_model(params, K_BEND, K_BEND), comm)
+kinematic = parts.reform(e, parts.KINEMATIC, STROKE, STEPS)
+rank0_print(comm, f"kinematic limit: max |shear - fishnet| on the punch "
+                  f"{kinematic['diagonal_shear_max_diff_deg']:.2f} deg at the element centres, "
+                  f"{kinematic['pointwise_max_diff_deg']:.2f} deg pointwise")
+
+# %% [markdown]
+# ## 2. The fitted model
+
+# %%
+fitted = {"shear": params["shear"],
+          "crossover_friction": params.get("crossover_friction", {"tau_f": 0.0}),
+          "normal_bending": {"k_b": K_BEND}, "twist": {"k_t": K_BEND}}
+cases = {"fitted": parts.reform(e, fitted, STROKE, STEPS)}
+grid = parts.shear_grid(e)
+with e.writer(out / "forming.xdmf") as w:
+    w.write(STROKE)
+
+# %% [markdown]
+# ## 3. Which effects matter
+# Bending off (a hundredth of the assumed rigidity), and shear locking on at 40°.
+
+# %%
+if not args.quick:
+    cases["no bending"] = parts.reform(e, {"normal_bending": {"k_b": 1e-3 * K_BEND},
+                                           "twist": {"k_t": 1e-3 * K_BEND}}, STROKE, STEPS)
+    k4 = params["shear"]["k_s"] / math.radians(40.0) ** 2
+    cases["locking at 40 deg"] = parts.reform(e, {**fitted, "shear_locking": {"k4": k4}},
+                                              STROKE, STEPS)
+e.close()
+main = cases["fitted"]
+effects = {name: max(abs(a - b) for a, b in zip(c["profile"]["shear_deg"],
+                                                 main["profile"]["shear_deg"]))
+           for name, c in cases.items() if name != "fitted"}
+for name, d in effects.items():
+    rank0_print(comm, f"{name}: diagonal profile changes by up to {d:.2f} deg")
+
+
+def write_outputs() -> None:
+    with open(out / "diagonal_shear.csv", "w", newline="") as fh:
+        wr = csv.writer(fh)
+        wr.writerow(["arc_length_mm", "shear_deg", "kinematic_shear_deg"])
+        p = main["profile"]
+        wr.writerows(zip(p["arc_length_mm"], p["shear_deg"], p["kinematic_shear_deg"]))
+    parts.figures(out, grid, BLANK, cases, R)
+
+
+on_rank0(comm, write_outputs)
+summary = {"diagonal_shear_max_diff_deg": kinematic["diagonal_shear_max_diff_deg"],
+           "punch_radius_mm": R, "blank_mm": BLANK, "h_mm": H, "fibre_angles_deg": [45.0, -45.0],
+           "stroke_mm": main["stroke_mm"], "punch_force_N": main["punch_force_N"],
+           "max_shear_deg": main["max_shear_deg"], "wrinkle_area_fraction": main["wrinkle"],
+           "locked_area_fraction": main["locked"], "params_source": source,
+           "bending_assumed_N_mm": K_BEND, "effects_max_change_deg": effects,
+           "kinematic_points": kinematic["centres_on_punch"],
+           "diagonal_shear_pointwise_max_diff_deg": kinematic["pointwise_max_diff_deg"],
+           "seconds": time.perf_counter() - t_start}
+write_json(comm, out / "summary.json", summary)
+
+# %% [markdown]
+# `CHECKS` is the summary's contract (also read by tests/test_demos.py): the kinematic limit
+# within 2° of the fishnet drape on the punch, a punch force that rises with the stroke.
+
+# %%
+CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (3, None),
+          "punch_force_N/*": (0.0, None), "max_shear_deg": (1.0, 60.0),
+          "wrinkle_area_fraction": (0.0, 1.0), "seconds": (0.0, None), "stroke_mm": ...}
+verify(summary, CHECKS)
+rank0_print(comm, f"done in {summary['seconds']:.1f} s; outputs in {out}")
