@@ -106,6 +106,7 @@ class HemisphereForming(ExperimentSetup):
         self._S = fem.FunctionSpace(msh, ("DG", 2))
         self._pen = pen
         self._gamma_q = quadrature_expression(abs(kin.gamma), msh, CELL_QUADRATURE_DEGREE)
+        self._pen_q = quadrature_expression(pen["punch"], msh, CELL_QUADRATURE_DEGREE)
         self.stroke: list[float] = []
         self.force: list[float] = []
 
@@ -168,12 +169,19 @@ class HemisphereForming(ExperimentSetup):
     def max_penetration(self, tool: str = "punch") -> float:
         """Largest penetration into a tool at the quadrature points of the contact energy (mm),
         over all ranks."""
-        expr = quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE)
+        expr = (self._pen_q if tool == "punch" else
+                quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE))
         return max_over_cells(expr, self.specimen.mesh)
 
     def max_shear_deg(self) -> float:
         """max |γ| over the quadrature points of all ranks (deg)."""
         return math.degrees(max_over_cells(self._gamma_q, self.specimen.mesh))
+
+    def active_set(self) -> np.ndarray:
+        """Whether each quadrature point of the owned cells penetrates the punch (this rank's
+        points, flattened): compare two states to count the contact active-set changes."""
+        cells = np.arange(self.specimen.mesh.topology.index_map(2).size_local, dtype=np.int32)
+        return (self._pen_q.eval(cells) > 0.0).ravel()
 
     # -- fields and profiles ---------------------------------------------------------------
     def _wrinkle(self, kin):
