@@ -96,6 +96,17 @@ def test_rejects_bad_set_up():
                                                dict(TOOLING)), "t")
 
 
+def test_options():
+    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0}}, 10.0, "t")
+    assert opts["punch_radius"] == 50.0 and opts["clearance"] == pytest.approx(5.0)
+    assert opts["wrinkle_curvature"] == pytest.approx(0.1 / 50.0)
+    with pytest.raises(DataError, match=r"\[tooling\] punch_radius"):
+        HemisphereForming.parse_options({"tooling": {}}, 1.0, "t")
+    with pytest.raises(DataError, match="holder_gap = -1"):
+        HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0, "holder_gap": -1}},
+                                        1.0, "t")
+
+
 def trapezoid(s, F, every: int) -> float:
     return float(np.trapz(F[::every], s[::every]))
 

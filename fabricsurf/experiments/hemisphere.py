@@ -100,7 +100,7 @@ class HemisphereForming(ExperimentSetup):
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
         self._forms = {"force": self.tools.force_density(self.r) * p.dx,
-                       "stored": p.energy.internal(), "penalty": p.contact_energy(),
+                       "stored": p.energy.internal(), "tools": p.contact_energy(),
                        "wrinkle": self._wrinkle(kin) * p.dx, "locked": self._locked(kin) * p.dx}
         self._forms = {k: fem.form(v) for k, v in self._forms.items()}
         self._S = fem.FunctionSpace(msh, ("DG", 2))
@@ -115,8 +115,8 @@ class HemisphereForming(ExperimentSetup):
         R = number_option(tables, "tooling", "punch_radius", where) * length_scale
         out = {"punch_radius": R}
         for key, frac in DEFAULTS.items():
-            out[key] = number_option(tables, "tooling", key, where, frac * R / length_scale,
-                                     ) * length_scale
+            default = frac * R / length_scale
+            out[key] = number_option(tables, "tooling", key, where, default) * length_scale
         out["contact_stiffness"] = number_option(tables, "tooling", "contact_stiffness", where,
                                                  CONTACT_STIFFNESS)
         out["holder_pressure"] = number_option(tables, "tooling", "holder_pressure", where,
@@ -158,8 +158,9 @@ class HemisphereForming(ExperimentSetup):
         return self._scalar("force")
 
     def energies(self) -> tuple[float, float]:
-        """(stored energy, contact penalty energy) of the whole blank (N·mm)."""
-        return self._scalar("stored"), self._scalar("penalty")
+        """(stored energy, tools' energy: the contact penalty and the holder's potential) of the
+        whole blank (N·mm); their sum is the total energy Π of the work balance."""
+        return self._scalar("stored"), self._scalar("tools")
 
     def area_fractions(self) -> dict[str, float]:
         """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
