@@ -86,6 +86,7 @@ def reform(e: HemisphereForming, values: dict, stroke: float, steps: int) -> dic
             "newton_iterations": list(its), "attempts": list(e.stepper.attempts),
             "seconds": time.perf_counter() - t0,
             "max_shear_deg": e.max_shear_deg(), **e.area_fractions(),
+            "diagonal_shear_deg": prof["shear_deg"].tolist(),
             "profile": {"X_mm": prof["X"][on].tolist(), "arc_length_mm": prof["arc"][on].tolist(),
                         "shear_deg": prof["shear_deg"][on].tolist(),
                         "kinematic_shear_deg": kin.tolist()},
