@@ -18,6 +18,7 @@ which the interior-penalty facet integrals need. Edges are tagged ``clamp`` (x =
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from mpi4py import MPI
@@ -75,10 +76,14 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
     return best
 
 
-def lattice_triangles(P: int, Q: int, split_horizontal: bool) -> tuple[np.ndarray, np.ndarray]:
+def lattice_triangles(P: int, Q: int, split_horizontal: bool | Callable[[int, int], bool]
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (p, q) (p + q even, 0 ≤ p ≤ P, 0 ≤ q ≤ Q) and the triangles of the rhombi
-    centred at (p, q) with p + q odd, cut along one diagonal; half rhombi on the boundary are
-    single triangles."""
+    centred at (p, q) with p + q odd, cut along one diagonal: along x where
+    ``split_horizontal`` (a bool, or a function of the rhombus centre (p, q)), else along y;
+    half rhombi on the boundary are single triangles."""
+    horizontal = split_horizontal if callable(split_horizontal) else (
+        lambda p, q: split_horizontal)
     index = {}
     for q in range(Q + 1):
         for p in range(q % 2, P + 1, 2):
@@ -89,7 +94,7 @@ def lattice_triangles(P: int, Q: int, split_horizontal: bool) -> tuple[np.ndarra
             left, right, down, up = (p - 1, q), (p + 1, q), (p, q - 1), (p, q + 1)
             have = [v in index for v in (left, right, down, up)]
             if all(have):
-                if split_horizontal:
+                if horizontal(p, q):
                     cells += [(left, right, up), (left, right, down)]
                 else:
                     cells += [(down, up, left), (down, up, right)]
@@ -154,3 +159,21 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
             if kind == "aligned":
                 raise
     return rectangle(length, width, h, comm, extra_points=extra_points)
+
+
+def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
+                  ) -> Specimen:
+    """The quarter [0, half]² of a square blank meshed along fibres at ±θ (the rhombic lattice
+    above), each rhombus centred at (p, q) cut along x where p > q and along y where p < q: at
+    θ = 45° the mesh is then its own mirror image in the diagonal, so a set-up symmetric about
+    the diagonal has a discrete solution that is symmetric to round-off."""
+    P, Q = lattice_divisions(half, half, h, theta_deg)
+    if comm.rank == 0:
+        verts, tri = lattice_triangles(P, Q, lambda p, q: p > q)
+        x = np.column_stack([verts[:, 0] * half / P, verts[:, 1] * half / Q])
+    else:
+        x, tri = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+    msh = distributed_mesh(comm, x, tri)
+    ft = tag_rectangle_edges(msh, half, half)
+    msh.topology.create_connectivity(1, 2)
+    return Specimen(msh, ft, float(half), float(half), points=corner_points(half, half))

@@ -10,7 +10,7 @@ read that run:
   would leave an error that does not converge with the step;
 * penetration: the largest penetration into the punch is below :data:`PENETRATION_TOL`;
 * symmetry: fibres at ±45° and a mesh that is its own mirror image in the diagonal
-  (forming_tools.quarter_blank) give a field symmetric about the diagonal to the Newton
+  (geometry.aligned.quarter_blank) give a field symmetric about the diagonal to the Newton
   tolerance, though nothing imposes it;
 * 1 = 2 ranks: this file run as a script under ``mpirun -n 2`` gives the serial forces and
   energies (reduced over ranks) to the Newton tolerance;

@@ -29,39 +29,6 @@ from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, EnergyForm, pla
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.terms import Term
-from geometry.aligned import lattice_divisions
-from geometry.specimen import Specimen, corner_points, distributed_mesh, tag_rectangle_edges
-
-
-def quarter_blank(half: float, h: float, theta_deg: float, comm) -> Specimen:
-    """The quarter [0, half]² of a square blank meshed along fibres at ±θ (the rhombic lattice
-    of geometry/aligned.py), each lattice rhombus centred at (p, q) cut along x where p > q and
-    along y where p < q: at θ = 45° the mesh is then its own mirror image in the diagonal, so a
-    set-up symmetric about the diagonal has a discrete solution that is symmetric to round-off.
-    """
-    P, Q = lattice_divisions(half, half, h, theta_deg)
-    if comm.rank == 0:
-        index = {(p, q): k for k, (p, q) in enumerate(
-            (p, q) for q in range(Q + 1) for p in range(q % 2, P + 1, 2))}
-        cells = []
-        for q in range(Q + 1):
-            for p in range((q + 1) % 2, P + 1, 2):
-                left, right, down, up = (p - 1, q), (p + 1, q), (p, q - 1), (p, q + 1)
-                have = [v in index for v in (left, right, down, up)]
-                if all(have):
-                    cells += ([(left, right, up), (left, right, down)] if p > q
-                              else [(down, up, left), (down, up, right)])
-                elif sum(have) == 3:
-                    cells.append(tuple(v for v, ok in zip((left, right, down, up), have) if ok))
-        verts = np.array(list(index), dtype=float)
-        x = np.column_stack([verts[:, 0] * half / P, verts[:, 1] * half / Q])
-        tri = np.array([[index[v] for v in c] for c in cells], dtype=np.int64)
-    else:
-        x, tri = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
-    msh = distributed_mesh(comm, x, tri)
-    ft = tag_rectangle_edges(msh, half, half)
-    msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ft, float(half), float(half), points=corner_points(half, half))
 
 
 class Tools:

@@ -12,7 +12,7 @@ normal derivatives of the others vanish); these also remove the in-plane rigid m
 frictionless tools leave free. Reported forces and energies are those of the whole blank (four
 quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
 fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
-about the diagonal at ±45° (forming_tools.quarter_blank). The contact active set changes from
+about the diagonal at ±45° (geometry.aligned.quarter_blank). The contact active set changes from
 step to step and the penalty's second derivative jumps where it does: Newton is then
 semismooth, and full steps (up to :data:`NEWTON_ITERATIONS` of them) follow the active set
 better than a backtracking line search, which stalls at the kinks of the residual.
@@ -44,10 +44,10 @@ from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.solver import LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
-from fabricsurf.experiments.forming_tools import ContactProblem, Tools, quarter_blank
+from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import lattice_divisions, symmetric_angle
+from geometry.aligned import lattice_divisions, quarter_blank, symmetric_angle
 
 DEFAULTS = {"clearance": 0.1, "die_lip": 0.1, "holder_gap": 0.02}
 """Tool sizes as fractions of the punch radius R."""
