@@ -14,13 +14,12 @@ prediction band (docs/uncertainty.md): OUT/force_band.csv, OUT/force_band.png an
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.cli.options import add_max_elements, check_size
+from fabricsurf.cli.options import add_max_elements, check_size, saved_fit
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
@@ -70,16 +69,6 @@ def _model(args) -> list:
     if args.terms or params:
         return parse_model(args.terms, params)
     return default_model()
-
-
-def _saved_fit(args) -> dict | None:
-    """The --params file's contents when they carry a covariance (a band can be given)."""
-    from fabricsurf.inverse.fitting.band import has_covariance
-
-    if args.params is None or args.no_band:
-        return None
-    saved = json.loads(args.params.read_text(encoding="utf-8"))
-    return saved if has_covariance(saved) else None
 
 
 def predicted_band(saved: dict, model: list, length: float, width: float, path, h: float,
@@ -132,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     comm = MPI.COMM_WORLD
     ubar = _check(args)
     model = _model(args)
-    saved = _saved_fit(args)
+    saved = saved_fit(args)
     od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS,
                    inputs=((f"--params {args.params}", args.params),) if args.params else ())
     rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "

@@ -24,6 +24,7 @@ from fabricsurf.cli.options import (
     grip_depths,
     input_paths,
     positive_start,
+    saved_fit,
 )
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
@@ -123,27 +124,13 @@ def _prov(model, fs, args) -> dict:
                                      [m.h for m in fs.models])}
 
 
-def _saved_fit(args) -> dict | None:
-    """The --params file's contents when it is a saved fit with a covariance (and the band is
-    wanted), else None."""
-    import json
-
-    from fabricsurf.inverse.fitting.band import has_covariance
-
-    if args.params is None or args.no_band:
-        return None
-    with open(args.params, encoding="utf-8") as f:
-        saved = json.load(f)
-    return saved if has_covariance(saved) else None
-
-
 def cmd_compare(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_bands, write_comparison
 
     exps, model, _ = _setup(args)
     steps = error_map_steps(args.steps, exps)
-    saved = _saved_fit(args)
+    saved = saved_fit(args)
     od = OutputDir(args.out, COMM, files=("misfit.json",),
                    inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):

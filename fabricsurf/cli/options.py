@@ -41,6 +41,21 @@ def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements
                          "machine has the memory")
 
 
+def saved_fit(args) -> dict | None:
+    """The --params file's contents when it is a saved fit with a covariance (fit.json or
+    model_best.json, whose prediction bands can then be given) and --no-band is not set; else
+    None. Called after the file has been validated as --params."""
+    import json
+
+    from fabricsurf.inverse.fitting.band import has_covariance
+
+    if args.params is None or args.no_band:
+        return None
+    with open(args.params, encoding="utf-8") as f:
+        saved = json.load(f)
+    return saved if has_covariance(saved) else None
+
+
 def check_h(h: float | None, exps: list | None = None) -> None:
     """``--h`` positive and at most half the smallest specimen side (two elements across)."""
     if h is None:
