@@ -92,43 +92,34 @@ def noisy(exp, std: float, kind: str, seed: int, corr: float):
     return sy.noisy_copy(exp, std, s_F, seed, corr if kind == "dic" else 0.0)
 
 
-def configuration_cases(a, comm):
-    """One case per configuration of :data:`CONFIGURATIONS` (module docstring)."""
-    for k, (regime, length, width, spacing, l_b) in enumerate(CONFIGURATIONS):
-        k_l, k_s, strain = REGIMES[regime]
-        params = truth(k_l, k_s, l_b)
-        try:
-            clean = lattice(k_l, k_s, strain, l_b, size=(length, width), spacing=spacing)
-        except ConvergenceError as e:
-            rank0_print(comm, f"configuration {k}: the lattice generator failed ({e}); left out")
-            continue
-        e_f = form_error(clean, params, a.h, comm)
-        kind = NOISE_KINDS[k % 2]
-        label = f"{regime} {length:g}x{width:g} a={spacing:g} l_b={l_b:g}"
-        yield label, kind, a.seed + k, noisy(clean, e_f, kind, 2000 + a.seed + k, a.corr), \
-            params, e_f, clean
-
-
-def pair_cases(a, comm):
-    """Each configuration as two specimens, the second PAIR_SCALE times larger with the same
-    lattice: (label, kind, seed, [noisy data], moduli, form errors, [clean data])."""
+def configuration_cases(a, comm, pairs: bool = False):
+    """One case per configuration of :data:`CONFIGURATIONS` (module docstring): its specimen
+    alone, or with ``pairs`` also a second one PAIR_SCALE times larger with the same lattice
+    (then the noisy data, form errors and clean data are lists, one entry per specimen)."""
+    scales = (1.0, PAIR_SCALE) if pairs else (1.0,)
     for k, (regime, length, width, spacing, l_b) in enumerate(CONFIGURATIONS):
         k_l, k_s, strain = REGIMES[regime]
         params = truth(k_l, k_s, l_b)
         try:
             clean = [lattice(k_l, k_s, strain, l_b, size=(f * length, f * width),
-                             spacing=spacing) for f in (1.0, PAIR_SCALE)]
+                             spacing=spacing) for f in scales]
         except ConvergenceError as e:
             rank0_print(comm, f"configuration {k}: the lattice generator failed ({e}); left out")
             continue
-        for j, c in enumerate(clean):
-            c.name = f"specimen {j + 1}"
+        if pairs:
+            for j, c in enumerate(clean):
+                c.name = f"specimen {j + 1}"
         e_f = [form_error(c, params, a.h, comm) for c in clean]
         kind = NOISE_KINDS[k % 2]
-        noisy_pair = [noisy(c, e, kind, 3000 + 2 * (a.seed + k) + j, a.corr)
-                      for j, (c, e) in enumerate(zip(clean, e_f))]
-        label = f"{regime} {length:g}x{width:g} and x{PAIR_SCALE:g} a={spacing:g} l_b={l_b:g}"
-        yield label, kind, a.seed + k, noisy_pair, params, e_f, clean
+        base = 3000 if pairs else 2000
+        data = [noisy(c, e, kind, base + len(scales) * (a.seed + k) + j, a.corr)
+                for j, (c, e) in enumerate(zip(clean, e_f))]
+        size = f"{length:g}x{width:g}" + (f" and x{PAIR_SCALE:g}" if pairs else "")
+        label = f"{regime} {size} a={spacing:g} l_b={l_b:g}"
+        if pairs:
+            yield label, kind, a.seed + k, data, params, e_f, clean
+        else:
+            yield label, kind, a.seed + k, data[0], params, e_f[0], clean[0]
 
 
 def cases(a, comm, l_b: float = BENDING_LENGTH):
@@ -136,7 +127,7 @@ def cases(a, comm, l_b: float = BENDING_LENGTH):
     case."""
     design = getattr(a, "design", "seeds")
     if design in ("configurations", "pairs"):
-        yield from (configuration_cases if design == "configurations" else pair_cases)(a, comm)
+        yield from configuration_cases(a, comm, pairs=design == "pairs")
         return
     for regime, (k_l, k_s, strain) in REGIMES.items():
         params = truth(k_l, k_s, l_b)
