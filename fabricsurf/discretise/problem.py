@@ -163,13 +163,26 @@ class FabricProblem(Owner):
                 dx = ufl.Measure("dx", domain=self.msh,
                                  metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
                 self._body_form = fem.form(sum(ufl.dot(b, v) for b in self.body_forces) * dx)
-            self._solver = SNESSolver(
-                self.energy.residual(v), self.energy.jacobian(du, v), self.u, self.bcs,
-                self.prefix, self.snes_options,
-                weak_method(self._nodal_forces) if self._point_forces or self.body_forces
-                else None,
-                self.energy.multipliers)
+            F, J = self.energy.residual(v), self.energy.jacobian(du, v)
+            extra = self.extra_energy()
+            if extra is not None:
+                dP = ufl.derivative(extra, self.u, v)
+                F, J = F + dP, J + ufl.derivative(dP, self.u, du)
+            self._solver = self._new_solver(
+                F, J, weak_method(self._nodal_forces) if self._point_forces or self.body_forces
+                else None)
         return self._solver
+
+    def extra_energy(self):
+        """An energy a subclass adds to Π_h (e.g. the penalty of contact with rigid tools);
+        None: nothing is added."""
+        return None
+
+    def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
+        """The solver of residual F and Jacobian J (a subclass may return a SNESSolver
+        subclass)."""
+        return SNESSolver(F, J, self.u, self.bcs, self.prefix, self.snes_options, nodal_forces,
+                          self.energy.multipliers)
 
     def solve(self) -> tuple[int, int]:
         return self.solver().solve()

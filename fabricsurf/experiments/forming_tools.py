@@ -25,7 +25,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, EnergyForm, placement
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, placement
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.terms import Term
@@ -132,15 +132,9 @@ class ContactProblem(FabricProblem):
         self.clamp_gradient(edge, ufl.as_vector([dn[i] if i == axis else 0.0
                                                  for i in range(3)]))
 
-    def solver(self) -> SNESSolver:
-        if self._solver is None:
-            self.energy = EnergyForm(self.model, self.u, self.L, self.M, self.specimen.facet_tags,
-                                     self.normal_derivative, self.tractions, self.penalty)
-            v, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
-            dP = ufl.derivative(self.contact_energy(), self.u, v)
-            self._solver = ContactSolver(
-                self.energy.residual(v) + dP,
-                self.energy.jacobian(du, v) + ufl.derivative(dP, self.u, du),
-                self.u, self.bcs, self.prefix, self.snes_options, None, self.energy.multipliers,
-                tools=self.tools)
-        return self._solver
+    def extra_energy(self):
+        return self.contact_energy()
+
+    def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
+        return ContactSolver(F, J, self.u, self.bcs, self.prefix, self.snes_options,
+                             nodal_forces, self.energy.multipliers, tools=self.tools)
