@@ -1,20 +1,28 @@
-"""Forming benchmark: a 250 mm blank over a hemispherical punch of radius 50 mm on three meshes
-(docs/forming.md).
+"""Forming benchmark (docs/forming.md): mesh convergence on the small hemisphere, then the cost
+of a 250 mm blank.
 
-Prints, per mesh, the DOFs, the Newton iterations and the contact active-set changes (the
-quadrature points that enter or leave contact with the punch) per stroke step, and the time;
-then the mesh convergence of the punch force at the final stroke and of the shear angle at a
-point of the diagonal, with the observed rate from the three meshes (ratio √2). The model is
-the fitted woven fabric of docs/woven_fabric.md with the assumed bending of demo_forming.py.
+1. ``--study convergence`` (R = 20 mm, 72 mm blank, die clearance and lip R/5 as in
+   tests/test_hemisphere.py, so that the meshes resolve the tools): the fitted woven fabric of
+   docs/woven_fabric.md, with the assumed bending of demo_forming.py and the holder of
+   research/forming/parts.py (friction), formed to 0.6 R in 12 steps on meshes h = R/5·√2^k,
+   k = 1, 0, −1, −2. Printed per mesh: DOFs, Newton iterations, time, the punch force at the
+   final stroke and the recovered shear at X = R/2 on the diagonal; then the differences of
+   successive meshes and the observed rates. The same meshes in the kinematic limit (shear and
+   bending a hundred times softer) give the recovered shear at X = R/2 against the fishnet
+   drape: the error and its rate.
+2. ``--study performance``: a 250 mm blank over R = 50 mm on three meshes, h = R/4, R/5 and
+   R/7.07 (the finest is in the range the convergence study shows to be asymptotic). Printed
+   per mesh: DOFs, Newton iterations and contact active-set changes per stroke step, the load
+   stepper's attempts, the time; then how the time grows with the number of elements.
 
-Run: ``mpirun -n 2 python benchmarks/forming.py`` (``--quick``: the tests' 60 mm blank over
-R = 20 mm).
+Run: ``mpirun -n 2 python benchmarks/forming.py [--study convergence|performance|both]``.
 """
 
 import argparse
 import math
 import sys
 import time
+from itertools import pairwise
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -24,52 +32,101 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
 from research.forming import parts
+from research.forming.fishnet import bisector_shear
 
 comm = MPI.COMM_WORLD
-ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-ap.add_argument("--quick", action="store_true")
-args = ap.parse_args()
-R, BLANK = (20.0, 60.0) if args.quick else (50.0, 250.0)
-STROKE, STEPS = 0.6 * R, 12
-MESHES = [R / 5.0 * math.sqrt(2.0), R / 5.0, R / 5.0 / math.sqrt(2.0)]
-POINT = 0.5 * R
-"""Reference distance from the pole, on the diagonal, of the shear angle studied."""
+STROKE_FRACTION, STEPS = 0.6, 12
 
-rows = []
-for h in MESHES:
-    e = parts.experiment(R, BLANK, h, 45.0, parts.forming_model(parts.DOCUMENTED_PARAMS["params"],
-                                                                0.1, 0.1), comm)
-    dofs = 3 * e.problem.V.dofmap.index_map.size_global
-    changes, last = [], [e.active_set()]
 
-    def count(k, s, e=e, last=last, changes=changes):
-        now = e.active_set()
-        changes.append(comm.allreduce(int(np.count_nonzero(now != last[0])), op=MPI.SUM))
-        last[0] = now
-        rank0_print(comm, f"    s = {s:.4g} mm: F = {e.force[-1]:.4g} N, "
-                          f"{changes[-1]} active-set changes")
+def form(R: float, blank: float, h: float, values: dict | None = None,
+         count_changes: bool = False, **tooling) -> dict:
+    """One forming run; its DOFs, cost, punch force and recovered shear at X = R/2."""
+    model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
+    with parts.experiment(R, blank, h, 45.0, model, comm, **tooling) as e:
+        terms = {t.name: t for t in e.model}
+        for name, v in (values or {}).items():
+            terms[name].set(**v)
+        dofs = 3 * e.problem.V.dofmap.index_map.size_global
+        changes, last = [], [e.active_set()]
 
-    t0 = time.perf_counter()
-    its = e.run(STROKE, STEPS, on_step=count)
-    seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-    shear = float(e.profile(0.0, np.array([POINT]))["shear_deg"][0])
-    rows.append({"h": h, "dofs": dofs, "force": e.force[-1], "shear": shear, "seconds": seconds})
-    rank0_print(comm, f"h = {h:.3f} mm: {dofs} DOFs, {seconds:.1f} s, force {e.force[-1]:.5g} N, "
-                      f"shear at X = {POINT:g} mm {shear:.4g} deg")
-    rank0_print(comm, f"  Newton iterations per step {its}; attempts {e.stepper.attempts}")
-    rank0_print(comm, f"  active-set changes per step {changes}")
-    e.close()
+        def count(k, s):
+            now = e.active_set()
+            changes.append(comm.allreduce(int(np.count_nonzero(now != last[0])), op=MPI.SUM))
+            last[0] = now
 
-rank0_print(comm, "\nmesh   DOFs    seconds  s/DOF")
-for r in rows:
-    rank0_print(comm, f"{r['h']:6.3f} {r['dofs']:6d} {r['seconds']:8.1f}  "
-                      f"{r['seconds'] / r['dofs']:.2e}")
-first, last = rows[0], rows[-1]
-grow = math.log(last["seconds"] / first["seconds"]) / math.log(last["dofs"] / first["dofs"])
-rank0_print(comm, f"time grows as DOFs^{grow:.2f}")
-for key in ("force", "shear"):
-    q = [r[key] for r in rows]
-    d1, d2 = abs(q[0] - q[1]), abs(q[1] - q[2])
-    rate = math.log(d1 / d2) / math.log(math.sqrt(2.0)) if d1 > 0 and d2 > 0 else float("nan")
-    rank0_print(comm, f"{key}: {q[0]:.6g}, {q[1]:.6g}, {q[2]:.6g}; differences {d1:.3g}, "
-                      f"{d2:.3g}; observed rate {rate:.2f}")
+        t0 = time.perf_counter()
+        its = e.run(STROKE_FRACTION * R, STEPS, on_step=count if count_changes else None)
+        seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        p = e.profile(e.diagonal_deg, np.array([0.5 * R]))
+        return {"h": h, "dofs": dofs, "cells": e.specimen.mesh.topology.index_map(2).size_global,
+                "seconds": seconds, "iterations": list(its), "attempts": list(e.stepper.attempts),
+                "changes": changes, "force": e.force[-1],
+                "shear": float(p["shear_recovered_deg"][0]), "gap": float(p["gap"][0])}
+
+
+def rates(values: list[float]) -> tuple[list[float], list[float]]:
+    """Differences of successive meshes and the observed rates (mesh ratio √2)."""
+    d = [abs(a - b) for a, b in pairwise(values)]
+    r = [math.log(a / b) / math.log(math.sqrt(2.0)) if a > 0 and b > 0 else float("nan")
+         for a, b in pairwise(d)]
+    return d, r
+
+
+def convergence() -> None:
+    R, blank = 20.0, 72.0
+    tools = {"clearance": R / 5.0, "die_lip": R / 5.0}
+    meshes = [R / 5.0 * math.sqrt(2.0) ** k for k in (1, 0, -1, -2)]
+    rank0_print(comm, f"== convergence: R = {R:g} mm, {blank:g} mm blank, stroke "
+                      f"{STROKE_FRACTION * R:g} mm in {STEPS} steps ==")
+    rows, kin = [], []
+    for h in meshes:
+        rows.append(form(R, blank, h, **tools))
+        kin.append(form(R, blank, h, parts.KINEMATIC, **tools))
+        r, k = rows[-1], kin[-1]
+        rank0_print(comm, f"h = {h:6.3f} mm ({r['dofs']} DOFs): {r['seconds']:6.1f} s, "
+                          f"{sum(r['iterations'])} Newton iterations, force {r['force']:.5g} N, "
+                          f"shear at R/2 {r['shear']:.4g} deg; kinematic limit {k['shear']:.4g}"
+                          f" deg ({k['seconds']:.1f} s)")
+    for key, label in (("force", "punch force (N)"), ("shear", "shear at X = R/2 (deg)")):
+        d, r = rates([row[key] for row in rows])
+        rank0_print(comm, f"{label}: differences {np.round(d, 4).tolist()}; observed rates "
+                          f"{np.round(r, 2).tolist()}")
+    exact = float(np.degrees(bisector_shear(R, np.array([0.5 * R])))[0])
+    err = [abs(k["shear"] - exact) for k in kin]
+    r = [math.log(a / b) / math.log(math.sqrt(2.0)) for a, b in pairwise(err)]
+    rank0_print(comm, f"kinematic limit at X = R/2: fishnet {exact:.4f} deg; errors "
+                      f"{np.round(err, 4).tolist()}; observed rates {np.round(r, 2).tolist()}"
+                      f"; gaps to the punch {np.round([k['gap'] for k in kin], 4).tolist()} mm")
+
+
+def performance() -> None:
+    R, blank = 50.0, 250.0
+    rank0_print(comm, f"== performance: R = {R:g} mm, {blank:g} mm blank, {comm.size} ranks ==")
+    rows = []
+    for h in (R / 4.0, R / 5.0, R / 5.0 / math.sqrt(2.0)):
+        r = form(R, blank, h, count_changes=True)
+        rows.append(r)
+        rank0_print(comm, f"h = {h:.3f} mm: {r['dofs']} DOFs, {r['cells']} cells, "
+                          f"{r['seconds']:.1f} s, force {r['force']:.5g} N")
+        rank0_print(comm, f"  Newton iterations per step {r['iterations']}; attempts "
+                          f"{r['attempts']}")
+        rank0_print(comm, f"  active-set changes per step {r['changes']}")
+    rank0_print(comm, "\n    h   cells   DOFs  seconds  Newton its  s/iteration")
+    for r in rows:
+        n = sum(r["iterations"])
+        rank0_print(comm, f"{r['h']:6.3f} {r['cells']:6d} {r['dofs']:6d} {r['seconds']:8.1f} "
+                          f"{n:10d}  {r['seconds'] / n:.3f}")
+    first, last = rows[0], rows[-1]
+    grow = math.log(last["seconds"] / first["seconds"]) / math.log(last["cells"] / first["cells"])
+    rank0_print(comm, f"time grows as cells^{grow:.2f}; the finest mesh takes "
+                      f"{last['seconds'] / 60.0:.2f} min (target: under 5 min on 2 ranks)")
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--study", choices=("convergence", "performance", "both"), default="both")
+    args = ap.parse_args()
+    if args.study in ("convergence", "both"):
+        convergence()
+    if args.study in ("performance", "both"):
+        performance()

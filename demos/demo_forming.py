@@ -15,14 +15,18 @@
 # `--params`; without one, the fitted values recorded in docs/woven_fabric.md, written to
 # `DIR/woven_params_documented.json`, and the summary says so) forms a square blank with its
 # yarns at ±45° to the sides over a hemispherical punch of radius 50 mm through a die, with a
-# blank holder (the `hemisphere` plug-in, docs/forming.md). The in-plane fit says nothing of
-# bending: k_b = k_t = 0.1 N·mm are assumed (stated in the summary).
+# blank holder (the `hemisphere` plug-in, docs/forming.md). The holder presses the flange with
+# 10 kPa and rubs it with a Coulomb coefficient of 0.3: that friction is what tensions the
+# fibres and makes the sheet wrap the punch (without it the sheet spans the punch as a tent).
+# The in-plane fit says nothing of bending: k_b = k_t = 0.1 N·mm are assumed (stated in the
+# summary).
 #
 # 1. The kinematic check: the same experiment in the inextensible, shear-free limit against the
-#    fishnet drape along the diagonal (the fibres' bisector), where the sheet is on the punch,
-#    at the element centres (with stiff fibres the discrete shear is nearly constant on each
-#    element of the aligned mesh and jumps between them; the largest pointwise difference,
-#    jumps included, is reported too).
+#    fishnet drape along the diagonal (the fibres' bisector), where the sheet is on the punch.
+#    With stiff fibres the discrete shear is nearly constant on each element of the aligned
+#    mesh and jumps between them; what is compared at every point is the recovered shear (the
+#    area-weighted nodal average a post-processor shows), and the per-element values are
+#    reported too.
 # 2. The fitted model: shear map, diagonal profile against the kinematic drape, punch force,
 #    where it wrinkles and where it passes the locking angle; XDMF for ParaView.
 # 3. Which effects matter (full mode, or `--quick --effects`): the profile with the bending
@@ -56,7 +60,7 @@ ap.add_argument("--effects", action="store_true",
 args = parse(ap)
 out = args.out
 t_start = time.perf_counter()
-R, BLANK, H = (20.0, 60.0, 4.0) if args.quick else (50.0, 150.0, 10.0)
+R, BLANK, H = (20.0, 60.0, 4.0) if args.quick else (50.0, 150.0, 50.0 / 7.0)
 STROKE, STEPS = 0.6 * R, 12
 K_BEND = 0.1
 params, source = on_rank0(comm, parts.read_params, args.params, out) or (None, None)
@@ -71,9 +75,11 @@ rank0_print(comm, f"model from {source}")
 # %%
 e = parts.experiment(R, BLANK, H, 45.0, parts.forming_model(params, K_BEND, K_BEND), comm)
 kinematic = parts.reform(e, parts.KINEMATIC, STROKE, STEPS)
-rank0_print(comm, f"kinematic limit: max |shear - fishnet| on the punch "
-                  f"{kinematic['diagonal_shear_max_diff_deg']:.2f} deg at the element centres, "
-                  f"{kinematic['pointwise_max_diff_deg']:.2f} deg pointwise")
+k = kinematic
+rank0_print(comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_punch']} points of "
+                  f"the diagonal on the punch {k['diagonal_shear_max_diff_deg']:.2f} deg "
+                  f"(recovered shear), {k['per_element_max_diff_deg']:.2f} deg (per element), "
+                  f"{k['centres_max_diff_deg']:.2f} deg at the element centres")
 
 # %% [markdown]
 # ## 2. The fitted model
@@ -117,9 +123,11 @@ for name, d in effects.items():
 def write_outputs() -> None:
     with open(out / "diagonal_shear.csv", "w", newline="") as fh:
         wr = csv.writer(fh)
-        wr.writerow(["arc_length_mm", "shear_deg", "kinematic_shear_deg"])
+        wr.writerow(["arc_length_mm", "shear_deg", "kinematic_shear_deg",
+                     "shear_per_element_deg"])
         p = main["profile"]
-        wr.writerows(zip(p["arc_length_mm"], p["shear_deg"], p["kinematic_shear_deg"]))
+        wr.writerows(zip(p["arc_length_mm"], p["shear_deg"], p["kinematic_shear_deg"],
+                         p["shear_per_element_deg"]))
     parts.figures(out, grid, BLANK, cases, R)
 
 
@@ -129,19 +137,21 @@ summary = {"diagonal_shear_max_diff_deg": kinematic["diagonal_shear_max_diff_deg
            "stroke_mm": main["stroke_mm"], "punch_force_N": main["punch_force_N"],
            "max_shear_deg": main["max_shear_deg"], "wrinkle_area_fraction": main["wrinkle"],
            "locked_area_fraction": main["locked"], "params_source": source,
-           "bending_assumed_N_mm": K_BEND, "effects_max_change_deg": effects,
-           "effects_failed": failed,
-           "kinematic_points": kinematic["centres_on_punch"],
-           "diagonal_shear_pointwise_max_diff_deg": kinematic["pointwise_max_diff_deg"],
+           "bending_assumed_N_mm": K_BEND, "holder": parts.HOLDER,
+           "effects_max_change_deg": effects, "effects_failed": failed,
+           "kinematic_points": kinematic["points_on_punch"],
+           "diagonal_shear_per_element_max_diff_deg": kinematic["per_element_max_diff_deg"],
+           "diagonal_shear_centres_max_diff_deg": kinematic["centres_max_diff_deg"],
            "seconds": time.perf_counter() - t_start}
 write_json(comm, out / "summary.json", summary)
 
 # %% [markdown]
 # `CHECKS` is the summary's contract (also read by tests/test_demos.py): the kinematic limit
-# within 2° of the fishnet drape on the punch, a punch force that rises with the stroke.
+# within 2° of the fishnet drape at every point of the diagonal on the punch (at least 20 of
+# them), a punch force that rises with the stroke.
 
 # %%
-CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (3, None),
+CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, None),
           "punch_force_N/*": (0.0, None), "max_shear_deg": (1.0, 60.0),
           "wrinkle_area_fraction": (0.0, 1.0), "seconds": (0.0, None), "stroke_mm": ...}
 verify(summary, CHECKS)

@@ -142,6 +142,18 @@ def symmetric_angle(fibre_angles: tuple[float, float]) -> float | None:
     return None
 
 
+SIDES = {(0.0, 90.0), (90.0, 0.0), (0.0, -90.0), (-90.0, 0.0)}
+"""Fibre angles of a blank with its fibres along its sides."""
+
+
+def blank_angle(fibre_angles: tuple[float, float]) -> float | None:
+    """θ of fibres at ±θ to a square blank's sides, 0 for fibres along them (both cases are
+    mirror-symmetric about the blank's mid-lines, :func:`quarter_blank`), else None."""
+    if tuple(float(a) for a in fibre_angles) in SIDES:
+        return 0.0
+    return symmetric_angle(fibre_angles)
+
+
 def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
               comm: MPI.Comm = MPI.COMM_WORLD, kind: str = "auto",
               extra_points: dict | None = None) -> Specimen:
@@ -161,15 +173,36 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
     return rectangle(length, width, h, comm, extra_points=extra_points)
 
 
+def square_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (i, j), 0 ≤ i, j ≤ n, and the triangles of the n × n unit squares, each cut
+    along its diagonal parallel to x = y (so the grid is its own mirror image in that line)."""
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="xy")
+    verts = np.column_stack([i.ravel(), j.ravel()]).astype(float)
+    a = (np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]).ravel()
+    tri = np.concatenate([np.column_stack([a, a + 1, a + n + 2]),
+                          np.column_stack([a, a + n + 2, a + n + 1])])
+    return verts, tri.astype(np.int64)
+
+
 def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
                   ) -> Specimen:
-    """The quarter [0, half]² of a square blank meshed along fibres at ±θ (the rhombic lattice
-    above), each rhombus centred at (p, q) cut along x where p > q and along y where p < q: at
-    θ = 45° the mesh is then its own mirror image in the diagonal, so a set-up symmetric about
-    the diagonal has a discrete solution that is symmetric to round-off."""
-    P, Q = lattice_divisions(half, half, h, theta_deg)
+    """The quarter [0, half]² of a square blank meshed along its fibres.
+
+    Fibres at ±θ (0 < θ < 90°): the rhombic lattice above, each rhombus centred at (p, q) cut
+    along x where p > q and along y where p < q; at θ = 45° the mesh is then its own mirror
+    image in the diagonal, so a set-up symmetric about the diagonal has a discrete solution that
+    is symmetric to round-off. θ = 0, fibres along the sides (0°/90°): a square grid of cell
+    ≈ h cut along the diagonal parallel to x = y, its own mirror image in that diagonal.
+    """
+    if theta_deg == 0.0:
+        check_positive(half=half, h=h)
+        n = max(2, round(half / h))
+        P = Q = n
+    else:
+        P, Q = lattice_divisions(half, half, h, theta_deg)
     if comm.rank == 0:
-        verts, tri = lattice_triangles(P, Q, lambda p, q: p > q)
+        verts, tri = (square_triangles(P) if theta_deg == 0.0 else
+                      lattice_triangles(P, Q, lambda p, q: p > q))
         x = np.column_stack([verts[:, 0] * half / P, verts[:, 1] * half / Q])
     else:
         x, tri = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)

@@ -54,6 +54,18 @@ def weight_per_area(areal_density_g_m2: float) -> float:
     return areal_density_g_m2 * 1e-9 * (GRAVITY * 1e3) * 1e-3
 
 
+def areal_density_option(tables: dict, where: str, default: float | None = None) -> float:
+    """``[material] areal_density_g_m2`` (g/m²), checked to be a plausible fabric; required
+    when ``default`` is None (a default is returned as it is)."""
+    if default is not None and "areal_density_g_m2" not in tables.get("material", {}):
+        return default
+    rho = number_option(tables, "material", "areal_density_g_m2", where)
+    if not 1.0 <= rho <= 5000.0:
+        raise DataError(f"{where}: [material] areal_density_g_m2 = {rho:g} g/m² is not a "
+                        "plausible fabric (1 to 5000 g/m²): is it in another unit?")
+    return rho
+
+
 def rigidity_uNm(rigidity_N_mm: float) -> float:
     """Bending rigidity per unit width in the textile unit µN·m (= µN·m²/m) from N·mm
     (1 N·mm = 1e-3 N·m = 1e3 µN·m)."""
@@ -104,11 +116,7 @@ class CantileverTest(ExperimentSetup):
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
-        rho = number_option(tables, "material", "areal_density_g_m2", where)
-        if not 1.0 <= rho <= 5000.0:
-            raise DataError(f"{where}: [material] areal_density_g_m2 = {rho:g} g/m² is not a "
-                            "plausible fabric (1 to 5000 g/m²): is it in another unit?")
-        return {"areal_density_g_m2": rho}
+        return {"areal_density_g_m2": areal_density_option(tables, where)}
 
     @classmethod
     def check_path(cls, steps, path, where: str) -> None:

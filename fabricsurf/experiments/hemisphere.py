@@ -1,21 +1,25 @@
 """Forming over a hemispherical punch (the woven-fabric hemisphere benchmark) as a 3D plug-in.
 
 A square blank of side B = ``length`` = ``width`` (mm), centred on the punch axis, with fibres
-at ±θ to its sides, lies at z = 0 between a blank holder and a die with an opening of radius
-R_o = R + clearance; a rigid hemispherical punch of radius R, its pole at z = s (the stroke,
-the load path, mm), pushes it up through the opening (experiments/forming_tools.py: the signed
-distances, the penalty contact, the punch force as the work conjugate of the stroke).
+at ±θ to its sides or along them (0°/90°), lies at z = 0 between a blank holder and a die with
+an opening of radius R_o = R + clearance; a rigid hemispherical punch of radius R, its pole at
+z = s (the stroke, the load path, mm), pushes it up through the opening
+(experiments/forming_tools.py: the signed distances, the penalty contact, the holder friction,
+the punch force as the work conjugate of the stroke).
 
-The set-up is symmetric about the blank's mid-lines (the bisectors of ±θ fibres), so one quarter
+The set-up is symmetric about the blank's mid-lines (each maps the pair of fibre families onto
+itself), so one quarter
 [0, B/2]² is solved with mirror conditions on x = 0 and y = 0 (the normal component of u and the
 normal derivatives of the others vanish); these also remove the in-plane rigid motions that
 frictionless tools leave free. Reported forces and energies are those of the whole blank (four
 quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
 fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
 about the diagonal at ±45° (geometry.aligned.quarter_blank). The contact active set changes from
-step to step and the penalty's second derivative jumps where it does: Newton is then
-semismooth, and full steps (up to :data:`NEWTON_ITERATIONS` of them) follow the active set
-better than a backtracking line search, which stalls at the kinks of the residual.
+step to step and the penalty's second derivative jumps where it does: full Newton steps then
+overshoot (the residual grows by orders of magnitude and the load stepper cuts the step), and a
+backtracking line search stalls at the kinks of the residual. Newton here uses PETSc's ``l2``
+line search, which picks the step length minimising the residual norm along the Newton
+direction by secant iterations (up to :data:`NEWTON_ITERATIONS` iterations).
 
 Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
 tensions, the normal curvatures K_L, K_M, the contact pressure, a wrinkling indicator (a fibre in
@@ -38,16 +42,18 @@ from fabricsurf.discretise.evaluation import (
     eval_points,
     interpolate_expression,
     max_over_cells,
+    nodal_average,
     quadrature_expression,
 )
 from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.solver import LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
+from fabricsurf.experiments.cantilever import areal_density_option, weight_per_area
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import lattice_divisions, quarter_blank, symmetric_angle
+from geometry.aligned import blank_angle, lattice_divisions, quarter_blank
 
 DEFAULTS = {"clearance": 0.1, "die_lip": 0.1, "holder_gap": 0.02}
 """Tool sizes as fractions of the punch radius R."""
@@ -74,10 +80,16 @@ class HemisphereForming(ExperimentSetup):
         "holder_gap": "gap between holder and die (mm, default R/50)",
         "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
         "contact_stiffness": "penalty k_c (N/mm³, default 100)",
+        "friction": "Coulomb coefficient between the flange and holder and die (default 0)",
+        "friction_slip_rate": "slip rate below which friction is regularised (mm of slip per "
+                              "mm of stroke, default 0.01)",
         "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
         "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, "
                            "default 1e-3)",
-        "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 0.1/R)"}}
+        "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 1/R: "
+                             "bent more sharply than the punch)"},
+        "material": {"areal_density_g_m2": "areal density for self-weight (g/m², gravity "
+                                           "9.81 m/s² along −z; default: no self-weight)"}}
 
     def __init__(self, setup: Setup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD, snes_options: dict | None = None) -> None:
@@ -85,15 +97,19 @@ class HemisphereForming(ExperimentSetup):
         o = setup.options
         self.check_specimen(setup, "hemisphere")
         self.R, half = o["punch_radius"], 0.5 * setup.length
-        theta = symmetric_angle(tuple(setup.fibre_angles_deg))
-        self.specimen = quarter_blank(half, h, theta, comm)
+        self.theta = blank_angle(tuple(setup.fibre_angles_deg))
+        self.diagonal_deg = 45.0 if self.theta == 0.0 else 0.0
+        self.specimen = quarter_blank(half, h, self.theta, comm)
         msh = self.specimen.mesh
         self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
-                           o["contact_stiffness"], o["holder_pressure"])
+                           o["contact_stiffness"], o["holder_pressure"],
+                           o.get("friction", 0.0), o.get("friction_slip_rate", 1e-2),
+                           weight_per_area(o.get("areal_density_g_m2", 0.0)))
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
                            prefix="fabricsurf_hemisphere_",
-                           snes_options={"snes_max_it": NEWTON_ITERATIONS, **(snes_options or {})})
+                           snes_options={"snes_max_it": NEWTON_ITERATIONS,
+                                         "snes_linesearch_type": "l2", **(snes_options or {})})
         p.mirror("clamp", 0)
         p.mirror("bottom", 1)
         self.problem, self.solver = p, p.solver()
@@ -121,11 +137,19 @@ class HemisphereForming(ExperimentSetup):
                                                  CONTACT_STIFFNESS)
         out["holder_pressure"] = number_option(tables, "tooling", "holder_pressure", where,
                                                1e-3)
+        out["friction"] = number_option(tables, "tooling", "friction", where, 0.0,
+                                        positive=False)
+        if out["friction"] < 0:
+            raise DataError(f"{where}: [tooling] friction = {out['friction']:g} must not be "
+                            "negative")
+        out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
+        out["friction_slip_rate"] = number_option(tables, "tooling", "friction_slip_rate",
+                                                  where, 1e-2)
         out["locking_angle_deg"] = number_option(tables, "tooling", "locking_angle_deg", where,
                                                  LOCKING_ANGLE_DEG)
         out["wrinkle_tension"] = number_option(tables, "tooling", "wrinkle_tension", where, 1e-3)
         out["wrinkle_curvature"] = number_option(tables, "tooling", "wrinkle_curvature", where,
-                                                 0.1 / R * length_scale) / length_scale
+                                                 1.0 / R * length_scale) / length_scale
         return out
 
     @classmethod
@@ -136,10 +160,11 @@ class HemisphereForming(ExperimentSetup):
             raise DataError(f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
                             f"a square wider than the die opening with its lip, 2(R + clearance"
                             f" + die_lip) = {2 * (R + c):g} mm")
-        if symmetric_angle(tuple(setup.fibre_angles_deg)) is None:
+        if blank_angle(tuple(setup.fibre_angles_deg)) is None:
             raise DataError(f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the "
                             "hemisphere test needs fibres at ±θ (0 < θ < 90) to the blank's "
-                            "sides, mirror images about its mid-lines")
+                            "sides or along them ([0, 90]), mapped onto themselves by its "
+                            "mid-lines")
 
     @classmethod
     def default_h(cls, setup: Setup) -> float:
@@ -158,9 +183,15 @@ class HemisphereForming(ExperimentSetup):
         return self._scalar("force")
 
     def energies(self) -> tuple[float, float]:
-        """(stored energy, tools' energy: the contact penalty and the holder's potential) of the
-        whole blank (N·mm); their sum is the total energy Π of the work balance."""
+        """(stored energy, tools' energy: the contact penalty, the holder's potential and the
+        self-weight's) of the whole blank (N·mm); their sum is the total energy Π of the work
+        balance."""
         return self._scalar("stored"), self._scalar("tools")
+
+    def dissipated(self) -> float:
+        """The energy dissipated by friction under the holder since the start of :meth:`run`
+        (N·mm, whole blank): with it the work balance reads ∫ F ds = ΔΠ + D."""
+        return 4.0 * self.solver.dissipated
 
     def area_fractions(self) -> dict[str, float]:
         """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
@@ -216,22 +247,27 @@ class HemisphereForming(ExperimentSetup):
 
     def element_centres(self) -> np.ndarray:
         """Reference distances from the pole of the midpoints of the mesh edges on the diagonal
-        (the fibres' bisector, y = 0). With stiff fibres the shear of the discrete sheet is
-        nearly constant on each element of the aligned mesh (it behaves as a pin-jointed net
-        of cell size h) and jumps between elements: there an element's value stands for its
-        mean."""
+        (the fibres' bisector, the ray at :attr:`diagonal_deg`). With stiff fibres the shear of
+        the discrete sheet is nearly constant on each element of the aligned mesh (it behaves
+        as a pin-jointed net of cell size h) and jumps between elements: there an element's
+        value stands for its mean."""
         half = 0.5 * self.setup.length
-        theta = symmetric_angle(tuple(self.setup.fibre_angles_deg))
-        dx = half / lattice_divisions(half, half, self.h, theta)[0]
+        if self.theta == 0.0:
+            d = half / max(2, round(half / self.h))
+            return np.arange(0.5 * d, half, d) * math.sqrt(2.0)
+        dx = half / lattice_divisions(half, half, self.h, self.theta)[0]
         return np.arange(dx, half, 2.0 * dx)
 
     def profile(self, direction_deg: float, X: np.ndarray | None = None,
                 n: int = 40) -> dict[str, np.ndarray]:
-        """Along the reference ray from the pole at ``direction_deg`` (0: the fibres' bisector,
-        the benchmarks' diagonal; θ: a fibre), at reference distances ``X`` (default n points
-        to the blank's edge): X, the arc length from the pole over the deformed sheet's polar
-        angle about the punch centre, R·φ, the shear angle γ (deg), and the gap to the punch's
-        cap (mm; negative: penetration). The same on every rank."""
+        """Along the reference ray from the pole at ``direction_deg`` (:attr:`diagonal_deg`:
+        the fibres' bisector, the benchmarks' diagonal; a fibre's angle: that fibre), at
+        reference distances ``X`` (default n points to the blank's edge): X, the arc length
+        from the pole over the deformed sheet's polar angle about the punch centre, R·φ, the
+        shear angle γ (deg), the recovered shear angle (deg: its area-weighted nodal average,
+        evaluation.nodal_average, the continuous field a post-processor shows in place of the
+        per-element staircase of a stiff net), and the gap to the punch's cap (mm; negative:
+        penetration). The same on every rank."""
         t = math.radians(direction_deg)
         reach = 0.5 * self.setup.length / max(abs(math.cos(t)), abs(math.sin(t)))
         X = np.linspace(0.0, reach, n) if X is None else np.asarray(X, dtype=float)
@@ -239,11 +275,14 @@ class HemisphereForming(ExperimentSetup):
         pts = np.column_stack([X * math.cos(t), X * math.sin(t)])
         kin = self.problem.energy.kin
         gam = interpolate_expression(kin.gamma * (180.0 / math.pi), self._S)
+        rec = nodal_average(kin.gamma * (180.0 / math.pi), self.specimen.mesh,
+                            CELL_QUADRATURE_DEGREE)
         r = np.column_stack([pts, np.zeros(n)]) + eval_points(self.problem.u, pts)
         r[:, 2] -= float(self.tools.stroke.value) - self.R
         dist = np.linalg.norm(r, axis=1)
         phi = np.arccos(np.clip(r[:, 2] / dist, -1.0, 1.0))
         return {"X": X, "arc": self.R * phi, "shear_deg": eval_points(gam, pts)[:, 0],
+                "shear_recovered_deg": eval_points(rec, pts)[:, 0],
                 "gap": np.where(r[:, 2] > 0, dist - self.R, np.inf)}
 
     def run(self, stroke: float, steps: int = 8,
@@ -252,6 +291,7 @@ class HemisphereForming(ExperimentSetup):
         requested steps (cut on divergence, LoadStepper); records :attr:`stroke` and
         :attr:`force` at each. Returns the Newton iterations per step."""
         self.solver.u.x.array[:] = 0.0
+        self.solver.dissipated = self.solver.s_n = 0.0
         self.set_load(0.0)
         self.stroke, self.force = [0.0], [0.0]
 
