@@ -2,7 +2,8 @@
 of a 250 mm blank.
 
 1. ``--study convergence`` (R = 20 mm, 72 mm blank, die clearance and lip R/5 as in
-   tests/test_hemisphere.py, so that the meshes resolve the tools): the fitted woven fabric of
+   research/forming/parts.py and tests/test_hemisphere.py, so that the meshes resolve the
+   tools): the fitted woven fabric of
    docs/woven_fabric.md, with the assumed bending of demo_forming.py and the holder of
    research/forming/parts.py (friction), formed to 0.6 R in 12 steps on meshes h = R/5·√2^k,
    k = 1, 0, −1, −2. Printed per mesh: DOFs, Newton iterations, time, the punch force at the
@@ -10,10 +11,11 @@ of a 250 mm blank.
    successive meshes and the observed rates. The same meshes in the kinematic limit (shear and
    bending a hundred times softer) give the recovered shear at X = R/2 against the fishnet
    drape: the error and its rate.
-2. ``--study performance``: a 250 mm blank over R = 50 mm on three meshes, h = R/4, R/5 and
-   R/7.07 (the finest is in the range the convergence study shows to be asymptotic). Printed
-   per mesh: DOFs, Newton iterations and contact active-set changes per stroke step, the load
-   stepper's attempts, the time; then how the time grows with the number of elements.
+2. ``--study performance``: a 250 mm blank over R = 50 mm, the same tools, on three meshes
+   h = R/4, R/5 and R/7.07 (the finest in the range the convergence study shows to be
+   asymptotic). Printed per mesh: DOFs, Newton iterations and contact active-set changes per
+   stroke step, the load stepper's attempts, the time; then how the time grows with the number
+   of elements.
 
 Run: ``mpirun -n 2 python benchmarks/forming.py [--study convergence|performance|both]``.
 """
@@ -39,10 +41,10 @@ STROKE_FRACTION, STEPS = 0.6, 12
 
 
 def form(R: float, blank: float, h: float, values: dict | None = None,
-         count_changes: bool = False, **tooling) -> dict:
+         count_changes: bool = False) -> dict:
     """One forming run; its DOFs, cost, punch force and recovered shear at X = R/2."""
     model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
-    with parts.experiment(R, blank, h, 45.0, model, comm, **tooling) as e:
+    with parts.experiment(R, blank, h, 45.0, model, comm) as e:
         terms = {t.name: t for t in e.model}
         for name, v in (values or {}).items():
             terms[name].set(**v)
@@ -74,14 +76,13 @@ def rates(values: list[float]) -> tuple[list[float], list[float]]:
 
 def convergence() -> None:
     R, blank = 20.0, 72.0
-    tools = {"clearance": R / 5.0, "die_lip": R / 5.0}
     meshes = [R / 5.0 * math.sqrt(2.0) ** k for k in (1, 0, -1, -2)]
     rank0_print(comm, f"== convergence: R = {R:g} mm, {blank:g} mm blank, stroke "
                       f"{STROKE_FRACTION * R:g} mm in {STEPS} steps ==")
     rows, kin = [], []
     for h in meshes:
-        rows.append(form(R, blank, h, **tools))
-        kin.append(form(R, blank, h, parts.KINEMATIC, **tools))
+        rows.append(form(R, blank, h))
+        kin.append(form(R, blank, h, parts.KINEMATIC))
         r, k = rows[-1], kin[-1]
         rank0_print(comm, f"h = {h:6.3f} mm ({r['dofs']} DOFs): {r['seconds']:6.1f} s, "
                           f"{sum(r['iterations'])} Newton iterations, force {r['force']:.5g} N, "
