@@ -117,7 +117,7 @@ def test_rejects_bad_set_up():
 
 def test_options():
     opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0}}, 10.0, "t")
-    assert opts["punch_radius"] == 50.0 and opts["clearance"] == pytest.approx(5.0)
+    assert opts["punch_radius"] == 50.0 and opts["clearance"] == pytest.approx(10.0)
     assert opts["wrinkle_curvature"] == pytest.approx(1.0 / 50.0)
     with pytest.raises(DataError, match=r"\[tooling\] punch_radius"):
         HemisphereForming.parse_options({"tooling": {}}, 1.0, "t")

@@ -14,12 +14,9 @@ normal derivatives of the others vanish); these also remove the in-plane rigid m
 frictionless tools leave free. Reported forces and energies are those of the whole blank (four
 quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
 fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
-about the diagonal at ±45° (geometry.aligned.quarter_blank). The contact active set changes from
-step to step and the penalty's second derivative jumps where it does: full Newton steps then
-overshoot (the residual grows by orders of magnitude and the load stepper cuts the step), and a
-backtracking line search stalls at the kinks of the residual. Newton here uses PETSc's ``l2``
-line search, which picks the step length minimising the residual norm along the Newton
-direction by secant iterations (up to :data:`NEWTON_ITERATIONS` iterations).
+about the diagonal at ±45° (geometry.aligned.quarter_blank). Full Newton steps overshoot at the
+kinks of the contact residual and a backtracking line search stalls there: Newton uses PETSc's
+``l2`` line search (the step length minimising the residual norm, docs/forming.md).
 
 Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
 tensions, the normal curvatures K_L, K_M, the contact pressure, a wrinkling indicator (a fibre in
@@ -30,6 +27,7 @@ beyond the locking angle (|γ| > γ_lock).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -55,14 +53,19 @@ from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle, lattice_divisions, quarter_blank
 
-DEFAULTS = {"clearance": 0.1, "die_lip": 0.1, "holder_gap": 0.02}
-"""Tool sizes as fractions of the punch radius R."""
+DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
+"""Tool sizes as fractions of the punch radius R (a mesh must resolve the clearance and the
+lip, h ≤ min of the two, for the punch force to converge: docs/forming.md)."""
 CONTACT_STIFFNESS = 100.0
 """Default penalty k_c (N/mm³): a contact pressure p gives a penetration p / k_c."""
 NEWTON_ITERATIONS = 50
 """Newton iterations per attempt before the load stepper cuts the stroke increment."""
 LOCKING_ANGLE_DEG = 50.0
 """Default locking angle (woven fabrics lock at about 40–55°, Cao et al. 2008)."""
+PLAIN_DEFAULTS = {"contact_stiffness": CONTACT_STIFFNESS, "holder_pressure": 1e-3,
+                  "friction_slip_rate": 1e-2, "locking_angle_deg": LOCKING_ANGLE_DEG,
+                  "wrinkle_tension": 1e-3}
+"""Defaults of the options in their own units (N/mm³, N/mm², mm/mm, deg, N/mm)."""
 
 
 class HemisphereForming(ExperimentSetup):
@@ -75,8 +78,8 @@ class HemisphereForming(ExperimentSetup):
     reaction_label = "punch force (N)"
     keys = {"tooling": {
         "punch_radius": "punch radius R (mm, required)",
-        "clearance": "die opening radius minus R (mm, default R/10)",
-        "die_lip": "lip radius of die and holder (mm, default R/10)",
+        "clearance": "die opening radius minus R (mm, default R/5)",
+        "die_lip": "lip radius of die and holder (mm, default R/5)",
         "holder_gap": "gap between holder and die (mm, default R/50)",
         "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
         "contact_stiffness": "penalty k_c (N/mm³, default 100)",
@@ -96,6 +99,11 @@ class HemisphereForming(ExperimentSetup):
         super().__init__(setup, model, h, comm)
         o = setup.options
         self.check_specimen(setup, "hemisphere")
+        if h > min(o["clearance"], o["die_lip"]):
+            warnings.warn(f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
+                          f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not "
+                          "resolve the tools and the punch force is not mesh-converged",
+                          stacklevel=2)
         self.R, half = o["punch_radius"], 0.5 * setup.length
         self.theta = blank_angle(tuple(setup.fibre_angles_deg))
         self.diagonal_deg = 45.0 if self.theta == 0.0 else 0.0
@@ -133,21 +141,14 @@ class HemisphereForming(ExperimentSetup):
         for key, frac in DEFAULTS.items():
             default = frac * R / length_scale
             out[key] = number_option(tables, "tooling", key, where, default) * length_scale
-        out["contact_stiffness"] = number_option(tables, "tooling", "contact_stiffness", where,
-                                                 CONTACT_STIFFNESS)
-        out["holder_pressure"] = number_option(tables, "tooling", "holder_pressure", where,
-                                               1e-3)
+        for key, default in PLAIN_DEFAULTS.items():
+            out[key] = number_option(tables, "tooling", key, where, default)
         out["friction"] = number_option(tables, "tooling", "friction", where, 0.0,
                                         positive=False)
         if out["friction"] < 0:
             raise DataError(f"{where}: [tooling] friction = {out['friction']:g} must not be "
                             "negative")
         out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
-        out["friction_slip_rate"] = number_option(tables, "tooling", "friction_slip_rate",
-                                                  where, 1e-2)
-        out["locking_angle_deg"] = number_option(tables, "tooling", "locking_angle_deg", where,
-                                                 LOCKING_ANGLE_DEG)
-        out["wrinkle_tension"] = number_option(tables, "tooling", "wrinkle_tension", where, 1e-3)
         out["wrinkle_curvature"] = number_option(tables, "tooling", "wrinkle_curvature", where,
                                                  1.0 / R * length_scale) / length_scale
         return out
