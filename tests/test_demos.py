@@ -34,9 +34,10 @@ QUICK = {
     "demo_forming.py": ["--quick"],
 }
 SLOW = {"demo_bending.py", "demo_woven_fabric.py"}
-RANKS = {"demo_forming.py": (2,)}
-"""Demos run on these rank counts only (default 1 and 2): forming's 3D contact steps take a
-minute even in quick mode, and its 1 = 2 ranks check is tests/test_hemisphere.py's."""
+RANKS = {"demo_forming.py": (2,), "demo_hypar.py": (2,)}
+"""Demos run on these rank counts only (default 1 and 2): forming's 3D contact steps take
+minutes even in quick mode, and its 1 = 2 ranks check is tests/test_hemisphere.py's; the hypar
+demo's exact solution is checked on one rank by tests/test_hypar.py."""
 # what FFCx, UFL and cffi/distutils print while compiling a form
 COMPILER = re.compile(r"^(INFO:|DEBUG:|.*\bgcc\b|.*\bcc1\b|running build_ext|building '|"
                       r"Compiling form|Compiler stage)", re.M)
