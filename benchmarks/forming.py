@@ -45,9 +45,7 @@ def form(R: float, blank: float, h: float, values: dict | None = None,
     """One forming run; its DOFs, cost, punch force and recovered shear at X = R/2."""
     model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
     with parts.experiment(R, blank, h, 45.0, model, comm) as e:
-        terms = {t.name: t for t in e.model}
-        for name, v in (values or {}).items():
-            terms[name].set(**v)
+        parts.set_moduli(e, values or {})
         dofs = 3 * e.problem.V.dofmap.index_map.size_global
         changes, last = [], [e.active_set()]
 
@@ -69,9 +67,13 @@ def form(R: float, blank: float, h: float, values: dict | None = None,
 def rates(values: list[float]) -> tuple[list[float], list[float]]:
     """Differences of successive meshes and the observed rates (mesh ratio √2)."""
     d = [abs(a - b) for a, b in pairwise(values)]
-    r = [math.log(a / b) / math.log(math.sqrt(2.0)) if a > 0 and b > 0 else float("nan")
-         for a, b in pairwise(d)]
-    return d, r
+    return d, observed_rates(d)
+
+
+def observed_rates(errors: list[float]) -> list[float]:
+    """log(e_k / e_k+1) / log √2 of successive errors or differences (mesh ratio √2)."""
+    return [math.log(a / b) / math.log(math.sqrt(2.0)) if a > 0 and b > 0 else float("nan")
+            for a, b in pairwise(errors)]
 
 
 def convergence() -> None:
@@ -94,7 +96,7 @@ def convergence() -> None:
                           f"{np.round(r, 2).tolist()}")
     exact = float(np.degrees(bisector_shear(R, np.array([0.5 * R])))[0])
     err = [abs(k["shear"] - exact) for k in kin]
-    r = [math.log(a / b) / math.log(math.sqrt(2.0)) for a, b in pairwise(err)]
+    r = observed_rates(err)
     rank0_print(comm, f"kinematic limit at X = R/2: fishnet {exact:.4f} deg; errors "
                       f"{np.round(err, 4).tolist()}; observed rates {np.round(r, 2).tolist()}"
                       f"; gaps to the punch {np.round([k['gap'] for k in kin], 4).tolist()} mm")

@@ -173,6 +173,12 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
     return rectangle(length, width, h, comm, extra_points=extra_points)
 
 
+def square_divisions(side: float, h: float) -> int:
+    """Cells along a side of the square grid of :func:`quarter_blank` (cell ≈ h, at least 2)."""
+    check_positive(side=side, h=h)
+    return max(2, round(side / h))
+
+
 def square_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (i, j), 0 ≤ i, j ≤ n, and the triangles of the n × n unit squares, each cut
     along its diagonal parallel to x = y (so the grid is its own mirror image in that line)."""
@@ -195,9 +201,7 @@ def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.
     ≈ h cut along the diagonal parallel to x = y, its own mirror image in that diagonal.
     """
     if theta_deg == 0.0:
-        check_positive(half=half, h=h)
-        n = max(2, round(half / h))
-        P = Q = n
+        P = Q = square_divisions(half, h)
     else:
         P, Q = lattice_divisions(half, half, h, theta_deg)
     if comm.rank == 0:

@@ -105,20 +105,22 @@ class Tools:
         return (0.5 * self.k_c * sum(p**2 for p in self.penetrations(r).values())
                 - self.p_h * self.holder_weight(r) * r[2] + self.weight * r[2])
 
+    def _slip_and_limit(self, r, r_n):
+        """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(ρ_n), the limit traction)."""
+        slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
+        return ufl.dot(slip, slip), 2.0 * self.mu * self.p_h * self.holder_weight(r_n)
+
     def friction_density(self, r, r_n):
         """Φ's density 2 μ p_h w(ρ_n) (√(|Δr_t|² + ε²) − ε) (N/mm per unit reference area;
         module docstring), r_n the placement of the last converged state."""
-        slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
-        eps = self.eps
-        return (2.0 * self.mu * self.p_h * self.holder_weight(r_n)
-                * (ufl.sqrt(ufl.dot(slip, slip) + eps**2) - eps))
+        s2, limit = self._slip_and_limit(r, r_n)
+        return limit * (ufl.sqrt(s2 + self.eps**2) - self.eps)
 
     def dissipation_density(self, r, r_n):
         """The work of the friction traction over the step's slip, 2 μ p_h w(ρ_n) |Δr_t|² /
         √(|Δr_t|² + ε²) (N/mm per unit reference area): the energy dissipated in the step."""
-        slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
-        s2 = ufl.dot(slip, slip)
-        return 2.0 * self.mu * self.p_h * self.holder_weight(r_n) * s2 / ufl.sqrt(s2 + self.eps**2)
+        s2, limit = self._slip_and_limit(r, r_n)
+        return limit * s2 / ufl.sqrt(s2 + self.eps**2)
 
     def force_density(self, r):
         """k_c ⟨−d_p⟩ n_z: the punch force per unit reference area (N/mm²)."""

@@ -51,7 +51,7 @@ from fabricsurf.experiments.cantilever import areal_density_option, weight_per_a
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import blank_angle, lattice_divisions, quarter_blank
+from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
 
 DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
 """Tool sizes as fractions of the punch radius R (a mesh must resolve the clearance and the
@@ -111,7 +111,8 @@ class HemisphereForming(ExperimentSetup):
         msh = self.specimen.mesh
         self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
                            o["contact_stiffness"], o["holder_pressure"],
-                           o.get("friction", 0.0), o.get("friction_slip_rate", 1e-2),
+                           o.get("friction", 0.0),
+                           o.get("friction_slip_rate", PLAIN_DEFAULTS["friction_slip_rate"]),
                            weight_per_area(o.get("areal_density_g_m2", 0.0)))
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
@@ -254,7 +255,7 @@ class HemisphereForming(ExperimentSetup):
         value stands for its mean."""
         half = 0.5 * self.setup.length
         if self.theta == 0.0:
-            d = half / max(2, round(half / self.h))
+            d = half / square_divisions(half, self.h)
             return np.arange(0.5 * d, half, d) * math.sqrt(2.0)
         dx = half / lattice_divisions(half, half, self.h, self.theta)[0]
         return np.arange(dx, half, 2.0 * dx)

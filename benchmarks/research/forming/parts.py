@@ -69,18 +69,23 @@ meshes must resolve them (h ≤ R/5) for the punch force to converge."""
 
 def experiment(R: float, blank: float, h: float, angle: float, model: list, comm,
                **tooling) -> HemisphereForming:
-    opts = {"punch_radius": R, "clearance": 0.2 * R, "die_lip": 0.2 * R, "holder_gap": 0.02 * R,
-            "contact_stiffness": 100.0, "locking_angle_deg": 50.0, "wrinkle_tension": 1e-3,
-            "wrinkle_curvature": 1.0 / R, "friction_slip_rate": 1e-2, **HOLDER, **tooling}
+    """The plug-in with its default tools (mm) and :data:`HOLDER`, ``tooling`` over them."""
+    opts = HemisphereForming.parse_options(
+        {"tooling": {"punch_radius": R, **HOLDER, **tooling}}, 1.0, "forming")
     return HemisphereForming(Setup("hemisphere", blank, blank, (angle, -angle), opts),
                              model, h, comm)
 
 
-def reform(e: HemisphereForming, values: dict, stroke: float, steps: int) -> dict:
-    """Set moduli ({term: {modulus: value}}), form to ``stroke``; the reduced results."""
+def set_moduli(e: HemisphereForming, values: dict) -> None:
+    """Set moduli of the experiment's terms ({term: {modulus: value}}; no recompilation)."""
     terms = {t.name: t for t in e.model}
     for name, v in values.items():
         terms[name].set(**v)
+
+
+def reform(e: HemisphereForming, values: dict, stroke: float, steps: int) -> dict:
+    """Set moduli ({term: {modulus: value}}), form to ``stroke``; the reduced results."""
+    set_moduli(e, values)
     t0 = time.perf_counter()
     its = e.run(stroke, steps)
     prof = e.profile(e.diagonal_deg, n=81)
