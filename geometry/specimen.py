@@ -97,8 +97,21 @@ def distributed_mesh(comm: MPI.Comm, x: np.ndarray, cells: np.ndarray) -> dmesh.
     partitioned over ``comm`` with shared-facet ghosts: the interior-penalty terms are integrals
     over every interior facet, and those on a partition boundary need the cells on both
     sides (dolfinx's biharmonic demo sets the same mode)."""
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", "triangle", 1))
-    return dmesh.create_mesh(comm, cells, x, domain, ghost_mode=dmesh.GhostMode.shared_facet)
+    return dmesh.create_mesh(comm, cells, x, coordinate_domain(),
+                             ghost_mode=dmesh.GhostMode.shared_facet)
+
+
+def coordinate_domain() -> ufl.Mesh:
+    """The UFL domain of a P1 triangle mesh in the plane, its coordinate element marked
+    equispaced (as dolfinx's gmshio marks it).
+
+    FFCx 0.5 marks an unmarked coordinate element in place when it compiles the first form on a
+    mesh, and the mark enters every later form's cache key: unmarked, a form's key depended on
+    whether an earlier form on the same mesh was compiled or read from the cache, and differed
+    between the rank that compiles and the others, so the same kernels were compiled again.
+    For P1 the variant changes nothing else."""
+    p1 = ufl.FiniteElement("Lagrange", "triangle", 1, variant="equispaced")
+    return ufl.Mesh(ufl.VectorElement(p1, dim=2))
 
 
 def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_WORLD,

@@ -33,7 +33,7 @@ class FabricProblem(Owner):
         if d not in (2, 3):
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
-        self.msh = specimen.mesh
+        self.msh = mark_equispaced(specimen.mesh)
         self.comm = self.msh.comm
         self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)
         self.u = fem.Function(self.V, name="u")
@@ -198,6 +198,20 @@ class FabricProblem(Owner):
         w = fem.Function(self.V)
         w.x.array[self.component_dofs(edge, component)] = 1.0
         return self.solver().virtual_work(w)
+
+
+def mark_equispaced(msh: dmesh.Mesh) -> dmesh.Mesh:
+    """``msh`` with its P1 coordinate element marked equispaced, in place, before any form on it
+    is compiled (a mesh from dolfinx's built-in constructors comes unmarked): FFCx 0.5 marks it
+    on the first form it compiles, and the mark enters every later form's cache key, which then
+    depends on the cache's state and on the rank (geometry.specimen.coordinate_domain)."""
+    domain = msh.ufl_domain()
+    element = domain.ufl_coordinate_element()
+    sub = element.sub_elements()[0]
+    if sub.variant() is None:
+        domain._ufl_coordinate_element = ufl.VectorElement(ufl.FiniteElement(
+            sub.family(), sub.cell(), sub.degree(), variant="equispaced"), dim=element.value_size())
+    return msh
 
 
 def boundary_facets(msh) -> np.ndarray:
