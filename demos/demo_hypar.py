@@ -25,8 +25,10 @@
 #
 # This demo solves three problems with the C0 interior-penalty discretisation (degree 2):
 #
-# 1. **Dirichlet**: $u$ and $\partial_n u$ prescribed on the whole boundary. The placement is
-#    quadratic, so the discrete solution must equal it to solver tolerance.
+# 1. **Dirichlet**: $u$ prescribed on the whole boundary, $\partial_n u$ free. The edge double
+#    force $M^{\alpha\beta}\nu_\alpha\nu_\beta$ vanishes (103 has only mixed components), so
+#    the natural condition on $\partial_n u$ holds; the placement is quadratic, so the discrete
+#    solution must equal it to solver tolerance.
 # 2. **Natural**: the tractions and corner forces above as dead loads; three corners pinned at
 #    their exact positions. Pinning three corners (not just six rigid-motion components) is
 #    needed because a shear-free net has zero-energy mechanisms: rotating $b$ or $c$ about $a$

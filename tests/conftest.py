@@ -1,9 +1,11 @@
-"""Test configuration: per-rank pytest temporary directories under MPI, Agg backend."""
+"""Test configuration: per-rank pytest temporary directories under MPI, Agg backend, and the
+``serial`` marker."""
 
 import os
 import tempfile
 
 import matplotlib
+import pytest
 
 matplotlib.use("Agg")
 
@@ -17,3 +19,14 @@ def pytest_configure(config):
     if comm.size > 1 and not config.option.basetemp:
         base = os.path.join(tempfile.gettempdir(), f"pytest-mpi-{os.getpid()}-rank{comm.rank}")
         config.option.basetemp = base
+
+
+def pytest_runtest_setup(item):
+    """A test marked ``serial(reason)`` skips in the 2-rank session. The reason names where its
+    parallel path is exercised: a heavy study whose parallel code is another test's need not
+    spend the 2-rank session's minutes on the same path again."""
+    from mpi4py import MPI
+
+    mark = item.get_closest_marker("serial")
+    if mark is not None and MPI.COMM_WORLD.size > 1:
+        pytest.skip(f"serial session only: {mark.args[0]}")

@@ -1,11 +1,14 @@
-"""Every demo runs in its quick mode as a user runs it, in a process of its own, serially and
-under ``mpirun -n 2`` (as dolfinx's ``python/demo/test.py`` does), and passes its own checks;
-then its summary.json meets the checks the demo declares (its module-level ``CHECKS``, read
-from the source: research.demos.checks) and its output holds no compiler message.
+"""Every demo runs in its quick mode as a user runs it, under ``mpirun -n 2`` in a process of
+its own, and passes its own checks; then its summary.json meets the checks the demo declares
+(its module-level ``CHECKS``, read from the source: research.demos.checks) and its output holds
+no compiler message.
 
-A process of its own per run: the demos do not share the PETSc options database, the JIT
-state or the memory of the pytest session. These tests start their own ranks, so they run in
-the serial session only and skip in the 2-rank one (which once ran every demo in-process).
+A process of its own: the demos do not share the PETSc options database, the JIT state or the
+memory of the pytest session. These tests start their own ranks, so they run in the serial
+session only and skip in the 2-rank one. dolfinx runs its demos on 1 rank as well; here the
+1-rank physics of each demo is the library's, asserted by its own tests (test_bias_extension,
+test_diagnose*, test_dispersion, test_hypar, test_hemisphere), and 1 = 2 ranks by
+test_parallel and test_hemisphere, so a serial demo run would repeat them at minutes of cost.
 
 The woven-fabric and bending demos take minutes even in quick mode (a 43-step force curve with
 a full diagnosis; 3D strips): they run only with FABRICSURF_ALL_DEMOS=1, to keep the suite
@@ -34,10 +37,7 @@ QUICK = {
     "demo_forming.py": ["--quick"],
 }
 SLOW = {"demo_bending.py", "demo_woven_fabric.py"}
-RANKS = {"demo_forming.py": (2,), "demo_hypar.py": (2,)}
-"""Demos run on these rank counts only (default 1 and 2): forming's 3D contact steps take
-minutes even in quick mode, and its 1 = 2 ranks check is tests/test_hemisphere.py's; the hypar
-demo's exact solution is checked on one rank by tests/test_hypar.py."""
+RANKS = 2
 # what FFCx, UFL and cffi/distutils print while compiling a form
 COMPILER = re.compile(r"^(INFO:|DEBUG:|.*\bgcc\b|.*\bcc1\b|running build_ext|building '|"
                       r"Compiling form|Compiler stage)", re.M)
@@ -46,11 +46,10 @@ ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
        "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 
 
-def run_demo(name: str, ranks: int, out: Path) -> str:
-    """Run the demo in quick mode on ``ranks`` ranks; its output (stdout and stderr)."""
-    cmd = [sys.executable, str(DEMOS / name), "--out", str(out), *QUICK[name]]
-    if ranks > 1:
-        cmd = ["mpirun", "-n", str(ranks), *cmd]
+def run_demo(name: str, out: Path) -> str:
+    """Run the demo in quick mode on RANKS ranks; its output (stdout and stderr)."""
+    cmd = ["mpirun", "-n", str(RANKS), sys.executable, str(DEMOS / name), "--out", str(out),
+           *QUICK[name]]
     p = subprocess.run(cmd, env=dict(os.environ, **ENV), capture_output=True, text=True,
                        timeout=1800)
     text = p.stdout + p.stderr
@@ -59,15 +58,14 @@ def run_demo(name: str, ranks: int, out: Path) -> str:
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                    reason="starts its own ranks (1 and 2) from the serial session")
-@pytest.mark.parametrize(("name", "ranks"), [
-    (n, r) for n in sorted(QUICK) if (DEMOS / n).is_file() for r in RANKS.get(n, (1, 2))])
-def test_demo_runs_and_meets_its_checks(name, ranks, tmp_path):
+                    reason="starts its own ranks from the serial session")
+@pytest.mark.parametrize("name", [n for n in sorted(QUICK) if (DEMOS / n).is_file()])
+def test_demo_runs_and_meets_its_checks(name, tmp_path):
     if name in SLOW and not os.environ.get("FABRICSURF_ALL_DEMOS"):
         pytest.skip(f"{name}: minutes even in quick mode; FABRICSURF_ALL_DEMOS=1 runs it")
     checks = declared(DEMOS / name)
     assert checks, f"{name} declares no checks"
-    text = run_demo(name, ranks, tmp_path / "out")
+    text = run_demo(name, tmp_path / "out")
     assert not COMPILER.search(text), f"compiler output reached the user:\n{text[-4000:]}"
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert failures(summary, checks) == []

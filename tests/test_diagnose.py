@@ -16,6 +16,7 @@ a planar tensile test; the diagnosis names one and lists the other as indistingu
 import json
 from pathlib import Path
 
+import pytest
 from mpi4py import MPI
 
 from fabricsurf.cli import main
@@ -26,6 +27,8 @@ from fabricsurf.inverse.synthetic import generate as sy
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 NOISE_LEVEL = 1.25
+SERIAL = pytest.mark.serial("the diagnosis's parallel path is test_hidden_geodesic_bending_cli's "
+                            "and the hidden-effect demo's (test_demos)")
 
 
 def continuum(length, width, hidden, angles=(45.0, -45.0), noise=0.01, seed=0, h=2.2):
@@ -70,6 +73,7 @@ def test_hidden_geodesic_bending_cli(tmp_path):
         assert (root / "out" / f).is_file()
 
 
+@SERIAL
 def test_hidden_shear():
     """Shear hidden from a fibre_stretch + geodesic_bending baseline: the baseline can mimic the
     pivot stiffness only by stiffening the fibres and their bending (to well above the true 30
@@ -79,6 +83,7 @@ def test_hidden_shear():
                    verbose=False), "shear")
 
 
+@SERIAL
 def test_hidden_shear_gradient_pair():
     exp = continuum(66.0, 33.0, {"shear_gradient": {"A_Gamma": 20.0}}, seed=14)
     d = diagnose(exp, ["fibre_stretch", "shear"], h=3.3, confirm=3, verbose=False)
@@ -89,6 +94,7 @@ def test_hidden_shear_gradient_pair():
     assert d.ranking[2]["effect"] == "geodesic_bending"
 
 
+@SERIAL
 def test_complete_model_gives_null():
     exp = continuum(62.0, 31.0, {"geodesic_bending": {"A_g": 15.0}}, seed=15)
     d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.1, confirm=1,

@@ -27,6 +27,8 @@ from fabricsurf.inverse.synthetic import generate as sy
 
 K_L, K_S = 1000.0, 0.4
 LENGTH, WIDTH = 48.0, 24.0
+SERIAL = pytest.mark.serial("lattice data are diagnosed on 2 ranks by the hidden-effect demo "
+                            "(test_demos), and the diagnosis CLI by test_diagnose")
 
 
 def lattice(angles, A_g, seed, spacing=1.6, noise=0.02):
@@ -36,6 +38,7 @@ def lattice(angles, A_g, seed, spacing=1.6, noise=0.02):
     return sy.add_noise(exp, noise, 0.02, seed)
 
 
+@SERIAL
 def test_complete_model_no_false_alarm_in_the_stiff_regime():
     exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=3)
     d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.0, confirm=1,
@@ -50,6 +53,7 @@ def test_complete_model_no_false_alarm_in_the_stiff_regime():
         assert lead["wald_p"] >= lead["wald_p_needed"]
 
 
+@SERIAL
 def test_hidden_geodesic_bending_at_40_degrees_in_m_and_kn(tmp_path):
     comm = MPI.COMM_WORLD
     exp = lattice((40.0, -40.0), A_g=K_S * 100.0, seed=4)
@@ -68,6 +72,7 @@ def test_hidden_geodesic_bending_at_40_degrees_in_m_and_kn(tmp_path):
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
 
 
+@SERIAL
 @pytest.mark.parametrize("l_b", [10.0, 5.0])
 def test_hidden_geodesic_bending_strong_and_weak(l_b):
     """Geodesic bending hidden from fibre_stretch + shear at ±45° in the stiff regime, strong
@@ -85,6 +90,7 @@ def test_hidden_geodesic_bending_strong_and_weak(l_b):
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
 
 
+@SERIAL
 def test_hidden_shear_in_the_stiff_regime():
     """Shear hidden from fibre_stretch + geodesic_bending (the first row of the stiff-fibre
     table, at a small size): the baseline mimics the pivot stiffness with stiffer fibres and

@@ -1,10 +1,16 @@
-"""Form cache keys do not depend on what was compiled before.
+"""Form cache keys do not depend on what was compiled or created before (the workarounds are
+in fabricsurf.discretise.jit_keys).
 
-FFCx 0.5 marks an unmarked P1 coordinate element as equispaced, in place, while it analyses
-the first form it compiles on a mesh (ffcx.analysis), and the mark enters the key (UFL
-signature) of every later form on that mesh. Our meshes carry the mark from the start
-(geometry.specimen.coordinate_domain, Problem's mark_equispaced), so a form's key is the same
-whether earlier forms were compiled or read from the cache, and on every rank."""
+* FFCx 0.5 marks an unmarked P1 coordinate element as equispaced, in place, while it analyses
+  the first form it compiles on a mesh (ffcx.analysis), and the mark enters the key (UFL
+  signature) of every later form on that mesh. Our meshes carry the mark from the start
+  (geometry.specimen.coordinate_domain, Problem's mark_equispaced), so a form's key is the same
+  whether earlier forms were compiled or read from the cache, and on every rank.
+* UFL 2022 orders a sum of two Constants by their repr, in which the Constant's global count is
+  text, so the key changes when the counts straddle a power of ten. Problem numbers Constants
+  from 10^6 on, so the key of a problem's residual does not depend on how many Constants the
+  process made before it.
+"""
 
 import ffcx.analysis
 import ffcx.parameters
@@ -13,7 +19,10 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fabricsurf.discretise.problem import mark_equispaced
+from fabricsurf.discretise.energy import EnergyForm
+from fabricsurf.discretise.jit_keys import mark_equispaced
+from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.model.terms import FibreStretch, GeodesicBending, ShearGradient, StretchGradient
 from geometry.specimen import square
 
 COMM = MPI.COMM_WORLD
@@ -44,3 +53,37 @@ def test_marked_meshes_keep_keys():
     for msh in (square(1.0, 0.5, COMM).mesh, mark_equispaced(dmesh.create_unit_square(COMM, 2, 2))):
         before, after = _key_before_and_after_analysis(msh)
         assert before == after
+
+
+def _sum_key(count: int) -> str:
+    """The key of a form with a sum of two Constants numbered ``count`` and ``count + 1``."""
+    msh = square(1.0, 0.5, COMM).mesh
+    a, b = (ufl.Constant(msh.ufl_domain(), count=count + k) for k in (0, 1))
+    x = ufl.SpatialCoordinate(msh)
+    return (((a + b) * x[0] + a * x[1]) * ufl.dx).signature()
+
+
+def test_constant_counts_across_a_power_of_ten_change_keys():
+    """The UFL behaviour the numbering guards against: 9 and 10 sort as "10" < "9"."""
+    assert _sum_key(8) == _sum_key(10) != _sum_key(9)
+
+
+def _residual_key(count: int) -> str:
+    """The key of a residual whose second-gradient moduli are summed (the penalty scale), built
+    after the process has made ``count`` Constants (the global counter is restored after)."""
+    saved = ufl.Constant._globalcount
+    ufl.Constant._globalcount = count
+    try:
+        model = [FibreStretch(k_l=10.0, k_m=10.0), ShearGradient(A_Gamma=1.0),
+                 GeodesicBending(A_g=0.5), StretchGradient(A_s=0.5)]
+        p = FabricProblem(square(1.0, 0.5, COMM), model)
+        e = EnergyForm(p.model, p.u, p.L, p.M, p.specimen.facet_tags)
+        return e.residual(ufl.TestFunction(p.V)).signature()
+    finally:
+        ufl.Constant._globalcount = max(saved, ufl.Constant._globalcount)
+
+
+def test_problem_keys_do_not_depend_on_constants_made_before():
+    """A fresh process (5 Constants made), one after 995 and one after 12 345 build the same
+    residual under one key."""
+    assert _residual_key(5) == _residual_key(995) == _residual_key(12345)

@@ -37,6 +37,8 @@ FACET_QUADRATURE_DEGREE = 4
 AUGMENTATION = 1e5
 """An exact constraint's augmentation stiffness is its term's own plus this many times the sum
 of the other first-gradient moduli: Uzawa's iteration then contracts by about 1e-5 a step."""
+EVERYWHERE = "everywhere"
+"""The facet tag of ``normal_derivative`` for the whole boundary (UFL's unmarked ``ds``)."""
 
 
 def placement(u):
@@ -91,9 +93,9 @@ def contract_nn(Mt, n):
 class EnergyForm:
     """Builder of the discrete energy functional on a mesh with facet tags.
 
-    ``normal_derivative`` maps a facet tag to the prescribed ∂_n u there (a UFL d-vector; the
-    zero vector for a clamp). ``tractions`` maps a facet tag to a dead load t (per unit reference
-    length, N/mm).
+    ``normal_derivative`` maps a facet tag (or EVERYWHERE) to the prescribed ∂_n u there (a UFL
+    d-vector; the zero vector for a clamp). ``tractions`` maps a facet tag to a dead load t (per
+    unit reference length, N/mm).
     """
 
     model: list[Term]

@@ -9,7 +9,13 @@ import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, DEFAULT_PENALTY, EnergyForm
+from fabricsurf.discretise.energy import (
+    CELL_QUADRATURE_DEGREE,
+    DEFAULT_PENALTY,
+    EVERYWHERE,
+    EnergyForm,
+)
+from fabricsurf.discretise.jit_keys import mark_equispaced, stable_constant_order
 from fabricsurf.discretise.resources import Owner, release_vectors, weak_method
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.kinematics import fibre_directions
@@ -33,6 +39,7 @@ class FabricProblem(Owner):
         if d not in (2, 3):
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
+        stable_constant_order()
         self.msh = mark_equispaced(specimen.mesh)
         self.comm = self.msh.comm
         self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)
@@ -85,12 +92,18 @@ class FabricProblem(Owner):
                   else edge_or_facets)
         self.bcs.append(fem.dirichletbc(g, fem.locate_dofs_topological(self.V, 1, facets)))
 
-    def clamp_gradient(self, edge: str, g=None) -> None:
+    def clamp_gradient(self, edge: str | None, g=None) -> None:
         """Prescribe ∂_n u = g (default 0: the clamp of Barchiesi et al. 2020 eq. 7) weakly on an
-        edge."""
+        edge, or on the whole boundary if ``edge`` is None.
+
+        Each clamped edge gets its own facet kernel, holding the double force of the model and
+        its derivative; one clamp on the whole boundary compiles one kernel instead of one per
+        edge.
+        """
         self._open("clamp_gradient")
         zero = ufl.as_vector([0.0] * self.d)
-        self.normal_derivative[self.specimen.edge_tags[edge]] = zero if g is None else g
+        tag = EVERYWHERE if edge is None else self.specimen.edge_tags[edge]
+        self.normal_derivative[tag] = zero if g is None else g
 
     def add_traction(self, edge: str, t) -> None:
         """Dead load t (UFL d-vector, force per reference length) on an edge."""
@@ -198,20 +211,6 @@ class FabricProblem(Owner):
         w = fem.Function(self.V)
         w.x.array[self.component_dofs(edge, component)] = 1.0
         return self.solver().virtual_work(w)
-
-
-def mark_equispaced(msh: dmesh.Mesh) -> dmesh.Mesh:
-    """``msh`` with its P1 coordinate element marked equispaced, in place, before any form on it
-    is compiled (a mesh from dolfinx's built-in constructors comes unmarked): FFCx 0.5 marks it
-    on the first form it compiles, and the mark enters every later form's cache key, which then
-    depends on the cache's state and on the rank (geometry.specimen.coordinate_domain)."""
-    domain = msh.ufl_domain()
-    element = domain.ufl_coordinate_element()
-    sub = element.sub_elements()[0]
-    if sub.variant() is None:
-        domain._ufl_coordinate_element = ufl.VectorElement(ufl.FiniteElement(
-            sub.family(), sub.cell(), sub.degree(), variant="equispaced"), dim=element.value_size())
-    return msh
 
 
 def boundary_facets(msh) -> np.ndarray:

@@ -13,6 +13,7 @@ edge double force, and corner forces f = −[M^{αβ}ν_ατ_β] = ±A_Γ a: + a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -85,18 +86,43 @@ class Hypar:
         return CORNER_SIGNS[tuple(corner)] * self.A_Gamma * self.a
 
 
-def solve_dirichlet(specimen, hyp: Hypar) -> tuple[FabricProblem, float]:
-    """u and ∂_n u prescribed on the whole boundary; returns the max nodal error."""
-    p = FabricProblem(specimen, hyp.model(), d=3, fibre_angles=(0.0, 90.0),
-                      prefix="fabricsurf_hypar_dirichlet_", snes_options=TIGHT)
+def loaded_problem(specimen, hyp: Hypar, prefix: str) -> tuple[FabricProblem, Callable]:
+    """The problem with the edge tractions and corner forces of the exact solution as dead
+    loads, scaled by a factor s; returns it and ``set_load(s)``."""
+    p = FabricProblem(specimen, hyp.model(), d=3, fibre_angles=(0.0, 90.0), prefix=prefix,
+                      snes_options=TIGHT)
     x = ufl.SpatialCoordinate(p.msh)
-    ue = hyp.displacement(x)
-    g = fem.Function(p.V)
-    g.interpolate(fem.Expression(ue, p.V.element.interpolation_points()))
+    s = fem.Constant(p.msh, 0.0)
     nu = ufl.FacetNormal(p.msh)
     for edge in specimen.edge_tags:
+        p.add_traction(edge, s * hyp.traction(x, nu))
+    corner_f = {}
+    for corner in CORNER_SIGNS:
+        corner_f[corner] = fem.Constant(p.msh, np.zeros(3))
+        p.add_point_force(corner, corner_f[corner])
+
+    def set_load(t: float) -> None:
+        s.value = t
+        for corner, c in corner_f.items():
+            c.value[:] = t * hyp.corner_force(corner)
+
+    return p, set_load
+
+
+def solve_dirichlet(specimen, hyp: Hypar) -> tuple[FabricProblem, float]:
+    """u prescribed on the whole boundary, ∂_n u free; returns the max nodal error.
+
+    The hypar's edge double force vanishes (M_nn = 0 by eq. 103: M^{αβ} has only the mixed
+    components), so the natural condition on ∂_n u holds and the quadratic placement, which
+    is in the discrete space, solves the discrete problem. The loads of the natural case act
+    on fixed nodes only; they are kept (at zero) so that both cases compile the same forms.
+    """
+    p, _ = loaded_problem(specimen, hyp, "fabricsurf_hypar_dirichlet_")
+    g = fem.Function(p.V)
+    g.interpolate(fem.Expression(hyp.displacement(ufl.SpatialCoordinate(p.msh)),
+                                 p.V.element.interpolation_points()))
+    for edge in specimen.edge_tags:
         p.fix_function(edge, g)
-        p.clamp_gradient(edge, ufl.grad(ue) * nu)
     reason, _ = p.solve()
     if reason <= 0:
         raise RuntimeError(f"hypar Dirichlet case: SNES diverged (reason {reason})")
@@ -111,24 +137,12 @@ def solve_natural(specimen, hyp: Hypar, steps: int = 3) -> FabricProblem:
     """Edge tractions and corner forces from the exact solution as dead loads; three corners
     pinned at their exact positions (rigid motions and the two zero-energy mechanisms of a
     shear-free net — rotations of b and c about a — removed). Load-stepped in a factor s."""
-    p = FabricProblem(specimen, hyp.model(), d=3, fibre_angles=(0.0, 90.0),
-                      prefix="fabricsurf_hypar_natural_", snes_options=TIGHT)
-    x = ufl.SpatialCoordinate(p.msh)
-    s = fem.Constant(p.msh, 0.0)
-    nu = ufl.FacetNormal(p.msh)
-    for edge in specimen.edge_tags:
-        p.add_traction(edge, s * hyp.traction(x, nu))
-    corner_f = {}
-    for corner in CORNER_SIGNS:
-        corner_f[corner] = fem.Constant(p.msh, np.zeros(3))
-        p.add_point_force(corner, corner_f[corner])
+    p, set_forces = loaded_problem(specimen, hyp, "fabricsurf_hypar_natural_")
     exact = {pt: hyp.displacement_np(np.array([pt]))[0] for pt in PINNED}
     pins = {pt: p.fix_point(pt, np.zeros(3)) for pt in PINNED}
 
     def set_load(t: float) -> None:
-        s.value = t
-        for corner, c in corner_f.items():
-            c.value[:] = t * hyp.corner_force(corner)
+        set_forces(t)
         for pt, consts in pins.items():
             for i, c in enumerate(consts):
                 c.value = t * exact[pt][i]
