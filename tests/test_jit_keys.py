@@ -10,10 +10,15 @@ in fabricsurf.discretise.jit_keys).
   text, so the key changes when the counts straddle a power of ten. Problem numbers Constants
   from 10^6 on, so the key of a problem's residual does not depend on how many Constants the
   process made before it.
+
+The ``compile`` option of SNESSolver ("fast": -O0) compiles the same forms under another key
+and gives the same numbers; an unknown value is an error.
 """
 
 import ffcx.analysis
 import ffcx.parameters
+import numpy as np
+import pytest
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
@@ -22,6 +27,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.energy import EnergyForm
 from fabricsurf.discretise.jit_keys import mark_equispaced
 from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, ShearGradient, StretchGradient
 from geometry.specimen import square
 
@@ -87,3 +93,26 @@ def test_problem_keys_do_not_depend_on_constants_made_before():
     """A fresh process (5 Constants made), one after 995 and one after 12 345 build the same
     residual under one key."""
     assert _residual_key(5) == _residual_key(995) == _residual_key(12345)
+
+
+def _solver(compile_mode: str) -> tuple[SNESSolver, fem.Function]:
+    """A nonlinear residual R = (u³ − 1 − x) v on P2 (Newton to u = (1 + x)^(1/3))."""
+    msh = square(1.0, 0.5, COMM).mesh
+    V = fem.FunctionSpace(msh, ("CG", 2))
+    u, v, du = fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
+    u.x.array[:] = 1.0
+    x = ufl.SpatialCoordinate(msh)
+    R = (u**3 - 1 - x[0]) * v * ufl.dx
+    return SNESSolver(R, ufl.derivative(R, u, du), u, options={"compile": compile_mode}), u
+
+
+def test_fast_compile_gives_the_same_numbers():
+    results = []
+    for mode in ("optimised", "fast"):
+        s, u = _solver(mode)
+        assert s.solve()[0] > 0
+        results.append(u.x.array.copy())
+        s.close()
+    assert np.allclose(results[0], results[1], rtol=1e-12, atol=1e-14)
+    with pytest.raises(ValueError, match="compile = 'quick'"):
+        _solver("quick")

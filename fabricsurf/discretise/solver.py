@@ -56,10 +56,14 @@ DOMAIN_AWARE: dict[str, object] = {"snes_linesearch_type": "bt", "snes_max_it": 
 """Options for energies with a restricted domain: the backtracking line search shrinks a Newton
 step that leaves the domain (or does not decrease the residual) instead of failing."""
 
-SOLVER_KEYS = ("jacobian",)
+SOLVER_KEYS = ("jacobian", "compile")
 """Keys of ``options`` read by :class:`SNESSolver` itself, not by PETSc: ``jacobian`` =
 ``"given"`` (the form passed in, default) or ``"exact"`` (the derivative of the residual form,
-``ufl.derivative``: quadratic Newton convergence, one more form to compile)."""
+``ufl.derivative``: quadratic Newton convergence, one more form to compile); ``compile`` =
+``"optimised"`` (dolfinx's JIT defaults, -O2) or ``"fast"`` (-O0: the large kernels of the
+full 3D model compile about three times faster and run slower, for meshes so small that
+compiling dominates, as in the exact-solution checks)."""
+COMPILE_ARGS = {"optimised": None, "fast": ["-O0", "-g0"]}
 
 _ids = itertools.count()
 
@@ -131,8 +135,13 @@ class SNESSolver(Owner):
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
         self.multipliers = list(multipliers)
         self.comm = V.mesh.comm
-        self.L = fem.form(residual)
-        self.a = fem.form(jacobian)
+        compile_mode = options.pop("compile", "optimised")
+        if compile_mode not in COMPILE_ARGS:
+            raise ValueError(f"compile = {compile_mode!r}: must be one of {list(COMPILE_ARGS)}")
+        args = COMPILE_ARGS[compile_mode]
+        jit = {} if args is None else {"cffi_extra_compile_args": args}
+        self.L = fem.form(residual, jit_params=jit)
+        self.a = fem.form(jacobian, jit_params=jit)
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
         self.b = fem_petsc.create_vector(self.L)
         self.A = fem_petsc.create_matrix(self.a)

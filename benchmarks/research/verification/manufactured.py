@@ -59,7 +59,9 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     g = fem.Function(V)
     g.interpolate(fem.Expression(ue, V.element.interpolation_points()))
     bc = fem.dirichletbc(g, fem.locate_dofs_topological(V, 1, boundary_facets(msh)))
-    solver = SNESSolver(R - load, E.jacobian(du, v), u, [bc], prefix=f"fabricsurf_mms{d}_")
+    # meshes of at most a few thousand cells: compiling the kernels costs more than running them
+    solver = SNESSolver(R - load, E.jacobian(du, v), u, [bc], prefix=f"fabricsurf_mms{d}_",
+                        options={"compile": "fast"})
     reason, its = solver.solve()
     if reason <= 0:
         raise RuntimeError(f"manufactured problem (n = {n}, d = {d}) did not converge: {reason}")
