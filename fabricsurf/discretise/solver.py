@@ -68,6 +68,14 @@ COMPILE_ARGS = {"optimised": None, "fast": ["-O0", "-g0"]}
 _ids = itertools.count()
 
 
+def _jit_params(mode: str) -> dict:
+    """dolfinx's JIT parameters for a ``compile`` mode of :data:`SOLVER_KEYS`."""
+    if mode not in COMPILE_ARGS:
+        raise ValueError(f"compile = {mode!r}: must be one of {list(COMPILE_ARGS)}")
+    args = COMPILE_ARGS[mode]
+    return {} if args is None else {"cffi_extra_compile_args": args}
+
+
 def _reason_names() -> dict[int, str]:
     R = PETSc.SNES.ConvergedReason
     names = {getattr(R, k): k for k in dir(R) if k.isupper() and k != "ITERATING"}
@@ -135,11 +143,7 @@ class SNESSolver(Owner):
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
         self.multipliers = list(multipliers)
         self.comm = V.mesh.comm
-        compile_mode = options.pop("compile", "optimised")
-        if compile_mode not in COMPILE_ARGS:
-            raise ValueError(f"compile = {compile_mode!r}: must be one of {list(COMPILE_ARGS)}")
-        args = COMPILE_ARGS[compile_mode]
-        jit = {} if args is None else {"cffi_extra_compile_args": args}
+        jit = _jit_params(options.pop("compile", "optimised"))
         self.L = fem.form(residual, jit_params=jit)
         self.a = fem.form(jacobian, jit_params=jit)
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
