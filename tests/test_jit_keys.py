@@ -7,9 +7,9 @@ in fabricsurf.discretise.jit_keys).
   (geometry.specimen.coordinate_domain, Problem's mark_equispaced), so a form's key is the same
   whether earlier forms were compiled or read from the cache, and on every rank.
 * UFL 2022 orders a sum of two Constants by their repr, in which the Constant's global count is
-  text, so the key changes when the counts straddle a power of ten. Problem numbers Constants
-  from 10^6 on, so the key of a problem's residual does not depend on how many Constants the
-  process made before it.
+  text, so the key changes when the counts straddle a power of ten. Problem and EnergyForm
+  number Constants from 10^6 on, so the key of a problem's residual does not depend on how many
+  Constants the process made before it.
 
 The ``compile`` option of SNESSolver ("fast": -O0) compiles the same forms under another key
 and gives the same numbers; an unknown value is an error.

@@ -28,6 +28,7 @@ import ufl
 from dolfinx import fem
 
 from fabricsurf.discretise.constraints import Multiplier
+from fabricsurf.discretise.jit_keys import stable_constant_order
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import Term
 
@@ -110,6 +111,7 @@ class EnergyForm:
     qdeg_facet: int = FACET_QUADRATURE_DEGREE
 
     def __post_init__(self) -> None:
+        stable_constant_order()  # before the moduli's Constants are made (jit_keys)
         msh = self.u.function_space.mesh
         for t in self.model:
             t.bind(msh)

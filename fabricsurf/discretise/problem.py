@@ -39,7 +39,7 @@ class FabricProblem(Owner):
         if d not in (2, 3):
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
-        stable_constant_order()
+        stable_constant_order()  # before the fibre directions' Constants (EnergyForm repeats it)
         self.msh = mark_equispaced(specimen.mesh)
         self.comm = self.msh.comm
         self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)

@@ -16,11 +16,11 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from fabricsurf.discretise.energy import EnergyForm
+from fabricsurf.discretise.energy import EVERYWHERE, EnergyForm
 from fabricsurf.discretise.problem import boundary_facets
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.terms import Term
-from geometry.specimen import EDGE_TAGS, structured_rectangle
+from geometry.specimen import structured_rectangle
 
 
 def norms(e, msh, qdeg: int = 6) -> dict[str, float]:
@@ -51,7 +51,7 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     nrm = ufl.FacetNormal(msh)
     L, M = fibre_directions(*angles)
     E = EnergyForm(model, u, L, M, sp.facet_tags,
-                   normal_derivative={t: ufl.grad(ue) * nrm for t in EDGE_TAGS.values()},
+                   normal_derivative={EVERYWHERE: ufl.grad(ue) * nrm},
                    penalty=penalty)
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     R = E.residual(v)
