@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricsurf.network.hencky import FRICTION_ANGLE
+from fabricsurf.constants import FRICTION_ANGLE
 
 
 def lock_displacement(length: float, width: float) -> float:

@@ -23,7 +23,7 @@ import ufl
 from dolfinx import fem
 
 from fabricsurf.model.kinematics import Kinematics
-from fabricsurf.network.hencky import FRICTION_ANGLE
+from fabricsurf.constants import FRICTION_ANGLE
 
 
 @dataclass

@@ -63,12 +63,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.solver import Dirichlet
 
-FRICTION_ANGLE = float(np.radians(1.0))
-"""Default shape angle γ_f (rad) of the friction springs: that of the continuum
-``crossover_friction`` term (the same default, so lattice and continuum data match)."""
 
 
 @dataclass
