@@ -47,7 +47,7 @@ import math
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
-from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.discretise.stepping import LoadStepError
 from research.demos.checks import verify
 from research.demos.common import demo_parser, parse
 from research.forming import parts

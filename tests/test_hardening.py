@@ -492,7 +492,7 @@ def test_solver_failure_reports_step_from_1(in_root, capsys):
 def test_start_failure_names_experiment_step_and_load():
     """A fit whose starting model cannot follow the load path says with which moduli, in which
     experiment, at which step and load (and keeps what had converged for failure.json)."""
-    from fabricsurf.discretise.solver import LoadStepError
+    from fabricsurf.discretise.stepping import LoadStepError
     from fabricsurf.inverse.fitting.fit import fit
 
     class Diverging:  # a forward model whose start fails at step 3 of experiment 'strip45'
@@ -528,7 +528,7 @@ def test_scanned_start_that_breaks_the_model_falls_back(capsys):
     down to where the model breaks), the fit says so and starts from the given moduli."""
     from types import SimpleNamespace
 
-    from fabricsurf.discretise.solver import LoadStepError
+    from fabricsurf.discretise.stepping import LoadStepError
     from fabricsurf.inverse.fitting.fit import fit
 
     class Membrane:  # chi2 = (log k - log best)^2; the fine model fails below k = 0.01

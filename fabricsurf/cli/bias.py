@@ -22,7 +22,7 @@ from mpi4py import MPI
 from fabricsurf.cli.options import add_max_elements, check_size, saved_fit
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
-from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.bias_extension import BiasExtension, default_model, plot_curves
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance

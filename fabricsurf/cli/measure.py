@@ -28,7 +28,7 @@ from fabricsurf.cli.options import (
 )
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
-from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment

@@ -10,6 +10,8 @@ in tests/test_jit_keys.py.
 import ufl
 from dolfinx import mesh as dmesh
 
+from fabricsurf.discretise.compat import raise_constant_count, set_coordinate_element
+
 CONSTANT_COUNT_FLOOR = 10**6
 
 
@@ -22,8 +24,8 @@ def mark_equispaced(msh: dmesh.Mesh) -> dmesh.Mesh:
     element = domain.ufl_coordinate_element()
     sub = element.sub_elements()[0]
     if sub.variant() is None:
-        domain._ufl_coordinate_element = ufl.VectorElement(ufl.FiniteElement(
-            sub.family(), sub.cell(), sub.degree(), variant="equispaced"), dim=element.value_size())
+        marked = ufl.FiniteElement(sub.family(), sub.cell(), sub.degree(), variant="equispaced")
+        set_coordinate_element(domain, ufl.VectorElement(marked, dim=element.value_size()))
     return msh
 
 
@@ -36,5 +38,4 @@ def stable_constant_order() -> None:
     made before, then decides the operand order and with it the form's cache key. With counts
     of seven digits (for the next nine million Constants) text order is numeric order. Counts
     only identify Constants; nothing else depends on their values."""
-    if ufl.Constant._globalcount < CONSTANT_COUNT_FLOOR:
-        ufl.Constant._globalcount = CONSTANT_COUNT_FLOOR
+    raise_constant_count(CONSTANT_COUNT_FLOOR)

@@ -1,5 +1,5 @@
-"""Newton solver (PETSc SNES) for Π_h and load stepping with automatic step cutting
-(docs/theory.md).
+"""Newton solver (PETSc SNES) for Π_h (docs/theory.md); load stepping is in
+:mod:`fabricsurf.discretise.stepping`.
 
 The SNES callbacks follow the NonlinearPDE_SNESProblem of the dolfinx 0.5 unit tests: the
 residual is dΠ/du with Dirichlet rows x − g (lifting), the Jacobian d²Π/du². Options go to the
@@ -20,10 +20,7 @@ allreduce per residual evaluation.
 
 from __future__ import annotations
 
-import ctypes
-import glob
 import itertools
-import os
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -33,6 +30,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabricsurf.discretise.compat import set_domain_error
 from fabricsurf.discretise.constraints import (
     CONSTRAINT_TOLERANCE,
     MAX_MULTIPLIER_UPDATES,
@@ -91,26 +89,6 @@ def reason_name(reason: int) -> str:
     return f"{SNES_REASONS.get(int(reason), 'UNKNOWN')} ({int(reason)})"
 
 
-def _petsc_library():
-    """The PETSc shared library petsc4py loaded (for the two calls petsc4py 3.18 lacks)."""
-    paths = []
-    if os.path.exists("/proc/self/maps"):
-        with open("/proc/self/maps") as f:
-            paths = [ln.split()[-1] for ln in f if "libpetsc" in ln and ".so" in ln]
-    if not paths:
-        import petsc4py
-        cfg = petsc4py.get_config()
-        paths = glob.glob(os.path.join(cfg["PETSC_DIR"], cfg["PETSC_ARCH"], "lib", "libpetsc*.so*"))
-    try:
-        lib = ctypes.CDLL(paths[0])
-        for fn in (lib.SNESSetFunctionDomainError, lib.SNESSetJacobianDomainError):
-            fn.argtypes = [ctypes.c_void_p]
-        return lib
-    except (IndexError, OSError, AttributeError):
-        return None
-
-
-_PETSC_LIB = _petsc_library()
 
 
 def _collective_finite(comm: MPI.Comm, array: np.ndarray) -> bool:
@@ -195,8 +173,8 @@ class SNESSolver(Owner):
             finite = _collective_finite(self.comm, b_local.array)
         if not finite:
             self.domain_errors += 1
-            if snes is not None and _PETSC_LIB is not None:
-                _PETSC_LIB.SNESSetFunctionDomainError(snes.handle)
+            if snes is not None:
+                set_domain_error(snes, "function")
             b.set(np.inf)
             return
         if self.nodal_forces is not None:
@@ -212,9 +190,8 @@ class SNESSolver(Owner):
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, self.a, bcs=self.bcs)
         A.assemble()
-        if not np.isfinite(A.norm(PETSc.NormType.FROBENIUS)) and snes is not None \
-                and _PETSC_LIB is not None:
-            _PETSC_LIB.SNESSetJacobianDomainError(snes.handle)
+        if not np.isfinite(A.norm(PETSc.NormType.FROBENIUS)) and snes is not None:
+            set_domain_error(snes, "jacobian")
 
     def evaluate_residual(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
         """R(x) into b as SNES sees it (boundary rows, nodal forces, domain check)."""
@@ -285,105 +262,3 @@ class SNESSolver(Owner):
         """R(u)·w of the internal force (e.g. a reaction, w the boundary motion), reduced over
         ranks."""
         return dot_function(self.internal_force(), w)
-
-
-class LoadStepError(RuntimeError):
-    """The load path could not be followed even with the minimum step.
-
-    Attributes (the same on every rank): ``step`` (1-based, as in the output files),
-    ``target``, ``last_load`` (the last converged load), ``reason`` (SNES code of the last
-    attempt), ``attempts`` (the loads tried in this step, with their SNES reason codes) and
-    ``partial`` (what the caller converged before the failure, if it attaches it; else None).
-    """
-
-    def __init__(self, message: str, step: int = 0, target: float = float("nan"),
-                 last_load: float = float("nan"), reason: int = 0,
-                 attempts: Sequence[tuple[float, int]] = ()) -> None:
-        super().__init__(message)
-        self.step, self.target, self.last_load = step, target, last_load
-        self.reason, self.attempts = reason, list(attempts)
-        self.partial = None
-
-    def as_dict(self) -> dict:
-        """Where the load path stopped, JSON-ready: step, last_load, reason, message."""
-        return {"step": self.step, "last_load": self.last_load, "reason": self.reason,
-                "message": str(self)}
-
-
-class LoadStepper:
-    """Follow a load parameter t through requested values, cutting the step on divergence.
-
-    ``set_load(t)`` updates the problem data (Constants, BC values) for load t;
-    ``on_converged(k, t, iters)`` is called for each requested value t_k (k from 0) once
-    converged (write output there: everything converged is on disk when a later step fails).
-    Messages and :class:`LoadStepError` count steps from 1, as the output files do.
-    """
-
-    def __init__(self, solver: SNESSolver, set_load: Callable[[float], None],
-                 on_converged: Callable[[int, float, int], None] | None = None,
-                 min_fraction: float = 1e-4, log: Callable | None = None):
-        self.solver, self.set_load, self.on_converged = solver, set_load, on_converged
-        self.min_fraction = min_fraction
-        self.log = log or (lambda msg: None)
-        self.t = 0.0
-        self.iterations: list[int] = []
-        self.attempts: list[int] = []
-
-    def _try(self, t: float) -> tuple[bool, int, int]:
-        backup = self.solver.state()
-        self.set_load(t)
-        reason, its = self.solver.solve()
-        finite = bool(np.isfinite(self.solver.u.x.array).all())
-        comm = getattr(self.solver, "comm", MPI.COMM_SELF)
-        ok = reason > 0 and comm.allreduce(finite, op=MPI.LAND)
-        if not ok:
-            self.solver.restore(backup)
-        return ok, reason, its
-
-    def advance_to(self, target: float, k: int) -> int:
-        """Reach load ``target`` (requested step ``k``, 0-based) from the current load;
-        returns the total Newton iterations (failed attempts included)."""
-        span = target - self.t
-        dt, total, tried = span, 0, []
-        while abs(target - self.t) > 1e-14 * max(1.0, abs(target)):
-            t_next = self.t + dt if abs(dt) < abs(target - self.t) else target
-            ok, reason, its = self._try(t_next)
-            total += its
-            tried.append((t_next, reason))
-            if ok:
-                self.t = t_next
-                dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
-                continue
-            dt = 0.5 * (t_next - self.t)
-            self.log(f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
-                     f"cutting the increment to {dt:.3g}")
-            if abs(dt) < self.min_fraction * abs(span):
-                self.set_load(self.t)
-                raise LoadStepError(_failure_message(k + 1, target, self.t, reason, tried,
-                                                     self.min_fraction),
-                                    k + 1, target, self.t, reason, tried)
-        self.attempts.append(len(tried))
-        return total
-
-    def run(self, targets: Sequence[float]) -> list[int]:
-        for k, target in enumerate(targets):
-            its = self.advance_to(float(target), k)
-            self.iterations.append(its)
-            if self.on_converged is not None:
-                self.on_converged(k, float(target), its)
-        return self.iterations
-
-
-def _failure_message(step: int, target: float, last: float, reason: int,
-                     tried: list[tuple[float, int]], min_fraction: float) -> str:
-    failed = [(t, r) for t, r in tried if r <= 0]
-    shown = ", ".join(f"{t:.6g}" for t, _ in failed[:3])
-    if len(failed) > 4:
-        shown += f", ... ({len(failed) - 4} more), "
-    elif len(failed) == 4:
-        shown += ", "
-    shown += f"{failed[-1][0]:.6g}" if len(failed) > 3 else ""
-    return (f"load step {step} (target {target:.6g}) failed: Newton did not converge "
-            f"({reason_name(reason)}) even after cutting the increment {len(failed) - 1} times "
-            f"to below {min_fraction:g} of the step; loads tried without convergence: {shown}; "
-            f"last converged load {last:.6g}")

@@ -29,7 +29,7 @@ from fabricsurf.discretise.evaluation import (
 )
 from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, write_json
 from fabricsurf.discretise.problem import FabricProblem
-from fabricsurf.discretise.solver import LoadStepError, LoadStepper
+from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
 from fabricsurf.experiments.followers import step_followers

@@ -35,7 +35,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.energy import has_second_gradient
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.problem import FabricProblem
-from fabricsurf.discretise.solver import LoadStepError, LoadStepper
+from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
 from fabricsurf.model.rigidity import cylindrical_rigidity, narrow_strip_rigidity

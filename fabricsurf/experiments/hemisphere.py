@@ -44,7 +44,7 @@ from fabricsurf.discretise.evaluation import (
     quadrature_expression,
 )
 from fabricsurf.discretise.output import FieldWriter
-from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
 from fabricsurf.experiments.cantilever import areal_density_option, weight_per_area

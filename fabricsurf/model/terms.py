@@ -22,8 +22,8 @@ from typing import ClassVar
 import ufl
 from dolfinx import fem
 
-from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.constants import FRICTION_ANGLE
+from fabricsurf.model.kinematics import Kinematics
 
 
 @dataclass

@@ -68,7 +68,6 @@ from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.solver import Dirichlet
 
 
-
 @dataclass
 class Lattice:
     """A lattice on the specimen.

@@ -15,7 +15,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
-from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.materials import bipantographic
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear

@@ -29,7 +29,8 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
-from fabricsurf.discretise.solver import DOMAIN_AWARE, LoadStepError
+from fabricsurf.discretise.solver import DOMAIN_AWARE
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower
 from fabricsurf.experiments.followers import penalty_stretch as penalty_stretch  # re-exported

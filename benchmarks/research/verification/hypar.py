@@ -24,7 +24,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.energy import double_force
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.discretise.problem import FabricProblem
-from fabricsurf.discretise.solver import LoadStepper
+from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.terms import (
     FibreStretch,

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fabricsurf.discretise.output import rank0_print
-from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.inverse.fitting import intervals, systematic
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction

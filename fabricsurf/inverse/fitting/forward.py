@@ -25,7 +25,7 @@ from petsc4py import PETSc
 
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.resources import Owner, copy_to_function, destroy, dot_function
-from fabricsurf.discretise.solver import LoadStepError, LoadStepper
+from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import misfit as mf

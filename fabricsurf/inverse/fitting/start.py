@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricsurf.discretise.solver import LoadStepError
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.fitting.misfit import scales
 

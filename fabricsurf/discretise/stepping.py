@@ -1,0 +1,115 @@
+"""Load stepping with automatic step cutting on divergence (docs/theory.md), apart from the
+Newton solver it drives (as dolfiny keeps continuation apart from Newton): any object with
+``solve() -> (reason, iterations)``, ``state()``, ``restore(state)`` and ``u`` can be stepped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.discretise.solver import SNESSolver, reason_name
+
+
+class LoadStepError(RuntimeError):
+    """The load path could not be followed even with the minimum step.
+
+    Attributes (the same on every rank): ``step`` (1-based, as in the output files),
+    ``target``, ``last_load`` (the last converged load), ``reason`` (SNES code of the last
+    attempt), ``attempts`` (the loads tried in this step, with their SNES reason codes) and
+    ``partial`` (what the caller converged before the failure, if it attaches it; else None).
+    """
+
+    def __init__(self, message: str, step: int = 0, target: float = float("nan"),
+                 last_load: float = float("nan"), reason: int = 0,
+                 attempts: Sequence[tuple[float, int]] = ()) -> None:
+        super().__init__(message)
+        self.step, self.target, self.last_load = step, target, last_load
+        self.reason, self.attempts = reason, list(attempts)
+        self.partial = None
+
+    def as_dict(self) -> dict:
+        """Where the load path stopped, JSON-ready: step, last_load, reason, message."""
+        return {"step": self.step, "last_load": self.last_load, "reason": self.reason,
+                "message": str(self)}
+
+
+class LoadStepper:
+    """Follow a load parameter t through requested values, cutting the step on divergence.
+
+    ``set_load(t)`` updates the problem data (Constants, BC values) for load t;
+    ``on_converged(k, t, iters)`` is called for each requested value t_k (k from 0) once
+    converged (write output there: everything converged is on disk when a later step fails).
+    Messages and :class:`LoadStepError` count steps from 1, as the output files do.
+    """
+
+    def __init__(self, solver: SNESSolver, set_load: Callable[[float], None],
+                 on_converged: Callable[[int, float, int], None] | None = None,
+                 min_fraction: float = 1e-4, log: Callable | None = None):
+        self.solver, self.set_load, self.on_converged = solver, set_load, on_converged
+        self.min_fraction = min_fraction
+        self.log = log or (lambda msg: None)
+        self.t = 0.0
+        self.iterations: list[int] = []
+        self.attempts: list[int] = []
+
+    def _try(self, t: float) -> tuple[bool, int, int]:
+        backup = self.solver.state()
+        self.set_load(t)
+        reason, its = self.solver.solve()
+        finite = bool(np.isfinite(self.solver.u.x.array).all())
+        comm = getattr(self.solver, "comm", MPI.COMM_SELF)
+        ok = reason > 0 and comm.allreduce(finite, op=MPI.LAND)
+        if not ok:
+            self.solver.restore(backup)
+        return ok, reason, its
+
+    def advance_to(self, target: float, k: int) -> int:
+        """Reach load ``target`` (requested step ``k``, 0-based) from the current load;
+        returns the total Newton iterations (failed attempts included)."""
+        span = target - self.t
+        dt, total, tried = span, 0, []
+        while abs(target - self.t) > 1e-14 * max(1.0, abs(target)):
+            t_next = self.t + dt if abs(dt) < abs(target - self.t) else target
+            ok, reason, its = self._try(t_next)
+            total += its
+            tried.append((t_next, reason))
+            if ok:
+                self.t = t_next
+                dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
+                continue
+            dt = 0.5 * (t_next - self.t)
+            self.log(f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
+                     f"cutting the increment to {dt:.3g}")
+            if abs(dt) < self.min_fraction * abs(span):
+                self.set_load(self.t)
+                raise LoadStepError(_failure_message(k + 1, target, self.t, reason, tried,
+                                                     self.min_fraction),
+                                    k + 1, target, self.t, reason, tried)
+        self.attempts.append(len(tried))
+        return total
+
+    def run(self, targets: Sequence[float]) -> list[int]:
+        for k, target in enumerate(targets):
+            its = self.advance_to(float(target), k)
+            self.iterations.append(its)
+            if self.on_converged is not None:
+                self.on_converged(k, float(target), its)
+        return self.iterations
+
+
+def _failure_message(step: int, target: float, last: float, reason: int,
+                     tried: list[tuple[float, int]], min_fraction: float) -> str:
+    failed = [(t, r) for t, r in tried if r <= 0]
+    shown = ", ".join(f"{t:.6g}" for t, _ in failed[:3])
+    if len(failed) > 4:
+        shown += f", ... ({len(failed) - 4} more), "
+    elif len(failed) == 4:
+        shown += ", "
+    shown += f"{failed[-1][0]:.6g}" if len(failed) > 3 else ""
+    return (f"load step {step} (target {target:.6g}) failed: Newton did not converge "
+            f"({reason_name(reason)}) even after cutting the increment {len(failed) - 1} times "
+            f"to below {min_fraction:g} of the step; loads tried without convergence: {shown}; "
+            f"last converged load {last:.6g}")
