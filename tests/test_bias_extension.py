@@ -15,13 +15,23 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from fabricsurf.model.kinematics import Kinematics, fibre_directions
-from fabricsurf.model.materials import (
-    PantographBending,
-    bipantographic,
-    bipantographic_density_numpy,
-)
+from fabricsurf.model.materials import TABLE3_MACRO, PantographBending, bipantographic
 
 COMM = MPI.COMM_WORLD
+
+
+def bipantographic_density_numpy(rho, dtheta, drho, K_S=TABLE3_MACRO["K_S"],
+                                 K_E=TABLE3_MACRO["K_E"], K_F=TABLE3_MACRO["K_F"],
+                                 gamma=math.pi / 6):
+    """Barchiesi et al. 2020 eq. (2) for one fibre family in numpy, in the printed acos form:
+    the reference the UFL energy (written with asin) is checked against."""
+    c = math.cos(gamma)
+    x = np.asarray(rho) ** 2 * c**2
+    D = K_E - 8 * K_F * c**2
+    return (K_S * (np.arccos(1 - 2 * x) - math.pi + 2 * gamma) ** 2
+            + K_E * K_F * ((x - 1) / (x * D - K_E) * np.asarray(dtheta) ** 2
+                           + x / ((1 - x) * (8 * K_F + np.asarray(rho) ** 2 * D))
+                           * np.asarray(drho) ** 2))
 
 
 # ------------------------------------------------------------- eq. (2) energy, exact placements

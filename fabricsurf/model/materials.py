@@ -229,18 +229,3 @@ def bipantographic(K_S: float = TABLE3_MACRO["K_S"], K_E: float = TABLE3_MACRO["
             RegularisedPantographBending(K_E=K_E, K_F=K_F, gamma=gamma,
                                          penalty_stretch=penalty_stretch,
                                          limit_stretch=limit_stretch)]
-
-
-def bipantographic_density_numpy(rho, dtheta, drho, K_S=TABLE3_MACRO["K_S"],
-                                 K_E=TABLE3_MACRO["K_E"], K_F=TABLE3_MACRO["K_F"],
-                                 gamma=math.pi / 6):
-    """Eq. (2) for one fibre family in numpy, in the printed acos form (reference for tests)."""
-    import numpy as np
-
-    c = math.cos(gamma)
-    x = np.asarray(rho) ** 2 * c**2
-    D = K_E - 8 * K_F * c**2
-    return (K_S * (np.arccos(1 - 2 * x) - math.pi + 2 * gamma) ** 2
-            + K_E * K_F * ((x - 1) / (x * D - K_E) * np.asarray(dtheta) ** 2
-                           + x / ((1 - x) * (8 * K_F + np.asarray(rho) ** 2 * D))
-                           * np.asarray(drho) ** 2))

@@ -1,8 +1,8 @@
 """Bi-pantographic cell lattice of Barchiesi et al. 2020, §3 (eqs. 18-20, Table 2, Figs. 6-8),
 reconstructed.
 
-Reconstruction (figure: ``docs/bipantographic_cell.png``, made by :func:`plot_cell`)
--------------------------------------------------------------------------------------
+Reconstruction (figure ``docs/bipantographic_cell.png``: ``benchmarks/bipantographic_cell.py``)
+---------------------------------------------------------------------------------------------
 The text gives: square cells of side sqrt(2) eps, 4 vertex nodes shared between cells and
 9 internal nodes, 16 extensional springs (k_e, l0 = eps/sqrt(3)), 8 pivot springs
 (k_r1, phi0 = (-1)^l pi/3), 4 bending springs inside the cell (k_r2, phi0 = 0) and 4
@@ -130,35 +130,3 @@ def _axis_grid(n_x: int, n_y: int, cid: np.ndarray) -> np.ndarray:
     i, j = np.meshgrid(np.arange(n_x), np.arange(n_y), indexing="ij")
     grid[i + j + 1, i - j + n_y] = cid[..., 4]
     return grid
-
-
-def plot_cell(path: str = "docs/bipantographic_cell.png") -> None:
-    """Figure of one cell (local numbering, springs) as reconstructed in the docstring."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    x = cell_geometry(1.0)
-    fig, ax = plt.subplots(figsize=(6, 6))
-    c = np.sqrt(2)
-    ax.plot([0, c, c, 0, 0], [0, 0, c, c, 0], ":", color="grey", lw=1)
-    for p, q, sl, sr in SEGMENTS:
-        for s in (sl, sr):
-            ax.plot(*x[[p, s, q]].T, "k-", lw=1.5)
-            side = "+" if s == sr else "-"
-            ax.annotate(f"{side}π/3", x[s], xytext=(4, 4), textcoords="offset points",
-                        color="green", fontsize=7)
-    for t in R2:
-        ax.plot(*x[list(t)].T, "r--", lw=1)
-    ax.scatter(*x.T, s=120, facecolor="white", edgecolor="k", zorder=3)
-    for k, p in enumerate(x):
-        ax.text(*p, str(k), ha="center", va="center", fontsize=7, zorder=4)
-    ax.scatter(*x[[5, 6, 7, 8, 9, 10, 11, 12]].T, s=300, facecolor="none", edgecolor="green")
-    ax.set_title("bi-pantographic cell [B §3] (reconstruction)\nblack: 16 extensional "
-                 "l0=ε/√3; green: 8 pivots φ0=±π/3;\nred dashed: 4 bending bars φ0=0 "
-                 "(k_r3 bars continue through vertices)", fontsize=8)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x / ε")
-    ax.set_ylabel("y / ε")
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)

@@ -65,11 +65,3 @@ def grid_fields(grid: np.ndarray, X: np.ndarray, x: np.ndarray, spacing: float) 
         "rho_x": la / spacing, "rho_y": lb / spacing, "shear": np.pi / 2 - np.arccos(cos),
         "du_da": _arm(grid, u, 0)[0] / spacing, "du_db": _arm(grid, u, 1)[0] / spacing,
     }
-
-
-def to_table(fields: dict) -> np.ndarray:
-    """Flatten :func:`grid_fields` to rows ``X, Y, ux, uy, rho_x, rho_y, shear`` (present
-    nodes only), e.g. for ``numpy.savetxt`` or comparison with continuum point values."""
-    keys = ["X", "Y", "ux", "uy", "rho_x", "rho_y", "shear"]
-    ok = ~np.isnan(fields["X"])
-    return np.column_stack([fields[k][ok] for k in keys])
