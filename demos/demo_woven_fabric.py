@@ -16,9 +16,11 @@
 # digitised (`fabricsurf.datasets.cao2008_plain_weave()`). No noise level is given, so errors are
 # in units of 1 % of the largest force. The mission's loop on real data:
 #
-# 1. the yarns as they are, nearly inextensible (k_l = k_m = 6·10³ N/mm, the glass content of
-#    this fabric, fixed), on the locking-free fibre-aligned mesh; `shear` fitted on the points
-#    up to a zone-C angle of 60° (beyond it the data fall below any elastic net: slip);
+# 1. the yarns inextensible, on the locking-free fibre-aligned mesh: the glass's own stretch
+#    (k_l = k_m = 6·10³ N/mm) acts only in boundary layers far thinner than a yarn, where the
+#    continuum does not hold, and the demo measures that it is below what the data resolve;
+#    `shear` fitted on the points up to a zone-C angle of 60° (beyond it the data fall below
+#    any elastic net: slip);
 # 2. the diagnosis ranks every in-plane effect, `crossover_friction` among them, confirms the
 #    best by refits and adds what is significant;
 # 3. the error in the initial knee before and after, and the unexplained ranges;
@@ -65,7 +67,9 @@ out = args.out
 say = lambda *a: rank0_print(comm, *a)  # noqa: E731
 t_start = time.perf_counter()
 H_MESH = args.h or (23.0 if args.quick else 11.5)
-K_YARN, MAX_ANGLE, KNEE = 6.0e3, 60.0, (1.5, 7.7)
+K_GLASS, K_YARN, MAX_ANGLE, KNEE = 6.0e3, 6.0e5, 60.0, (1.5, 7.7)
+YARN_SPACING = 10.0 / 1.9  # mm: 1.9 yarns/cm (Cao et al. 2008, Table 1)
+DIGITISING_ERROR = 0.1  # N (shared data README)
 BASE = ["fibre_stretch", "shear"]
 GUESS = {"fibre_stretch": {"k_l": K_YARN, "k_m": K_YARN}, "shear": {"k_s": 0.02}}
 
@@ -84,6 +88,40 @@ err_unit = scales(exp)[1]
 on_rank0(comm, write_experiment, out / "data_fitted", exp, overwrite=True)
 say(f"{full.name}: {len(full.path)} points; fitted: {len(exp.path)} up to d = "
     f"{exp.path[-1]:.1f} mm ({MAX_ANGLE:g} deg); error unit {err_unit:.4f} N; h = {H_MESH} mm")
+
+# %% [markdown]
+# ## 1b. The yarns' stretch: invisible at the scale the continuum holds
+# With yarns of stiffness K the fibre stretch of the bias test lives in boundary layers along
+# the zone boundaries, of width δ ≈ W (k_s/K)^½ (the layers of ideal fibre-reinforced solids,
+# Everstine & Pipkin 1971): about 0.2 mm for the glass (K = 6·10³ N/mm), a twentieth of the
+# yarn spacing, where a continuum of yarns says nothing. Resolved, such a layer softens the
+# force without end as h falls towards δ, and moduli fitted at h, h/2, h/4 drift by about 1 %
+# per halving; unresolved, it is below the digitising error. The demo therefore takes the
+# inextensible limit, as a penalty K = 6·10⁵ N/mm whose remaining compliance it measures against
+# the exact constraint (`FibreStretch(inextensible=True)`, discretise/constraints.py), and
+# reports what the glass stiffness would change at this h.
+
+# %%
+def baseline_force(k_yarn: float | None) -> np.ndarray:
+    """The baseline guess's force on the fitted path at h: yarns of stiffness ``k_yarn``
+    (N/mm), or inextensible (None: the exact constraint)."""
+    fs = {"k_l": k_yarn or K_YARN, "k_m": k_yarn or K_YARN}
+    terms = parse_terms(",".join(BASE), GUESS | {"fibre_stretch": fs})
+    terms[0].inextensible = k_yarn is None
+    with ForwardSet([exp], terms, h=H_MESH, comm=comm) as fwd:
+        return np.asarray(fwd.run()[0].force)
+
+
+F_exact, F_penalty, F_glass = (baseline_force(k) for k in (None, K_YARN, K_GLASS))
+yarns = {"boundary_layer_mm": W * np.sqrt(GUESS["shear"]["k_s"] / K_GLASS),
+         "yarn_spacing_mm": YARN_SPACING,
+         "penalty_vs_exact_max_N": float(np.max(np.abs(F_penalty - F_exact))),
+         "glass_vs_exact_max_N": float(np.max(np.abs(F_glass - F_exact))),
+         "digitising_error_N": DIGITISING_ERROR}
+say(f"yarn stretch: layer {yarns['boundary_layer_mm']:.2f} mm against a yarn spacing of "
+    f"{YARN_SPACING:.1f} mm; force change, K = {K_YARN:.0e} vs exact "
+    f"{yarns['penalty_vs_exact_max_N']:.1e} N, glass vs exact {yarns['glass_vs_exact_max_N']:.3f}"
+    f" N (digitising error {DIGITISING_ERROR} N)")
 
 # %% [markdown]
 # ## 2. Diagnose
@@ -135,8 +173,9 @@ for k in curves:
 
 # %% [markdown]
 # ## 4. The moduli at h, h/2 and h/4
-# With the locking-free mesh the fitted moduli belong to the fabric: refitting the final model
-# on finer meshes must leave them within 2 %.
+# With the locking-free mesh and inextensible yarns the fitted moduli belong to the fabric:
+# refitting the final model on finer meshes must leave them within 2 % (with the glass
+# stiffness they drift by about 1 % per halving, section 1b).
 
 # %%
 levels = [H_MESH] if args.quick else [H_MESH, H_MESH / 2, H_MESH / 4]
@@ -202,7 +241,8 @@ on_rank0(comm, wv.figures, out, full, {labels[k]: v for k, v in curves.items()},
 seconds["total"] = time.perf_counter() - t_start
 summary = {
     "data": exp.name, "h_mm": H_MESH, "quick": args.quick, "ranks": comm.size,
-    "k_yarn_N_per_mm": K_YARN, "fitted_to_deg": MAX_ANGLE, "fitted_points": n,
+    "k_yarn_N_per_mm": K_YARN, "yarn_stretch": yarns, "fitted_to_deg": MAX_ANGLE,
+    "fitted_points": n,
     "error_unit_N": err_unit, "knee_range_mm": list(KNEE),
     "baseline": {"params": base.params(), "chi2": base.chi2},
     "ranking": [{k: r.get(k) for k in ("effect", "score", "refit_chi2", "significant")}
@@ -241,5 +281,8 @@ assert abs(cmp["chi2"] - final.chi2) <= 1e-6 * final.chi2, "same mesh, same modu
 assert pred_rc == 0 and d_pred[-1] == 110.0 and np.all(np.diff(F_pred) > 0)
 assert np.allclose(band["force"], F_pred, rtol=1e-6), "the band's centre is the CLI's prediction"
 assert args.quick or max(spread.values()) < 0.02, "moduli of a locking-free mesh: within 2 %"
+assert yarns["penalty_vs_exact_max_N"] < 1e-2 * DIGITISING_ERROR, "the penalty is the limit"
+assert yarns["glass_vs_exact_max_N"] < DIGITISING_ERROR, "glass stretch unresolved at h"
+assert yarns["boundary_layer_mm"] < 0.1 * YARN_SPACING, "its layer is below the yarn scale"
 assert 0 < valid_to <= 110.0
 say(f"done in {seconds['total']:.0f} s on {comm.size} rank(s); outputs in {out}")
