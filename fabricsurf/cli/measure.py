@@ -16,8 +16,11 @@ from mpi4py import MPI
 
 from fabricsurf.cli.options import (
     add_max_elements,
+    check_default_size,
     check_h,
+    check_in_loop,
     check_size,
+    check_terms_fit_data,
     diagnose_options,
     enough_data,
     error_map_steps,
@@ -75,6 +78,8 @@ def _setup(args):
                 raise InputError(f"experiments '{other}' and '{n}' (experiment.toml: name) "
                                  f"give the same file name prefix '{slug(n)}_' in --out, so "
                                  "one set of figures would overwrite the other; rename one")
+    check_in_loop(exps, args.data)
+    check_terms_fit_data(exps, model, ",".join(t.name for t in model))
     check_h(args.h, exps)
     for e in exps:
         warning = unloading_warning(e, model)
@@ -83,6 +88,8 @@ def _setup(args):
     if args.h is not None:
         check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
                    args.max_elements)
+    else:
+        check_default_size(exps, args.max_elements)
     return exps, model, params
 
 

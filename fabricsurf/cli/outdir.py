@@ -5,7 +5,21 @@ when the command ends (successfully, or with the converged part of a failed run)
 moved into OUT, one atomic rename each, after checking that none of them would have to replace
 a directory (or a file by a directory): a publish either moves everything or nothing. A command
 that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
-directory and names it.
+directory, renamed ``.OUT.unpublished-…``, and names it.
+
+One output directory belongs to one run (docs/usage.md, "Output directories"):
+
+- a run holds a lock beside OUT (``.OUT.lock``: ``flock``, with the holder's PID and host)
+  from the check of ``--out`` to the publish; a second run into the same OUT is refused before
+  it computes anything. A lock whose holder died (SIGKILL) is released by the kernel and
+  taken over; staging directories such a run left behind are removed then.
+- every publish records its files in ``OUT/.fabricsurf-run.json``; the next publish into OUT
+  removes the files of that record it does not write itself, so OUT never mixes two runs'
+  results (no stale ``failure.json`` or ``per_point.csv``). Files no run recorded (the
+  user's) are never touched.
+
+The names beside OUT are made from its name, shortened with a hash when it is long, so a
+``--out`` of up to NAME_MAX bytes gives valid names.
 
 ``--out`` is checked first: its symbolic links are resolved (a dangling or looping link is
 refused), and it must not be, contain or lie inside any input (a DATA directory, a file it
@@ -14,8 +28,13 @@ names, the --params file), so an input is never overwritten.
 
 from __future__ import annotations
 
+import fcntl
+import glob
+import hashlib
+import json
 import os
 import shutil
+import socket
 import tempfile
 import time
 from collections.abc import Callable
@@ -76,9 +95,64 @@ def _clash(dst: Path, will_be_dir: bool) -> str | None:
     return None
 
 
+MANIFEST = ".fabricsurf-run.json"
+"""The record, in OUT, of the files its last publish wrote."""
+SHORT_NAME_BYTES = 100
+
+
+def _short(name: str) -> str:
+    """``name``, or when longer than SHORT_NAME_BYTES bytes its first 40 bytes and a hash: the
+    stem of the lock and staging names beside OUT, which add up to 30 bytes to it."""
+    raw = name.encode()
+    if len(raw) <= SHORT_NAME_BYTES:
+        return name
+    return raw[:40].decode(errors="ignore") + "-" + hashlib.sha256(raw).hexdigest()[:16]
+
+
+def _take_lock(path: Path, out: Path) -> int:
+    """An exclusive ``flock`` on ``path`` (created if missing), holding this process's PID;
+    refused, naming the holder, while another run holds it. The kernel releases the lock of a
+    process that dies, so a stale lock file is simply taken over."""
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
+            os.close(fd)
+            raise InputError(f"--out {out}: another fabricsurf run ({holder}) is writing to "
+                             "this directory; wait for it to end, or give another --out"
+                             ) from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:  # its holder removed it just before we locked it
+            same = False
+        if same:
+            break
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"PID {os.getpid()} on {socket.gethostname()}".encode(), 0)
+    return fd
+
+
+def _release_lock(lock: tuple[int, Path] | None) -> None:
+    if lock is not None:
+        fd, path = lock
+        path.unlink(missing_ok=True)  # while still held: no other run locks a removed file
+        os.close(fd)
+
+
+def _remove_stale_stages(parent: Path, short: str) -> None:
+    """Staging directories of OUT that outlived their run (killed): with the lock held, none
+    belongs to a live run."""
+    for stale in parent.glob(f".{glob.escape(short)}.partial-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+
+
 def _check(out: Path, files: tuple[str, ...],
-           inputs: tuple[tuple[str, Path], ...] = ()) -> str:
-    """Validate ``--out`` (before any computation) and create the staging directory."""
+           inputs: tuple[tuple[str, Path], ...] = ()) -> tuple[str, tuple[int, Path]]:
+    """Validate ``--out`` (before any computation), take its lock and create the staging
+    directory; returns the staging directory and the lock."""
     real = _resolve(out)
     _inputs_clash(out, real, inputs)
     if out.exists() and not out.is_dir():
@@ -97,29 +171,62 @@ def _check(out: Path, files: tuple[str, ...],
     # beside the real OUT (a rename cannot cross file systems), named as given when it is there
     parent = out.parent if out.parent.resolve() == real.parent else real.parent
     parent.mkdir(parents=True, exist_ok=True)
-    stage = tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=parent)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
-    return stage
+    short = _short(real.name)
+    lock = (_take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
+    try:
+        _remove_stale_stages(parent, short)
+        stage = tempfile.mkdtemp(prefix=f".{short}.partial-", dir=parent)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
+    except BaseException:
+        _release_lock(lock)
+        raise
+    return stage, lock
+
+
+def _recorded(out: Path) -> list[Path]:
+    """The files OUT's last publish recorded (:data:`MANIFEST`), those inside OUT only."""
+    try:
+        names = json.loads((out / MANIFEST).read_text())["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    real = out.resolve()
+    found = []
+    for n in names if isinstance(names, list) else []:
+        p = out / str(n)
+        if p.is_file() and not p.is_symlink() and p.resolve().is_relative_to(real):
+            found.append(p)
+    return found
 
 
 def _publish(stage: Path, out: Path) -> None:
+    """Move the staged files into OUT with their record (:data:`MANIFEST`), then remove the
+    files the previous record names that this run did not write."""
+    files = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if not p.is_dir())
+    for src in sorted(stage.rglob("*")) if out.exists() else ():
+        why = _clash(out / src.relative_to(stage), src.is_dir())
+        if why:  # kept under a name the next run's clean-up of stale stages leaves alone
+            kept = stage.with_name(stage.name.replace(".partial-", ".unpublished-", 1))
+            os.rename(stage, kept)
+            raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
+                             f"{kept}")
+    (stage / MANIFEST).write_text(json.dumps({"files": files, "pid": os.getpid(),
+                                              "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
     if not out.exists():
         os.replace(stage, out.resolve())
         return
     items = sorted(stage.rglob("*"))
-    for src in items:
-        why = _clash(out / src.relative_to(stage), src.is_dir())
-        if why:
-            raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
-                             f"{stage}")
+    previous = _recorded(out)
     for src in items:
         dst = out / src.relative_to(stage)
         if src.is_dir():
             dst.mkdir(parents=True, exist_ok=True)
         else:
             os.replace(src, dst)
+    for old in previous:
+        if str(old.relative_to(out)) not in files:
+            old.unlink(missing_ok=True)
     shutil.rmtree(stage)
 
 
@@ -140,6 +247,14 @@ def interrupted(signame: str) -> str | None:
     if not _OPEN:
         return f"interrupted by {signame}" if MPI.COMM_WORLD.rank == 0 else None
     od = _OPEN[-1]
+    try:
+        return _claim_and_clean(od, signame)
+    finally:  # rank 0, after the claiming rank is done (or the wait is over)
+        _release_lock(od._lock)
+        od._lock = None
+
+
+def _claim_and_clean(od: OutputDir, signame: str) -> str | None:
     claimed = od.stage.with_name(od.stage.name + ".interrupted")
     try:
         os.rename(od.stage, claimed)  # atomic: one rank only succeeds
@@ -148,6 +263,8 @@ def interrupted(signame: str) -> str | None:
         while claimed.exists() and time.monotonic() - t0 < INTERRUPT_WAIT:
             time.sleep(0.01)
         return None
+    for tmp in claimed.rglob("*.tmp"):  # a write the signal cut short (written, then renamed)
+        tmp.unlink(missing_ok=True)
     try:
         if od.keep:
             note = od.on_interrupt(claimed) if od.on_interrupt else ""
@@ -178,8 +295,9 @@ class OutputDir:
                  inputs: tuple[tuple[str, Path], ...] = ()) -> None:
         self.out, self.comm, self.keep = Path(out), comm, keep_on_error
         self.on_interrupt: Callable[[Path], str] | None = None
-        self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out, tuple(files),
-                                              tuple(inputs)), root=0))
+        checked = on_rank0(comm, _check, self.out, tuple(files), tuple(inputs))
+        self._lock = checked[1] if comm.rank == 0 else None
+        self.stage = Path(comm.bcast(checked and checked[0], root=0))
 
     def __enter__(self) -> Path:
         _OPEN.append(self)
@@ -189,10 +307,17 @@ class OutputDir:
         _OPEN.remove(self)
         mine = None if exc is None else (isinstance(exc, InputError), str(exc))
         first = next((m for m in self.comm.allgather(mine) if m is not None), None)
-        if first is None or self.keep:
-            on_rank0(self.comm, _publish, self.stage, self.out)
-        elif self.comm.rank == 0:
-            shutil.rmtree(self.stage, ignore_errors=True)
+        try:
+            publish = first is None or self.keep
+            if publish and first is not None:  # a failed run with nothing to keep: no empty OUT
+                publish = self.comm.bcast(self.comm.rank > 0 or any(self.stage.iterdir()))
+            if publish:
+                on_rank0(self.comm, _publish, self.stage, self.out)
+            elif self.comm.rank == 0:
+                shutil.rmtree(self.stage, ignore_errors=True)
+        finally:
+            _release_lock(self._lock)
+            self._lock = None
         if first is not None and exc is None:
             raise (InputError if first[0] else RuntimeError)(first[1])
         return False
