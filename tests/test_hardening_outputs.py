@@ -105,6 +105,10 @@ CASES = [
          make=th.nothing, argv=["bias", "--width", "150", "--length", "100", "--out", "out"],
          pattern=r"--width 150 exceeds --length 100: the bias specimen has its long side along "
          r"the load \(x\); swap them"),
+    dict(id="h-denormal", klass="`--h` so small the element count overflows (5e-324)",
+         make=th.nothing, argv=th.cmp("good", "--h", "5e-324"),
+         pattern=r"--h 4.94066e-324: far too small an element size for 'synthetic' 40 x 20 mm "
+         r"\(the element count overflows\); give a larger --h"),
     dict(id="bias-length-inf", klass="`bias --length inf`", make=th.nothing,
          argv=["bias", "--length", "inf", "--out", "out"],
          pattern=r"--length inf: must be a finite number \(mm\)"),
@@ -254,6 +258,18 @@ def test_longest_valid_out_name(tmp_path):
         write_json(COMM, stage / "a.json", {})
     COMM.barrier()
     assert listing(base) == [name] and (base / name / "a.json").is_file()
+
+
+def test_empty_out_refused(tmp_path, monkeypatch, capsys):
+    """``--out ""`` (an unset shell variable) would publish into the working directory: it is
+    a usage error."""
+    monkeypatch.chdir(shared(tmp_path))
+    rc, msg = th.run_cli(["bias", "--length", "40", "--width", "20", "--h", "10", "--out", ""],
+                         capsys)
+    assert rc == 2 and msg.splitlines()[-1] == (
+        "fabricsurf bias: error: argument --out: '' is empty (an unset variable?); give the "
+        "output directory by name")
+    assert listing(Path.cwd()) == []
 
 
 def test_failure_before_writing_publishes_no_empty_out(tmp_path):

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.cli.options import add_max_elements, check_size, saved_fit
+from fabricsurf.cli.options import add_max_elements, check_size, out_path, saved_fit
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
@@ -34,7 +34,7 @@ OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_cu
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=Path("out/bias"),
+    p.add_argument("--out", type=out_path, default=Path("out/bias"),
                    help="output directory (created if missing; must be writable)")
     p.add_argument("--length", type=float, default=187.0, help="specimen length along x (mm)")
     p.add_argument("--width", type=float, default=119.0, help="specimen width (mm)")

@@ -26,6 +26,7 @@ from fabricsurf.cli.options import (
     error_map_steps,
     grip_depths,
     input_paths,
+    out_path,
     positive_start,
     saved_fit,
 )
@@ -51,8 +52,9 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
                    "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
                    "terms`), or a saved fit.json; only terms of --terms (default: every modulus "
                    "1.0)")
-    p.add_argument("--out", required=True, help="output directory (created if missing; must be "
-                   "writable; results replace files of the same name)")
+    p.add_argument("--out", required=True, type=out_path, help="output directory (created if "
+                   "missing; must be writable; one run's results: those of an earlier run there "
+                   "are replaced, docs/usage.md)")
     p.add_argument("--h", type=float, default=None,
                    help="element size in mm (default: the test's own: min(length, width)/10 "
                    "for bias_extension, length/8 for picture_frame)")

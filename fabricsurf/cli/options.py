@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 from fabricsurf.errors import InputError
 from fabricsurf.model.terms import EFFECTS
@@ -17,10 +18,29 @@ KB_PER_ELEMENT = 50.0
 margin: it rises with the direct solver's fill-in (docs/uncertainty.md, costs)."""
 
 
+def out_path(text: str) -> Path:
+    """The type of ``--out``: an empty or blank name (an unset shell variable) is a usage error,
+    not the working directory (which ``Path("")`` would be)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is empty (an unset variable?); give the "
+                                         "output directory by name")
+    return Path(text)
+
+
 def add_max_elements(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
                    help="refuse a --h whose meshes would have more elements than this, "
                    f"estimated before meshing (~{KB_PER_ELEMENT:g} kB of memory each)")
+
+
+def _elements(length: float, width: float, h: float) -> float:
+    """2 triangles per h × h square; a float (inf for a denormal h), never an overflow."""
+    cells = [math.ceil(x) if x < 1e15 else x for x in (length / h, width / h)]
+    return 2.0 * cells[0] * cells[1]
+
+
+def _count(n: float) -> str:
+    return f"{n:,.0f}" if n < 1e15 else f"{n:.2g}"
 
 
 def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int) -> None:
@@ -29,13 +49,16 @@ def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements
     any meshing, with the memory they would take."""
     if max_elements < 1:
         raise InputError(f"--max-elements {max_elements}: must be at least 1")
-    n = sum(2 * math.ceil(L / h) * math.ceil(W / h) for _, L, W in specimens)
+    n = sum(_elements(L, W, h) for _, L, W in specimens)
+    what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
+    if not math.isfinite(n):
+        raise InputError(f"--h {h:g}: far too small an element size for {what} (the element "
+                         "count overflows); give a larger --h")
     if n > max_elements:
-        what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
         gb = n * KB_PER_ELEMENT / 1e6
-        gb = f"{gb:,.0f}" if gb >= 10 else f"{gb:.2g}"
-        raise InputError(f"--h {h:g}: about {n:,} elements ({what}), more than --max-elements "
-                         f"{max_elements:,}; they would take about "
+        gb = f"{gb:,.0f}" if 10 <= gb < 1e15 else f"{gb:.2g}"
+        raise InputError(f"--h {h:g}: about {_count(n)} elements ({what}), more than "
+                         f"--max-elements {max_elements:,}; they would take about "
                          f"{gb} GB of memory (~{KB_PER_ELEMENT:g} kB "
                          "per element): give a larger --h, or raise --max-elements if the "
                          "machine has the memory")
@@ -49,12 +72,12 @@ def check_default_size(exps: list, max_elements: int) -> None:
     if max_elements < 1:
         raise InputError(f"--max-elements {max_elements}: must be at least 1")
     hs = [get_test(e.test).default_h(e.setup) for e in exps]
-    n = sum(2 * math.ceil(e.length / h) * math.ceil(e.width / h) for e, h in zip(exps, hs))
+    n = sum(_elements(e.length, e.width, h) for e, h in zip(exps, hs))
     if n > max_elements:
         what = ", ".join(f"'{e.name}' {e.length:g} x {e.width:g} mm at h = {h:.3g} mm"
                          for e, h in zip(exps, hs))
         raise InputError(f"no --h given: the tests' default element sizes ({what}) give about "
-                         f"{n:,} elements, more than --max-elements {max_elements:,} (about "
+                         f"{_count(n)} elements, more than --max-elements {max_elements:,} (about "
                          f"{n * KB_PER_ELEMENT / 1e6:.3g} GB of memory); give a larger --h, "
                          "or raise --max-elements if the machine has the memory")
 
