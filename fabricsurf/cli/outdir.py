@@ -136,10 +136,17 @@ def _take_lock(path: Path, out: Path) -> int:
 
 
 def _release_lock(lock: tuple[int, Path] | None) -> None:
-    if lock is not None:
-        fd, path = lock
-        path.unlink(missing_ok=True)  # while still held: no other run locks a removed file
-        os.close(fd)
+    """Remove the lock file (while still held: no other run locks a removed file), unless it
+    is already another run's, then unlock."""
+    if lock is None:
+        return
+    fd, path = lock
+    try:
+        if os.stat(path).st_ino == os.fstat(fd).st_ino:
+            path.unlink()
+    except FileNotFoundError:
+        pass
+    os.close(fd)
 
 
 def _remove_stale_stages(parent: Path, short: str) -> None:
@@ -274,6 +281,8 @@ def _claim_and_clean(od: OutputDir, signame: str) -> str | None:
         return f"interrupted by {signame}; nothing was published to {od.out}"
     except (InputError, OSError) as e:
         return f"interrupted by {signame}; {e}"
+    finally:  # rank 0, which holds the lock, may be stuck in MPI and never run its handler
+        od.lock_path.unlink(missing_ok=True)
 
 
 class OutputDir:
@@ -297,7 +306,8 @@ class OutputDir:
         self.on_interrupt: Callable[[Path], str] | None = None
         checked = on_rank0(comm, _check, self.out, tuple(files), tuple(inputs))
         self._lock = checked[1] if comm.rank == 0 else None
-        self.stage = Path(comm.bcast(checked and checked[0], root=0))
+        stage, lock_path = comm.bcast(checked and (checked[0], str(checked[1][1])), root=0)
+        self.stage, self.lock_path = Path(stage), Path(lock_path)
 
     def __enter__(self) -> Path:
         _OPEN.append(self)
