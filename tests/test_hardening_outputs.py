@@ -101,6 +101,14 @@ CASES = [
          "the file as UTF-8"),
     dict(id="fifo", klass="force.csv a named pipe (FIFO)", make=th.variant("fifo", fifo),
          argv=th.cmp("fifo"), pattern=r"force.csv: a named pipe \(FIFO\), not a regular file"),
+    dict(id="data-file-number", klass="`[data] field = 5` (a number where a file name "
+         "belongs)", make=th.variant("fieldnum", toml_edits(('field = "field.csv"', "field = 5"))),
+         argv=th.cmp("fieldnum"), pattern=r"experiment.toml: \[data\] field = 5 must be a file "
+         r"name in quotes"),
+    dict(id="params-fifo", klass="`--params` a named pipe (FIFO; reading it would block)",
+         make=lambda base: os.mkfifo(base / "pipe.json"),
+         argv=th.cmp("good", "--params", "pipe.json"),
+         pattern=r"--params pipe.json: a named pipe \(FIFO\), not a regular file"),
     dict(id="bias-width-gt-length", klass="`bias --width` larger than `--length`",
          make=th.nothing, argv=["bias", "--width", "150", "--length", "100", "--out", "out"],
          pattern=r"--width 150 exceeds --length 100: the bias specimen has its long side along "

@@ -20,7 +20,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.cli.options import add_max_elements, check_size, out_path, saved_fit
+from fabricsurf.cli.options import (
+    add_max_elements,
+    check_params_file,
+    check_size,
+    out_path,
+    saved_fit,
+)
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.solver import LoadStepError
@@ -66,6 +72,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _model(args) -> list:
     """--terms (with --params moduli); else the terms of the --params file (a saved fit is the
     whole model: no default term is added silently); else the default model."""
+    check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
     if args.terms or params:
         return parse_model(args.terms, params)

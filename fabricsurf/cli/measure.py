@@ -19,6 +19,7 @@ from fabricsurf.cli.options import (
     check_default_size,
     check_h,
     check_in_loop,
+    check_params_file,
     check_size,
     check_terms_fit_data,
     diagnose_options,
@@ -63,6 +64,7 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
 
 def _setup(args):
     check_h(args.h)
+    check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
     model = parse_model(args.terms, params)
     exps = [load_experiment(d) for d in args.data]

@@ -27,6 +27,17 @@ def out_path(text: str) -> Path:
     return Path(text)
 
 
+def check_params_file(path) -> None:
+    """``--params`` must be a regular file: a FIFO (or a device) would block the read or feed
+    it without end."""
+    from fabricsurf.inverse.contract.tables import special_file
+
+    kind = special_file(Path(path)) if path else None
+    if kind:
+        raise InputError(f"--params {path}: {kind}, not a regular file; give the moduli as a "
+                         "JSON file")
+
+
 def add_max_elements(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
                    help="refuse a --h whose meshes would have more elements than this, "

@@ -179,7 +179,11 @@ def _check(out: Path, files: tuple[str, ...],
     parent = out.parent if out.parent.resolve() == real.parent else real.parent
     parent.mkdir(parents=True, exist_ok=True)
     short = _short(real.name)
-    lock = (_take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
+    try:
+        lock = (_take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
+    except OSError as e:
+        raise InputError(f"--out {out}: cannot create files in {parent} ({e.strerror})"
+                         ) from None
     try:
         _remove_stale_stages(parent, short)
         stage = tempfile.mkdtemp(prefix=f".{short}.partial-", dir=parent)

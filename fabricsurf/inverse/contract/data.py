@@ -136,6 +136,10 @@ def load_experiment(directory: str | Path) -> Experiment:
     setup = _setup(t, plugin, plugin.name, ls)
     data = t.get("data", {})
     fname, gname = data.get("field"), data.get("force")
+    for key, v in (("field", fname), ("force", gname)):
+        if v is not None and (not isinstance(v, str) or not v.strip()):
+            raise DataError(f"experiment.toml: [data] {key} = {v!r} must be a file name in "
+                            f'quotes, e.g. {key} = "{key}.csv"')
     if fname is None and gname is None:
         raise DataError("experiment.toml: [data] needs field = \"...\" or force = \"...\" "
                         "(or both)")

@@ -53,13 +53,21 @@ def require_file(path: Path) -> None:
                         f"(in {path.parent})")
     if path.is_dir():
         raise DataError(f"{name}: a directory, not a file (in {path.parent})")
-    if path.exists():  # a FIFO, socket or device: reading it could block or never end
-        kind = ("a named pipe (FIFO)" if path.is_fifo() else "a socket" if path.is_socket()
-                else "a device" if path.is_char_device() or path.is_block_device()
-                else "not a regular file")
+    kind = special_file(path)
+    if kind:
         raise DataError(f"{name}: {kind}, not a regular file (in {path.parent}); give the "
                         "data as a file")
     raise DataError(f"{name}: file not found in {path.parent}")
+
+
+def special_file(path: Path) -> str | None:
+    """What ``path`` is when it exists but is neither a regular file nor a directory (a FIFO,
+    socket or device: reading it could block or never end), else None."""
+    if not path.exists() or path.is_file() or path.is_dir():
+        return None
+    return ("a named pipe (FIFO)" if path.is_fifo() else "a socket" if path.is_socket()
+            else "a device" if path.is_char_device() or path.is_block_device()
+            else "not a regular file")
 
 
 def read_toml(path: Path) -> dict:
