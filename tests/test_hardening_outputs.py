@@ -67,6 +67,12 @@ CASES = [
          argv=th.cmp("long"), pattern=r"no --h given: the tests' default element sizes \('"
          r"synthetic' 3000 x 1 mm at h = 0.1 mm\) give about 600,000 elements, more than "
          r"--max-elements 400,000"),
+    dict(id="fit-h-half-too-fine", klass="`fit` whose mesh check at h/2 would exceed "
+         "`--max-elements` (the guard counts the finest mesh a command builds)", make=th.nothing,
+         argv=["fit", "good", "--terms", TERMS, "--h", "1", "--max-elements", "3000", "--out",
+               "out"], pattern=r"--h 1: about 6,400 elements \('synthetic' 40 x 20 mm; at h/2 = "
+         r"0.5 mm \(fit and diagnose also solve there: the mesh check\)\), more than "
+         r"--max-elements 3,000"),
     dict(id="compare-hemisphere", klass="`compare` of a `test = \"hemisphere\"` directory with "
          "force.csv (forming is not yet in the loop)",
          make=th.variant("dome", th.edits(force_only, toml_edits(

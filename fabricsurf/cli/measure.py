@@ -62,7 +62,9 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
     add_max_elements(p)
 
 
-def _setup(args):
+def _setup(args, refine: int = 1):
+    """The experiments, model and --params moduli, every input checked before any
+    computation; ``refine``: the finest mesh the command builds is at h/refine."""
     check_h(args.h)
     check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
@@ -91,9 +93,9 @@ def _setup(args):
             rank0_print(COMM, f"warning: {warning}")
     if args.h is not None:
         check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
-                   args.max_elements)
+                   args.max_elements, refine)
     else:
-        check_default_size(exps, args.max_elements)
+        check_default_size(exps, args.max_elements, refine)
     return exps, model, params
 
 
@@ -165,7 +167,7 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model, _ = _setup(args)
+    exps, model, _ = _setup(args, refine=2)
     positive_start(model, args)
     enough_data(exps, model)
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
@@ -193,7 +195,7 @@ def cmd_diagnose(args) -> int:
         raise InputError(f"--confirm {args.confirm}: must be at least 1")
     if args.max_effects < 0:
         raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
-    exps, model, params = _setup(args)
+    exps, model, params = _setup(args, refine=2)
     positive_start(model, args)
     depths = grip_depths(args.grip_depths, exps)
     candidates, fixed = diagnose_options(args, exps, model, params)

@@ -54,14 +54,21 @@ def _count(n: float) -> str:
     return f"{n:,.0f}" if n < 1e15 else f"{n:.2g}"
 
 
-def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int) -> None:
+REFINED = " (fit and diagnose also solve there: the mesh check)"
+
+
+def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int,
+               refine: int = 1) -> None:
     """Refuse ``--h`` when the meshes of ``specimens`` ((name, length, width) in mm) would
     have more than ``max_elements`` triangles in all, estimated as 2 per h × h square before
-    any meshing, with the memory they would take."""
+    any meshing, with the memory they would take. ``refine``: the finest mesh the command
+    builds is at h/refine (fit and diagnose: 2, their mesh check)."""
     if max_elements < 1:
         raise InputError(f"--max-elements {max_elements}: must be at least 1")
-    n = sum(_elements(L, W, h) for _, L, W in specimens)
+    n = sum(_elements(L, W, h / refine) for _, L, W in specimens)
     what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
+    if refine > 1:
+        what += f"; at h/{refine} = {h / refine:g} mm{REFINED}"
     if not math.isfinite(n):
         raise InputError(f"--h {h:g}: far too small an element size for {what} (the element "
                          "count overflows); give a larger --h")
@@ -75,7 +82,7 @@ def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements
                          "machine has the memory")
 
 
-def check_default_size(exps: list, max_elements: int) -> None:
+def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
     """Without ``--h``, each experiment's mesh has its test's default element size: the same
     guard as :func:`check_size`, before any meshing, naming the default and the remedy."""
     from fabricsurf.experiments import get_test
@@ -83,10 +90,12 @@ def check_default_size(exps: list, max_elements: int) -> None:
     if max_elements < 1:
         raise InputError(f"--max-elements {max_elements}: must be at least 1")
     hs = [get_test(e.test).default_h(e.setup) for e in exps]
-    n = sum(_elements(e.length, e.width, h) for e, h in zip(exps, hs))
+    n = sum(_elements(e.length, e.width, h / refine) for e, h in zip(exps, hs))
     if n > max_elements:
         what = ", ".join(f"'{e.name}' {e.length:g} x {e.width:g} mm at h = {h:.3g} mm"
                          for e, h in zip(exps, hs))
+        if refine > 1:
+            what += f", and at h/{refine}{REFINED}"
         raise InputError(f"no --h given: the tests' default element sizes ({what}) give about "
                          f"{_count(n)} elements, more than --max-elements {max_elements:,} (about "
                          f"{n * KB_PER_ELEMENT / 1e6:.3g} GB of memory); give a larger --h, "

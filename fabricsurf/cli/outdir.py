@@ -7,34 +7,18 @@ a directory (or a file by a directory): a publish either moves everything or not
 that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
 directory, renamed ``.OUT.unpublished-…``, and names it.
 
-One output directory belongs to one run (docs/usage.md, "Output directories"):
-
-- a run holds a lock beside OUT (``.OUT.lock``: ``flock``, with the holder's PID and host)
-  from the check of ``--out`` to the publish; a second run into the same OUT is refused before
-  it computes anything. A lock whose holder died (SIGKILL) is released by the kernel and
-  taken over; staging directories such a run left behind are removed then.
-- every publish records its files in ``OUT/.fabricsurf-run.json``; the next publish into OUT
-  removes the files of that record it does not write itself, so OUT never mixes two runs'
-  results (no stale ``failure.json`` or ``per_point.csv``). Files no run recorded (the
-  user's) are never touched.
-
-The names beside OUT are made from its name, shortened with a hash when it is long, so a
-``--out`` of up to NAME_MAX bytes gives valid names.
-
-``--out`` is checked first: its symbolic links are resolved (a dangling or looping link is
-refused), and it must not be, contain or lie inside any input (a DATA directory, a file it
-names, the --params file), so an input is never overwritten.
+One output directory belongs to one run (:mod:`fabricsurf.cli.ownership`, docs/usage.md
+"Output directories"): a lock beside OUT refuses a concurrent run before it computes; the
+staging directories of a killed run are removed by the next; each publish records its files
+in OUT, and the next one removes those of the earlier run it does not write itself; names
+beside OUT are shortened with a hash when OUT's name is long.
 """
 
 from __future__ import annotations
 
-import fcntl
-import glob
-import hashlib
 import json
 import os
 import shutil
-import socket
 import tempfile
 import time
 from collections.abc import Callable
@@ -42,6 +26,14 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from fabricsurf.cli.ownership import (
+    MANIFEST,
+    recorded,
+    release_lock,
+    remove_stale_stages,
+    short_name,
+    take_lock,
+)
 from fabricsurf.discretise.output import on_rank0
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.tables import broken_link
@@ -95,67 +87,6 @@ def _clash(dst: Path, will_be_dir: bool) -> str | None:
     return None
 
 
-MANIFEST = ".fabricsurf-run.json"
-"""The record, in OUT, of the files its last publish wrote."""
-SHORT_NAME_BYTES = 100
-
-
-def _short(name: str) -> str:
-    """``name``, or when longer than SHORT_NAME_BYTES bytes its first 40 bytes and a hash: the
-    stem of the lock and staging names beside OUT, which add up to 30 bytes to it."""
-    raw = name.encode()
-    if len(raw) <= SHORT_NAME_BYTES:
-        return name
-    return raw[:40].decode(errors="ignore") + "-" + hashlib.sha256(raw).hexdigest()[:16]
-
-
-def _take_lock(path: Path, out: Path) -> int:
-    """An exclusive ``flock`` on ``path`` (created if missing), holding this process's PID;
-    refused, naming the holder, while another run holds it. The kernel releases the lock of a
-    process that dies, so a stale lock file is simply taken over."""
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
-            os.close(fd)
-            raise InputError(f"--out {out}: another fabricsurf run ({holder}) is writing to "
-                             "this directory; wait for it to end, or give another --out"
-                             ) from None
-        try:
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:  # its holder removed it just before we locked it
-            same = False
-        if same:
-            break
-        os.close(fd)
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"PID {os.getpid()} on {socket.gethostname()}".encode(), 0)
-    return fd
-
-
-def _release_lock(lock: tuple[int, Path] | None) -> None:
-    """Remove the lock file (while still held: no other run locks a removed file), unless it
-    is already another run's, then unlock."""
-    if lock is None:
-        return
-    fd, path = lock
-    try:
-        if os.stat(path).st_ino == os.fstat(fd).st_ino:
-            path.unlink()
-    except FileNotFoundError:
-        pass
-    os.close(fd)
-
-
-def _remove_stale_stages(parent: Path, short: str) -> None:
-    """Staging directories of OUT that outlived their run (killed): with the lock held, none
-    belongs to a live run."""
-    for stale in parent.glob(f".{glob.escape(short)}.partial-*"):
-        shutil.rmtree(stale, ignore_errors=True)
-
-
 def _check(out: Path, files: tuple[str, ...],
            inputs: tuple[tuple[str, Path], ...] = ()) -> tuple[str, tuple[int, Path]]:
     """Validate ``--out`` (before any computation), take its lock and create the staging
@@ -178,37 +109,22 @@ def _check(out: Path, files: tuple[str, ...],
     # beside the real OUT (a rename cannot cross file systems), named as given when it is there
     parent = out.parent if out.parent.resolve() == real.parent else real.parent
     parent.mkdir(parents=True, exist_ok=True)
-    short = _short(real.name)
+    short = short_name(real.name)
     try:
-        lock = (_take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
+        lock = (take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
     except OSError as e:
         raise InputError(f"--out {out}: cannot create files in {parent} ({e.strerror})"
                          ) from None
     try:
-        _remove_stale_stages(parent, short)
+        remove_stale_stages(parent, short)
         stage = tempfile.mkdtemp(prefix=f".{short}.partial-", dir=parent)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
     except BaseException:
-        _release_lock(lock)
+        release_lock(lock)
         raise
     return stage, lock
-
-
-def _recorded(out: Path) -> list[Path]:
-    """The files OUT's last publish recorded (:data:`MANIFEST`), those inside OUT only."""
-    try:
-        names = json.loads((out / MANIFEST).read_text())["files"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return []
-    real = out.resolve()
-    found = []
-    for n in names if isinstance(names, list) else []:
-        p = out / str(n)
-        if p.is_file() and not p.is_symlink() and p.resolve().is_relative_to(real):
-            found.append(p)
-    return found
 
 
 def _publish(stage: Path, out: Path) -> None:
@@ -228,7 +144,7 @@ def _publish(stage: Path, out: Path) -> None:
         os.replace(stage, out.resolve())
         return
     items = sorted(stage.rglob("*"))
-    previous = _recorded(out)
+    previous = recorded(out)
     for src in items:
         dst = out / src.relative_to(stage)
         if src.is_dir():
@@ -261,7 +177,7 @@ def interrupted(signame: str) -> str | None:
     try:
         return _claim_and_clean(od, signame)
     finally:  # rank 0, after the claiming rank is done (or the wait is over)
-        _release_lock(od._lock)
+        release_lock(od._lock)
         od._lock = None
 
 
@@ -330,7 +246,7 @@ class OutputDir:
             elif self.comm.rank == 0:
                 shutil.rmtree(self.stage, ignore_errors=True)
         finally:
-            _release_lock(self._lock)
+            release_lock(self._lock)
             self._lock = None
         if first is not None and exc is None:
             raise (InputError if first[0] else RuntimeError)(first[1])
