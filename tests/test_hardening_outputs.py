@@ -358,3 +358,36 @@ def test_per_point_in_mm_whatever_the_input_units(tmp_path):
     assert tables[0][0] == "step,X_mm,Y_mm,ux_meas_mm,uy_meas_mm,ux_model_mm,uy_model_mm,error_mm"
     a, b = (np.array([[float(v) for v in r.split(",")] for r in t[1:]]) for t in tables)
     assert np.allclose(a, b, rtol=1e-12) and a[:, 1].max() == 38.0
+
+
+def test_interrupt_during_publish_waits_for_it(tmp_path, monkeypatch):
+    """SIGINT arriving between two renames of a publish is held until the publish is done:
+    the handler (here one that records what OUT holds) sees every file and the record,
+    never half of them (without the hold it runs right after the first rename)."""
+    import signal
+
+    import fabricsurf.cli.outdir as outdir
+
+    base = shared(tmp_path)
+    if COMM.rank == 0:
+        (base / "D").mkdir()  # an existing OUT: its files are moved one by one
+    COMM.barrier()
+    seen, renames = [], []
+    real_replace = os.replace
+
+    def replace(src, dst):
+        real_replace(src, dst)
+        renames.append(dst)
+        if len(renames) == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    previous = signal.signal(signal.SIGINT, lambda *a: seen.append(listing(base / "D")))
+    try:
+        with OutputDir(base / "D", COMM) as stage:
+            for name in ("a.json", "b.json", "c.json"):
+                write_json(COMM, stage / name, {})
+            monkeypatch.setattr(outdir.os, "replace", replace)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if COMM.rank == 0:
+        assert seen == [[MANIFEST, "a.json", "b.json", "c.json"]]

@@ -19,7 +19,9 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -157,6 +159,26 @@ def _publish(stage: Path, out: Path) -> None:
     shutil.rmtree(stage)
 
 
+def _publish_whole(stage: Path, out: Path) -> None:
+    """:func:`_publish` with SIGINT and SIGTERM held until it is done (a few renames): an
+    interrupt then ends the run after the publish, not half-way through it. Held by a
+    handler that notes the signal and raises it again afterwards (blocking the signal
+    would not do: another thread, e.g. MPI's, takes it and Python runs the handler anyway)."""
+    if threading.current_thread() is not threading.main_thread():
+        _publish(stage, out)
+        return
+    pending: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in held}
+    try:
+        _publish(stage, out)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if pending:
+            signal.raise_signal(pending[0])
+
+
 INTERRUPT_WAIT = 0.8
 """Seconds a rank waits for the one cleaning up after an interrupt (``mpirun`` kills every rank
 1 s after its SIGTERM)."""
@@ -242,7 +264,7 @@ class OutputDir:
             if publish and first is not None:  # a failed run with nothing to keep: no empty OUT
                 publish = self.comm.bcast(self.comm.rank > 0 or any(self.stage.iterdir()))
             if publish:
-                on_rank0(self.comm, _publish, self.stage, self.out)
+                on_rank0(self.comm, _publish_whole, self.stage, self.out)
             elif self.comm.rank == 0:
                 shutil.rmtree(self.stage, ignore_errors=True)
         finally:
