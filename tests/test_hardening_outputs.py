@@ -91,6 +91,13 @@ CASES = [
          argv=["compare", "cantflat", "--terms", TERMS, "--out", "out"],
          pattern=r"--terms fibre_stretch,shear: experiment 'synthetic' is a cantilever, and no "
          r"term has a second gradient"),
+    dict(id="diagnose-mixed-candidates", klass="`diagnose` of planar and cantilever data "
+         "together, default candidates (they include twist and normal bending)",
+         make=th.variant("strip", th.edits(th.cantilever("[0.5, 1.0]"), with_uz, toml_edits(
+             ('name = "synthetic"', 'name = "strip"')))),
+         argv=["diagnose", "good", "strip", "--terms", TERMS + ",geodesic_bending", "--out",
+               "out"], pattern=r"no --candidates given: the default candidates include: "
+         r"normal_bending, twist cannot be tried on planar experiment"),
     dict(id="toml-string-angle", klass="a string where a number belongs in a TOML array "
          "(fibre angles)", make=th.variant("strangle", toml_edits(
              ("[45.0, -45.0]", "['45', -45.0]"))),

@@ -14,14 +14,13 @@ from collections.abc import Iterator
 
 from mpi4py import MPI
 
+from fabricsurf.cli.data_checks import check_in_loop, check_terms_fit_data
 from fabricsurf.cli.options import (
     add_max_elements,
     check_default_size,
     check_h,
-    check_in_loop,
     check_params_file,
     check_size,
-    check_terms_fit_data,
     diagnose_options,
     enough_data,
     error_map_steps,

@@ -8,6 +8,7 @@ import argparse
 import math
 from pathlib import Path
 
+from fabricsurf.cli.data_checks import planar_candidates
 from fabricsurf.errors import InputError
 from fabricsurf.model.terms import EFFECTS
 
@@ -100,43 +101,6 @@ def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
                          f"{_count(n)} elements, more than --max-elements {max_elements:,} (about "
                          f"{n * KB_PER_ELEMENT / 1e6:.3g} GB of memory); give a larger --h, "
                          "or raise --max-elements if the machine has the memory")
-
-
-NOT_IN_LOOP = {"hemisphere": "forming over a punch is not yet in the compare/fit/diagnose loop "
-                             "(its forward model gives no punch force to compare with "
-                             "force.csv); run it with demos/demo_forming.py (docs/forming.md)"}
-"""Tests that have a plug-in but are not yet compared with measurements, and why."""
-
-
-def check_in_loop(exps: list, data: list) -> None:
-    """Refuse data of a test the comparison does not support yet, naming the key."""
-    for e, d in zip(exps, data):
-        why = NOT_IN_LOOP.get(e.test)
-        if why:
-            raise InputError(f"{d}/experiment.toml: [loading] test = \"{e.test}\": {why}")
-
-
-def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
-    """Terms the data cannot carry, refused by name before any computation: an out-of-plane
-    effect (normal bending, twist) on a planar test has no meaning there (it needs a placement
-    in 3D), and a cantilever without a second-gradient term has no bending stiffness."""
-    from fabricsurf.experiments import get_test
-    from fabricsurf.model.terms import IN_PLANE_INVISIBLE
-
-    names = [t.name for t in model]
-    for e in exps:
-        planar = get_test(e.test).d == 2
-        out_of_plane = [n for n in names if n in IN_PLANE_INVISIBLE]
-        if planar and out_of_plane:
-            raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane "
-                             f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
-                             "it has no out-of-plane placement, so its data cannot identify "
-                             "it; remove it from --terms (or use out-of-plane data alone, "
-                             "e.g. a cantilever)")
-        if e.test == "cantilever" and not any(t.order == 2 for t in model):
-            raise InputError(f"--terms {spec}: experiment '{e.name}' is a cantilever, and no "
-                             "term has a second gradient, so the strip would have no bending "
-                             "stiffness at all; add normal_bending (and twist)")
 
 
 def saved_fit(args) -> dict | None:
@@ -286,6 +250,7 @@ def diagnose_options(args, exps: list, model: list, params: dict
             raise InputError(f"--fixed {args.fixed}: a fixed term is held at its moduli from "
                              f"--params, and {', '.join(missing)} is not given {where}; give "
                              "the known moduli of every fixed term")
+    planar_candidates(exps, cands)
     if cands is not None:
         hidden = [c for c in cands if c not in visible_effects(exps)]
         if hidden:
