@@ -122,6 +122,9 @@ CASES = [
          make=lambda base: os.mkfifo(base / "pipe.json"),
          argv=th.cmp("good", "--params", "pipe.json"),
          pattern=r"--params pipe.json: a named pipe \(FIFO\), not a regular file"),
+    dict(id="out-root", klass="`--out /` (the results would be spread over the root)",
+         make=th.nothing, argv=["bias", "--out", "/"],
+         pattern=r"--out /: the root of the file system"),
     dict(id="bias-width-gt-length", klass="`bias --width` larger than `--length`",
          make=th.nothing, argv=["bias", "--width", "150", "--length", "100", "--out", "out"],
          pattern=r"--width 150 exceeds --length 100: the bias specimen has its long side along "

@@ -94,6 +94,9 @@ def _check(out: Path, files: tuple[str, ...],
     """Validate ``--out`` (before any computation), take its lock and create the staging
     directory; returns the staging directory and the lock."""
     real = _resolve(out)
+    if real == real.parent:
+        raise InputError(f"--out {out}: the root of the file system; give a directory of its "
+                         "own for the results")
     _inputs_clash(out, real, inputs)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
