@@ -7,6 +7,11 @@ a directory (or a file by a directory): a publish either moves everything or not
 that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
 directory, renamed ``.OUT.unpublished-…``, and names it.
 
+``--out`` is checked first: its symbolic links are resolved (a dangling or looping link is
+refused), and it must not be, contain or lie inside any input (a DATA directory, a file it
+names, the --params file), so an input is never overwritten (nor removed as an earlier run's
+result).
+
 One output directory belongs to one run (:mod:`fabricsurf.cli.ownership`, docs/usage.md
 "Output directories"): a lock beside OUT refuses a concurrent run before it computes; the
 staging directories of a killed run are removed by the next; each publish records its files
