@@ -32,7 +32,7 @@ def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
     for e in exps:
         planar = get_test(e.test).d == 2
         out_of_plane = [n for n in names if n in IN_PLANE_INVISIBLE]
-        if planar and out_of_plane:
+        if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
             raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane "
                              f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
                              "it has no out-of-plane placement, so its data cannot identify "
@@ -55,7 +55,7 @@ def planar_candidates(exps: list, cands: list[str] | None) -> None:
     planar = [e.name for e in exps if get_test(e.test).d == 2]
     pool = cands if cands is not None else visible_effects(exps)
     out_of_plane = [c for c in pool if c in IN_PLANE_INVISIBLE]
-    if planar and out_of_plane:
+    if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
         option = "--candidates " + ",".join(cands) if cands is not None else (
             "no --candidates given: the default candidates include")
         raise InputError(f"{option}: {', '.join(out_of_plane)} cannot be tried on planar "
