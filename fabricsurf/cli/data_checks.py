@@ -32,7 +32,7 @@ def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
     for e in exps:
         planar = get_test(e.test).d == 2
         out_of_plane = [n for n in names if n in IN_PLANE_INVISIBLE]
-        if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
+        if planar and out_of_plane:
             raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane "
                              f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
                              "it has no out-of-plane placement, so its data cannot identify "
