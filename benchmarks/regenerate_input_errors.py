@@ -1,9 +1,10 @@
 """Rewrite docs/input_errors.md from the real messages of today's code.
 
-Every rejected input of tests/test_hardening.py (its ``CASES``: a defective data directory,
-params file or option each) goes through the ``fabricsurf`` command line in a scratch
-directory, and its last line of output becomes a row of the table. The test
-``test_errors_table_is_up_to_date`` builds the same text with :func:`errors_table` and fails
+Every rejected input of tests/test_hardening.py and tests/test_hardening_outputs.py (their
+``CASES``: a defective data directory, params file or option each) goes through the
+``fabricsurf`` command line in a scratch directory, and its last line of output becomes a row
+of the table. The test ``test_errors_table_is_up_to_date`` (test_hardening_outputs.py) builds
+the same text with :func:`errors_table` and fails
 when the file differs: this command is how the file is brought up to date, not a mode of the
 test.
 
@@ -37,8 +38,8 @@ def errors_table(rows: list[str]) -> str:
     return "\n".join([
         "# Inputs that are rejected, and the message each gives",
         "",
-        "Generated from the real messages of the cases of `tests/test_hardening.py` (regenerate",
-        f"with `{COMMAND}`). Every rejection",
+        "Generated from the real messages of the cases of `tests/test_hardening.py` and",
+        f"`tests/test_hardening_outputs.py` (regenerate with `{COMMAND}`). Every rejection",
         "ends with exit status 2 on every MPI rank, prints one message (rank 0), and happens",
         "before any solve; nothing is written to `--out`. DATA directories hold the",
         "`experiment.toml`, `field.csv` and `force.csv` of measurement contract 2; `good` is a",
@@ -51,7 +52,15 @@ def errors_table(rows: list[str]) -> str:
         "Accepted as they are (same values as the plain file): a UTF-8 byte-order mark in",
         "`experiment.toml` or a CSV; UTF-16 CSV files with their byte-order mark; blank lines",
         "(e.g. a trailing one) in a CSV; CRLF line ends; semicolon-separated CSV with a decimal",
-        "comma or a decimal point.",
+        "comma or a decimal point. Experiment names in any script (the file prefixes of",
+        "several experiments are ASCII, with a hash of the name when it is not); an `--out`",
+        "name of any length the file system allows.",
+        "",
+        "Refused outside this table (their messages name a process or a path that differs",
+        "from run to run): a second run into an `--out` another run is writing",
+        "(`--out D: another fabricsurf run (PID n on HOST) is writing to this directory; wait",
+        "for it to end, or give another --out`). What an `--out` holds after a run, and what",
+        "an interrupted run keeps: `docs/usage.md`, \"Output directories\".",
         "",
     ])
 
@@ -71,6 +80,9 @@ def current_table() -> str:
     the cases run, so that messages hold relative names only)."""
     sys.path.insert(0, str(ROOT / "tests"))
     import test_hardening as th  # the cases and their inputs
+    import test_hardening_outputs as th3
+
+    cases = th.CASES + th3.CASES
 
     from fabricsurf.inverse.contract.data import write_experiment
 
@@ -78,11 +90,11 @@ def current_table() -> str:
     with tempfile.TemporaryDirectory(prefix="input_errors-") as tmp:
         base = Path(tmp)
         write_experiment(base / "good", th.good_experiment())
-        for case in th.CASES:
+        for case in cases:
             case["make"](base)
         os.chdir(base)
         try:
-            for case in th.CASES:
+            for case in cases:
                 rc, msg = run_cli(case["argv"])
                 if rc != 2:
                     raise SystemExit(f"case {case['id']}: exit status {rc}, not 2:\n{msg}")

@@ -4,7 +4,10 @@ fabricsurf``; every command runs under ``mpirun -n P``).
 Bad input ends with one message naming the file, key or option and exit status 2 on every rank
 (usage errors too); SIGINT or SIGTERM (what ``mpirun`` sends every rank on a Ctrl-C) ends
 every rank at once with one message and status 130, the output directory published (``bias``:
-its converged steps and a failure.json) or removed (:func:`fabricsurf.cli.outdir.interrupted`);
+its step log and a failure.json, not the fields) or removed
+(:func:`fabricsurf.cli.outdir.interrupted`). Under ``mpirun`` the status the shell sees is
+mpirun's own: Open MPI 4.1 returns 1 when it is itself interrupted, whatever its ranks return
+(a job whose ranks exit with 130 by themselves gives 130), so 130 holds for serial runs only;
 an unexpected failure on one rank aborts all ranks instead of leaving the
 others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
 through the root logger) are hidden unless ``--verbose``.

@@ -14,12 +14,19 @@ prediction band (docs/uncertainty.md): OUT/force_band.csv, OUT/force_band.png an
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.cli.options import add_max_elements, check_size, saved_fit
+from fabricsurf.cli.options import (
+    add_max_elements,
+    check_params_file,
+    check_size,
+    out_path,
+    saved_fit,
+)
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.discretise.stepping import LoadStepError
@@ -33,7 +40,7 @@ OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_cu
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=Path("out/bias"),
+    p.add_argument("--out", type=out_path, default=Path("out/bias"),
                    help="output directory (created if missing; must be writable)")
     p.add_argument("--length", type=float, default=187.0, help="specimen length along x (mm)")
     p.add_argument("--width", type=float, default=119.0, help="specimen width (mm)")
@@ -65,6 +72,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _model(args) -> list:
     """--terms (with --params moduli); else the terms of the --params file (a saved fit is the
     whole model: no default term is added silently); else the default model."""
+    check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
     if args.terms or params:
         return parse_model(args.terms, params)
@@ -102,8 +110,16 @@ def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dic
 
 
 def _check(args) -> float:
+    """Every option against the others, before any computation (messages name them)."""
+    for option, v in (("--length", args.length), ("--width", args.width), ("--h", args.h),
+                      ("--ubar", args.ubar)):
+        if v is not None and not math.isfinite(v):
+            raise InputError(f"{option} {v}: must be a finite number (mm)")
     if not (args.length > 0 and args.width > 0):
         raise InputError(f"--length {args.length}, --width {args.width}: must be positive (mm)")
+    if args.width > args.length:
+        raise InputError(f"--width {args.width:g} exceeds --length {args.length:g}: the bias "
+                         "specimen has its long side along the load (x); swap them")
     if not 0 < args.h <= 0.5 * min(args.length, args.width):
         raise InputError(f"--h {args.h}: must lie in (0, {0.5 * min(args.length, args.width):g}]"
                          " mm (at least two elements across the width)")
@@ -114,6 +130,23 @@ def _check(args) -> float:
     if not 0 < ubar < args.length:
         raise InputError(f"--ubar {ubar}: must lie in (0, {args.length:g}) mm")
     return ubar
+
+
+FIELD_FILES = ("bias.xdmf", "bias.h5")
+
+
+def interrupted_report(stage: Path, summary: dict, converged: int, steps: int, out) -> str:
+    """After SIGINT or SIGTERM (from the signal handler: no MPI call): drop the fields (the
+    HDF5 file is open, with a step maybe half written, and cannot be read back: its XDMF would
+    point to it), write failure.json, and return the rest of the message."""
+    for name in FIELD_FILES:
+        (stage / name).unlink(missing_ok=True)
+    write_json(MPI.COMM_SELF, stage / "failure.json", summary | {
+        "error": f"interrupted at step {converged + 1}", "converged_steps": converged,
+        "fields": "not kept (bias.xdmf and bias.h5 of an interrupted run cannot be read back)"})
+    return (f" at step {converged + 1} of {steps}; the step log of the {converged} converged "
+            f"steps (bias_steps.csv, .json) and failure.json are in {out}; the fields "
+            "(bias.xdmf, bias.h5) are not kept: an interrupted HDF5 file cannot be read back")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -132,14 +165,8 @@ def run(args: argparse.Namespace) -> int:
         summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp}
         done: list[int] = []
 
-        def report(stage_dir: Path) -> str:  # from the signal handler: no MPI call
-            k = len(done) + 1
-            write_json(MPI.COMM_SELF, stage_dir / "failure.json", summary | {
-                "error": f"interrupted at step {k}", "converged_steps": len(done)})
-            return (f" at step {k} of {args.steps}; the {len(done)} converged steps and "
-                    f"failure.json are in {args.out}")
-
-        od.on_interrupt = report
+        od.on_interrupt = lambda stage_dir: interrupted_report(  # no MPI call in there
+            stage_dir, summary, len(done), args.steps, args.out)
         try:
             res = test.run(ubar, args.steps, out=stage, on_step=lambda k, u: done.append(k))
         except LoadStepError as e:

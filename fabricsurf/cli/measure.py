@@ -14,15 +14,19 @@ from collections.abc import Iterator
 
 from mpi4py import MPI
 
+from fabricsurf.cli.data_checks import check_in_loop, check_terms_fit_data
 from fabricsurf.cli.options import (
     add_max_elements,
+    check_default_size,
     check_h,
+    check_params_file,
     check_size,
     diagnose_options,
     enough_data,
     error_map_steps,
     grip_depths,
     input_paths,
+    out_path,
     positive_start,
     saved_fit,
 )
@@ -48,16 +52,20 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
                    "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
                    "terms`), or a saved fit.json; only terms of --terms (default: every modulus "
                    "1.0)")
-    p.add_argument("--out", required=True, help="output directory (created if missing; must be "
-                   "writable; results replace files of the same name)")
+    p.add_argument("--out", required=True, type=out_path, help="output directory (created if "
+                   "missing; must be writable; one run's results: those of an earlier run there "
+                   "are replaced, docs/usage.md)")
     p.add_argument("--h", type=float, default=None,
                    help="element size in mm (default: the test's own: min(length, width)/10 "
                    "for bias_extension, length/8 for picture_frame)")
     add_max_elements(p)
 
 
-def _setup(args):
+def _setup(args, refine: int = 1):
+    """The experiments, model and --params moduli, every input checked before any
+    computation; ``refine``: the finest mesh the command builds is at h/refine."""
     check_h(args.h)
+    check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
     model = parse_model(args.terms, params)
     exps = [load_experiment(d) for d in args.data]
@@ -75,6 +83,8 @@ def _setup(args):
                 raise InputError(f"experiments '{other}' and '{n}' (experiment.toml: name) "
                                  f"give the same file name prefix '{slug(n)}_' in --out, so "
                                  "one set of figures would overwrite the other; rename one")
+    check_in_loop(exps, args.data)
+    check_terms_fit_data(exps, model, ",".join(t.name for t in model))
     check_h(args.h, exps)
     for e in exps:
         warning = unloading_warning(e, model)
@@ -82,7 +92,9 @@ def _setup(args):
             rank0_print(COMM, f"warning: {warning}")
     if args.h is not None:
         check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
-                   args.max_elements)
+                   args.max_elements, refine)
+    else:
+        check_default_size(exps, args.max_elements, refine)
     return exps, model, params
 
 
@@ -154,7 +166,7 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model, _ = _setup(args)
+    exps, model, _ = _setup(args, refine=2)
     positive_start(model, args)
     enough_data(exps, model)
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
@@ -182,7 +194,7 @@ def cmd_diagnose(args) -> int:
         raise InputError(f"--confirm {args.confirm}: must be at least 1")
     if args.max_effects < 0:
         raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
-    exps, model, params = _setup(args)
+    exps, model, params = _setup(args, refine=2)
     positive_start(model, args)
     depths = grip_depths(args.grip_depths, exps)
     candidates, fixed = diagnose_options(args, exps, model, params)

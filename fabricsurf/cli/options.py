@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
+from fabricsurf.cli.data_checks import planar_candidates
 from fabricsurf.errors import InputError
 from fabricsurf.model.terms import EFFECTS
 
@@ -17,28 +19,88 @@ KB_PER_ELEMENT = 50.0
 margin: it rises with the direct solver's fill-in (docs/uncertainty.md, costs)."""
 
 
+def out_path(text: str) -> Path:
+    """The type of ``--out``: an empty or blank name (an unset shell variable) is a usage error,
+    not the working directory (which ``Path("")`` would be)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is empty (an unset variable?); give the "
+                                         "output directory by name")
+    return Path(text)
+
+
+def check_params_file(path) -> None:
+    """``--params`` must be a regular file: a FIFO (or a device) would block the read or feed
+    it without end."""
+    from fabricsurf.inverse.contract.tables import special_file
+
+    kind = special_file(Path(path)) if path else None
+    if kind:
+        raise InputError(f"--params {path}: {kind}, not a regular file; give the moduli as a "
+                         "JSON file")
+
+
 def add_max_elements(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
                    help="refuse a --h whose meshes would have more elements than this, "
                    f"estimated before meshing (~{KB_PER_ELEMENT:g} kB of memory each)")
 
 
-def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int) -> None:
+def _elements(length: float, width: float, h: float) -> float:
+    """2 triangles per h × h square; a float (inf for a denormal h), never an overflow."""
+    cells = [math.ceil(x) if x < 1e15 else x for x in (length / h, width / h)]
+    return 2.0 * cells[0] * cells[1]
+
+
+def _count(n: float) -> str:
+    return f"{n:,.0f}" if n < 1e15 else f"{n:.2g}"
+
+
+REFINED = " (fit and diagnose also solve there: the mesh check)"
+
+
+def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int,
+               refine: int = 1) -> None:
     """Refuse ``--h`` when the meshes of ``specimens`` ((name, length, width) in mm) would
     have more than ``max_elements`` triangles in all, estimated as 2 per h × h square before
-    any meshing, with the memory they would take."""
+    any meshing, with the memory they would take. ``refine``: the finest mesh the command
+    builds is at h/refine (fit and diagnose: 2, their mesh check)."""
     if max_elements < 1:
         raise InputError(f"--max-elements {max_elements}: must be at least 1")
-    n = sum(2 * math.ceil(L / h) * math.ceil(W / h) for _, L, W in specimens)
+    n = sum(_elements(L, W, h / refine) for _, L, W in specimens)
+    what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
+    if refine > 1:
+        what += f"; at h/{refine} = {h / refine:g} mm{REFINED}"
+    if not math.isfinite(n):
+        raise InputError(f"--h {h:g}: far too small an element size for {what} (the element "
+                         "count overflows); give a larger --h")
     if n > max_elements:
-        what = ", ".join(f"{name} {L:g} x {W:g} mm" for name, L, W in specimens)
         gb = n * KB_PER_ELEMENT / 1e6
-        gb = f"{gb:,.0f}" if gb >= 10 else f"{gb:.2g}"
-        raise InputError(f"--h {h:g}: about {n:,} elements ({what}), more than --max-elements "
-                         f"{max_elements:,}; they would take about "
+        gb = f"{gb:,.0f}" if 10 <= gb < 1e15 else f"{gb:.2g}"
+        raise InputError(f"--h {h:g}: about {_count(n)} elements ({what}), more than "
+                         f"--max-elements {max_elements:,}; they would take about "
                          f"{gb} GB of memory (~{KB_PER_ELEMENT:g} kB "
                          "per element): give a larger --h, or raise --max-elements if the "
                          "machine has the memory")
+
+
+def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
+    """Without ``--h``, each experiment's mesh has its test's default element size: the same
+    guard as :func:`check_size`, before any meshing, naming the default and the remedy."""
+    from fabricsurf.experiments import get_test
+
+    if max_elements < 1:
+        raise InputError(f"--max-elements {max_elements}: must be at least 1")
+    hs = [get_test(e.test).default_h(e.setup) for e in exps]
+    n = sum(_elements(e.length, e.width, h / refine) for e, h in zip(exps, hs))
+    if n > max_elements:
+        what = ", ".join(f"'{e.name}' {e.length:g} x {e.width:g} mm at h = {h:.3g} mm"
+                         for e, h in zip(exps, hs))
+        if refine > 1:
+            what += f", and at h/{refine}{REFINED}"
+        raise InputError(f"no --h given: the tests' default element sizes ({what}) give about "
+                         f"{_count(n)} elements, more than --max-elements {max_elements:,} (about "
+                         f"{n * KB_PER_ELEMENT / 1e6:.3g} GB of memory); give a larger --h, "
+                         "or raise --max-elements if the machine has the memory")
 
 
 def saved_fit(args) -> dict | None:
@@ -188,6 +250,7 @@ def diagnose_options(args, exps: list, model: list, params: dict
             raise InputError(f"--fixed {args.fixed}: a fixed term is held at its moduli from "
                              f"--params, and {', '.join(missing)} is not given {where}; give "
                              "the known moduli of every fixed term")
+    planar_candidates(exps, cands)
     if cands is not None:
         hidden = [c for c in cands if c not in visible_effects(exps)]
         if hidden:

@@ -5,24 +5,42 @@ when the command ends (successfully, or with the converged part of a failed run)
 moved into OUT, one atomic rename each, after checking that none of them would have to replace
 a directory (or a file by a directory): a publish either moves everything or nothing. A command
 that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
-directory and names it.
+directory, renamed ``.OUT.unpublished-…``, and names it.
 
 ``--out`` is checked first: its symbolic links are resolved (a dangling or looping link is
 refused), and it must not be, contain or lie inside any input (a DATA directory, a file it
-names, the --params file), so an input is never overwritten.
+names, the --params file), so an input is never overwritten (nor removed as an earlier run's
+result).
+
+One output directory belongs to one run (:mod:`fabricsurf.cli.ownership`, docs/usage.md
+"Output directories"): a lock beside OUT refuses a concurrent run before it computes; the
+staging directories of a killed run are removed by the next; each publish records its files
+in OUT, and the next one removes those of the earlier run it does not write itself; names
+beside OUT are shortened with a hash when OUT's name is long.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
+import signal
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 from mpi4py import MPI
 
+from fabricsurf.cli.ownership import (
+    MANIFEST,
+    recorded,
+    release_lock,
+    remove_stale_stages,
+    short_name,
+    take_lock,
+)
 from fabricsurf.discretise.output import on_rank0
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.tables import broken_link
@@ -77,9 +95,13 @@ def _clash(dst: Path, will_be_dir: bool) -> str | None:
 
 
 def _check(out: Path, files: tuple[str, ...],
-           inputs: tuple[tuple[str, Path], ...] = ()) -> str:
-    """Validate ``--out`` (before any computation) and create the staging directory."""
+           inputs: tuple[tuple[str, Path], ...] = ()) -> tuple[str, tuple[int, Path]]:
+    """Validate ``--out`` (before any computation), take its lock and create the staging
+    directory; returns the staging directory and the lock."""
     real = _resolve(out)
+    if real == real.parent:
+        raise InputError(f"--out {out}: the root of the file system; give a directory of its "
+                         "own for the results")
     _inputs_clash(out, real, inputs)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
@@ -97,30 +119,72 @@ def _check(out: Path, files: tuple[str, ...],
     # beside the real OUT (a rename cannot cross file systems), named as given when it is there
     parent = out.parent if out.parent.resolve() == real.parent else real.parent
     parent.mkdir(parents=True, exist_ok=True)
-    stage = tempfile.mkdtemp(prefix=f".{real.name}.partial-", dir=parent)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
-    return stage
+    short = short_name(real.name)
+    try:
+        lock = (take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
+    except OSError as e:
+        raise InputError(f"--out {out}: cannot create files in {parent} ({e.strerror})"
+                         ) from None
+    try:
+        remove_stale_stages(parent, short)
+        stage = tempfile.mkdtemp(prefix=f".{short}.partial-", dir=parent)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(stage, 0o777 & ~umask)  # mkdtemp's 0700 would otherwise become OUT's mode
+    except BaseException:
+        release_lock(lock)
+        raise
+    return stage, lock
 
 
 def _publish(stage: Path, out: Path) -> None:
+    """Move the staged files into OUT with their record (:data:`MANIFEST`), then remove the
+    files the previous record names that this run did not write."""
+    files = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if not p.is_dir())
+    for src in sorted(stage.rglob("*")) if out.exists() else ():
+        why = _clash(out / src.relative_to(stage), src.is_dir())
+        if why:  # kept under a name the next run's clean-up of stale stages leaves alone
+            kept = stage.with_name(stage.name.replace(".partial-", ".unpublished-", 1))
+            os.rename(stage, kept)
+            raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
+                             f"{kept}")
+    (stage / MANIFEST).write_text(json.dumps({"files": files, "pid": os.getpid(),
+                                              "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
     if not out.exists():
         os.replace(stage, out.resolve())
         return
     items = sorted(stage.rglob("*"))
-    for src in items:
-        why = _clash(out / src.relative_to(stage), src.is_dir())
-        if why:
-            raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
-                             f"{stage}")
+    previous = recorded(out)
     for src in items:
         dst = out / src.relative_to(stage)
         if src.is_dir():
             dst.mkdir(parents=True, exist_ok=True)
         else:
             os.replace(src, dst)
+    for old in previous:
+        if str(old.relative_to(out)) not in files:
+            old.unlink(missing_ok=True)
     shutil.rmtree(stage)
+
+
+def _publish_whole(stage: Path, out: Path) -> None:
+    """:func:`_publish` with SIGINT and SIGTERM held until it is done (a few renames): an
+    interrupt then ends the run after the publish, not half-way through it. Held by a
+    handler that notes the signal and raises it again afterwards (blocking the signal
+    would not do: another thread, e.g. MPI's, takes it and Python runs the handler anyway)."""
+    if threading.current_thread() is not threading.main_thread():
+        _publish(stage, out)
+        return
+    pending: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in held}
+    try:
+        _publish(stage, out)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if pending:
+            signal.raise_signal(pending[0])
 
 
 INTERRUPT_WAIT = 0.8
@@ -140,6 +204,14 @@ def interrupted(signame: str) -> str | None:
     if not _OPEN:
         return f"interrupted by {signame}" if MPI.COMM_WORLD.rank == 0 else None
     od = _OPEN[-1]
+    try:
+        return _claim_and_clean(od, signame)
+    finally:  # rank 0, after the claiming rank is done (or the wait is over)
+        release_lock(od._lock)
+        od._lock = None
+
+
+def _claim_and_clean(od: OutputDir, signame: str) -> str | None:
     claimed = od.stage.with_name(od.stage.name + ".interrupted")
     try:
         os.rename(od.stage, claimed)  # atomic: one rank only succeeds
@@ -148,6 +220,8 @@ def interrupted(signame: str) -> str | None:
         while claimed.exists() and time.monotonic() - t0 < INTERRUPT_WAIT:
             time.sleep(0.01)
         return None
+    for tmp in claimed.rglob("*.tmp"):  # a write the signal cut short (written, then renamed)
+        tmp.unlink(missing_ok=True)
     try:
         if od.keep:
             note = od.on_interrupt(claimed) if od.on_interrupt else ""
@@ -157,6 +231,8 @@ def interrupted(signame: str) -> str | None:
         return f"interrupted by {signame}; nothing was published to {od.out}"
     except (InputError, OSError) as e:
         return f"interrupted by {signame}; {e}"
+    finally:  # rank 0, which holds the lock, may be stuck in MPI and never run its handler
+        od.lock_path.unlink(missing_ok=True)
 
 
 class OutputDir:
@@ -178,8 +254,10 @@ class OutputDir:
                  inputs: tuple[tuple[str, Path], ...] = ()) -> None:
         self.out, self.comm, self.keep = Path(out), comm, keep_on_error
         self.on_interrupt: Callable[[Path], str] | None = None
-        self.stage = Path(comm.bcast(on_rank0(comm, _check, self.out, tuple(files),
-                                              tuple(inputs)), root=0))
+        checked = on_rank0(comm, _check, self.out, tuple(files), tuple(inputs))
+        self._lock = checked[1] if comm.rank == 0 else None
+        stage, lock_path = comm.bcast(checked and (checked[0], str(checked[1][1])), root=0)
+        self.stage, self.lock_path = Path(stage), Path(lock_path)
 
     def __enter__(self) -> Path:
         _OPEN.append(self)
@@ -189,10 +267,17 @@ class OutputDir:
         _OPEN.remove(self)
         mine = None if exc is None else (isinstance(exc, InputError), str(exc))
         first = next((m for m in self.comm.allgather(mine) if m is not None), None)
-        if first is None or self.keep:
-            on_rank0(self.comm, _publish, self.stage, self.out)
-        elif self.comm.rank == 0:
-            shutil.rmtree(self.stage, ignore_errors=True)
+        try:
+            publish = first is None or self.keep
+            if publish and first is not None:  # a failed run with nothing to keep: no empty OUT
+                publish = self.comm.bcast(self.comm.rank > 0 or any(self.stage.iterdir()))
+            if publish:
+                on_rank0(self.comm, _publish_whole, self.stage, self.out)
+            elif self.comm.rank == 0:
+                shutil.rmtree(self.stage, ignore_errors=True)
+        finally:
+            release_lock(self._lock)
+            self._lock = None
         if first is not None and exc is None:
             raise (InputError if first[0] else RuntimeError)(first[1])
         return False

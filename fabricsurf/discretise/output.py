@@ -110,12 +110,16 @@ class StepLog:
             on_rank0(self.comm, self._save)
 
     def _save(self) -> None:
+        """Each file written whole, then renamed over the last (an interrupt leaves the
+        previous step's complete file)."""
         self.out.mkdir(parents=True, exist_ok=True)
-        with open(self.out / f"{self.stem}.csv", "w", newline="") as fh:
+        tmp = self.out / f"{self.stem}.csv.tmp"
+        with open(tmp, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
             w.writeheader()
             w.writerows(self.rows)
-        (self.out / f"{self.stem}.json").write_text(json.dumps(self.rows, indent=1))
+        tmp.replace(self.out / f"{self.stem}.csv")
+        _write_json_file(self.out / f"{self.stem}.json", self.rows)
 
 
 def on_rank0(comm: MPI.Comm, fn: Callable, *args, **kwargs):
@@ -136,7 +140,7 @@ def on_rank0(comm: MPI.Comm, fn: Callable, *args, **kwargs):
     return result
 
 
-def _write_json_file(path: Path, data: dict) -> None:
+def _write_json_file(path: Path, data: dict | list) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(data, indent=1, default=float))

@@ -77,6 +77,16 @@ def _check_keys(t: dict, plugin) -> None:
             raise DataError(f"experiment.toml: '{key}' must be a table [{key}]")
 
 
+def _item(values: list, i: int, label: str) -> float:
+    """``values[i]`` as a finite number; otherwise an error naming ``label[i]`` (a string
+    such as '45' where a number belongs is the common case)."""
+    v = values[i]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise DataError(f"experiment.toml: {label}[{i}] = {v!r} must be a finite number"
+                        + (" (written without quotes)" if isinstance(v, str) else ""))
+    return float(v)
+
+
 def _setup(t: dict, plugin, test: str, ls: float) -> Setup:
     length = number_option(t, "specimen", "length", "experiment.toml") * ls
     width = number_option(t, "specimen", "width", "experiment.toml") * ls
@@ -84,8 +94,7 @@ def _setup(t: dict, plugin, test: str, ls: float) -> Setup:
     if not isinstance(angles, list) or len(angles) != 2:
         raise DataError(f"experiment.toml: [specimen] fibre_angles_deg = {angles!r} must be "
                         "a list of two angles")
-    angles = tuple(number_option({"s": {"a": a}}, "s", "a", "experiment.toml", positive=False)
-                   for a in angles)
+    angles = tuple(_item(angles, i, "[specimen] fibre_angles_deg") for i in range(2))
     checks.fibre_angles(angles)
     setup = Setup(test, length, width, angles, plugin.parse_options(t, ls, "experiment.toml"))
     plugin.check_specimen(setup, "experiment.toml")
@@ -108,8 +117,7 @@ def _path_from_toml(t: dict, scale: float) -> tuple[np.ndarray, np.ndarray]:
                         "[loading] path = [value per step, steps numbered from 1]")
     if not isinstance(path, list) or not path:
         raise DataError(f"experiment.toml: [loading] path = {path!r} must be a non-empty list")
-    vals = [number_option({"l": {"p": p}}, "l", "p", "experiment.toml", positive=False)
-            for p in path]
+    vals = [_item(path, i, "[loading] path") for i in range(len(path))]
     return np.arange(1, len(vals) + 1), np.array(vals) * scale
 
 
@@ -128,6 +136,10 @@ def load_experiment(directory: str | Path) -> Experiment:
     setup = _setup(t, plugin, plugin.name, ls)
     data = t.get("data", {})
     fname, gname = data.get("field"), data.get("force")
+    for key, v in (("field", fname), ("force", gname)):
+        if v is not None and (not isinstance(v, str) or not v.strip()):
+            raise DataError(f"experiment.toml: [data] {key} = {v!r} must be a file name in "
+                            f'quotes, e.g. {key} = "{key}.csv"')
     if fname is None and gname is None:
         raise DataError("experiment.toml: [data] needs field = \"...\" or force = \"...\" "
                         "(or both)")

@@ -5,8 +5,9 @@ CSV dialects: comma-separated with a decimal point (the contract), and the semic
 exports of European spreadsheet and DIC software, whose decimal separator may be a comma; the
 delimiter is read off the header line. UTF-8 with or without a byte-order mark, and UTF-16
 with its byte-order mark (spreadsheets' "Unicode text"); any other encoding is named with the
-offending byte, its line, and what it would be in Windows-1252 (Latin-1). Blank lines (e.g. a
-trailing one) are skipped.
+offending byte, its line, and what it would be in Windows-1252 (Latin-1); NUL bytes (UTF-16
+without its byte-order mark, UTF-32) are refused. Blank lines (e.g. a trailing one) are
+skipped. A FIFO, socket or device given as a file is refused as not a regular file.
 """
 
 from __future__ import annotations
@@ -52,7 +53,21 @@ def require_file(path: Path) -> None:
                         f"(in {path.parent})")
     if path.is_dir():
         raise DataError(f"{name}: a directory, not a file (in {path.parent})")
+    kind = special_file(path)
+    if kind:
+        raise DataError(f"{name}: {kind}, not a regular file (in {path.parent}); give the "
+                        "data as a file")
     raise DataError(f"{name}: file not found in {path.parent}")
+
+
+def special_file(path: Path) -> str | None:
+    """What ``path`` is when it exists but is neither a regular file nor a directory (a FIFO,
+    socket or device: reading it could block or never end), else None."""
+    if not path.exists() or path.is_file() or path.is_dir():
+        return None
+    return ("a named pipe (FIFO)" if path.is_fifo() else "a socket" if path.is_socket()
+            else "a device" if path.is_char_device() or path.is_block_device()
+            else "not a regular file")
 
 
 def read_toml(path: Path) -> dict:
@@ -70,7 +85,7 @@ def _decode(path: Path) -> str:
     raw = path.read_bytes()
     utf16 = raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
     try:
-        return raw.decode("utf-16") if utf16 else raw.decode("utf-8-sig")
+        text = raw.decode("utf-16") if utf16 else raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         if utf16:
             raise DataError(f"{path.name}: not valid UTF-16 despite its byte-order mark "
@@ -80,6 +95,13 @@ def _decode(path: Path) -> str:
         raise DataError(f"{path.name} line {line}: byte 0x{byte[0]:02x} is not UTF-8 ("
                         f"{byte.decode('cp1252', errors='replace')!r} in Windows-1252/Latin-1?): "
                         "save the file as UTF-8") from None
+    if "\0" in text:  # valid UTF-8 (or UTF-16) with NUL characters: not text as given
+        line = text[: text.index("\0")].count("\n") + 1
+        guess = ("UTF-16 without its byte-order mark?" if not utf16
+                 else "UTF-32?")
+        raise DataError(f"{path.name} line {line}: NUL bytes ({guess}): save the file as "
+                        "UTF-8")
+    return text
 
 
 def _number(cell: str, decimal_comma: bool) -> float:

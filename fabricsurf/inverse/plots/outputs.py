@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import csv
+import hashlib
 import re
+import unicodedata
 from pathlib import Path
 
 import numpy as np
@@ -15,19 +17,31 @@ from fabricsurf.inverse.fitting.band import force_band, write_band
 from fabricsurf.inverse.fitting.fit import strip_rows
 from fabricsurf.inverse.plots import figures
 
+SLUG_CHARS = 60
+
 
 def slug(name: str) -> str:
-    """A file-name-safe form of an experiment name."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "experiment"
+    """A file-name-safe (ASCII) form of an experiment name. Characters outside ASCII are
+    dropped after their accents (NFKD), and a short hash of the whole name is appended then,
+    or when the name is longer than SLUG_CHARS: names in other scripts (two Chinese names
+    would otherwise both become "experiment") stay distinct, and prefixes stay short."""
+    ascii_ = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode()
+    s = re.sub(r"[^A-Za-z0-9_.-]+", "_", ascii_).strip("_")
+    if not name.isascii() or len(s) > SLUG_CHARS:
+        tag = hashlib.sha256(name.encode()).hexdigest()[:8]
+        s = f"{s[:SLUG_CHARS]}_{tag}" if s else f"experiment_{tag}"
+    return s or "experiment"
 
 
 def _per_point(path: Path, exp, pred, err) -> None:
+    """One row per field point: coordinates, measured and model displacements and their
+    distance, in mm whatever the input's [units] (the column names say so)."""
     c = pred.u.shape[1]
     comps = ["ux", "uy", "uz"][:c]
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["step", "X", "Y", *(f"{k}_meas" for k in comps),
-                    *(f"{k}_model" for k in comps), "error"])
+        w.writerow(["step", "X_mm", "Y_mm", *(f"{k}_meas_mm" for k in comps),
+                    *(f"{k}_model_mm" for k in comps), "error_mm"])
         for s, x, um, up, e in zip(exp.field_step, exp.X, exp.u, pred.u, err):
             w.writerow([int(s), *x, *um[:c], *up, e])
 
@@ -63,7 +77,7 @@ def _field_band_csv(path: Path, exp, half: np.ndarray) -> None:
     comps = ["ux", "uy", "uz"][:half.shape[1]]
     rows = np.column_stack([exp.field_step, exp.X[:, :2], half])
     np.savetxt(path, rows, delimiter=",", fmt="%.6g", comments="",
-               header=",".join(["step", "X", "Y", *(f"{c}_half_width" for c in comps)]))
+               header=",".join(["step", "X_mm", "Y_mm", *(f"{c}_half_width_mm" for c in comps)]))
 
 
 def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:

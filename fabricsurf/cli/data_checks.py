@@ -1,0 +1,64 @@
+"""Checks of the tests and terms of ``compare|fit|diagnose`` against the data, before any
+computation: tests that are not yet in the comparison loop, effects a planar experiment cannot
+carry, a cantilever without bending stiffness. Each message names the key or option and the
+remedy."""
+
+from __future__ import annotations
+
+from fabricsurf.errors import InputError
+
+NOT_IN_LOOP = {"hemisphere": "forming over a punch is not yet in the compare/fit/diagnose loop "
+                             "(its forward model gives no punch force to compare with "
+                             "force.csv); run it with demos/demo_forming.py (docs/forming.md)"}
+"""Tests that have a plug-in but are not yet compared with measurements, and why."""
+
+
+def check_in_loop(exps: list, data: list) -> None:
+    """Refuse data of a test the comparison does not support yet, naming the key."""
+    for e, d in zip(exps, data):
+        why = NOT_IN_LOOP.get(e.test)
+        if why:
+            raise InputError(f"{d}/experiment.toml: [loading] test = \"{e.test}\": {why}")
+
+
+def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
+    """Terms the data cannot carry, refused by name before any computation: an out-of-plane
+    effect (normal bending, twist) on a planar test has no meaning there (it needs a placement
+    in 3D), and a cantilever without a second-gradient term has no bending stiffness."""
+    from fabricsurf.experiments import get_test
+    from fabricsurf.model.terms import IN_PLANE_INVISIBLE
+
+    names = [t.name for t in model]
+    for e in exps:
+        planar = get_test(e.test).d == 2
+        out_of_plane = [n for n in names if n in IN_PLANE_INVISIBLE]
+        if planar and out_of_plane:
+            raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane "
+                             f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
+                             "it has no out-of-plane placement, so its data cannot identify "
+                             "it; remove it from --terms (or use out-of-plane data alone, "
+                             "e.g. a cantilever)")
+        if e.test == "cantilever" and not any(t.order == 2 for t in model):
+            raise InputError(f"--terms {spec}: experiment '{e.name}' is a cantilever, and no "
+                             "term has a second gradient, so the strip would have no bending "
+                             "stiffness at all; add normal_bending (and twist)")
+
+
+def planar_candidates(exps: list, cands: list[str] | None) -> None:
+    """Planar and out-of-plane data together: an out-of-plane candidate (by default every
+    effect some data can see) would enter the planar experiments' models too, where it has no
+    meaning; refused, naming the remedy."""
+    from fabricsurf.experiments import get_test
+    from fabricsurf.inverse.fitting.diagnose import visible_effects
+    from fabricsurf.model.terms import IN_PLANE_INVISIBLE
+
+    planar = [e.name for e in exps if get_test(e.test).d == 2]
+    pool = cands if cands is not None else visible_effects(exps)
+    out_of_plane = [c for c in pool if c in IN_PLANE_INVISIBLE]
+    if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
+        option = "--candidates " + ",".join(cands) if cands is not None else (
+            "no --candidates given: the default candidates include")
+        raise InputError(f"{option}: {', '.join(out_of_plane)} cannot be tried on planar "
+                         f"experiment '{planar[0]}' (out-of-plane effects need a placement in "
+                         "3D); diagnose planar and out-of-plane data apart, or give "
+                         "--candidates without them")
