@@ -21,6 +21,7 @@ INVERSE = {
     "fitting": {"contract", "fitting"},
     "plots": {"contract", "fitting", "plots"},
     "synthetic": {"contract", "fitting", "synthetic"},
+    "dic": {"contract", "dic"},
 }
 
 
