@@ -63,8 +63,8 @@ def _import(spec_path: Path, stage: Path) -> str:
             f"({report['layout']}), {report['holes']} holes and {report['outside_dropped']} "
             f"points off the specimen dropped; {report['rows_written']} field rows written"
             + (f" (binned to {spec.pitch:g} mm)" if spec.pitch else "")
-            + "; noise_std " + ("not estimated" if noise["noise_std"] is None else
-                                f"{noise['noise_std']:.3g} mm ({noise['method']})"))
+            + "; noise_std " + ("" if noise["noise_std"] is None else
+                                f"{noise['noise_std']:.3g} mm ") + f"({noise['method']})")
 
 
 def _inputs(spec_path: Path) -> tuple[tuple[str, Path], ...]:

@@ -21,6 +21,8 @@ NOISE_CELL_POINTS = 16
 """Points per cell of the noise estimate (4 × 4 on a regular grid)."""
 MIN_CELL_POINTS = 6
 """Cells with fewer points do not enter the noise estimate (3 parameters per plane)."""
+MIN_CELLS = 5
+"""Fewer usable cells give no estimate (noise_std None: give [data] noise_std)."""
 
 
 def _cells(step: np.ndarray, X: np.ndarray, pitch: float) -> tuple[np.ndarray, int]:
@@ -65,8 +67,8 @@ def typical_spacing(step: np.ndarray, X: np.ndarray) -> float:
 
 def noise_estimate(step: np.ndarray, X: np.ndarray, u: np.ndarray) -> dict:
     """σ of the displacements estimated from local plane residuals (module docstring):
-    {"noise_std", "cells", "cell_mm", "per_component"}; noise_std None when no cell has
-    MIN_CELL_POINTS points."""
+    {"noise_std", "cells", "cell_mm", "per_component"}; noise_std None when fewer than
+    MIN_CELLS cells hold MIN_CELL_POINTS points."""
     spacing = typical_spacing(step, X)
     if spacing <= 0:
         return {"noise_std": None, "cells": 0, "cell_mm": None, "per_component": []}
@@ -83,6 +85,9 @@ def noise_estimate(step: np.ndarray, X: np.ndarray, u: np.ndarray) -> dict:
             A[:, i, j] = A[:, j, i] = np.bincount(cell, basis[i] * basis[j], m)
     ok = n >= MIN_CELL_POINTS
     ok &= np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(n, 1) * size ** 4
+    if ok.sum() < MIN_CELLS:
+        return {"noise_std": None, "cells": int(ok.sum()), "cell_mm": size,
+                "per_component": []}
     dof = n[ok] - 3
     per = []
     for k in range(u.shape[1]):
@@ -91,7 +96,6 @@ def noise_estimate(step: np.ndarray, X: np.ndarray, u: np.ndarray) -> dict:
         rss = np.bincount(cell, u[:, k] ** 2, m)[ok] - np.einsum("ij,ij->i", beta, b[ok])
         s2 = np.maximum(rss, 0.0) / dof
         k_med = float(np.median(dof))
-        per.append(float(np.median(s2) / (1 - 2 / (9 * k_med)) ** 3) if len(s2) else math.nan)
-    sigma = math.sqrt(float(np.mean(per))) if per and np.isfinite(per).all() else None
-    return {"noise_std": sigma, "cells": int(ok.sum()), "cell_mm": size,
-            "per_component": [math.sqrt(p) for p in per if np.isfinite(p)]}
+        per.append(float(np.median(s2) / (1 - 2 / (9 * k_med)) ** 3))
+    return {"noise_std": math.sqrt(float(np.mean(per))), "cells": int(ok.sum()),
+            "cell_mm": size, "per_component": [math.sqrt(p) for p in per]}

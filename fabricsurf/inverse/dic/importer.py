@@ -24,6 +24,9 @@ from fabricsurf.inverse.dic.reader import ExportFile, read_export
 
 OUTLINE_TOL = 1e-6
 """Points this far outside the specimen (relative to its size) still count as on it."""
+NO_SCATTER = 1e-9
+"""An estimated noise level below this fraction of the specimen size is no scatter at all
+(noise-free data): no estimate is recorded (the contract's default applies)."""
 
 
 def image_files(spec: ImportSpec) -> dict[int, Path]:
@@ -164,6 +167,12 @@ def _noise(spec: ImportSpec, refs: tuple, step: np.ndarray, X: np.ndarray, u: np
     else:
         est = noise_estimate(step, X, u)
         method = "estimated: local plane residuals of the written field, all steps"
+    size = max(spec.setup.length, spec.setup.width)
+    if est["noise_std"] is None or est["noise_std"] < NO_SCATTER * size:
+        why = "too few points" if est["noise_std"] is None else "the data show no scatter"
+        return {"noise_std": None, "estimate": est,
+                "method": f"not estimated: {why}; give [data] noise_std (the contract's "
+                          "default applies: 1 % of the largest displacement)"}
     return {"noise_std": est["noise_std"], "method": method, "estimate": est}
 
 

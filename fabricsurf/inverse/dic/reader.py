@@ -123,7 +123,7 @@ def _roles(path: Path, cells: list[str], layout: Layout, header_line: int
         if len(hits) > 1:
             raise DataError(f"{path.name} line {header_line}: column {name!r} appears twice")
         if not hits:
-            if role in ("z", "w"):
+            if role in ("z", "w", "valid"):
                 continue
             raise DataError(f"{path.name} line {header_line}: no column {name!r} (the "
                             f"{layout.name} layout's {role}); the header has "
