@@ -20,6 +20,8 @@ from fabricsurf.inverse.dic.importer import import_dic
 from fabricsurf.inverse.dic.layouts import LAYOUTS, custom_layout
 
 COMM = MPI.COMM_WORLD
+SERIAL = pytest.mark.serial("numpy on one process, nothing shared between ranks; the 2-rank "
+                            "path is test_command_writes_a_contract_directory's")
 L, W = 120.0, 80.0
 PATH = [2.0, 4.0, 6.0]
 SPACING = 1.0  # mm between the DIC points
@@ -100,6 +102,7 @@ def lost(path, layout):
     return sum("nan" in r for r in rows)
 
 
+@SERIAL
 @pytest.mark.parametrize("name", sorted(LAYOUTS))
 def test_each_layout_round_trip(tmp_path, name):
     """Each layout's files (as its documentation shows them) → the generator's displacements
@@ -117,6 +120,7 @@ def test_each_layout_round_trip(tmp_path, name):
     assert len(exp.X) == 3 * len(X) - sum(holes)
 
 
+@SERIAL
 def test_columns_mapping_and_units_tags(tmp_path):
     """Any other layout through [columns]: names, a validity flag, pixel units."""
     table = {"x": "px", "y": "py", "u": "du", "v": "dv", "valid": "ok", "invalid": 0,
@@ -129,6 +133,7 @@ def test_columns_mapping_and_units_tags(tmp_path):
     assert field_error(exp, linear) < 1e-6
 
 
+@SERIAL
 def test_pixel_scale_and_frames_agree(tmp_path):
     """The same points written in mm (no tilt, y up) and in pixels (tilted, y down, the grip
     on the image's right edge) import to the same field."""
@@ -144,6 +149,7 @@ def test_pixel_scale_and_frames_agree(tmp_path):
     assert np.abs(a - b).max() < 1e-6
 
 
+@SERIAL
 def test_binning_bias_bound(tmp_path):
     """Binned to a 4 mm pitch: a linear field is reproduced at the bins' mean points; a
     quadratic one u = t (X/L)² is off by t/L² · var(X in bin) ≤ t/L² · p²/4, and is off (the
@@ -162,6 +168,7 @@ def test_binning_bias_bound(tmp_path):
             assert 0.1 * PATH[-1] / L**2 * pitch**2 / 12 < err <= PATH[-1] / L**2 * pitch**2 / 4
 
 
+@SERIAL
 def test_noise_estimate(tmp_path):
     """σ = 0.02 mm of independent noise on the quadratic field: the estimate from the points
     (local planes in 4 × 4 cells) is within 10 %; binned to 2 mm (4 points a bin) it is the
@@ -182,6 +189,7 @@ def test_noise_estimate(tmp_path):
     assert import_dic(read_spec(spec))[0].noise_std == 0.05
 
 
+@SERIAL
 def test_reference_images_give_the_noise(tmp_path):
     """Images without load (reference_images) are not steps; their displacements (noise only)
     give the noise level."""
@@ -220,6 +228,7 @@ def small(tmp_path):
     return spec, tmp_path / "img" / "DICe_solution_02.txt"
 
 
+@SERIAL
 def test_bad_cells_and_rows(small):
     spec, f = small
     head = f.read_text().splitlines().index(
@@ -237,12 +246,14 @@ def test_bad_cells_and_rows(small):
     reject(spec, rf"line {head + 5}: duplicated point .* also on line {head + 2}")
 
 
+@SERIAL
 def test_bad_header(small):
     spec, f = small
     f.write_text(f.read_text().replace("DISPLACEMENT_Y", "DISP_Y"))
     reject(spec, "DICe_solution_02.txt line 6: no column 'DISPLACEMENT_Y'")
 
 
+@SERIAL
 def test_outside_outline(small):
     spec, _f = small
     text = spec.read_text()
@@ -255,6 +266,7 @@ def test_outside_outline(small):
     assert rep["outside_dropped"] > 0 and exp.X[:, 0].min() >= 0
 
 
+@SERIAL
 def test_units_and_frame_keys(small):
     spec, _f = small
     text = spec.read_text()
@@ -267,6 +279,7 @@ def test_units_and_frame_keys(small):
     reject(spec, r"\[frame\] grip = 'west' is not one of")
 
 
+@SERIAL
 def test_mixed_units(tmp_path):
     frame = Frame(1.0, False, (0.0, 0.0), "left", 0.0)
     spec, _ = make(tmp_path, "aramis_nodemap", frame, points=grid(spacing=4.0))
@@ -278,6 +291,7 @@ def test_mixed_units(tmp_path):
            '"mm"')
 
 
+@SERIAL
 def test_steps_and_images(small):
     spec, f = small
     text = spec.read_text()
@@ -330,4 +344,5 @@ def test_command_writes_a_contract_directory(tmp_path):
     COMM.barrier()
     bad = base / "bad"
     assert main(["import-dic", str(base / "dic.toml"), "--out", str(bad)]) == 2
+    COMM.barrier()  # rank 0 removes the staging directory
     assert not bad.exists() and not list(base.glob(".bad.partial-*"))
