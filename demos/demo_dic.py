@@ -220,23 +220,34 @@ on_rank0(comm, figures)
 # truth's within 10 %.
 
 # %%
-summary = {"points_per_image": len(X), "points_read": report["points_read"],
-           "holes": report["holes"], "rows_written": report["rows_written"],
-           "mean_error_mm": err.mean(axis=0).tolist(), "bias_in_standard_errors": bias.max(),
-           "rms_error_mm": float(err.std()), "noise_std_estimated": data.noise_std,
-           "noise_std_expected": expected, "baseline_misfit": diag["baseline"]["misfit"],
-           "verdict": diag["verdict"], "ranking": [(r["effect"], r["score"])
-                                                   for r in diag["ranking"]],
-           "ratios": ratios, "seconds": time.perf_counter() - t_start,
-           "seconds_per_stage": seconds}
-write_json(comm, out / "summary.json", summary)
 holes_written = sum(int((read_raw(f)[:, 4] == -1).sum()) for f in files[1:]
                     ) if comm.rank == 0 else None
-assert report["holes"] == comm.bcast(holes_written) > 0
-assert bias.max() < 3.0, bias
-assert abs(err.std() / expected - 1) < 0.15, (err.std(), expected)
-assert abs(data.noise_std / expected - 1) < 0.15, (data.noise_std, expected)
-assert diag["verdict"] == "geodesic_bending", diag["verdict"]
-assert abs(ratios["k_s/k_l"] / (0.5 / 30) - 1) < 0.1 and abs(ratios["A_g/k_l"] / 0.5 - 1) < 0.1
+truth_ratios = {"k_s/k_l": 0.5 / 30.0, "A_g/k_l": 15.0 / 30.0}
+summary = {"points_per_image": len(X), "points_read": report["points_read"],
+           "holes": report["holes"], "holes_as_written": report["holes"] == comm.bcast(
+               holes_written), "rows_written": report["rows_written"],
+           "mean_error_mm": err.mean(axis=0).tolist(), "bias_in_standard_errors": bias.max(),
+           "rms_error_mm": float(err.std()), "noise_std_estimated": data.noise_std,
+           "noise_std_expected": expected, "rms_error_vs_expected": float(err.std()) / expected,
+           "noise_std_vs_expected": data.noise_std / expected,
+           "baseline_misfit": diag["baseline"]["misfit"], "verdict": diag["verdict"],
+           "ranking": [(r["effect"], r["score"]) for r in diag["ranking"]],
+           "ratios": ratios, "ratios_vs_truth": [ratios[k] / truth_ratios[k] for k in ratios],
+           "seconds": time.perf_counter() - t_start, "seconds_per_stage": seconds}
+write_json(comm, out / "summary.json", summary)
+# the summary's contract, declared as the other demos declare theirs (tests/test_demos.py reads
+# it from the source): (low, high) a range, ... present, anything else equal; "*" every element
+CHECKS = {"verdict": "geodesic_bending", "holes": (1, None), "holes_as_written": True,
+          "bias_in_standard_errors": (0.0, 3.0), "rms_error_vs_expected": (0.85, 1.15),
+          "noise_std_vs_expected": (0.85, 1.15), "ratios_vs_truth/*": (0.9, 1.1),
+          "seconds": ...}
+assert len(summary["ratios_vs_truth"]) == 2, summary["verdict"]
+for key, want in CHECKS.items():
+    values = summary[key.split("/")[0]]
+    for v in (values if key.endswith("/*") else [values]):
+        ok = (want is ... or (isinstance(want, tuple) and (want[0] is None or v >= want[0])
+                              and (want[1] is None or v <= want[1]))
+              or (not isinstance(want, tuple) and v == want))
+        assert ok, (key, v, want)
 say(f"verdict {diag['verdict']}; figures in {out} and {out / 'diagnose'}; summary in "
     f"{out / 'summary.json'} ({summary['seconds']:.0f} s)")

@@ -242,7 +242,10 @@ def test_bad_cells_and_rows(small):
     edit_file(f, head + 5, ",".join([cells[0], cells[1], "", "nan", cells[4]]))
     _exp, rep = import_dic(read_spec(spec))  # an empty or NaN cell is a hole
     assert rep["files"][1]["holes"] == 1 and rep["holes"] == 1
-    edit_file(f, head + 5, f.read_text().splitlines()[head + 1])
+    lines = f.read_text().splitlines()
+    f.write_text("\n".join(lines[:head] + [r + "," for r in lines[head:]]) + "\n")
+    assert import_dic(read_spec(spec))[1]["holes"] == 1  # a delimiter ending every row
+    edit_file(f, head + 5, lines[head + 1])
     reject(spec, rf"line {head + 5}: duplicated point .* also on line {head + 2}")
 
 

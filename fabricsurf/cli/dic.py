@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf import __version__
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 
@@ -57,6 +58,8 @@ def _import(spec_path: Path, stage: Path) -> str:
 
     spec = read_spec(spec_path)
     exp, report = import_dic(spec)
+    report["provenance"] = {"fabricsurf": __version__, "spec": str(spec_path.resolve()),
+                            "export_directory": str(spec.root.resolve())}
     write_directory(stage, exp, report)
     noise = report["noise"]
     return (f"{report['points_read']} points read from {len(report['files'])} images "

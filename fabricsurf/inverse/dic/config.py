@@ -206,7 +206,10 @@ def read_spec(path: str | Path) -> ImportSpec:
         raise DataError(f"{where}: [steps] force: the '{plugin.name}' test measures no reaction")
     b = t.get("binning", {})
     pitch = number_option(t, "binning", "pitch", where) if "pitch" in b else None
-    min_points = int(number_option(t, "binning", "min_points", where, default=1))
+    min_points = b.get("min_points", 1)
+    if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
+        raise DataError(f"{where}: [binning] min_points = {min_points!r} must be an integer "
+                        "≥ 1")
     noise = {k: number_option(t, "data", k, where) if k in t.get("data", {}) else None
              for k in ("noise_std", "force_noise_std")}
     name = t.get("name", path.parent.name)

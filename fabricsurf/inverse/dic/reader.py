@@ -174,6 +174,8 @@ def _slow_read(path: Path, header_line: int, delim: str | None, index: dict[str,
             if number <= header_line or not s or s.startswith(COMMENT):
                 continue
             cells = _split(line.rstrip("\r\n"), delim)
+            while len(cells) > width and not cells[-1].strip():
+                cells.pop()  # a delimiter at the end of the row
             if len(cells) != width:
                 raise DataError(f"{path.name} line {number}: {len(cells)} fields, the header "
                                 f"(line {header_line}) has {width}")
