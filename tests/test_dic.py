@@ -271,7 +271,7 @@ def test_outside_outline(small):
 
 @SERIAL
 def test_units_and_frame_keys(small):
-    spec, _f = small
+    spec, f = small
     text = spec.read_text()
     spec.write_text(text.replace("mm_per_pixel = 0.05", ""))
     reject(spec, r"dic.toml: the coordinates are in pixels .* \[units\] mm_per_pixel is missing")
@@ -280,6 +280,12 @@ def test_units_and_frame_keys(small):
            r"give \[frame\] angle_deg = 2.5")
     spec.write_text(text.replace('grip = "left"', 'grip = "west"'))
     reject(spec, r"\[frame\] grip = 'west' is not one of")
+    spec.write_text(text)
+    lines = f.read_text().splitlines()
+    cells = lines[9].split(",")
+    edit_file(f, 10, ",".join([*cells[:2], "1e6", *cells[3:]]))  # pixels, 50 m
+    reject(spec, r"DICe_solution_02.txt line 10: displacement of 5e\+04 mm, more than 10 times "
+           r"the specimen size \(120 mm\): check \[units\]")
 
 
 @SERIAL

@@ -24,6 +24,9 @@ from fabricsurf.inverse.dic.reader import ExportFile, read_export
 
 OUTLINE_TOL = 1e-6
 """Points this far outside the specimen (relative to its size) still count as on it."""
+MAX_DISPLACEMENT = 10.0
+"""Displacements beyond this many specimen sizes are a unit mix-up (the contract's limit,
+checks.field_displacements, here with the export's file and line)."""
 NO_SCATTER = 1e-9
 """An estimated noise level below this fraction of the specimen size is no scatter at all
 (noise-free data): no estimate is recorded (the contract's default applies)."""
@@ -113,6 +116,18 @@ def _outline(f: ExportFile, rows: np.ndarray, X: np.ndarray, spec: ImportSpec) -
     return on
 
 
+def _magnitudes(f: ExportFile, rows: np.ndarray, u: np.ndarray, spec: ImportSpec) -> None:
+    """Displacements beyond ten times the specimen are a unit or scale mix-up."""
+    size = max(spec.setup.length, spec.setup.width)
+    big = np.flatnonzero(np.abs(u).max(axis=1) > MAX_DISPLACEMENT * size)
+    if len(big):
+        i = big[0]
+        raise DataError(f"{f.path.name} line {f.line_of(rows[i])}: displacement of "
+                        f"{np.abs(u[i]).max():.3g} mm, more than "
+                        f"{MAX_DISPLACEMENT:g} times the specimen size ({size:g} "
+                        "mm): check [units] (coordinates, mm_per_pixel) and the columns")
+
+
 def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool) -> tuple[np.ndarray, ...]:
     """(X, u, counts) of one image's valid points in the specimen's frame."""
     _check_units(f, spec.unit)
@@ -128,6 +143,7 @@ def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool) -> tuple[np.nda
                         f"{spec.layout.name} layout's w); the '{spec.setup.test}' test needs uz")
     on = _outline(f, rows, X, spec)
     u = np.column_stack(comps)[on]
+    _magnitudes(f, rows[on], u, spec)
     counts = {"rows": f.n, "holes": int(f.n - len(rows)), "outside_dropped": int((~on).sum()),
               "points": int(on.sum())}
     return X[on], u, counts
@@ -190,8 +206,6 @@ def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
     step, X, u = _collect(spec, files, spec.images, d, refs is None, report["files"])
     for e, i in zip(report["files"], steps_n):
         e["step"] = int(i)
-    checks.field_displacements(u, np.arange(len(u)) + 2, max(spec.setup.length,
-                                                              spec.setup.width), "field.csv")
     noise = _noise(spec, refs, step, X, u)
     exp = Experiment(spec.name, spec.setup, steps_n, np.array(spec.path, float),
                      None if spec.force is None else np.array(spec.force, float),
