@@ -189,9 +189,9 @@ def read_spec(path: str | Path) -> ImportSpec:
     _check_keys(t, where, plugin)
     layout = _layout(t, where)
     files = t.get("export", {}).get("files")
-    if not isinstance(files, str) or not files.strip():
-        raise DataError(f"{where}: [export] files = {files!r} must be a file pattern, e.g. "
-                        "\"DICe_solution_*.txt\" (relative to the directory of this file)")
+    if not isinstance(files, str) or not files.strip() or Path(files).is_absolute():
+        raise DataError(f"{where}: [export] files = {files!r} must be a file pattern relative "
+                        "to the directory of this file, e.g. \"DICe_solution_*.txt\"")
     unit, scale, fscale = _units(t, where, layout)
     frame, outside = _frame(t, where, layout, scale)
     images, refs = _steps(t, where)

@@ -38,7 +38,6 @@ class ExportFile:
     data: dict[str, np.ndarray]
     units: dict[str, str | None]
     header_line: int
-    first_line: int
     _lines: np.ndarray | None = field(default=None, repr=False)
 
     @property
@@ -147,8 +146,7 @@ def read_export(path: Path, image: int, layout: Layout) -> ExportFile:
         data = _slow_read(path, header_line, delim, index, len(cells))
     if len(data["x"]) == 0:
         raise DataError(f"{path.name}: no data rows after the header (line {header_line})")
-    first = next(_data_lines(path, header_line))
-    return ExportFile(path, image, data, units, header_line, first)
+    return ExportFile(path, image, data, units, header_line)
 
 
 def _cell_value(cell: str, comma: bool, where: str) -> float:
