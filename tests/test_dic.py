@@ -318,6 +318,13 @@ def test_steps_and_images(small):
     reject(spec, r"image 9 has no matching load step")
     spec.write_text(text.replace("path = [2.0, 4.0, 6.0]", "path = [2.0, 4.0]"))
     reject(spec, r"\[steps\] path has 2 values, \[steps\] images has 3")
+    for g in sorted(f.parent.iterdir()):  # VIC-like names: image, then camera number
+        g.rename(g.with_name(f"run-{int(g.stem.split('_')[-1]):04d}_0.txt"))
+    spec.write_text(text.replace("images = [1, 2, 3]", "images = [1, 3, 9]"))
+    reject(spec, r"run-0003_0.txt and run-0001_0.txt both give image 0 .* image_number")
+    spec.write_text(text.replace("images = [1, 2, 3]", "images = [1, 3, 9]").replace(
+        "[export]", '[export]\nimage_number = "-(\\\\d+)_"'))
+    assert len(import_dic(read_spec(spec))[0].steps) == 3
 
 
 # --- the command: output atomic, same on every rank ----------------------------------------

@@ -4,6 +4,7 @@ frame, the image-to-step mapping, binning; checked key by key, each error naming
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from fabricsurf.inverse.dic.layouts import LAYOUTS, Layout, custom_layout
 KEYS = {
     "": {"name", "export", "columns", "units", "frame", "specimen", "loading", "steps",
          "binning", "data", "source", "material"},
-    "export": {"layout", "files"},
+    "export": {"layout", "files", "image_number"},
     "units": {"coordinates", "mm_per_pixel", "force"},
     "frame": {"origin", "grip", "angle_deg", "y_down", "outside"},
     "steps": {"images", "reference_images", "path", "force"},
@@ -37,6 +38,7 @@ class ImportSpec:
     name: str
     layout: Layout
     files: str
+    image_number: re.Pattern
     root: Path
     frame: Frame
     outside: str
@@ -176,6 +178,27 @@ def _layout(t: dict, where: str) -> Layout:
     return LAYOUTS[name]
 
 
+IMAGE_NUMBER = {"last": r".*(?<!\d)(\d+)", "first": r"\D*(\d+)"}
+"""[export] image_number: which integer of a file's name (its stem) is the image number."""
+
+
+def _image_number(value, where: str) -> re.Pattern:
+    """"last" (default) or "first" integer of the file name, or a regular expression whose
+    first group is the number (e.g. "-(\\d+)_" for VIC's Test-0012_0.csv)."""
+    if not isinstance(value, str):
+        raise DataError(f"{where}: [export] image_number = {value!r} must be \"last\", "
+                        "\"first\" or a regular expression with one group")
+    try:
+        pattern = re.compile(IMAGE_NUMBER.get(value, value))
+    except re.error as e:
+        raise DataError(f"{where}: [export] image_number = {value!r} is not a regular "
+                        f"expression ({e})") from None
+    if pattern.groups < 1:
+        raise DataError(f"{where}: [export] image_number = {value!r} needs a group, e.g. "
+                        "\"-(\\d+)_\", around the image number")
+    return pattern
+
+
 def read_spec(path: str | Path) -> ImportSpec:
     """Read and check dic.toml (lengths in mm: the specimen, path and pitch are in mm)."""
     path = Path(path)
@@ -192,6 +215,7 @@ def read_spec(path: str | Path) -> ImportSpec:
     if not isinstance(files, str) or not files.strip() or Path(files).is_absolute():
         raise DataError(f"{where}: [export] files = {files!r} must be a file pattern relative "
                         "to the directory of this file, e.g. \"DICe_solution_*.txt\"")
+    image_number = _image_number(t.get("export", {}).get("image_number", "last"), where)
     unit, scale, fscale = _units(t, where, layout)
     frame, outside = _frame(t, where, layout, scale)
     images, refs = _steps(t, where)
@@ -218,7 +242,7 @@ def read_spec(path: str | Path) -> ImportSpec:
     source = t.get("source", {})
     if not isinstance(source, dict) or any(not isinstance(v, str) for v in source.values()):
         raise DataError(f"{where}: [source] holds free text only (key = \"text\")")
-    return ImportSpec(where, name, layout, files, path.parent, frame, outside,
+    return ImportSpec(where, name, layout, files, image_number, path.parent, frame, outside,
                       _setup(t, where, plugin), images, refs, load, force, pitch, min_points,
                       noise["noise_std"], None if noise["force_noise_std"] is None
                       else noise["force_noise_std"] * fscale, dict(source), unit)

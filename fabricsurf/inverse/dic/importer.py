@@ -1,6 +1,7 @@
 """DIC exports → an :class:`~fabricsurf.inverse.contract.experiment.Experiment` (docs/dic.md).
 
-One file per image; the image number is the last integer in the file's name. Each image is
+One file per image; the image number is an integer of the file's name (the last by default,
+``[export] image_number``). Each image is
 read, its holes (NaN or empty cells, or the layout's invalid flag) dropped and counted, its
 points moved to the specimen's frame, checked (duplicates, outline) and, with a pitch, binned
 before the next is read: the memory is that of one image plus the binned result.
@@ -8,7 +9,6 @@ before the next is read: the memory is that of one image plus the binned result.
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
@@ -39,14 +39,16 @@ def image_files(spec: ImportSpec) -> dict[int, Path]:
     for p in sorted(spec.root.glob(spec.files)):
         if not p.is_file():
             continue
-        digits = re.findall(r"\d+", p.stem)
-        if not digits:
-            raise DataError(f"{p.name}: no image number in the file name (the last integer in "
-                            f"it is taken; files matched by [export] files = {spec.files!r})")
-        k = int(digits[-1])
+        m = spec.image_number.search(p.stem)
+        if not m or not m.group(1).isdigit():
+            raise DataError(f"{p.name}: no image number in the file name by [export] "
+                            f"image_number = {spec.image_number.pattern!r} (files matched by "
+                            f"[export] files = {spec.files!r})")
+        k = int(m.group(1))
         if k in found:
-            raise DataError(f"{p.name} and {found[k].name} both give image {k} (the last integer"
-                            " in the file name)")
+            raise DataError(f"{p.name} and {found[k].name} both give image {k} (by [export] "
+                            f"image_number = {spec.image_number.pattern!r}: set it to pick "
+                            "the image number, e.g. \"first\" or \"-(\\d+)_\")")
         found[k] = p
     if not found:
         raise DataError(f"{spec.where}: [export] files = {spec.files!r} matches no file in "
