@@ -11,7 +11,8 @@ test_diagnose*, test_dispersion, test_hypar, test_hemisphere), and 1 = 2 ranks b
 test_parallel and test_hemisphere, so a serial demo run would repeat them at minutes of cost.
 
 The woven-fabric and bending demos take minutes even in quick mode (a 43-step force curve with
-a full diagnosis; 3D strips): they run only with FABRICSURF_ALL_DEMOS=1, to keep the suite
+a full diagnosis; 3D strips), the DIC demo about two (its diagnosis; its import is
+tests/test_dic.py's): they run only with FABRICSURF_ALL_DEMOS=1, to keep the suite
 within its time budget (the skip is reported by pytest -ra)."""
 
 import json
@@ -35,8 +36,9 @@ QUICK = {
     "demo_bending.py": ["--quick"],
     "demo_woven_fabric.py": ["--quick"],
     "demo_forming.py": ["--quick"],
+    "demo_dic.py": [],
 }
-SLOW = {"demo_bending.py", "demo_woven_fabric.py"}
+SLOW = {"demo_bending.py", "demo_woven_fabric.py", "demo_dic.py"}
 RANKS = 2
 # what FFCx, UFL and cffi/distutils print while compiling a form
 COMPILER = re.compile(r"^(INFO:|DEBUG:|.*\bgcc\b|.*\bcc1\b|running build_ext|building '|"

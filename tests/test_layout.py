@@ -25,6 +25,7 @@ INVERSE = {
     "fitting": {"contract", "fitting"},
     "plots": {"contract", "fitting", "plots"},
     "synthetic": {"contract", "fitting", "synthetic"},
+    "dic": {"contract", "dic"},
 }
 
 

@@ -1,4 +1,4 @@
-"""The command line: ``fabricsurf terms|bias|compare|fit|diagnose`` (also ``python -m
+"""The command line: ``fabricsurf terms|bias|compare|fit|diagnose|import-dic`` (also ``python -m
 fabricsurf``; every command runs under ``mpirun -n P``).
 
 Bad input ends with one message naming the file, key or option and exit status 2 on every rank
@@ -27,6 +27,7 @@ from collections.abc import Iterator
 from mpi4py import MPI
 
 from fabricsurf.cli import bias as bias_cli
+from fabricsurf.cli import dic as dic_cli
 from fabricsurf.cli import measure, outdir
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.errors import InputError
@@ -73,6 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     bias_cli.add_arguments(p)
     p.set_defaults(func=bias_cli.run)
     measure.add_parsers(sub, HelpFormatter)
+    dic_cli.add_parser(sub, HelpFormatter)
     for p in sub.choices.values():
         _verbose(p, argparse.SUPPRESS)
     return ap

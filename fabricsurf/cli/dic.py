@@ -1,0 +1,91 @@
+"""``fabricsurf import-dic DIC.toml --out DIR``: DIC exports (one CSV per image) → a
+measurement directory of the contract (experiment.toml, field.csv[, force.csv]) plus
+dic_import.json (what was read, dropped, binned, and the noise level with how it was found).
+
+DIC.toml describes the files, their layout, the camera frame and the image-to-step mapping
+(docs/dic.md). The work runs on rank 0; an error there ends every rank with its message, and
+nothing is written to DIR unless the whole import succeeds (cli.outdir).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf import __version__
+from fabricsurf.cli.outdir import OutputDir
+from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+
+COMM = MPI.COMM_WORLD
+OUTPUTS = ("experiment.toml", "field.csv", "force.csv", "dic_import.json")
+
+
+def add_parser(sub, formatter) -> None:
+    p = sub.add_parser("import-dic", formatter_class=formatter,
+                       help="DIC exports (CSV per image) → a measurement directory")
+    p.add_argument("spec", type=Path, help="the import description, e.g. dic.toml "
+                   "(docs/dic.md: files, layout, units, frame, steps, binning)")
+    p.add_argument("--out", required=True, type=Path,
+                   help="the measurement directory to write (experiment.toml, field.csv, "
+                   "force.csv, dic_import.json)")
+    p.set_defaults(func=run)
+
+
+def write_directory(stage: Path, exp, report: dict) -> None:
+    """The contract files of ``exp`` (mm, N) and the report, into ``stage`` (one rank)."""
+    from fabricsurf.inverse.contract.writer import toml_text
+
+    (stage / "experiment.toml").write_text(toml_text(exp))
+    comps = ["ux", "uy", "uz"][: exp.u.shape[1]]
+    table = np.column_stack([exp.field_step, exp.X, exp.u])
+    with open(stage / "field.csv", "w") as fh:
+        fh.write(",".join(["step", "X", "Y", *comps]) + "\n")
+        np.savetxt(fh, table, fmt=["%d"] + ["%.10g"] * (table.shape[1] - 1), delimiter=",")
+    if exp.has_force:
+        with open(stage / "force.csv", "w") as fh:
+            fh.write("step,displacement,force\n")
+            np.savetxt(fh, np.column_stack([exp.steps, exp.path, exp.force]),
+                       fmt=["%d", "%.10g", "%.10g"], delimiter=",")
+    write_json(MPI.COMM_SELF, stage / "dic_import.json", report)
+
+
+def _import(spec_path: Path, stage: Path) -> str:
+    from fabricsurf.inverse.dic.config import read_spec
+    from fabricsurf.inverse.dic.importer import import_dic
+
+    spec = read_spec(spec_path)
+    exp, report = import_dic(spec)
+    report["provenance"] = {"fabricsurf": __version__, "spec": str(spec_path.resolve()),
+                            "export_directory": str(spec.root.resolve())}
+    write_directory(stage, exp, report)
+    noise = report["noise"]
+    return (f"{report['points_read']} points read from {len(report['files'])} images "
+            f"({report['layout']}), {report['holes']} holes and {report['outside_dropped']} "
+            f"points off the specimen dropped; {report['rows_written']} field rows written"
+            + (f" (binned to {spec.pitch:g} mm)" if spec.pitch else "")
+            + "; noise_std " + ("" if noise["noise_std"] is None else
+                                f"{noise['noise_std']:.3g} mm ") + f"({noise['method']})")
+
+
+def _inputs(spec_path: Path) -> tuple[tuple[str, Path], ...]:
+    """The spec and the export files it matches (--out must keep apart from them)."""
+    import tomllib
+
+    found: list[tuple[str, Path]] = [(f"import description {spec_path}", spec_path)]
+    try:
+        pattern = tomllib.loads(spec_path.read_text())["export"]["files"]
+        found += [(f"export file {p}", p) for p in spec_path.parent.glob(str(pattern))]
+    except (OSError, KeyError, TypeError, ValueError):
+        pass  # read_spec names the problem
+    return tuple(found)
+
+
+def run(args: argparse.Namespace) -> int:
+    od = OutputDir(args.out, COMM, files=OUTPUTS, inputs=_inputs(args.spec))
+    with od as stage:
+        message = on_rank0(COMM, _import, args.spec, stage)
+    rank0_print(COMM, f"{message}\nmeasurement directory: {args.out}")
+    return 0

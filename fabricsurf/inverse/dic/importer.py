@@ -1,0 +1,231 @@
+"""DIC exports → an :class:`~fabricsurf.inverse.contract.experiment.Experiment` (docs/dic.md).
+
+One file per image; the image number is an integer of the file's name (the last by default,
+``[export] image_number``). Each image is
+read, its holes (NaN or empty cells, or the layout's invalid flag) dropped and counted, its
+points moved to the specimen's frame, checked (duplicates, outline) and, with a pitch, binned
+before the next is read: the memory is that of one image plus the binned result.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from fabricsurf.errors import DataError
+from fabricsurf.experiments import get_test
+from fabricsurf.inverse.contract import checks
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.dic.binning import bin_points, noise_estimate
+from fabricsurf.inverse.dic.config import ImportSpec
+from fabricsurf.inverse.dic.layouts import UNITS
+from fabricsurf.inverse.dic.reader import ExportFile, read_export
+
+OUTLINE_TOL = 1e-6
+"""Points this far outside the specimen (relative to its size) still count as on it."""
+MAX_DISPLACEMENT = 10.0
+"""Displacements beyond this many specimen sizes are a unit mix-up (the contract's limit,
+checks.field_displacements, here with the export's file and line)."""
+NO_SCATTER = 1e-9
+"""An estimated noise level below this fraction of the specimen size is no scatter at all
+(noise-free data): no estimate is recorded (the contract's default applies)."""
+
+
+def image_files(spec: ImportSpec) -> dict[int, Path]:
+    """{image number: file} of the files matching the pattern; every file must be a listed
+    step or reference image, and every listed image must have its file."""
+    found: dict[int, Path] = {}
+    for p in sorted(spec.root.glob(spec.files)):
+        if not p.is_file():
+            continue
+        m = spec.image_number.search(p.stem)
+        if not m or not m.group(1).isdigit():
+            raise DataError(f"{p.name}: no image number in the file name by [export] "
+                            f"image_number = {spec.image_number.pattern!r} (files matched by "
+                            f"[export] files = {spec.files!r})")
+        k = int(m.group(1))
+        if k in found:
+            raise DataError(f"{p.name} and {found[k].name} both give image {k} (by [export] "
+                            f"image_number = {spec.image_number.pattern!r}: set it to pick "
+                            "the image number, e.g. \"first\" or \"-(\\d+)_\")")
+        found[k] = p
+    if not found:
+        raise DataError(f"{spec.where}: [export] files = {spec.files!r} matches no file in "
+                        f"{spec.root}")
+    known = set(spec.images) | set(spec.reference_images)
+    for k, p in sorted(found.items()):
+        if k not in known:
+            raise DataError(f"{p.name}: image {k} has no matching load step: it is in neither "
+                            f"[steps] images = {spec.images} nor reference_images = "
+                            f"{spec.reference_images} of {spec.where} (add it, or narrow "
+                            "[export] files)")
+    missing = [k for k in spec.images + spec.reference_images if k not in found]
+    if missing:
+        raise DataError(f"{spec.where}: image {missing[0]} of [steps] has no file among those "
+                        f"matching [export] files = {spec.files!r} (images found: "
+                        f"{sorted(found)[:10]}{' …' if len(found) > 10 else ''})")
+    return found
+
+
+def _check_units(f: ExportFile, unit: str) -> None:
+    """The unit tags of the header (``u [mm]``) must agree with each other and [units]."""
+    tagged = {r: UNITS[t.lower()] for r, t in f.units.items()
+              if t is not None and t.lower() in UNITS}
+    if len(set(tagged.values())) > 1:
+        pairs = ", ".join(f"{r} in {t}" for r, t in tagged.items())
+        raise DataError(f"{f.path.name} line {f.header_line}: mixed units in the header "
+                        f"({pairs}); convert the export to one unit")
+    if tagged and next(iter(tagged.values())) != unit:
+        r, t = next(iter(tagged.items()))
+        raise DataError(f"{f.path.name} line {f.header_line}: the {r} column is in {t} but "
+                        f"[units] coordinates is \"{unit}\" (the layout's default or as given)")
+
+
+def _valid(f: ExportFile, invalid: float | None) -> np.ndarray:
+    ok = np.ones(f.n, dtype=bool)
+    for role, a in f.data.items():
+        if role != "valid":
+            ok &= np.isfinite(a)
+    if "valid" in f.data and invalid is not None:
+        ok &= f.data["valid"] != invalid
+    return ok
+
+
+def _duplicates(f: ExportFile, rows: np.ndarray) -> None:
+    x, y = f.data["x"][rows], f.data["y"][rows]
+    order = np.lexsort((y, x))
+    same = np.flatnonzero((np.diff(x[order]) == 0) & (np.diff(y[order]) == 0))
+    if len(same):
+        a, b = sorted((rows[order[same[0]]], rows[order[same[0] + 1]]))
+        raise DataError(f"{f.path.name} line {f.line_of(b)}: duplicated point (x, y) = "
+                        f"({f.data['x'][b]:g}, {f.data['y'][b]:g}), also on line {f.line_of(a)}")
+
+
+def _outline(f: ExportFile, rows: np.ndarray, X: np.ndarray, spec: ImportSpec) -> np.ndarray:
+    """Mask of the points on the specimen; a point off it is an error (outside = "error")."""
+    L, W = spec.setup.length, spec.setup.width
+    tol = OUTLINE_TOL * max(L, W)
+    on = ((X[:, 0] >= -tol) & (X[:, 0] <= L + tol) & (X[:, 1] >= -tol) & (X[:, 1] <= W + tol))
+    if spec.outside == "error" and not on.all():
+        i = int(np.flatnonzero(~on)[0])
+        r = rows[i]
+        raise DataError(f"{f.path.name} line {f.line_of(r)}: point (x, y) = ({f.data['x'][r]:g},"
+                        f" {f.data['y'][r]:g}) {spec.unit} lies at (X, Y) = ({X[i, 0]:.4g}, "
+                        f"{X[i, 1]:.4g}) mm, outside the specimen [0, {L:g}] x [0, {W:g}] mm "
+                        "(check [frame] origin, grip, angle_deg and [units]; or set [frame] "
+                        "outside = \"drop\" to drop such points, e.g. on the grips)")
+    return on
+
+
+def _magnitudes(f: ExportFile, rows: np.ndarray, u: np.ndarray, spec: ImportSpec) -> None:
+    """Displacements beyond ten times the specimen are a unit or scale mix-up."""
+    size = max(spec.setup.length, spec.setup.width)
+    big = np.flatnonzero(np.abs(u).max(axis=1) > MAX_DISPLACEMENT * size)
+    if len(big):
+        i = big[0]
+        raise DataError(f"{f.path.name} line {f.line_of(rows[i])}: displacement of "
+                        f"{np.abs(u[i]).max():.3g} mm, more than "
+                        f"{MAX_DISPLACEMENT:g} times the specimen size ({size:g} "
+                        "mm): check [units] (coordinates, mm_per_pixel) and the columns")
+
+
+def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool) -> tuple[np.ndarray, ...]:
+    """(X, u, counts) of one image's valid points in the specimen's frame."""
+    _check_units(f, spec.unit)
+    rows = np.flatnonzero(_valid(f, spec.layout.invalid))
+    _duplicates(f, rows)
+    data = {r: a[rows] for r, a in f.data.items()}
+    X = np.column_stack(spec.frame.points(data["x"], data["y"]))
+    if first:
+        spec.frame.check_tilt(X[:, 0], X[:, 1], f.path.name)
+    comps = spec.frame.vectors(data["u"], data["v"], data.get("w") if d == 3 else None)
+    if d == 3 and len(comps) < 3:
+        raise DataError(f"{f.path.name}: no out-of-plane displacement column (the "
+                        f"{spec.layout.name} layout's w); the '{spec.setup.test}' test needs uz")
+    on = _outline(f, rows, X, spec)
+    u = np.column_stack(comps)[on]
+    _magnitudes(f, rows[on], u, spec)
+    counts = {"rows": f.n, "holes": int(f.n - len(rows)), "outside_dropped": int((~on).sum()),
+              "points": int(on.sum())}
+    return X[on], u, counts
+
+
+def _collect(spec: ImportSpec, files: dict[int, Path], images: list[int], d: int,
+             tilt_first: bool, report: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(step, X, u) of ``images`` (steps numbered from 1 in their order), binned when a
+    pitch is given; one entry per image appended to ``report``."""
+    steps, Xs, us = [], [], []
+    for k, image in enumerate(images, start=1):
+        f = read_export(files[image], image, spec.layout)
+        X, u, counts = _image(f, spec, d, tilt_first and k == 1)
+        del f
+        s = np.full(len(X), k, dtype=np.int64)
+        if spec.pitch and len(X):
+            s, X, u, _ = bin_points(s, X, u, spec.pitch, spec.min_points)
+            counts["bins"] = len(X)
+        if len(X) == 0:
+            raise DataError(f"{files[image].name}: no point left (holes "
+                            f"{counts['holes']}, outside {counts['outside_dropped']})")
+        report.append({"file": files[image].name, "image": image} | counts)
+        steps.append(s)
+        Xs.append(X)
+        us.append(u)
+    return np.concatenate(steps), np.vstack(Xs), np.vstack(us)
+
+
+def _noise(spec: ImportSpec, refs: tuple, step: np.ndarray, X: np.ndarray, u: np.ndarray
+           ) -> dict:
+    if spec.noise_std is not None:
+        return {"noise_std": spec.noise_std, "method": "given in [data] noise_std"}
+    if refs is not None and np.any(refs[2]):
+        est = noise_estimate(*refs)
+        method = ("estimated: local plane residuals of the reference images' "
+                  "displacements" + (" (binned as the data)" if spec.pitch else ""))
+    else:
+        est = noise_estimate(step, X, u)
+        method = "estimated: local plane residuals of the written field, all steps"
+    size = max(spec.setup.length, spec.setup.width)
+    if est["noise_std"] is None or est["noise_std"] < NO_SCATTER * size:
+        why = "too few points" if est["noise_std"] is None else "the data show no scatter"
+        return {"noise_std": None, "estimate": est,
+                "method": f"not estimated: {why}; give [data] noise_std (the contract's "
+                          "default applies: 1 % of the largest displacement)"}
+    return {"noise_std": est["noise_std"], "method": method, "estimate": est}
+
+
+def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
+    """The experiment (mm, N) of the exports ``spec`` describes, and the import report."""
+    plugin = get_test(spec.setup.test)
+    d = plugin.d
+    steps_n = np.arange(1, len(spec.images) + 1)
+    plugin.check_path(steps_n, spec.path, f"{spec.where}: [steps] path")
+    files = image_files(spec)
+    report: dict = {"files": [], "reference": []}
+    refs = None
+    if spec.reference_images:
+        refs = _collect(spec, files, spec.reference_images, d, True, report["reference"])
+    step, X, u = _collect(spec, files, spec.images, d, refs is None, report["files"])
+    for e, i in zip(report["files"], steps_n):
+        e["step"] = int(i)
+    noise = _noise(spec, refs, step, X, u)
+    exp = Experiment(spec.name, spec.setup, steps_n, np.array(spec.path, float),
+                     None if spec.force is None else np.array(spec.force, float),
+                     step, X, u, noise_std=noise["noise_std"],
+                     force_noise_std=spec.force_noise_std,
+                     source=spec.source | {"import": "fabricsurf import-dic from "
+                                           f"{spec.layout.source}; see dic_import.json"})
+    checks.magnitudes(exp, "mm")
+    report |= {"layout": spec.layout.name, "layout_source": spec.layout.source,
+               "unit": spec.unit, "frame": {"mm_per_unit": spec.frame.scale,
+                                            "y_down": spec.frame.y_down,
+                                            "origin": list(spec.frame.origin),
+                                            "grip": spec.frame.grip,
+                                            "angle_deg": spec.frame.tilt_deg,
+                                            "outside": spec.outside},
+               "binning": {"pitch_mm": spec.pitch, "min_points": spec.min_points},
+               "noise": noise, "rows_written": len(X),
+               "points_read": int(sum(e["rows"] for e in report["files"])),
+               "holes": int(sum(e["holes"] for e in report["files"])),
+               "outside_dropped": int(sum(e["outside_dropped"] for e in report["files"]))}
+    return exp, report
