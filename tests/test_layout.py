@@ -13,11 +13,11 @@ PKG = ROOT / "fabricsurf"
 HEAVY = ("dolfinx", "petsc4py", "ufl", "ffcx", "basix")
 
 # the layers, bottom first: a module may import its own layer and the layers below it
-LAYERS = ["errors", "constants", "datasets", "model", "discretise", "experiments", "inverse",
+LAYERS = ["errors", "constants", "log", "datasets", "model", "discretise", "experiments", "inverse",
           "cli", "fabricsurf"]
 # the lattice reference stands beside the layers: it imports only these, and of the layers
 # only the synthetic-data generator (lattice measurements) imports it
-NETWORK_IMPORTS = ("network", "errors", "constants")
+NETWORK_IMPORTS = ("network", "errors", "constants", "log")
 NETWORK_USERS = {("inverse", "synthetic")}
 # within inverse: the sub-packages each may import
 INVERSE = {

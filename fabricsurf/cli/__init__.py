@@ -29,8 +29,8 @@ from mpi4py import MPI
 from fabricsurf.cli import bias as bias_cli
 from fabricsurf.cli import dic as dic_cli
 from fabricsurf.cli import measure, outdir
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.errors import InputError
+from fabricsurf.log import progress, rank0_print
 
 COMM = MPI.COMM_WORLD
 JIT_LOGGERS = ("ffcx", "UFL", "UFL_LEGACY", "dolfinx")
@@ -81,10 +81,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _verbose(p: argparse.ArgumentParser, default) -> None:
-    """``--verbose`` before or after the command (SUPPRESS: the command's copy does not
-    overwrite the value given before it)."""
+    """``--verbose`` and ``--quiet`` before or after the command (SUPPRESS: the command's copy
+    does not overwrite the value given before it)."""
     p.add_argument("--verbose", action="store_true", default=default,
                    help="show the JIT compiler's messages (FFCx, UFL, C compiler)")
+    p.add_argument("-q", "--quiet", action="store_true", default=default,
+                   help="no progress messages, only warnings and errors (the 'fabricsurf' "
+                   "logger at WARNING)")
 
 
 @contextlib.contextmanager
@@ -157,13 +160,14 @@ def main(argv: list[str] | None = None) -> int:
     if isinstance(args, int):
         return args
     try:
-        with interruptible(args.command), compiler_messages(args.verbose):
+        with interruptible(args.command), compiler_messages(args.verbose), \
+                progress(not args.quiet):
             return args.func(args)
     except (InputError, OSError) as e:
-        rank0_print(COMM, f"fabricsurf {args.command}: error: {e}")
+        rank0_print(COMM, f"fabricsurf {args.command}: error: {e}", level=logging.ERROR)
         return 2
     except RuntimeError as e:
-        rank0_print(COMM, f"fabricsurf {args.command}: failed: {e}")
+        rank0_print(COMM, f"fabricsurf {args.command}: failed: {e}", level=logging.ERROR)
         return 2
     except Exception:
         if COMM.size > 1:

@@ -1,4 +1,5 @@
-"""Output: XDMF time series of u and derived fields, step logs (CSV/JSON), rank-0 printing."""
+"""Output: XDMF time series of u and derived fields, step logs (CSV/JSON). Messages go through
+the ``fabricsurf`` logger (:mod:`fabricsurf.log`)."""
 
 from __future__ import annotations
 
@@ -16,12 +17,8 @@ from petsc4py import PETSc
 
 from fabricsurf.discretise.resources import Owner, destroy
 from fabricsurf.errors import InputError
+from fabricsurf.log import rank0_print  # noqa: F401  TEMPORARY until the import sites move
 from fabricsurf.model.kinematics import Kinematics
-
-
-def rank0_print(comm: MPI.Comm, *args) -> None:
-    if comm.rank == 0:
-        print(*args, flush=True)
 
 
 def derived_fields(kin: Kinematics) -> dict:
