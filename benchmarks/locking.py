@@ -9,9 +9,9 @@ K/k_s (and the exact constraint) it prints the force ratio at the last step on t
 (``auto``: two fibre lattices joined by a band, geometry/lattice_pair.py) and, with
 ``--compare``, on gmsh's mesh with fully integrated (today's fallback) and reduced fibre terms.
 
-``--cost``: the Cao specimen 230 × 115 at K = ``--cost-k``: h halved from W/10, the coarsest h
-of each mesh kind within 1 % of the converged force (the finest default result), DOFs and
-seconds.
+``--cost``: the 250 × 115 specimen (no corner-to-corner lattice) at K = ``--cost-k``: h halved
+from W/10, the coarsest h of the default mesh and of gmsh's within 1 % of the converged force
+(the finest default result), DOFs and seconds.
 
     .venv/bin/python benchmarks/locking.py --out out/locking [--compare] [--cost]
 """
@@ -78,12 +78,16 @@ def table(variants: list[str], sizes: int, comm) -> list[dict]:
 
 
 def cost(K: float, levels: int, comm) -> dict:
-    """DOFs and seconds to reach 1 % of the converged force on the 230 × 115 specimen."""
-    rows = {name: [run(230.0, 115.0, 11.5 / 2**i, K / K_S, *VARIANTS[name], comm)
+    """DOFs and seconds to reach 1 % of the converged force on the 250 × 115 specimen."""
+    rows = {name: [run(250.0, 115.0, 11.5 / 2**i, K / K_S, *VARIANTS[name], comm)
                    for i in range(levels)] for name in ("default", "gmsh full")}
     ref = rows["default"][-1]["force"]
     out = {"reference_force": ref}
     for name, rs in rows.items():
+        for r in rs:
+            rank0_print(comm, f"{name:10s} h = {r['h']:7.4f}  force {r['force']:10.4f} N  "
+                        f"/ converged {r['force'] / ref:9.4f}  dofs {r['dofs']:7d}  "
+                        f"{r['seconds']:6.1f} s")
         ok = [r for r in rs if abs(r["force"] / ref - 1) < 0.01]
         out[name] = ok[0] if ok else None
         rank0_print(comm, f"K = {K:g}: {name} within 1 % of the converged force: " + (

@@ -59,7 +59,7 @@ def reduced_measures(msh, degree: int) -> tuple[ufl.Measure, ufl.Measure]:
 
     FFCx 0.5 merges the integrals of one subdomain into one kernel, and with two quadrature
     degrees in it the Jacobian it generates is wrong (2 % off the derivative of the residual
-    at a random state; tests/test_reduced_fibres.py); with its own subdomain id the fibre
+    at a random state, measured by finite differences); with its own subdomain id the fibre
     integral gets its own kernel. dolfinx integrates the unmarked ``dx`` over every cell."""
     tdim = msh.topology.dim
     imap = msh.topology.index_map(tdim)
