@@ -9,6 +9,11 @@ K/k_s (and the exact constraint) it prints the force ratio at the last step on t
 (``auto``: two fibre lattices joined by a band, geometry/lattice_pair.py) and, with
 ``--compare``, on gmsh's mesh with fully integrated (today's fallback) and reduced fibre terms.
 
+``--zones``: where no lattice serves (kind ``zones``: gmsh with the corner fibre lines as edges):
+the 187 × 119 specimen at h = 17 and 25 against the aligned mesh at h = 15, and fibres at
+30°/−60° on 250 × 115 at W/10 against W/20, with gmsh's plain mesh for comparison (ū = 20 mm in
+4 steps).
+
 ``--cost``: the 250 × 115 specimen (no corner-to-corner lattice) at K = ``--cost-k``: h halved
 from W/10, the coarsest h of the default mesh and of gmsh's within 1 % of the converged force
 (the finest default result), DOFs and seconds.
@@ -96,22 +101,54 @@ def cost(K: float, levels: int, comm) -> dict:
     return out
 
 
+def zones(comm) -> list[dict]:
+    """Force ratios on the corner-line meshes (module docstring, ``--zones``)."""
+    cases = [((187.0, 119.0), (45.0, -45.0), (15.0, "aligned"),
+              [(17.0, "auto"), (25.0, "auto"), (17.0, "unstructured")]),
+             ((250.0, 115.0), (30.0, -60.0), (5.75, "auto"),
+              [(11.5, "auto"), (11.5, "unstructured")])]
+    rows = []
+    for (length, width), angles, ref, others in cases:
+        for ratio in RATIOS:
+            f = {}
+            for h, mesh in [ref, *others]:
+                b = BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S),
+                                   Shear(k_s=K_S)], length=length, width=width, h=h,
+                                  clamp="position", fibre_angles=angles, mesh=mesh, comm=comm,
+                                  quiet=True)
+                try:
+                    f[(h, b.discretisation["mesh_kind"])] = b.run(20.0, 4, verbose=False).force[-1]
+                except RuntimeError:
+                    f[(h, b.discretisation["mesh_kind"])] = float("nan")
+            base = next(iter(f.values()))
+            ratios = ", ".join(f"{k} h = {h:g}: {v / base:.4f}" for (h, k), v in f.items())
+            rank0_print(comm, f"{length:g} x {width:g} at {angles}, K/k_s = {ratio:6.0e}: "
+                        + ratios)
+            rows.append({"length": length, "width": width, "angles": angles, "ratio_K": ratio,
+                         "forces": {f"{k} h={h:g}": v for (h, k), v in f.items()}})
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="out/locking")
     ap.add_argument("--compare", action="store_true",
                     help="also gmsh's mesh with full and with reduced fibre terms")
     ap.add_argument("--cost", action="store_true", help="the cost table instead")
+    ap.add_argument("--zones", action="store_true", help="the corner-line meshes instead")
     ap.add_argument("--cost-k", type=float, default=1e4, help="K of the cost table (N/mm)")
     ap.add_argument("--sizes", type=int, default=len(SIZES), help="the first N sizes only")
     ap.add_argument("--levels", type=int, default=3, help="h = W/10 · 2^-i, i < levels")
     a = ap.parse_args()
     comm = MPI.COMM_WORLD
-    if a.cost:
+    if a.zones:
+        result = {"zones": zones(comm)}
+    elif a.cost:
         result = {"cost": cost(a.cost_k, a.levels, comm)}
     else:
         result = {"rows": table(list(VARIANTS) if a.compare else ["default"], a.sizes, comm)}
-    write_json(comm, Path(a.out) / ("locking_cost.json" if a.cost else "locking.json"), result)
+    name = "locking_zones.json" if a.zones else "locking_cost.json" if a.cost else "locking.json"
+    write_json(comm, Path(a.out) / name, result)
 
 
 if __name__ == "__main__":

@@ -180,3 +180,18 @@ def test_degenerate_fibre_pair_in_the_data_is_refused_by_key():
         BiasExtensionTest.check_specimen(setup, "experiment.toml")
     BiasExtensionTest.check_specimen(Setup("bias_extension", 230.0, 115.0, (45.0, 135.0),
                                            {"clamp": "position"}), "experiment.toml")
+
+
+def test_short_specimen_gets_the_corner_lines_and_does_not_lock():
+    """187 × 119 mm at h = 17 (no corner-to-corner lattice; too short for the lattice pair's
+    band to lie in the centre zone): the mesh has the fibre lines through the corners as edges
+    (kind "zones") and at K/k_s = 10⁶ its force equals that of the aligned mesh at h = 15 within
+    0.1 % (the old gmsh fallback: 127 times it, benchmarks/locking.py --zones)."""
+    def force(h):
+        b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+                          length=187.0, width=119.0, h=h, clamp="position", quiet=True)
+        return b.discretisation["mesh_kind"], b.run(20.0, 2, verbose=False).force[-1]
+
+    (kind_a, f_a), (kind_z, f_z) = force(15.0), force(17.0)
+    assert (kind_a, kind_z) == ("aligned", "zones")
+    assert abs(f_z / f_a - 1.0) < 1e-3, (f_z, f_a)

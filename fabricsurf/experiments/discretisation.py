@@ -42,10 +42,10 @@ def stiffness_ratio(model: list[Term]) -> float:
     return K / rest if rest > 0 else math.inf
 
 
-LOCKING_FREE_MESHES = ("aligned", "lattice_pair")
+LOCKING_FREE_MESHES = ("aligned", "lattice_pair", "zones")
 """Mesh kinds on which fully integrated fibre terms do not lock in the bias test: the
 pin-jointed-net solution lies in the discrete space (geometry/aligned.py,
-geometry/lattice_pair.py)."""
+geometry/lattice_pair.py, geometry/zone_mesh.py)."""
 
 
 def may_lock(kind: str, treatment: str, ratio: float) -> bool:
