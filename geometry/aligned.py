@@ -28,7 +28,6 @@ from geometry.specimen import (
     check_positive,
     corner_points,
     distributed_mesh,
-    rectangle,
     tag_rectangle_edges,
 )
 
@@ -125,17 +124,28 @@ def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_d
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
     return Specimen(msh, ft, float(length), float(width),
-                    points={**corner_points(length, width), **dict(extra_points or {})})
+                    points={**corner_points(length, width), **dict(extra_points or {})},
+                    kind="aligned", h=math.hypot(dx, dy))
 
 
-MESH_KINDS = ("auto", "aligned", "unstructured")
-"""``aligned``: :func:`fibre_aligned_rectangle`; ``unstructured``: gmsh's frontal Delaunay;
-``auto``: aligned where the fibres are at ±θ to x and a lattice fits, else unstructured."""
+def fibre_line_angle(angle_deg: float) -> float:
+    """The angle of a fibre direction as a line, in (−90°, 90°]: a fibre is a line, not an
+    arrow, so angles that differ by a multiple of 180° (45°, −135°, 225°, 405°) are one fibre."""
+    a = math.fmod(float(angle_deg), 180.0)
+    a = a - 180.0 if a > 90.0 else a + 180.0 if a <= -90.0 else a
+    return 0.0 if a == 0.0 else a  # no −0.0
+
+
+def canonical_angles(fibre_angles: tuple[float, float]) -> tuple[float, float]:
+    """Both fibre angles as lines (:func:`fibre_line_angle`): [45, 135] and [405, −45] are the
+    pair (45, −45)."""
+    return tuple(fibre_line_angle(a) for a in fibre_angles)
 
 
 def symmetric_angle(fibre_angles: tuple[float, float]) -> float | None:
-    """θ when the two families are at +θ and −θ to x (either order, 0 < θ < 90°), else None."""
-    a, b = (float(v) for v in fibre_angles)
+    """θ when the two families are, as lines, at +θ and −θ to x (either order, 0 < θ < 90°;
+    any spelling mod 180°, :func:`canonical_angles`), else None."""
+    a, b = canonical_angles(fibre_angles)
     theta = abs(a)
     if math.isclose(a, -b, abs_tol=1e-9) and 0.0 < theta < 90.0:
         return theta
@@ -152,25 +162,6 @@ def blank_angle(fibre_angles: tuple[float, float]) -> float | None:
     if tuple(float(a) for a in fibre_angles) in SIDES:
         return 0.0
     return symmetric_angle(fibre_angles)
-
-
-def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
-              comm: MPI.Comm = MPI.COMM_WORLD, kind: str = "auto",
-              extra_points: dict | None = None) -> Specimen:
-    """The mesh of a rectangular specimen of the given ``kind`` (:data:`MESH_KINDS`)."""
-    if kind not in MESH_KINDS:
-        raise ValueError(f"geometry: mesh = {kind!r} must be one of {', '.join(MESH_KINDS)}")
-    theta = symmetric_angle(fibre_angles)
-    if kind == "aligned" and theta is None:
-        raise ValueError(f"geometry: a fibre-aligned mesh needs fibres at ±θ to x, not at "
-                         f"{tuple(fibre_angles)}°")
-    if kind != "unstructured" and theta is not None:
-        try:
-            return fibre_aligned_rectangle(length, width, h, theta, comm, extra_points)
-        except ValueError:
-            if kind == "aligned":
-                raise
-    return rectangle(length, width, h, comm, extra_points=extra_points)
 
 
 def square_divisions(side: float, h: float) -> int:
@@ -213,4 +204,5 @@ def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.
     msh = distributed_mesh(comm, x, tri)
     ft = tag_rectangle_edges(msh, half, half)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ft, float(half), float(half), points=corner_points(half, half))
+    return Specimen(msh, ft, float(half), float(half), points=corner_points(half, half),
+                    kind="aligned", h=math.hypot(half / P, half / Q) if theta_deg else half / P)

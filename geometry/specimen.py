@@ -29,7 +29,12 @@ default of the bias-test plug-in and of the studies that compare with that paper
 
 @dataclass
 class Specimen:
-    """A meshed rectangle [0, length] × [0, width] with named edge tags and points."""
+    """A meshed rectangle [0, length] × [0, width] with named edge tags and points.
+
+    ``kind`` names the mesh ("unstructured": gmsh's; "structured": the crossed grid;
+    "aligned": edges along the fibres, geometry/aligned.py) and ``h`` the size its builder
+    actually used (mm; for an aligned mesh the length of its fibre edges), so that runs can
+    record what they computed on; ``note`` says why a builder of another kind was used."""
 
     mesh: object
     facet_tags: object
@@ -37,6 +42,9 @@ class Specimen:
     width: float
     edge_tags: dict = field(default_factory=lambda: dict(EDGE_TAGS))
     points: dict = field(default_factory=dict)
+    kind: str = "unstructured"
+    h: float = float("nan")
+    note: str = ""
 
 
 def check_positive(**kw: float) -> None:
@@ -146,7 +154,8 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
     return Specimen(msh, ft, float(length), float(width),
-                    points={**corner_points(length, width), **extra})
+                    points={**corner_points(length, width), **extra},
+                    kind="structured" if structured else "unstructured", h=float(h))
 
 
 def square(side: float = 1.0, h: float = 0.25, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -183,7 +192,8 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
     return Specimen(msh, ft, float(length), float(width),
-                    points=corner_points(length, width))
+                    points=corner_points(length, width), kind="structured",
+                    h=float(max(length / nx, width / ny)))
 
 
 def tag_rectangle_edges(msh, length: float, width: float):

@@ -162,7 +162,8 @@ def run(args: argparse.Namespace) -> int:
                       f"on {comm.size} rank(s)")
     with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
-        summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp}
+        summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp,
+                   "discretisation": test.discretisation}
         done: list[int] = []
 
         od.on_interrupt = lambda stage_dir: interrupted_report(  # no MPI call in there

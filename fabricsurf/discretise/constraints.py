@@ -38,7 +38,7 @@ class Multiplier:
 
     def __init__(self, name: str, g, r, msh, degree: int) -> None:
         element = ufl.FiniteElement("Quadrature", msh.ufl_cell(), degree, quad_scheme="default")
-        self.name, self.g, self.r = name, g, r
+        self.name, self.g, self.r, self.degree = name, g, r, degree
         self.space = fem.FunctionSpace(msh, element)
         self.T = fem.Function(self.space, name=name)
         self._g = quadrature_expression(g, msh, degree)

@@ -24,8 +24,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 
 from fabricsurf.discretise.constraints import Multiplier
 from fabricsurf.discretise.jit_keys import stable_constant_order
@@ -38,8 +40,33 @@ FACET_QUADRATURE_DEGREE = 4
 AUGMENTATION = 1e5
 """An exact constraint's augmentation stiffness is its term's own plus this many times the sum
 of the other first-gradient moduli: Uzawa's iteration then contracts by about 1e-5 a step."""
+FIBRE_TREATMENTS = ("full", "reduced")
+"""How the fibre terms (:attr:`Term.fibre`) are integrated over a cell: ``full`` at the
+quadrature degree of every other term; ``reduced`` at one point, the centroid (an assumed
+fibre strain constant per cell, the P2/P0 mixed form at the linear level; docs/theory.md,
+"Locking"): the treatment that does not lock on meshes whose edges do not follow the fibres."""
+REDUCED_FIBRE_DEGREE = 1
+"""Quadrature degree of the fibre terms under the ``reduced`` treatment: one point per triangle."""
+FIBRE_CELLS = 1
+"""The subdomain id of the reduced fibre integrals (every cell; :func:`reduced_measures`)."""
 EVERYWHERE = "everywhere"
 """The facet tag of ``normal_derivative`` for the whole boundary (UFL's unmarked ``ds``)."""
+
+
+def reduced_measures(msh, degree: int) -> tuple[ufl.Measure, ufl.Measure]:
+    """(dx, dx_fibre): the cell measure at ``degree`` and that of the reduced fibre terms, at
+    :data:`REDUCED_FIBRE_DEGREE`, over the same cells but under their own subdomain id.
+
+    FFCx 0.5 merges the integrals of one subdomain into one kernel, and with two quadrature
+    degrees in it the Jacobian it generates is wrong (2 % off the derivative of the residual
+    at a random state, measured by finite differences); with its own subdomain id the fibre
+    integral gets its own kernel. dolfinx integrates the unmarked ``dx`` over every cell."""
+    tdim = msh.topology.dim
+    imap = msh.topology.index_map(tdim)
+    cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+    tags = dmesh.meshtags(msh, tdim, cells, np.full(len(cells), FIBRE_CELLS, dtype=np.int32))
+    dx = ufl.Measure("dx", domain=msh, subdomain_data=tags, metadata={"quadrature_degree": degree})
+    return dx, dx(FIBRE_CELLS, metadata={"quadrature_degree": REDUCED_FIBRE_DEGREE})
 
 
 def placement(u):
@@ -109,8 +136,12 @@ class EnergyForm:
     penalty: float = DEFAULT_PENALTY
     qdeg_cell: int = CELL_QUADRATURE_DEGREE
     qdeg_facet: int = FACET_QUADRATURE_DEGREE
+    fibre_treatment: str = "full"
 
     def __post_init__(self) -> None:
+        if self.fibre_treatment not in FIBRE_TREATMENTS:
+            raise ValueError(f"fibre_treatment = {self.fibre_treatment!r} must be one of "
+                             f"{', '.join(FIBRE_TREATMENTS)}")
         stable_constant_order()  # before the moduli's Constants are made (jit_keys)
         msh = self.u.function_space.mesh
         for t in self.model:
@@ -118,17 +149,44 @@ class EnergyForm:
         self.alpha = fem.Constant(msh, float(self.penalty))
         self.kin = kinematics(self.u, self.L, self.M)
         scale = AUGMENTATION * membrane_scale(self.model, self.kin)
-        self.multipliers = [Multiplier(name, g, r + scale, msh, self.qdeg_cell)
+        self.multipliers = [Multiplier(name, g, r + scale, msh, self.term_degree(t))
                             for t in self.model for name, g, r in t.constraints(self.kin)]
         self.dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": self.qdeg_cell})
+        if self.reduced:
+            self.dx, self.dx_fibre = reduced_measures(msh, self.qdeg_cell)
         md = {"quadrature_degree": self.qdeg_facet}
         self.dS = ufl.Measure("dS", domain=msh, metadata=md)
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=self.facet_tags, metadata=md)
 
+    @property
+    def reduced(self) -> bool:
+        return self.fibre_treatment == "reduced"
+
+    def term_degree(self, term: Term) -> int:
+        """The cell quadrature degree of a term's energy (and of its constraints)."""
+        return REDUCED_FIBRE_DEGREE if self.reduced and term.fibre else self.qdeg_cell
+
+    @property
+    def tension_degree(self) -> int:
+        """The quadrature degree at which the fibre tensions are defined: that of the fibre
+        terms (their multipliers live there; under the reduced treatment, elsewhere in the
+        cell the elastic tension k(λ − 1) is not the one the energy carries)."""
+        return REDUCED_FIBRE_DEGREE if self.reduced else self.qdeg_cell
+
     def cell_energy(self):
-        W = strain_energy_density(self.model, self.kin)
-        W += sum(m.energy_density() for m in self.multipliers)
-        return W * self.dx
+        if not self.reduced:
+            W = strain_energy_density(self.model, self.kin)
+            W += sum(m.energy_density() for m in self.multipliers)
+            return W * self.dx
+        dx_f = self.dx_fibre
+        form = 0
+        for t in self.model:
+            density = t.density(self.kin)
+            if not (isinstance(density, float) and density == 0.0):
+                form += density * (dx_f if t.fibre else self.dx)
+        for m in self.multipliers:
+            form += m.energy_density() * (dx_f if m.degree == REDUCED_FIBRE_DEGREE else self.dx)
+        return form
 
     def tension_fields(self) -> dict:
         """Fibre tensions per unit reference width (N/mm, UFL): the multipliers of exact

@@ -29,13 +29,15 @@ class FabricProblem(Owner):
     derivative, weakly), :meth:`add_traction` and :meth:`add_point_force`; then
     :meth:`solver` builds the SNES solver. Prescribed values are fem.Constants, so they can be
     changed during load stepping without recompiling. :meth:`close` destroys the solver's PETSc
-    objects (discretise/resources.py).
+    objects (discretise/resources.py). ``fibre_treatment`` (``full`` or ``reduced``,
+    :data:`~fabricsurf.discretise.energy.FIBRE_TREATMENTS`) is how the fibre terms are
+    integrated.
     """
 
     def __init__(self, specimen, model: list[Term], d: int = 2, degree: int = 2,
                  fibre_angles: tuple[float, float] = (45.0, -45.0),
                  penalty: float = DEFAULT_PENALTY, snes_options: dict | None = None,
-                 prefix: str | None = None) -> None:
+                 prefix: str | None = None, fibre_treatment: str = "full") -> None:
         if d not in (2, 3):
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
@@ -46,6 +48,7 @@ class FabricProblem(Owner):
         self.u = fem.Function(self.V, name="u")
         self.L, self.M = fibre_directions(*fibre_angles, msh=self.msh)
         self.penalty, self.snes_options, self.prefix = penalty, snes_options or {}, prefix
+        self.fibre_treatment = fibre_treatment
         self.bcs: list = []
         self.normal_derivative: dict = {}
         self.tractions: dict = {}
@@ -170,7 +173,8 @@ class FabricProblem(Owner):
         """The SNES solver of Π_h (built once)."""
         if self._solver is None:
             self.energy = EnergyForm(self.model, self.u, self.L, self.M, self.specimen.facet_tags,
-                                     self.normal_derivative, self.tractions, self.penalty)
+                                     self.normal_derivative, self.tractions, self.penalty,
+                                     fibre_treatment=self.fibre_treatment)
             v, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
             if self.body_forces:
                 dx = ufl.Measure("dx", domain=self.msh,

@@ -20,7 +20,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, has_second_gradient
+from fabricsurf.discretise.energy import has_second_gradient
 from fabricsurf.discretise.evaluation import (
     eval_points,
     interpolate_expression,
@@ -32,9 +32,15 @@ from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
+from fabricsurf.experiments.discretisation import (
+    announce,
+    check_bias_angles,
+    choose_fibre_treatment,
+)
 from fabricsurf.experiments.followers import step_followers
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
-from geometry.aligned import bias_mesh
+from geometry.aligned import canonical_angles
+from geometry.fibre_mesh import bias_mesh
 from geometry.specimen import Specimen, bias_points, check_positive, shift_x
 
 CLAMPS = ("gradient", "position")
@@ -49,7 +55,7 @@ def default_model() -> list[Term]:
 def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
                   comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto") -> Specimen:
     """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
-    :data:`geometry.aligned.MESH_KINDS`), with the points A and B of
+    :data:`geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
     :func:`~geometry.specimen.bias_points`."""
     check_positive(length=length, width=width, h=h)
     if width > length:
@@ -70,6 +76,7 @@ class BiasResult:
     newton: list = field(default_factory=list)
     tension_max: list = field(default_factory=list)
     seconds: float = 0.0
+    discretisation: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -79,8 +86,9 @@ class BiasExtension:
     """Set-up and load stepping of the continuum bias-extension test.
 
     The mesh is :func:`specimen_mesh` of size ``h`` and kind ``mesh``: by default fibre-aligned
-    when the fibres are at ±θ to the load (no intra-ply shear locking, so nearly inextensible
-    yarns need no fine mesh; docs/theory.md), else gmsh's unstructured one. A ``specimen``
+    when the fibres are at ±θ to the load (corner to corner where a lattice fits, else a
+    lattice from each grip; no intra-ply shear locking, so nearly inextensible yarns need no
+    fine mesh; docs/theory.md), else gmsh's unstructured one. A ``specimen``
     (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) replaces it; its edges must
     carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h``, ``mesh`` are then
     unused (A and B follow ``specimen.length`` and ``specimen.width``).
@@ -89,20 +97,35 @@ class BiasExtension:
     model's terms need (:func:`~fabricsurf.experiments.followers.step_followers`, e.g. the
     interior penalty of the bi-pantographic energy following the stretch); replace the list to
     change them (an empty list freezes those parameters).
+
+    ``fibre_treatment`` (:data:`~fabricsurf.experiments.discretisation.TREATMENTS`): ``auto``
+    integrates the fibre terms fully (``reduced``, one point per cell, is measured too soft);
+    the mesh kind and size actually used, the treatment, the fibre angles (as lines, mod 180°)
+    and whether the answer may be locked are printed before computing (unless ``quiet``, and
+    always a warning) and recorded in :attr:`discretisation` and the result.
     """
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
                  width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
                  fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
                  comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None,
-                 mesh: str = "auto") -> None:
+                 mesh: str = "auto", fibre_treatment: str = "auto", quiet: bool = False) -> None:
         if clamp not in CLAMPS:
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
         self.model = model if model is not None else default_model()
+        given = tuple(float(a) for a in fibre_angles)
+        fibre_angles = canonical_angles(given)
+        if specimen is None:
+            check_bias_angles(fibre_angles, length, width, h)
         self.specimen = (specimen if specimen is not None
                          else specimen_mesh(length, width, h, fibre_angles, comm, mesh))
+        self.discretisation = choose_fibre_treatment(
+            fibre_treatment, self.specimen, self.model, h, given, fibre_angles)
+        if not quiet or self.discretisation["may_lock"]:
+            announce(comm, self.discretisation)
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
-                          snes_options=snes_options, prefix="fabricsurf_bias_")
+                          snes_options=snes_options, prefix="fabricsurf_bias_",
+                          fibre_treatment=self.discretisation["fibre_treatment"])
         p.fix("clamp", (0.0, 0.0))
         self.grip_ux, _ = p.fix("grip", (0.0, 0.0))
         if clamp == "gradient" and has_second_gradient(self.model):
@@ -114,7 +137,7 @@ class BiasExtension:
         kin = p.energy.kin
         self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
         self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
-        self._tensions = [quadrature_expression(e, p.msh, CELL_QUADRATURE_DEGREE)
+        self._tensions = [quadrature_expression(e, p.msh, p.energy.tension_degree)
                           for e in p.energy.tension_fields().values()]
         pts = {**bias_points(self.specimen.length, self.specimen.width), **self.specimen.points}
         self.points = np.array([pts["A"], pts["B"]])
@@ -153,11 +176,10 @@ class BiasExtension:
         converged steps as its ``partial``.
         """
         comm = self.problem.msh.comm
-        res, t0 = BiasResult(), time.perf_counter()
+        res, t0 = BiasResult(discretisation=dict(self.discretisation)), time.perf_counter()
         energy = self.problem.energy
         writer = FieldWriter(Path(out) / "bias.xdmf", self.problem.u, energy.kin,
-                             CELL_QUADRATURE_DEGREE if energy.multipliers else 2,
-                             energy.tension_fields()) if out else None
+                             _writer_degree(energy), energy.tension_fields()) if out else None
         log = StepLog(comm, Path(out), "bias_steps") if out else None
 
         def converged(k: int, ubar: float, its: int) -> None:
@@ -194,6 +216,15 @@ class BiasExtension:
             if out:
                 write_json(comm, Path(out) / "bias_curve.json", res.as_dict())
         return res
+
+
+def _writer_degree(energy) -> int:
+    """The quadrature degree of the XDMF projections: that of the fibre tensions when they
+    are not the full cell degree's (reduced fibre terms) or live in a quadrature space
+    (multipliers), else 2."""
+    if energy.reduced or energy.multipliers:
+        return energy.tension_degree
+    return 2
 
 
 def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:
@@ -233,13 +264,15 @@ class BiasExtensionTest(ExperimentSetup):
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         super().__init__(setup, model, h, comm)
         depth = float(setup.options.get("grip_depth", 0.0))
-        specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h,
-                                 tuple(setup.fibre_angles_deg), comm)
+        angles = canonical_angles(tuple(setup.fibre_angles_deg))
+        check_bias_angles(angles, setup.length - 2 * depth, setup.width, h)
+        specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h, angles, comm)
         if depth:
             shift_x(specimen, depth)
         self.bias = BiasExtension(model, setup.length, setup.width, h,
                                   setup.options.get("clamp", "gradient"),
                                   tuple(setup.fibre_angles_deg), comm=comm, specimen=specimen)
+        self.discretisation = self.bias.discretisation
         self.problem, self.solver = self.bias.problem, self.bias.solver
         self.followers = self.bias.followers
         self._w = fem.Function(self.problem.V)
@@ -263,6 +296,13 @@ class BiasExtensionTest(ExperimentSetup):
             raise DataError(f"{where}: [specimen] width {setup.width:g} mm exceeds length "
                             f"{setup.length:g} mm; the bias specimen has its long side along "
                             "the load (x)")
+        try:
+            check_bias_angles(canonical_angles(tuple(setup.fibre_angles_deg)),
+                              setup.length - 2 * setup.options.get("grip_depth", 0.0),
+                              setup.width)
+        except ValueError as e:
+            raise DataError(f"{where}: [specimen] fibre_angles_deg = "
+                            f"{list(setup.fibre_angles_deg)}: {e}") from None
 
     def set_load(self, t: float) -> None:
         self.bias.set_load(t)

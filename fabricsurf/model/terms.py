@@ -35,6 +35,7 @@ class Term:
     units: ClassVar[dict[str, str]] = {}
     options: ClassVar[tuple[str, ...]] = ()  # fields that are switches, not moduli
     monotonic_only: ClassVar[bool] = False  # an elastic stand-in for a dissipative effect
+    fibre: ClassVar[bool] = False  # stretches the fibres (integrated apart when "reduced")
     _const: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _bound: list = field(default_factory=list, init=False, repr=False, compare=False)
 
@@ -122,6 +123,7 @@ class FibreStretch(Term):
     k_m: float = 1.0
     inextensible: bool = False
     name: ClassVar[str] = "fibre_stretch"
+    fibre: ClassVar[bool] = True
     units: ClassVar[dict[str, str]] = {"k_l": "N/mm", "k_m": "N/mm"}
     options: ClassVar[tuple[str, ...]] = ("inextensible",)
 

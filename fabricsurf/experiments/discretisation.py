@@ -1,0 +1,138 @@
+"""How the bias test discretises nearly inextensible fibres, and what it tells the user
+(docs/theory.md, "Locking").
+
+A mesh whose edges do not follow the fibres locks (the grip force grows with the fibre
+stiffness K); the bias plug-in therefore meshes along the fibres whenever they are at ±θ to the
+load (geometry/fibre_mesh.py). Whatever is chosen is recorded (mesh kind, the size actually
+used, the fibre treatment, the fibre angles as given and as used) and, when the mesh is not
+the corner-to-corner lattice, the fibre pair was respelled or the set-up may lock, printed on
+rank 0 before anything is computed.
+"""
+
+from __future__ import annotations
+
+import math
+
+from mpi4py import MPI
+
+from fabricsurf.discretise.output import rank0_print
+from fabricsurf.model.terms import Term
+
+TREATMENTS = ("auto", "full", "reduced")
+"""``auto`` (= ``full``) and the two of :data:`fabricsurf.discretise.energy.FIBRE_TREATMENTS`."""
+
+LOCKING_RATIO = 1e2
+"""K/k_s from which fully integrated fibre terms on a mesh not aligned with the fibres give a
+grip force visibly above the locking-free one (benchmarks/locking.py): a warning is printed."""
+
+MIN_SEPARATION_DEG = 5.0
+"""Least angle between the two fibre families as lines (as the measurement contract's)."""
+
+
+def stiffness_ratio(model: list[Term]) -> float:
+    """K/k_s: the largest fibre modulus over the sum of the other first-gradient moduli (inf
+    for inextensible fibres or no other membrane term; 0 without fibre terms)."""
+    fibre = [t for t in model if t.fibre]
+    if not fibre:
+        return 0.0
+    if any(getattr(t, "inextensible", False) for t in fibre):
+        return math.inf
+    K = max(max(t.values().values(), default=0.0) for t in fibre)
+    rest = sum(sum(t.values().values()) for t in model if t.order == 1 and not t.fibre)
+    return K / rest if rest > 0 else math.inf
+
+
+LOCKING_FREE_MESHES = ("aligned", "lattice_pair", "zones")
+"""Mesh kinds on which fully integrated fibre terms do not lock in the bias test: the
+pin-jointed-net solution lies in the discrete space (geometry/aligned.py,
+geometry/lattice_pair.py, geometry/zone_mesh.py)."""
+
+
+def may_lock(kind: str, treatment: str, ratio: float) -> bool:
+    """Whether the answer may be locked (or, reduced, too soft): stiff fibres (K/k_s ≥
+    :data:`LOCKING_RATIO`) on a mesh not in :data:`LOCKING_FREE_MESHES` or with reduced fibre
+    terms; exact inextensibility anywhere but on the corner-to-corner lattice (on the lattice
+    pair the band's cells hold the multiplier iteration: it does not converge)."""
+    if math.isinf(ratio):
+        return kind != "aligned" or treatment == "reduced"
+    return ratio >= LOCKING_RATIO and (treatment == "reduced" or kind not in LOCKING_FREE_MESHES)
+
+
+def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float,
+                           given: tuple[float, float], used: tuple[float, float]) -> dict:
+    """The record of the discretisation (mesh kind, h requested and used, fibre treatment,
+    fibre angles given and used, K/k_s, whether the answer may be locked) and its ``notice``
+    ("" when there is nothing to say: a corner-to-corner aligned mesh, fibres as given).
+    ``auto`` is ``full``: the reduced treatment is measured too soft (docs/theory.md)."""
+    if requested not in TREATMENTS:
+        raise ValueError(f"fibre_treatment = {requested!r} must be one of {', '.join(TREATMENTS)}")
+    kind = specimen.kind
+    treatment = "full" if requested == "auto" else requested
+    ratio = stiffness_ratio(model)
+    record = {"mesh_kind": kind, "h_requested": float(h), "h_used": float(specimen.h),
+              "fibre_treatment": treatment, "fibre_angles_given": list(given),
+              "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
+              "may_lock": may_lock(kind, treatment, ratio)}
+    record["notice"] = _notice(record, getattr(specimen, "note", ""))
+    return record
+
+
+def _notice(r: dict, why: str) -> str:
+    lines = []
+    if [float(a) for a in r["fibre_angles_given"]] != r["fibre_angles_used"]:
+        lines.append(f"fibre angles {r['fibre_angles_given']} deg are the fibre lines "
+                     f"{r['fibre_angles_used']} deg (directions are defined mod 180 deg); "
+                     "computed with the latter")
+    head = (f"mesh: {r['mesh_kind']}" + (f" ({why})" if why else "")
+            + f", h = {r['h_used']:.4g} mm (asked {r['h_requested']:g}), "
+            f"K/k_s = {r['fibre_stiffness_ratio']:.3g}, fibre terms {r['fibre_treatment']}")
+    if r["may_lock"]:
+        lines.append("WARNING " + head + ": the answer may be LOCKED, too stiff by a factor "
+                     "that grows with K/k_s (intra-ply shear locking, docs/theory.md 'Locking'"
+                     + ("; the reduced treatment is too soft instead" if
+                        r["fibre_treatment"] == "reduced" else "")
+                     + "). Remedy: " + ("elastic fibres with K/k_s = 1e9 (within 1e-4 of "
+                                        "the limit on fibre-aligned meshes), or "
+                                        if math.isinf(r["fibre_stiffness_ratio"]) else "")
+                     + "fibres at +-theta to the load on a specimen longer than "
+                     "2 W / tan(theta), which get a fibre-aligned mesh, or check the force "
+                     "against a run at h/2")
+    elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full":
+        lines.append(head)
+    return "\n".join(lines)
+
+
+def announce(comm: MPI.Comm, record: dict) -> None:
+    """Print the record's notice on rank 0 (flushed), if it has one."""
+    if record["notice"]:
+        rank0_print(comm, "\n".join("note: " + line for line in record["notice"].split("\n")))
+
+
+def check_bias_angles(angles: tuple[float, float], length: float, width: float,
+                      h: float | None = None) -> None:
+    """Refuse (ValueError naming the value) fibre pairs the bias test cannot have, before
+    anything is computed: families closer than :data:`MIN_SEPARATION_DEG`; a family so close
+    to the load axis (0°) that its fibres run from clamp to grip (φ ≤ atan(W/L): the test is
+    then a tensile test of the yarns); a family so close to 90° that the unsheared zone at
+    each grip, (W/2)·cot φ long, is shorter than the mesh size ``h``."""
+    a, b = angles
+    apart = abs(a - b) % 180.0
+    apart = min(apart, 180.0 - apart)
+    if apart < MIN_SEPARATION_DEG:
+        raise ValueError(f"bias test: fibre angles {list(angles)} deg are {apart:.3g} deg apart "
+                         f"as lines; the families must cross at {MIN_SEPARATION_DEG:g} deg or "
+                         "more")
+    steepest = math.degrees(math.atan(width / length))
+    for phi in (abs(a), abs(b)):
+        if phi <= steepest:
+            raise ValueError(
+                f"bias test: fibres at {phi:g} deg to the load run from clamp to grip on a "
+                f"{length:g} x {width:g} mm specimen (they must make more than "
+                f"atan(W/L) = {steepest:.3g} deg with it): the test degenerates into a tensile "
+                "test of the yarns; cut the specimen on the bias (e.g. +-45 deg) or longer")
+        if h is not None and 0.5 * width / math.tan(math.radians(phi)) < h:
+            raise ValueError(
+                f"bias test: fibres at {phi:g} deg to the load leave unsheared zones "
+                f"{0.5 * width / math.tan(math.radians(phi)):.3g} mm long at the grips, "
+                f"shorter than the mesh size h = {h:g} mm, which cannot resolve them; use "
+                f"h <= {0.5 * width / math.tan(math.radians(phi)):.3g} mm")

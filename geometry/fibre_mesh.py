@@ -1,0 +1,64 @@
+"""The mesh of a bias specimen: along the fibres where a lattice fits, else with the fibre lines
+through the corners as edges, and which one was built recorded (docs/theory.md, "Locking")."""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from geometry.aligned import (
+    canonical_angles,
+    fibre_aligned_rectangle,
+    lattice_divisions,
+    symmetric_angle,
+)
+from geometry.lattice_pair import pair_divisions, paired_lattice_rectangle
+from geometry.specimen import Specimen, rectangle
+from geometry.zone_mesh import zone_rectangle
+
+MESH_KINDS = ("auto", "aligned", "lattice_pair", "zones", "unstructured")
+"""``aligned``: :func:`~geometry.aligned.fibre_aligned_rectangle` (one lattice corner to
+corner); ``lattice_pair``: :func:`~geometry.lattice_pair.paired_lattice_rectangle` (a lattice
+from each grip and a band between); ``zones``: :func:`~geometry.zone_mesh.zone_rectangle`
+(gmsh with the corner fibre lines as edges); ``unstructured``: gmsh's frontal Delaunay;
+``auto``: aligned where a corner-to-corner lattice fits, else the lattice pair where its band
+lies in the centre zone (fibres at ±θ, a specimen longer than about 2W/tan θ), else zones."""
+
+
+def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
+              comm: MPI.Comm = MPI.COMM_WORLD, kind: str = "auto",
+              extra_points: dict | None = None) -> Specimen:
+    """The mesh of a rectangular specimen of the given ``kind`` (:data:`MESH_KINDS`); the
+    specimen's ``kind`` says which was built and its ``note`` how."""
+    if kind not in MESH_KINDS:
+        raise ValueError(f"geometry: mesh = {kind!r} must be one of {', '.join(MESH_KINDS)}")
+    theta = symmetric_angle(fibre_angles)
+    if kind in ("aligned", "lattice_pair") and theta is None:
+        raise ValueError(f"geometry: a fibre-aligned mesh needs fibres at ±θ to x, not at "
+                         f"{tuple(fibre_angles)}°")
+    if kind == "unstructured":
+        specimen = rectangle(length, width, h, comm, extra_points=extra_points)
+        specimen.note = "mesh = 'unstructured' requested"
+        return specimen
+    if kind == "aligned" or (kind == "auto" and theta is not None and _fits(
+            lattice_divisions, length, width, h, theta)):
+        return fibre_aligned_rectangle(length, width, h, theta, comm, extra_points)
+    if kind == "lattice_pair" or (kind == "auto" and theta is not None and _centre_band(
+            length, width, h, theta)):
+        return paired_lattice_rectangle(length, width, h, theta, comm, extra_points)
+    return zone_rectangle(length, width, h, canonical_angles(fibre_angles), comm, extra_points)
+
+
+def _fits(divisions, *args) -> bool:
+    try:
+        divisions(*args)
+    except ValueError:
+        return False
+    return True
+
+
+def _centre_band(length: float, width: float, h: float, theta: float) -> bool:
+    """Whether the lattice pair exists and its band lies in the centre zone (P ≥ Q)."""
+    if not _fits(pair_divisions, length, width, h, theta):
+        return False
+    P, Q, _ = pair_divisions(length, width, h, theta)
+    return P >= Q

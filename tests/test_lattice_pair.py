@@ -1,0 +1,198 @@
+"""No locking on rectangles without a corner-to-corner fibre lattice, and never a silent
+fallback (docs/theory.md, "Locking"; geometry/lattice_pair.py, experiments/discretisation.py).
+
+The bias test (fibres ±45°, position clamps, fibre_stretch K + shear k_s = 0.022 N/mm) on
+specimens whose sides admit no corner-to-corner lattice at h = W/10: before, the plug-in fell
+back to gmsh's mesh without a word and the force was 3.6, 224 and 2·10⁵ times the three-zone
+force at K = 10⁴, 10⁶, 10⁹ N/mm (250 × 115 mm, issue 37). The whole table over twelve sizes is
+benchmarks/locking.py; here one size per mesh kind, the cheap runs, on 1 and 2 ranks.
+"""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fabricsurf.experiments.bias_extension import BiasExtension, specimen_mesh
+from fabricsurf.experiments.discretisation import check_bias_angles
+from fabricsurf.experiments.three_zone import kinematic_force
+from fabricsurf.model.terms import FibreStretch, Shear
+from geometry.aligned import canonical_angles, lattice_divisions, symmetric_angle
+from geometry.lattice_pair import pair_divisions, pair_triangles
+
+K_S = 0.022
+
+
+def bias(length, width, ratio, **kw):
+    return BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S), Shear(k_s=K_S)],
+                         length=length, width=width, h=width / 10, clamp="position", **kw)
+
+
+def force_ratio(b, steps=3) -> float:
+    L, W = b.specimen.length, b.specimen.width
+    res = b.run(0.13 * L, steps, verbose=False)
+    return res.force[-1] / float(kinematic_force(np.array(res.ubar[-1:]), L, W,
+                                                 {"shear": {"k_s": K_S}})[0])
+
+
+@pytest.mark.parametrize("length, width", [(250.0, 115.0), (320.0, 100.0)])
+def test_lattice_pair_tiles_the_rectangle_with_fibre_edges(length, width):
+    """No corner-to-corner lattice fits at W/10, and the pair of lattices tiles the rectangle
+    exactly (areas sum to L·W, no sliver); all edges outside the band are along ±45°, x or y."""
+    with pytest.raises(ValueError):
+        lattice_divisions(length, width, width / 10, 45.0)
+    P, Q, B = pair_divisions(length, width, width / 10, 45.0)
+    assert P >= Q  # the band lies in the centre zone
+    x, cells = pair_triangles(P, Q, B, width / Q, width / Q, length)
+    e = x[cells[:, [1, 2, 0]]] - x[cells]
+    area = 0.5 * np.abs(np.cross(e[:, 0], -e[:, 2]))
+    assert math.isclose(area.sum(), length * width, rel_tol=1e-12)
+    assert area.min() > 0.25 * (width / Q) ** 2
+    xc = x[cells][:, :, 0]
+    outside = (np.all(xc <= P * width / Q + 1e-9, axis=1)
+               | np.all(xc >= length - P * width / Q - 1e-9, axis=1))
+    assert np.count_nonzero(~outside) == 2 * B * Q // 2  # the band: B columns of Q/2 cells
+    ang = np.degrees(np.arctan2(e[outside][..., 1], e[outside][..., 0])) % 90.0
+    assert np.all(np.isclose(ang, 0.0, atol=1e-9) | np.isclose(ang, 45.0, atol=1e-9)
+                  | np.isclose(ang, 90.0, atol=1e-9))
+
+
+def test_bias_force_without_locking_off_the_corner_lattice():
+    """The force rises with K/k_s from 10² to 10⁹, never exceeds the three-zone force, and is
+    within 2 % of it for nearly inextensible yarns (K/k_s ≥ 10⁶; the table over twelve sizes
+    in benchmarks/locking.py). Today's fallback gave 6.7 and 5337 times it on 250 × 115 at
+    K/k_s = 10⁶ and 10⁹."""
+    length, width, ratios = 250.0, 115.0, (1e2, 1e6, 1e9)
+    q = [force_ratio(bias(length, width, r, quiet=True)) for r in ratios]
+    print(f"{length} x {width}: K/k_s {ratios}: force / three-zone {q}")
+    assert all(a < b + 1e-4 for a, b in itertools.pairwise(q))
+    assert q[-1] < 1.0 + 1e-4
+    assert all(abs(v - 1.0) < 0.02 for r, v in zip(ratios, q) if r >= 1e6)
+    assert q[0] < q[1] - 0.05  # soft fibres do stretch: the test can tell K apart
+
+
+def test_fibre_pair_spellings_are_one_pair(capsys):
+    """[45, 135] and [405, −45] are the fibres of [45, −45] (directions mod 180°): the same
+    aligned mesh, the same force and shear angles (before: the gmsh mesh and 2.45× the force),
+    and the run says it respelled them and records both spellings."""
+    assert canonical_angles((45.0, 135.0)) == canonical_angles((405.0, -45.0)) == (45.0, -45.0)
+    assert symmetric_angle((45.0, 135.0)) == symmetric_angle((-135.0, 135.0)) == 45.0
+    assert specimen_mesh(230.0, 115.0, 11.5, (405.0, -45.0)).kind == "aligned"
+    res = {}
+    for angles in [(45.0, -45.0), (45.0, 135.0)]:
+        b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+                          length=230.0, width=115.0, h=11.5, clamp="position",
+                          fibre_angles=angles)
+        assert b.discretisation["mesh_kind"] == "aligned"
+        r = b.run(10.0, 1, verbose=False)
+        res[angles] = (r.force[-1], r.angle_A_deg[-1], r.discretisation)
+    out = capsys.readouterr().out
+    ref = res[(45.0, -45.0)]
+    for angles in [(45.0, 135.0)]:
+        assert np.allclose(res[angles][:2], ref[:2], rtol=1e-9, atol=1e-12)
+        assert res[angles][2]["fibre_angles_given"] == list(angles)
+        assert res[angles][2]["fibre_angles_used"] == [45.0, -45.0]
+        if MPI.COMM_WORLD.rank == 0:
+            assert f"fibre angles {list(angles)} deg are the fibre lines [45.0, -45.0]" in out
+
+
+def test_fallback_and_lattice_pair_are_announced_and_recorded(capsys):
+    """Before anything is computed the run names the mesh kind, the h used, K/k_s and the
+    fibre treatment; on a mesh that may lock (gmsh's, stiff fibres) it says WARNING, LOCKED and
+    the remedy even when quiet; the result records the same."""
+    b = bias(250.0, 115.0, 1e6, mesh="unstructured", quiet=True)
+    d = b.discretisation
+    assert d["mesh_kind"] == "unstructured" and d["may_lock"] and d["h_used"] == 11.5
+    assert d["fibre_treatment"] == "full" and d["fibre_stiffness_ratio"] == pytest.approx(1e6)
+    pair = bias(250.0, 115.0, 1e6)
+    assert pair.discretisation["mesh_kind"] == "lattice_pair"
+    assert not pair.discretisation["may_lock"]
+    assert math.isclose(pair.discretisation["h_used"], math.hypot(115 / 14, 115 / 14))
+    soft = bias(250.0, 115.0, 10.0, mesh="unstructured", quiet=True)
+    assert not soft.discretisation["may_lock"]
+    out = capsys.readouterr().out
+    if MPI.COMM_WORLD.rank == 0:
+        assert "WARNING mesh: unstructured (mesh = 'unstructured' requested)" in out
+        assert "K/k_s = 1e+06" in out and "LOCKED" in out and "Remedy" in out
+        assert "mesh: lattice_pair (two fibre lattices of 14 × 14 steps" in out
+
+
+@pytest.mark.parametrize("angles, match", [
+    ((0.0, 90.0), "run from clamp to grip"),
+    ((20.0, -20.0), "run from clamp to grip"),
+    ((80.0, -80.0), "shorter than the mesh size"),
+    ((45.0, 47.0), "2 deg apart"),
+    ((45.0, -135.0), "0 deg apart"),
+])
+def test_degenerate_fibre_pairs_are_refused_before_computing(angles, match):
+    """Fibres near 0° (some run from clamp to grip: a tensile test), near 90° (grip zones
+    shorter than h), or nearly parallel as lines: a clear error naming the value, before
+    any mesh is built."""
+    with pytest.raises(ValueError, match=match):
+        check_bias_angles(canonical_angles(angles), 230.0, 115.0, 11.5)
+    with pytest.raises(ValueError, match=match):
+        BiasExtension(length=230.0, width=115.0, h=11.5, fibre_angles=angles)
+
+
+def _tangent_zero_eigenvalues(b: BiasExtension, with_bcs: bool) -> int:
+    """Zero eigenvalues (relative 1e-10) of the tangent at the reference state, serial."""
+    import ufl
+    from dolfinx import fem
+    from dolfinx.fem import petsc as fem_petsc
+
+    p = b.problem
+    v, du = ufl.TestFunction(p.V), ufl.TrialFunction(p.V)
+    A = fem_petsc.assemble_matrix(fem.form(p.energy.jacobian(du, v)),
+                                  bcs=p.bcs if with_bcs else [])
+    A.assemble()
+    dense = A.convert("dense").getDenseArray().copy()
+    A.destroy()
+    eig = np.abs(np.linalg.eigvalsh(0.5 * (dense + dense.T)))
+    return int(np.sum(eig < 1e-10 * eig.max()))
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="dense eigenvalues of the whole tangent")
+@pytest.mark.parametrize("mesh, length, width, h", [("lattice_pair", 60.0, 20.0, 5.0),
+                                                    ("lattice_pair", 47.0, 17.0, 4.0),
+                                                    ("zones", 40.0, 25.0, 5.0)])
+def test_tangent_null_space_on_the_new_meshes_is_the_continuum_one(mesh, length, width, h):
+    """No spurious zero-energy modes on the lattice pair and the corner-line mesh: at the
+    reference state the tangent (K/k_s = 10⁶) has exactly the 3 rigid motions of the plane
+    without clamps, none with."""
+    b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+                      length=length, width=width, h=h, clamp="position", mesh=mesh,
+                      comm=MPI.COMM_SELF, quiet=True)
+    assert b.discretisation["mesh_kind"] == mesh
+    assert _tangent_zero_eigenvalues(b, with_bcs=False) == 3
+    assert _tangent_zero_eigenvalues(b, with_bcs=True) == 0
+
+
+def test_degenerate_fibre_pair_in_the_data_is_refused_by_key():
+    """Through the measurement contract: a DataError naming the file, the key and the value."""
+    from fabricsurf.errors import DataError
+    from fabricsurf.experiments.base import Setup
+    from fabricsurf.experiments.bias_extension import BiasExtensionTest
+
+    setup = Setup("bias_extension", 230.0, 115.0, (0.0, 90.0), {"clamp": "position"})
+    with pytest.raises(DataError, match=r"experiment.toml: \[specimen\] fibre_angles_deg = "
+                       r"\[0.0, 90.0\]: bias test: fibres at 0 deg to the load run from clamp"):
+        BiasExtensionTest.check_specimen(setup, "experiment.toml")
+    BiasExtensionTest.check_specimen(Setup("bias_extension", 230.0, 115.0, (45.0, 135.0),
+                                           {"clamp": "position"}), "experiment.toml")
+
+
+def test_short_specimen_gets_the_corner_lines_and_does_not_lock():
+    """187 × 119 mm at h = 17 (no corner-to-corner lattice; too short for the lattice pair's
+    band to lie in the centre zone): the mesh has the fibre lines through the corners as edges
+    (kind "zones") and at K/k_s = 10⁶ its force equals that of the aligned mesh at h = 15 within
+    0.1 % (the old gmsh fallback: 127 times it, benchmarks/locking.py --zones)."""
+    def force(h):
+        b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+                          length=187.0, width=119.0, h=h, clamp="position", quiet=True)
+        return b.discretisation["mesh_kind"], b.run(20.0, 2, verbose=False).force[-1]
+
+    (kind_a, f_a), (kind_z, f_z) = force(15.0), force(17.0)
+    assert (kind_a, kind_z) == ("aligned", "zones")
+    assert abs(f_z / f_a - 1.0) < 1e-3, (f_z, f_a)
