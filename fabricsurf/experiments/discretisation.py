@@ -11,11 +11,12 @@ rank 0 before anything is computed.
 
 from __future__ import annotations
 
+import logging
 import math
 
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
+from fabricsurf.log import PROGRESS, rank0_print
 from fabricsurf.model.terms import Term
 
 TREATMENTS = ("auto", "full", "reduced")
@@ -103,9 +104,11 @@ def _notice(r: dict, why: str) -> str:
 
 
 def announce(comm: MPI.Comm, record: dict) -> None:
-    """Print the record's notice on rank 0 (flushed), if it has one."""
+    """Log the record's notice on rank 0, if it has one: a warning (shown even with --quiet)
+    when the answer may be locked, else progress."""
     if record["notice"]:
-        rank0_print(comm, "\n".join("note: " + line for line in record["notice"].split("\n")))
+        rank0_print(comm, "\n".join("note: " + line for line in record["notice"].split("\n")),
+                    level=logging.WARNING if record["may_lock"] else PROGRESS)
 
 
 def check_bias_angles(angles: tuple[float, float], length: float, width: float,
