@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.intervals import MESH_FACTOR, Z95
 
@@ -102,7 +103,7 @@ def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
               C: np.ndarray, t: float, force: np.ndarray, half: np.ndarray) -> float:
     """max_k |F_k(p + Δp) − F_k(p) − g_k·Δp| / half-width_k, Δp the covariance's leading
     eigenvector at its 95 % extent (kept ≥ 0); the moduli are restored."""
-    lam, V = np.linalg.eigh(C)
+    lam, V = la.eigh(C, "band: the covariance")
     dp = t * np.sqrt(max(lam[-1], 0.0)) * V[:, -1]
     moved = vals.copy()
     moved[idx] = np.maximum(vals[idx] + dp, 0.0)

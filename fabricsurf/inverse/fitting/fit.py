@@ -32,6 +32,7 @@ import numpy as np
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import LoadStepError
 from fabricsurf.inverse.fitting import intervals, systematic
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
@@ -154,12 +155,12 @@ directions: the data do not determine that combination of log-moduli."""
 def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
     """The null directions of the scaled Jacobian Jt = dr/d(log p) (a rank-deficient Fisher
     matrix JtᵀJt), each as its combination of log-moduli, e.g. "0.71 log a.k - 0.71 log b.k"
-    (the ratio a.k/b.k is not determined)."""
+    (the ratio a.k/b.k is not determined). From the SVD of Jt's p × p R factor
+    (:func:`~.linalg.right_singular`): O(N·p) memory for N residuals, never N × N."""
     P = Jt.shape[1]
     if P == 0:
         return []
-    _, sv, Vt = np.linalg.svd(Jt, full_matrices=True)
-    sv = np.concatenate([sv, np.zeros(P - len(sv))])
+    sv, Vt = la.right_singular(Jt, "fit: identifiability (SVD of the scaled Jacobian)")
     top = sv[0] if sv[0] > 0 else 1.0
     out = []
     for sval, v in zip(sv, Vt):
@@ -170,13 +171,6 @@ def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
             out.append(" ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
                                 for c, n in terms).lstrip("+ "))
     return out
-
-
-def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
-    """(JᵀJ)⁻¹, scaled by the reduced χ² when the noise level is not known."""
-    n, P = Jt.shape
-    C = np.linalg.pinv(Jt.T @ Jt)
-    return C if noise_known else C * chi2 / max(n - P, 1)
 
 
 LAMBDA_START = 1e-3
@@ -252,13 +246,14 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         Ja = Jt[:, act]
         JTJ = Ja.T @ Ja
         D = np.diag(np.diag(JTJ)) + DIAG_FLOOR * np.trace(JTJ) * np.eye(len(JTJ))
-        gn = np.linalg.lstsq(Ja, -r, rcond=None)[0]
+        gn = la.lstsq(Ja, -r, "fit: the Gauss-Newton step")
         if float(r @ r - (r + Ja @ gn) @ (r + Ja @ gn)) < tol * chi2:
             break  # not even the Gauss-Newton step promises a relative decrease of tol
         accepted = False
         while lam < LAMBDA_MAX:
             step = np.zeros(len(free))
-            step[act] = np.linalg.solve(JTJ + lam * D, -g[act])
+            step[act] = la.finite(np.linalg.solve(JTJ + lam * D, -g[act]),
+                                  "fit: the damped step")
             if space == "log":
                 step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
             trial = vals.copy()
