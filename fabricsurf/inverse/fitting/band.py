@@ -35,7 +35,7 @@ def _half_widths(g: np.ndarray, C: np.ndarray, tau: np.ndarray, shift: np.ndarra
                  t: float) -> tuple[np.ndarray, ...]:
     """(statistical, model-form, mesh, combined) 95 % half-widths of quantities with
     sensitivities ``g`` (..., P) (module docstring)."""
-    stat = t * np.sqrt(np.maximum(np.einsum("...i,ij,...j->...", g, C, g), 0.0))
+    stat = t * np.sqrt(np.maximum(((g @ C) * g).sum(axis=-1), 0.0))
     model = Z95 * np.sqrt((g**2 * tau**2).sum(axis=-1))
     mesh = MESH_FACTOR * np.abs(g @ shift)
     return stat, model, mesh, np.sqrt(stat**2 + model**2) + mesh
@@ -48,10 +48,11 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
 
     Returns {"load", "force", "lower", "upper", "half_width", "parts": {"statistical",
     "model_form", "mesh"}, "nonlinearity", "reliable", "field_half_width"}: the force entries
-    are None for a test without a measured force; "field_half_width" (rows × components, mm,
-    NaN outside the mesh) is None without a field; "nonlinearity" (the largest departure of
-    the force from its linear change, as a share of the half-width) and "reliable" are None
-    without ``check`` or a force. The moduli of ``fm`` are set to the file's and left there."""
+    are None for a test without a measured force; "field_half_width" (an array rows ×
+    components, mm, NaN outside the mesh) is None without a field; "nonlinearity" (the
+    largest departure of the force from its linear change, as a share of the half-width) and
+    "reliable" are None without ``check`` or a force. The moduli of ``fm`` are set to the
+    file's and left there."""
     saved = _saved(params_file)
     cov = (saved.get("uncertainty") or {}).get("covariance")
     if cov is None:
@@ -71,7 +72,7 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
            "half_width": None, "parts": None, "nonlinearity": None, "reliable": None,
            "field_half_width": None}
     if fm.exp.has_field and pred.du is not None:
-        out["field_half_width"] = _half_widths(pred.du, C, tau, shift, t)[3].tolist()
+        out["field_half_width"] = _half_widths(pred.du, C, tau, shift, t)[3]
     if not fm.exp.has_force:
         return out
     stat, model, mesh, half = _half_widths(pred.dforce, C, tau, shift, t)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import re
 from pathlib import Path
 
@@ -21,15 +20,24 @@ def slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "experiment"
 
 
+CSV_BLOCK = 1 << 16
+"""Rows formatted per block of the per-point CSV (bounded memory; %-formatting a block at once
+is about twice as fast as a csv.writer row by row)."""
+
+
 def _per_point(path: Path, exp, pred, err) -> None:
+    """step, X, Y, the measured and model components and |error| of every field row (10
+    significant digits: far below any measurement's resolution)."""
     c = pred.u.shape[1]
     comps = ["ux", "uy", "uz"][:c]
+    cols = np.column_stack([exp.X[:, :2], exp.u[:, :c], pred.u, err])
+    fmt = "%d" + ",%.10g" * cols.shape[1] + "\n"
     with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["step", "X", "Y", *(f"{k}_meas" for k in comps),
-                    *(f"{k}_model" for k in comps), "error"])
-        for s, x, um, up, e in zip(exp.field_step, exp.X, exp.u, pred.u, err):
-            w.writerow([int(s), *x, *um[:c], *up, e])
+        fh.write(",".join(["step", "X", "Y", *(f"{k}_meas" for k in comps),
+                           *(f"{k}_model" for k in comps), "error"]) + "\n")
+        for a in range(0, len(cols), CSV_BLOCK):
+            block = np.column_stack([exp.field_step[a:a + CSV_BLOCK], cols[a:a + CSV_BLOCK]])
+            fh.write((fmt * len(block)) % tuple(block.ravel()))
 
 
 def _figures(out: Path, exp, preds: list, misfits: list, steps, stem: str) -> None:
