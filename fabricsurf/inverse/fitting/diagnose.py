@@ -133,7 +133,7 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
             F, p = candidate_wald(rf, cand[c])
             row.update(refit_misfit=rf.misfit["combined"], refit_chi2=rf.chi2,
                        refit_params=rf.params()[c],
-                       refit_std={k: float(s) for k, s in zip(rf.names, rf.std)
+                       refit_std={k: s for k, s in rf.std_dict().items()
                                   if k.startswith(c + ".")},
                        wald_F=F, wald_p=p,
                        share_of_excess=sg.share_of_excess(cur.chi2, len(free), rf.chi2, n),

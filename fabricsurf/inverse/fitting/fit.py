@@ -80,12 +80,22 @@ class FitResult:
         self.chi2_h = float(d @ d)
         self.mesh_shift = systematic.mesh_shift(self.J, d)
 
+    def lost(self) -> set[str]:
+        """The moduli in a null direction of the Fisher matrix (:attr:`undetermined`)."""
+        return {n for c in self.undetermined for n in re.findall(r"log (\S+)", c)}
+
+    def std_dict(self) -> dict:
+        """{name: standard deviation}, None for a modulus the data do not determine (the
+        pseudo-inverse gives it a variance of 0 in the null direction, which is not "known
+        exactly": :func:`undetermined` names the combination)."""
+        return {n: float(s) if np.isfinite(s) else None for n, s in zip(self.names, self.std)}
+
     def uncertainty(self) -> dict:
         """The per-modulus intervals and identifiable combinations (:mod:`~.intervals`)."""
         if self.statistical is None:
             return {"moduli": {}, "identifiable_combinations": [], "weak_directions": []}
         free = self.free
-        lost = {n for c in self.undetermined for n in re.findall(r"log (\S+)", c)}
+        lost = self.lost()
         out = intervals.summarise([self.names[k] for k in free], self.values[free],
                                   self.statistical.cov, self.statistical.t95(),
                                   self.model_form, self.mesh_shift, lost)
@@ -101,7 +111,7 @@ class FitResult:
         m = strip_rows(self.misfit)
         u = self.uncertainty()
         return {"terms": list(self.params()), "params": self.params(),
-                "std": {n: float(s) for n, s in zip(self.names, self.std)},
+                "std": self.std_dict(),
                 "moduli": u["moduli"],
                 "identifiable_combinations": u["identifiable_combinations"],
                 "weak_directions": u["weak_directions"],
@@ -290,9 +300,15 @@ def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
     std = np.zeros(len(vals))
     std[free] = np.sqrt(np.maximum(np.diag(stat.cov), 0.0))
     tau = systematic.model_form(Jr, r, systematic.parts(fm, pred), labels, fm.noise_known)
-    return FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it, runs, hist,
-                     undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
-                     free=list(free), J=Jr, r=r, statistical=stat, model_form=tau)
+    res = FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it, runs, hist,
+                    undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
+                    free=list(free), J=Jr, r=r, statistical=stat, model_form=tau)
+    lost = res.lost()
+    if lost:  # a null direction's zero variance is not a known modulus
+        res.std[[k for k, n in enumerate(res.names) if n in lost]] = np.inf
+        rank0_print(fm.comm, "  fit: not determined by the data (standard deviation "
+                    f"undetermined, reported as null): {'; '.join(res.undetermined)}")
+    return res
 
 
 def strip_rows(m: dict) -> dict:

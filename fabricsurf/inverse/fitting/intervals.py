@@ -110,7 +110,7 @@ def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
         ok = bool(n not in lost and np.isfinite(half[i]) and values[i] - half[i] > 0)
         moduli[n] = {"value": float(values[i]),
                      "ci95": [float(max(values[i] - half[i], 0.0)), float(values[i] + half[i])],
-                     "std_statistical": float(sd[i]),
+                     "std_statistical": None if n in lost else float(sd[i]),
                      "systematic_mesh": None if shift is None else float(
                          MESH_FACTOR * abs(shift[i])),
                      "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),
