@@ -155,15 +155,17 @@ class Stages:
                             setattr(m, attr, timed)
 
 
-def make_data(n_points: int, root: Path, comm: MPI.Comm) -> Path:
-    """The synthetic data of the module docstring with about ``n_points`` field rows."""
-    per_step = n_points / STEPS
+def make_data(n_points: int, root: Path, comm: MPI.Comm, steps: int = STEPS,
+              h: float | None = None) -> Path:
+    """The synthetic data of the module docstring with about ``n_points`` field rows over
+    ``steps`` load steps, made on the mesh ``h`` (default: the test's own)."""
+    per_step = n_points / steps
     ny = max(2, round(math.sqrt(per_step * WIDTH / LENGTH)))
     nx = max(2, round(per_step / ny))
-    path = list(np.linspace(STRAIN * LENGTH / STEPS, STRAIN * LENGTH, STEPS))
+    path = list(np.linspace(STRAIN * LENGTH / steps, STRAIN * LENGTH, steps))
     exp = sy.template(LENGTH, WIDTH, path, sy.grid_points(LENGTH, WIDTH, nx, ny),
                       name=f"bias_{n_points}")
-    sy.continuum_data(exp, full_model(list(TRUTH), TRUTH), h=min(LENGTH, WIDTH) / 10.0,
+    sy.continuum_data(exp, full_model(list(TRUTH), TRUTH), h=h or min(LENGTH, WIDTH) / 10.0,
                       comm=comm)
     sy.add_noise(exp, NOISE_MM, NOISE_N, seed=36)
     d = root / f"data_{n_points}"
@@ -187,7 +189,8 @@ COMMANDS = {
 }
 
 
-def run(st: Stages, command: str, data: Path, out: Path, comm: MPI.Comm) -> dict:
+def run(st: Stages, command: str, data: Path, out: Path, comm: MPI.Comm,
+        h: float | None = None) -> dict:
     """One command under the stage timers: {"status", "seconds", "stages": {stage: [s, MB per
     rank]}}."""
     st.reset()
@@ -198,7 +201,7 @@ def run(st: Stages, command: str, data: Path, out: Path, comm: MPI.Comm) -> dict
     sink = io.StringIO()
     try:
         with contextlib.redirect_stdout(sink):
-            status = main(COMMANDS[command](data, out))
+            status = main(COMMANDS[command](data, out) + ([] if h is None else ["--h", str(h)]))
     except MemoryError as e:
         status = f"MemoryError: {e}"
     st.leave()
@@ -239,6 +242,11 @@ def main_benchmark() -> None:
     ap.add_argument("--points", default="1e4,1e5", help="comma-separated field row counts")
     ap.add_argument("--commands", default="fit,compare,diagnose")
     ap.add_argument("--out", required=True)
+    ap.add_argument("--h", type=float, default=None,
+                    help="element size in mm (default: the test's own, 11.9 mm here); the "
+                    "forward solves do not depend on N, a coarser mesh shows the N-dependent "
+                    "stages sooner")
+    ap.add_argument("--steps", type=int, default=STEPS, help="load steps")
     ap.add_argument("--limit-gb", type=float, default=None,
                     help="address-space limit per process (RLIMIT_AS), GB")
     args = ap.parse_args()
@@ -249,12 +257,13 @@ def main_benchmark() -> None:
     st.install()
     limit = resource.getrlimit(resource.RLIMIT_AS)
     for n in [int(float(x)) for x in args.points.split(",")]:
-        data = make_data(n, root, comm)
+        data = make_data(n, root, comm, args.steps, args.h)
         results[str(n)] = {}
         if args.limit_gb:
             resource.setrlimit(resource.RLIMIT_AS, (int(args.limit_gb * 2**30), limit[1]))
         for command in args.commands.split(","):
-            results[str(n)][command] = res = run(st, command, data, root / f"out_{n}", comm)
+            results[str(n)][command] = res = run(st, command, data, root / f"out_{n}", comm,
+                                                 args.h)
             rank0_print(comm, f"[scale] N = {n} {command}: {res['seconds']:.1f} s, status "
                         f"{res['status']} {res['note']}")
         if args.limit_gb:
