@@ -599,6 +599,8 @@ def test_undetermined_moduli_named_not_given_a_plus_minus():
     u = res.as_dict()
     assert u["undetermined"] == res.undetermined
     assert not u["moduli"]["a.k_l"]["identifiable"] and not u["moduli"]["a.k_m"]["identifiable"]
+    assert u["std"] == {"a.k_l": None, "a.k_m": None}  # not a std of 0 (issue 41)
+    assert u["moduli"]["a.k_l"]["std_statistical"] is None
     (comb,) = u["identifiable_combinations"]
     # σ of log(k_l k_m)/2 is (1/2)/√8 (8 unit-noise data), Student's t with 8 - 2 dof
     half = stats.t.ppf(0.975, 6) * 0.5 / np.sqrt(8.0)

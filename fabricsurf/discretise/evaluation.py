@@ -9,13 +9,52 @@ from dolfinx import fem, geometry, la
 from mpi4py import MPI
 
 
-def _owned_cells_at(msh, points3: np.ndarray) -> list[list[int]]:
-    """For each point the local indices of the owned cells containing it (maybe none)."""
+def _owned_cells_at(msh, points3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(row, cell): every pair of a point (its row in ``points3``) and a local owned cell
+    containing it (a point on a facet or vertex has several, one outside the mesh none), from
+    the collision lists' flat arrays (no Python loop over the points)."""
     tree = geometry.BoundingBoxTree(msh, msh.topology.dim)
     candidates = geometry.compute_collisions(tree, points3)
     colliding = geometry.compute_colliding_cells(msh, candidates, points3)
     n_owned = msh.topology.index_map(msh.topology.dim).size_local
-    return [[c for c in colliding.links(i) if c < n_owned] for i in range(len(points3))]
+    rows = np.repeat(np.arange(len(points3)), np.diff(colliding.offsets))
+    cells = np.asarray(colliding.array, dtype=np.int32)
+    keep = cells < n_owned
+    return rows[keep], cells[keep]
+
+
+class PointLocator:
+    """The owned cells containing each of a fixed set of points (n×2) of one mesh, found once:
+    every function on that mesh is then evaluated there by :meth:`__call__` at the cost of one
+    ``eval`` and one reduction (a load step's displacement and all its sensitivities share the
+    points; locating them was most of the evaluation)."""
+
+    def __init__(self, msh, points: np.ndarray) -> None:
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise ValueError(f"eval_points: points must be an (n, 2) array, got shape "
+                             f"{pts.shape}")
+        self.msh, self.n = msh, len(pts)
+        self.pts3 = np.zeros((len(pts), 3))
+        self.pts3[:, :2] = pts
+        self.rows, self.cells = _owned_cells_at(msh, self.pts3)
+        counts = np.bincount(self.rows, minlength=self.n).astype(float)
+        self.counts = np.empty_like(counts)
+        msh.comm.Allreduce(counts, self.counts, op=MPI.SUM)
+
+    def __call__(self, f: fem.Function) -> np.ndarray:
+        """Values of ``f`` at the points, the same on every rank; NaN outside the mesh (the
+        mean over the owned cells containing a point, over all ranks: :func:`eval_points`)."""
+        bs = f.function_space.dofmap.index_map_bs
+        sums = np.zeros((self.n, bs))
+        if len(self.rows):
+            vals = f.eval(self.pts3[self.rows], self.cells).reshape(-1, bs)
+            for k in range(bs):
+                sums[:, k] = np.bincount(self.rows, weights=vals[:, k], minlength=self.n)
+        total = np.empty_like(sums)
+        self.msh.comm.Allreduce(sums, total, op=MPI.SUM)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.counts[:, None] > 0, total / self.counts[:, None], np.nan)
 
 
 def eval_points(f: fem.Function, points: np.ndarray) -> np.ndarray:
@@ -23,29 +62,10 @@ def eval_points(f: fem.Function, points: np.ndarray) -> np.ndarray:
 
     The value is the mean over all (owned) cells containing the point, over all ranks: for a
     continuous f the same value, for a cellwise field (DG, or a gradient) at a vertex or on a
-    facet a partition-independent average, so 1 and P ranks agree.
+    facet a partition-independent average, so 1 and P ranks agree. Several functions at the
+    same points: :class:`PointLocator`.
     """
-    msh = f.function_space.mesh
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"eval_points: points must be an (n, 2) array, got shape {pts.shape}")
-    pts3 = np.zeros((len(pts), 3))
-    pts3[:, :2] = pts
-    cells = _owned_cells_at(msh, pts3)
-    bs = f.function_space.dofmap.index_map_bs
-    sums = np.zeros((len(pts), bs))
-    counts = np.zeros(len(pts))
-    rows = [i for i, cs in enumerate(cells) for _ in cs]
-    if rows:
-        flat = np.array([c for cs in cells for c in cs], dtype=np.int32)
-        vals = f.eval(pts3[rows], flat).reshape(-1, bs)
-        np.add.at(sums, rows, vals)
-        np.add.at(counts, rows, 1.0)
-    total, n = np.empty_like(sums), np.empty_like(counts)
-    msh.comm.Allreduce(sums, total, op=MPI.SUM)
-    msh.comm.Allreduce(counts, n, op=MPI.SUM)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(n[:, None] > 0, total / n[:, None], np.nan)
+    return PointLocator(f.function_space.mesh, points)(f)
 
 
 def interpolate_expression(expr, V: fem.FunctionSpace, name: str = "") -> fem.Function:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.intervals import MESH_FACTOR, Z95
 
@@ -34,7 +35,7 @@ def _half_widths(g: np.ndarray, C: np.ndarray, tau: np.ndarray, shift: np.ndarra
                  t: float) -> tuple[np.ndarray, ...]:
     """(statistical, model-form, mesh, combined) 95 % half-widths of quantities with
     sensitivities ``g`` (..., P) (module docstring)."""
-    stat = t * np.sqrt(np.maximum(np.einsum("...i,ij,...j->...", g, C, g), 0.0))
+    stat = t * np.sqrt(np.maximum(((g @ C) * g).sum(axis=-1), 0.0))
     model = Z95 * np.sqrt((g**2 * tau**2).sum(axis=-1))
     mesh = MESH_FACTOR * np.abs(g @ shift)
     return stat, model, mesh, np.sqrt(stat**2 + model**2) + mesh
@@ -47,10 +48,11 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
 
     Returns {"load", "force", "lower", "upper", "half_width", "parts": {"statistical",
     "model_form", "mesh"}, "nonlinearity", "reliable", "field_half_width"}: the force entries
-    are None for a test without a measured force; "field_half_width" (rows × components, mm,
-    NaN outside the mesh) is None without a field; "nonlinearity" (the largest departure of
-    the force from its linear change, as a share of the half-width) and "reliable" are None
-    without ``check`` or a force. The moduli of ``fm`` are set to the file's and left there."""
+    are None for a test without a measured force; "field_half_width" (an array rows ×
+    components, mm, NaN outside the mesh) is None without a field; "nonlinearity" (the
+    largest departure of the force from its linear change, as a share of the half-width) and
+    "reliable" are None without ``check`` or a force. The moduli of ``fm`` are set to the
+    file's and left there."""
     saved = _saved(params_file)
     cov = (saved.get("uncertainty") or {}).get("covariance")
     if cov is None:
@@ -70,7 +72,7 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
            "half_width": None, "parts": None, "nonlinearity": None, "reliable": None,
            "field_half_width": None}
     if fm.exp.has_field and pred.du is not None:
-        out["field_half_width"] = _half_widths(pred.du, C, tau, shift, t)[3].tolist()
+        out["field_half_width"] = _half_widths(pred.du, C, tau, shift, t)[3]
     if not fm.exp.has_force:
         return out
     stat, model, mesh, half = _half_widths(pred.dforce, C, tau, shift, t)
@@ -102,7 +104,7 @@ def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
               C: np.ndarray, t: float, force: np.ndarray, half: np.ndarray) -> float:
     """max_k |F_k(p + Δp) − F_k(p) − g_k·Δp| / half-width_k, Δp the covariance's leading
     eigenvector at its 95 % extent (kept ≥ 0); the moduli are restored."""
-    lam, V = np.linalg.eigh(C)
+    lam, V = la.eigh(C, "band: the covariance")
     dp = t * np.sqrt(max(lam[-1], 0.0)) * V[:, -1]
     moved = vals.copy()
     moved[idx] = np.maximum(vals[idx] + dp, 0.0)

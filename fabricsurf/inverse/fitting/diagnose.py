@@ -33,6 +33,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.fit import FitResult, fit
@@ -73,7 +74,7 @@ def full_model(baseline: list[str], params: dict | None = None,
 def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
            cand: dict[str, list[int]]) -> dict[str, tuple[float, float]]:
     """Linearised χ² reduction and modulus estimate per candidate (module docstring)."""
-    Q, _ = np.linalg.qr(Jr[:, base] * vals[base])
+    Q = la.thin_q(Jr[:, base] * vals[base], "diagnose: the candidates' scores")
     out = {}
     for name, idx in cand.items():
         s = Jr[:, idx].sum(axis=1)
@@ -90,7 +91,7 @@ def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: lis
     (together) from the current optimum, each modulus kept positive (at most a factor e^1.5
     down, as the fit's own step limit)."""
     A = np.column_stack([Jr[:, free], Jr[:, idx].sum(axis=1)])
-    step = np.linalg.lstsq(A, -r, rcond=None)[0]
+    step = la.lstsq(A, -r, "diagnose: the linearised refit")
     v = cur.copy()
     v[free] = np.maximum(cur[free] + step[:-1], cur[free] * np.exp(-1.5))
     v[idx] = max(step[-1], 0.0)
@@ -132,7 +133,7 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
             F, p = candidate_wald(rf, cand[c])
             row.update(refit_misfit=rf.misfit["combined"], refit_chi2=rf.chi2,
                        refit_params=rf.params()[c],
-                       refit_std={k: float(s) for k, s in zip(rf.names, rf.std)
+                       refit_std={k: s for k, s in rf.std_dict().items()
                                   if k.startswith(c + ".")},
                        wald_F=F, wald_p=p,
                        share_of_excess=sg.share_of_excess(cur.chi2, len(free), rf.chi2, n),

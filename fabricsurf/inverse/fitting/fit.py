@@ -32,6 +32,7 @@ import numpy as np
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.inverse.fitting import intervals, systematic
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
@@ -79,12 +80,22 @@ class FitResult:
         self.chi2_h = float(d @ d)
         self.mesh_shift = systematic.mesh_shift(self.J, d)
 
+    def lost(self) -> set[str]:
+        """The moduli in a null direction of the Fisher matrix (:attr:`undetermined`)."""
+        return {n for c in self.undetermined for n in re.findall(r"log (\S+)", c)}
+
+    def std_dict(self) -> dict:
+        """{name: standard deviation}, None for a modulus the data do not determine (the
+        pseudo-inverse gives it a variance of 0 in the null direction, which is not "known
+        exactly": :func:`undetermined` names the combination)."""
+        return {n: float(s) if np.isfinite(s) else None for n, s in zip(self.names, self.std)}
+
     def uncertainty(self) -> dict:
         """The per-modulus intervals and identifiable combinations (:mod:`~.intervals`)."""
         if self.statistical is None:
             return {"moduli": {}, "identifiable_combinations": [], "weak_directions": []}
         free = self.free
-        lost = {n for c in self.undetermined for n in re.findall(r"log (\S+)", c)}
+        lost = self.lost()
         out = intervals.summarise([self.names[k] for k in free], self.values[free],
                                   self.statistical.cov, self.statistical.t95(),
                                   self.model_form, self.mesh_shift, lost)
@@ -100,7 +111,7 @@ class FitResult:
         m = strip_rows(self.misfit)
         u = self.uncertainty()
         return {"terms": list(self.params()), "params": self.params(),
-                "std": {n: float(s) for n, s in zip(self.names, self.std)},
+                "std": self.std_dict(),
                 "moduli": u["moduli"],
                 "identifiable_combinations": u["identifiable_combinations"],
                 "weak_directions": u["weak_directions"],
@@ -154,12 +165,12 @@ directions: the data do not determine that combination of log-moduli."""
 def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
     """The null directions of the scaled Jacobian Jt = dr/d(log p) (a rank-deficient Fisher
     matrix JtᵀJt), each as its combination of log-moduli, e.g. "0.71 log a.k - 0.71 log b.k"
-    (the ratio a.k/b.k is not determined)."""
+    (the ratio a.k/b.k is not determined). From the SVD of Jt's p × p R factor
+    (:func:`~.linalg.right_singular`): O(N·p) memory for N residuals, never N × N."""
     P = Jt.shape[1]
     if P == 0:
         return []
-    _, sv, Vt = np.linalg.svd(Jt, full_matrices=True)
-    sv = np.concatenate([sv, np.zeros(P - len(sv))])
+    sv, Vt = la.right_singular(Jt, "fit: identifiability (SVD of the scaled Jacobian)")
     top = sv[0] if sv[0] > 0 else 1.0
     out = []
     for sval, v in zip(sv, Vt):
@@ -170,13 +181,6 @@ def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
             out.append(" ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
                                 for c, n in terms).lstrip("+ "))
     return out
-
-
-def covariance(Jt: np.ndarray, chi2: float, noise_known: bool) -> np.ndarray:
-    """(JᵀJ)⁻¹, scaled by the reduced χ² when the noise level is not known."""
-    n, P = Jt.shape
-    C = np.linalg.pinv(Jt.T @ Jt)
-    return C if noise_known else C * chi2 / max(n - P, 1)
 
 
 LAMBDA_START = 1e-3
@@ -252,13 +256,14 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         Ja = Jt[:, act]
         JTJ = Ja.T @ Ja
         D = np.diag(np.diag(JTJ)) + DIAG_FLOOR * np.trace(JTJ) * np.eye(len(JTJ))
-        gn = np.linalg.lstsq(Ja, -r, rcond=None)[0]
+        gn = la.lstsq(Ja, -r, "fit: the Gauss-Newton step")
         if float(r @ r - (r + Ja @ gn) @ (r + Ja @ gn)) < tol * chi2:
             break  # not even the Gauss-Newton step promises a relative decrease of tol
         accepted = False
         while lam < LAMBDA_MAX:
             step = np.zeros(len(free))
-            step[act] = np.linalg.solve(JTJ + lam * D, -g[act])
+            step[act] = la.finite(np.linalg.solve(JTJ + lam * D, -g[act]),
+                                  "fit: the damped step")
             if space == "log":
                 step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
             trial = vals.copy()
@@ -295,9 +300,15 @@ def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
     std = np.zeros(len(vals))
     std[free] = np.sqrt(np.maximum(np.diag(stat.cov), 0.0))
     tau = systematic.model_form(Jr, r, systematic.parts(fm, pred), labels, fm.noise_known)
-    return FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it, runs, hist,
-                     undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
-                     free=list(free), J=Jr, r=r, statistical=stat, model_form=tau)
+    res = FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it, runs, hist,
+                    undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
+                    free=list(free), J=Jr, r=r, statistical=stat, model_form=tau)
+    lost = res.lost()
+    if lost:  # a null direction's zero variance is not a known modulus
+        res.std[[k for k, n in enumerate(res.names) if n in lost]] = np.inf
+        rank0_print(fm.comm, "  fit: not determined by the data (standard deviation "
+                    f"undetermined, reported as null): {'; '.join(res.undetermined)}")
+    return res
 
 
 def strip_rows(m: dict) -> dict:

@@ -23,7 +23,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.discretise.evaluation import PointLocator
 from fabricsurf.discretise.resources import Owner, copy_to_function, destroy, dot_function
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
@@ -72,8 +72,10 @@ class ForwardModel(Owner):
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
         self.forward_runs = 0
         self._coarse: ForwardModel | None = None
+        self._locators: dict[int, tuple[np.ndarray, np.ndarray, PointLocator]] = {}
 
     def _release(self) -> None:
+        self._locators.clear()
         for owner in (self.test, self._coarse):
             if owner is not None:
                 owner.close()
@@ -103,6 +105,17 @@ class ForwardModel(Owner):
         return mf.noise_known(self.exp)
 
     # -- solves --------------------------------------------------------------------------
+    def _points(self, k: int) -> tuple[np.ndarray, PointLocator]:
+        """(field rows, their locator) of load step ``k``, found once per model (the mesh does
+        not change between runs; the points are compared, so data edited in place are found
+        again)."""
+        rows = self.exp.step_rows(self.exp.steps[k])
+        pts = self.exp.X[rows]
+        old = self._locators.get(k)
+        if old is None or not (np.array_equal(old[0], rows) and np.array_equal(old[1], pts)):
+            self._locators[k] = (rows, pts, PointLocator(self.test.problem.msh, pts))
+        return rows, self._locators[k][2]
+
     def _dR_dp(self, k: int) -> PETSc.Vec:
         """∂R/∂p_k at the current u (no boundary conditions), in the solver's work vector."""
         vals = self.values()
@@ -150,16 +163,15 @@ class ForwardModel(Owner):
         self.test.set_load(0.0)
 
         def converged(k: int, t: float, its: int) -> None:
-            rows = exp.step_rows(exp.steps[k])
-            pts = exp.X[rows]
+            rows, at = self._points(k)
             if len(rows):
-                u[rows] = eval_points(sol.u, pts)[:, :c]
+                u[rows] = at(sol.u)[:, :c]
             w = self.test.reaction_weight() if with_force else None
             if w is not None:
                 force[k] = sol.virtual_work(w)
             for j, (duj, dfj) in enumerate(self._sensitivities(which, w)):
                 if len(rows):
-                    du[rows, :, j] = eval_points(duj, pts)[:, :c]
+                    du[rows, :, j] = at(duj)[:, :c]
                 if dF is not None:
                     dF[k, j] = dfj
 

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabricsurf.inverse.fitting import linalg as la
+
 MESH_FACTOR = 2.0
 """The error at h is this multiple of the shift from h to h/2 when the error halves with h:
 the slowest convergence accepted, so the bound is conservative for faster rates."""
@@ -60,7 +62,7 @@ def combinations(names, values, cov, t, tau, shift, which: list[int]) -> list[di
     C, t2, s = _log_cov(values[which], cov[np.ix_(which, which)],
                         None if tau is None else tau[which],
                         None if shift is None else shift[which])
-    lam, V = np.linalg.eigh(C)
+    lam, V = la.eigh(C, "intervals: the log-moduli covariance")
     out = []
     for k in range(len(which)):
         if lam[k] <= NULL_TOL * max(lam[-1], 1e-300):
@@ -89,7 +91,7 @@ def weak_directions(names, values, cov) -> list[dict]:
     if not pos:
         return []
     C, _, _ = _log_cov(values[pos], cov[np.ix_(pos, pos)], None, None)
-    lam, V = np.linalg.eigh(C)
+    lam, V = la.eigh(C, "intervals: the log-moduli covariance")
     sub = [names[i] for i in pos]
     return [{"direction": _text(V[:, k] * np.sign(V[np.argmax(np.abs(V[:, k])), k]), sub),
              "std_log": float(np.sqrt(max(lam[k], 0.0)))}
@@ -108,7 +110,7 @@ def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
         ok = bool(n not in lost and np.isfinite(half[i]) and values[i] - half[i] > 0)
         moduli[n] = {"value": float(values[i]),
                      "ci95": [float(max(values[i] - half[i], 0.0)), float(values[i] + half[i])],
-                     "std_statistical": float(sd[i]),
+                     "std_statistical": None if n in lost else float(sd[i]),
                      "systematic_mesh": None if shift is None else float(
                          MESH_FACTOR * abs(shift[i])),
                      "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),

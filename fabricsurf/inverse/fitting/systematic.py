@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import misfit as mf
 from fabricsurf.inverse.fitting.forward import ForwardModel, Prediction
 from fabricsurf.inverse.fitting.uncertainty import sandwich
@@ -47,7 +48,7 @@ def mesh_difference(fm, preds, comm) -> np.ndarray:
 
 def mesh_shift(J: np.ndarray, d: np.ndarray) -> np.ndarray:
     """δp = −(JᵀJ)⁺Jᵀd: the moduli's shift from the fit's mesh to one refined by 2."""
-    return -np.linalg.pinv(J.T @ J) @ (J.T @ d)
+    return -la.gram_pinv(J, "mesh shift: (JᵀJ)⁺") @ la.finite(J.T @ d, "mesh shift: Jᵀd")
 
 
 def residual_steps(fm, preds) -> np.ndarray:
@@ -83,15 +84,15 @@ def model_form(J: np.ndarray, r: np.ndarray, masks: list[np.ndarray],
     """τ per modulus (module docstring); None when fewer than two parts determine them (a
     part that does not determine every modulus alone is left out)."""
     fits = []
+    col = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
     for s in masks:
         Js, rs = J[s], r[s]
         if Js.shape[0] <= Js.shape[1]:
             continue
-        col = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
-        sv = np.linalg.svd(Js / col, compute_uv=False)
+        sv = la.singular_values(Js / col, "model form: SVD of a part's Jacobian")
         if sv[-1] <= RANK_TOL * sv[0]:
             continue
-        dp = -np.linalg.solve(Js.T @ Js, Js.T @ rs)
+        dp = -la.finite(np.linalg.solve(Js.T @ Js, Js.T @ rs), "model form: a part's refit")
         V = np.diag(sandwich(Js, rs, None if labels is None else labels[s], noise_known).cov)
         fits.append((dp, np.maximum(V, 1e-300)))
     if len(fits) < 2:

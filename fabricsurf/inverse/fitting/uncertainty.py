@@ -10,7 +10,8 @@ G − P degrees of freedom. When the data state their noise level, no standard d
 below that of the classical (JᵀJ)⁻¹: the sandwich estimate is itself noisy with few blocks and
 biased low (Bell & McCaffrey 2002), the stated noise a floor. The design effect
 deff = tr(C_naive⁻¹ C)/P (Kish 1965), C_naive = s²(JᵀJ)⁻¹ with s² = χ²/ν, gives the effective
-number of independent residuals n/deff.
+number of independent residuals n/deff. Everything is p × p or G × p (G blocks): the block
+scores are sums over each block's rows (O(N) memory for N residuals, :mod:`~.linalg`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting.forward import Prediction
 
 GRID = 4
@@ -86,9 +88,8 @@ class Statistical:
 def _meat(J: np.ndarray, r: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, int]:
     """Σ_g (J_gᵀ r_g)(J_gᵀ r_g)ᵀ and the number of blocks G."""
     uniq, inv = np.unique(labels, return_inverse=True)
-    scores = np.zeros((len(uniq), J.shape[1]))
-    np.add.at(scores, inv, J * r[:, None])
-    return scores.T @ scores, len(uniq)
+    scores = la.block_sums(J * r[:, None], inv, len(uniq))
+    return la.finite(scores.T @ scores, "uncertainty: the sandwich's block scores"), len(uniq)
 
 
 def sandwich(J: np.ndarray, r: np.ndarray, labels: np.ndarray | None,
@@ -96,7 +97,7 @@ def sandwich(J: np.ndarray, r: np.ndarray, labels: np.ndarray | None,
     """The cluster-robust covariance of the module docstring (``labels``: one block label per
     residual; None: the classical covariance, scaled by χ²/ν when the noise is not known)."""
     n, P = J.shape
-    B = np.linalg.pinv(J.T @ J)
+    B = la.gram_pinv(J, "uncertainty: (JᵀJ)⁺")
     chi2 = float(r @ r)
     s2 = chi2 / max(n - P, 1)
     naive = B * (1.0 if noise_known else s2)
@@ -117,7 +118,7 @@ def design_effect(C_naive: np.ndarray, C: np.ndarray) -> float:
     P = len(C)
     if P == 0:
         return 1.0
-    return float(np.trace(np.linalg.pinv(C_naive) @ C) / P)
+    return float(np.trace(la.pinv(C_naive, "uncertainty: the design effect") @ C) / P)
 
 
 def wald(values: np.ndarray, cov: np.ndarray, dof: int) -> tuple[float, float]:
@@ -125,7 +126,7 @@ def wald(values: np.ndarray, cov: np.ndarray, dof: int) -> tuple[float, float]:
     one-sided p-value (F(k, dof); for k = 1 the one-sided t-test, the moduli being ≥ 0)."""
     v = np.atleast_1d(values)
     k = len(v)
-    F = float(v @ np.linalg.pinv(np.atleast_2d(cov)) @ v / k)
+    F = float(v @ la.pinv(np.atleast_2d(cov), "Wald test: the covariance") @ v / k)
     if k == 1:
         sd = float(np.sqrt(max(cov.ravel()[0], 1e-300)))
         return F, float(stats.t.sf(v[0] / sd, max(dof, 1)))

@@ -1,7 +1,10 @@
 """Figures of model vs measurement (matplotlib, Agg; call on rank 0 only).
 
 Every function takes one experiment and a list of (label, prediction) pairs, and draws only what
-the experiment measured (field, force or both).
+the experiment measured (field, force or both). A field of more than :data:`SCATTER_MAX` points
+per step (a DIC export: 10⁴–10⁵ per image) is drawn as an image of its values averaged over bins
+of the specimen, with the points' density (points per bin) in a panel of its own: a scatter of
+so many points is unreadable and slow to draw. The per-point values stay in the per-point CSV.
 """
 
 from __future__ import annotations
@@ -23,39 +26,111 @@ def _plt():
     return plt
 
 
+SCATTER_MAX = 4000
+"""Points per step up to which a field is drawn as a scatter; above, as a binned image."""
+
+POINTS_PER_BIN = 4
+"""The bins of an image hold about this many points each on average (a smooth mean)."""
+
+MAX_BINS = 240
+"""The most bins along the specimen's length (finer than a figure shows)."""
+
+
+def bins(exp: Experiment, n: int) -> tuple[int, int]:
+    """(bins along X, along Y) for ``n`` points over the specimen: about
+    :data:`POINTS_PER_BIN` points per bin, square bins, at most :data:`MAX_BINS` along X."""
+    aspect = exp.length / max(exp.width, 1e-300)
+    nx = int(np.clip(np.sqrt(n / POINTS_PER_BIN * aspect), 2, MAX_BINS))
+    return nx, max(2, round(nx / aspect))
+
+
+def binned(exp: Experiment, X: np.ndarray, values: np.ndarray, shape: tuple[int, int]
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """(mean of ``values`` per bin, points per bin), each (ny × nx), NaN mean in an empty bin
+    or one whose points have no finite value; O(n) (bincount)."""
+    nx, ny = shape
+    ix = np.clip((X[:, 0] / exp.length * nx).astype(int), 0, nx - 1)
+    iy = np.clip((X[:, 1] / exp.width * ny).astype(int), 0, ny - 1)
+    k = iy * nx + ix
+    ok = np.isfinite(values)
+    total = np.bincount(k[ok], weights=values[ok], minlength=nx * ny)
+    count = np.bincount(k[ok], minlength=nx * ny)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    return mean.reshape(ny, nx), np.bincount(k, minlength=nx * ny).reshape(ny, nx)
+
+
+def _field(ax, exp: Experiment, rows: np.ndarray, values: np.ndarray, shape, **style):
+    """The values at the points ``rows`` on ``ax``: a scatter, or the binned image (module
+    docstring); returns the mappable."""
+    ax.set(xlim=(0, exp.length), ylim=(0, exp.width), aspect="equal", xlabel="X (mm)",
+           ylabel="Y (mm)")
+    if shape is None:
+        return ax.scatter(exp.X[rows, 0], exp.X[rows, 1], c=values, s=18, **style)
+    mean, _ = binned(exp, exp.X[rows], values, shape)
+    return ax.imshow(mean, origin="lower", extent=(0, exp.length, 0, exp.width),
+                     interpolation="nearest", **style)
+
+
+def _density(fig, ax, exp: Experiment, rows: np.ndarray, shape, step: int) -> None:
+    """Points per bin of one step (the data's density; white where there are none)."""
+    _, count = binned(exp, exp.X[rows], np.zeros(len(rows)), shape)
+    im = ax.imshow(np.where(count > 0, count, np.nan), origin="lower", cmap="Greys",
+                   extent=(0, exp.length, 0, exp.width), interpolation="nearest")
+    ax.set(aspect="equal", xlabel="X (mm)", ylabel="Y (mm)")
+    ax.set_title(f"points per bin, step {step} ({len(rows)} points, "
+                 f"{shape[0]}×{shape[1]} bins)", fontsize=8)
+    fig.colorbar(im, ax=ax, label="points per bin", shrink=0.8)
+
+
+def _shape(exp: Experiment, steps: list[int]):
+    """The bins of the steps' images, or None when every step is small enough to scatter."""
+    n = max(len(exp.step_rows(s)) for s in steps)
+    return None if n <= SCATTER_MAX else bins(exp, n)
+
+
 def error_map(exp: Experiment, preds: list[tuple[str, object]], steps: list[int],
               path: Path) -> None:
-    """|u_model − u_meas| (mm) over the specimen: one row per model, one column per step."""
+    """|u_model − u_meas| (mm) over the specimen: one row per model, one column per step (a
+    binned image and the points' density for large fields: module docstring)."""
     plt = _plt()
     errs = [np.linalg.norm(p.u - exp.u[:, : p.u.shape[1]], axis=1) for _, p in preds]
     vmax = max(float(np.nanmax(e)) for e in errs) or 1.0
-    fig, axes = plt.subplots(len(preds), len(steps), squeeze=False,
-                             figsize=(4.2 * len(steps), 2.6 * len(preds) + 0.6))
+    shape = _shape(exp, steps)
+    cols = len(steps) + (shape is not None)
+    fig, axes = plt.subplots(len(preds), cols, squeeze=False,
+                             figsize=(4.2 * cols, 2.6 * len(preds) + 0.6))
     for i, ((label, _), e) in enumerate(zip(preds, errs)):
         for j, s in enumerate(steps):
             rows = exp.step_rows(s)
-            ax = axes[i, j]
-            sc = ax.scatter(exp.X[rows, 0], exp.X[rows, 1], c=e[rows], s=18, cmap="viridis",
-                            vmin=0.0, vmax=vmax)
-            ax.set(xlim=(0, exp.length), ylim=(0, exp.width), aspect="equal",
-                   xlabel="X (mm)", ylabel="Y (mm)")
-            ax.set_title(f"{label}: step {s}", fontsize=8)
-    fig.colorbar(sc, ax=axes, label="|u_model − u_meas| (mm)")
+            sc = _field(axes[i, j], exp, rows, e[rows], shape, cmap="viridis", vmin=0.0,
+                        vmax=vmax)
+            axes[i, j].set_title(f"{label}: step {s}" + (" (bin means)" if shape else ""),
+                                 fontsize=8)
+    fig.colorbar(sc, ax=axes[:, :len(steps)], label="|u_model − u_meas| (mm)")
+    if shape is not None:
+        _density(fig, axes[0, -1], exp, exp.step_rows(steps[-1]), shape, steps[-1])
+        for ax in axes[1:, -1]:
+            ax.axis("off")
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
 def field_band(exp: Experiment, half: np.ndarray, path: Path) -> None:
     """The 95 % half-widths of the predicted displacements at the measurement points of the
-    last step, as the norm |(h_x, h_y[, h_z])| (mm)."""
+    last step, as the norm |(h_x, h_y[, h_z])| (mm); binned for large fields."""
     plt = _plt()
-    rows = exp.step_rows(int(exp.steps[-1]))
-    fig, ax = plt.subplots(figsize=(5.5, 3.6))
-    sc = ax.scatter(exp.X[rows, 0], exp.X[rows, 1], c=np.linalg.norm(half[rows], axis=1), s=18,
-                    cmap="magma")
-    ax.set(xlim=(0, exp.length), ylim=(0, exp.width), aspect="equal", xlabel="X (mm)",
-           ylabel="Y (mm)", title=f"{exp.name}: 95 % band of u, step {int(exp.steps[-1])}")
-    fig.colorbar(sc, ax=ax, label="half-width (mm)")
+    step = int(exp.steps[-1])
+    rows = exp.step_rows(step)
+    shape = _shape(exp, [step])
+    fig, axes = plt.subplots(1, 1 + (shape is not None), squeeze=False,
+                             figsize=(5.5 * (1 + (shape is not None)), 3.6))
+    sc = _field(axes[0, 0], exp, rows, np.linalg.norm(half[rows], axis=1), shape,
+                cmap="magma")
+    axes[0, 0].set_title(f"{exp.name}: 95 % band of u, step {step}", fontsize=9)
+    fig.colorbar(sc, ax=axes[0, 0], label="half-width (mm)")
+    if shape is not None:
+        _density(fig, axes[0, 1], exp, rows, shape, step)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import re
 import unicodedata
@@ -33,17 +32,25 @@ def slug(name: str) -> str:
     return s or "experiment"
 
 
+CSV_BLOCK = 1 << 16
+"""Rows formatted per block of the per-point CSV (bounded memory; %-formatting a block at once
+is about twice as fast as a csv.writer row by row)."""
+
+
 def _per_point(path: Path, exp, pred, err) -> None:
-    """One row per field point: coordinates, measured and model displacements and their
-    distance, in mm whatever the input's [units] (the column names say so)."""
+    """One row per field point: step, coordinates, measured and model displacements and their
+    distance, in mm whatever the input's [units] (the column names say so); 10 significant
+    digits, far below any measurement's resolution."""
     c = pred.u.shape[1]
     comps = ["ux", "uy", "uz"][:c]
+    cols = np.column_stack([exp.X[:, :2], exp.u[:, :c], pred.u, err])
+    fmt = "%d" + ",%.10g" * cols.shape[1] + "\n"
     with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["step", "X_mm", "Y_mm", *(f"{k}_meas_mm" for k in comps),
-                    *(f"{k}_model_mm" for k in comps), "error_mm"])
-        for s, x, um, up, e in zip(exp.field_step, exp.X, exp.u, pred.u, err):
-            w.writerow([int(s), *x, *um[:c], *up, e])
+        fh.write(",".join(["step", "X_mm", "Y_mm", *(f"{k}_meas_mm" for k in comps),
+                           *(f"{k}_model_mm" for k in comps), "error_mm"]) + "\n")
+        for a in range(0, len(cols), CSV_BLOCK):
+            block = np.column_stack([exp.field_step[a:a + CSV_BLOCK], cols[a:a + CSV_BLOCK]])
+            fh.write((fmt * len(block)) % tuple(block.ravel()))
 
 
 def _figures(out: Path, exp, preds: list, misfits: list, steps, stem: str) -> None:
