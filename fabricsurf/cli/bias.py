@@ -79,25 +79,10 @@ def _model(args) -> list:
     return default_model()
 
 
-def predicted_band(saved: dict, model: list, length: float, width: float, path, h: float,
-                   clamp: str = "gradient", comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
-    """The force curve of a ``length`` × ``width`` bias specimen along the grip displacements
-    ``path`` at the moduli of a saved fit, with its 95 % band
-    (:func:`~fabricsurf.inverse.fitting.band.force_band`: statistical, model-form and mesh
-    parts, and whether the linearisation holds)."""
-    from fabricsurf.inverse.fitting.band import force_band
-    from fabricsurf.inverse.fitting.forward import ForwardModel
-    from fabricsurf.inverse.synthetic.generate import template
-
-    exp = template(length, width, path, np.zeros((0, 2)), clamp=clamp,
-                   name=f"prediction {length:g} x {width:g} mm")
-    with ForwardModel(exp, model, h=h, comm=comm) as fm:
-        return force_band(fm, saved)
-
-
 def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dict:
-    """The band of this run's force curve (:func:`predicted_band`), with its CSV and figure."""
-    from fabricsurf.inverse.fitting.band import write_band
+    """The band of this run's force curve
+    (:func:`~fabricsurf.inverse.fitting.band.predicted_band`), with its CSV and figure."""
+    from fabricsurf.inverse.fitting.band import predicted_band, write_band
     from fabricsurf.inverse.plots.figures import force_band as band_figure
 
     band = predicted_band(saved, model, args.length, args.width,

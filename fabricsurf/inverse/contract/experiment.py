@@ -60,3 +60,21 @@ class Experiment:
     def step_rows(self, step: int) -> np.ndarray:
         """Indices of the field rows of one step."""
         return np.flatnonzero(self.field_step == step)
+
+
+def template(length: float, width: float, displacements, points: np.ndarray,
+             angles: tuple[float, float] = (45.0, -45.0), clamp: str = "gradient",
+             name: str = "synthetic", test: str = "bias_extension",
+             options: dict | None = None, force: bool = True) -> Experiment:
+    """An Experiment with the geometry and loading filled in and zero measurements.
+
+    ``displacements``: the load path (one value per step); ``points``: field points (may be
+    empty: force only); ``force``: whether the test's reaction is measured."""
+    d = np.asarray(displacements, float)
+    steps = np.arange(1, len(d) + 1)
+    opts = {"clamp": clamp} if options is None else dict(options)
+    setup = Setup(test, float(length), float(width), tuple(angles), opts)
+    pts = np.asarray(points, float).reshape(-1, 2)
+    return Experiment(name, setup, steps, d, np.zeros(len(d)) if force else None,
+                      np.repeat(steps, len(pts)), np.tile(pts, (len(d), 1)),
+                      np.zeros((len(d) * len(pts), 2)))

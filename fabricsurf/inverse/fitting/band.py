@@ -16,7 +16,9 @@ import json
 from pathlib import Path
 
 import numpy as np
+from mpi4py import MPI
 
+from fabricsurf.inverse.contract.experiment import template
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.intervals import MESH_FACTOR, Z95
@@ -115,3 +117,15 @@ def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
         fm.set_values(vals)
     lin = g @ (moved[idx] - vals[idx])
     return float(np.max(np.abs(f2 - force - lin) / np.maximum(half, 1e-300)))
+
+
+def predicted_band(saved: dict, model: list, length: float, width: float, path, h: float,
+                   clamp: str = "gradient", comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """The force curve of a ``length`` × ``width`` bias specimen along the grip displacements
+    ``path`` at the moduli of a saved fit, with its 95 % band (:func:`force_band`: statistical,
+    model-form and mesh parts, and whether the linearisation holds): a prediction of another
+    specimen size."""
+    exp = template(length, width, path, np.zeros((0, 2)), clamp=clamp,
+                   name=f"prediction {length:g} x {width:g} mm")
+    with ForwardModel(exp, model, h=h, comm=comm) as fm:
+        return force_band(fm, saved)

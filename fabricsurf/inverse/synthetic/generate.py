@@ -13,9 +13,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.experiments.base import Setup
-from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.contract.experiment import Experiment, template
 from fabricsurf.model.terms import Term
+
+__all__ = ["add_noise", "continuum_data", "correlated_field", "grid_points", "lattice_data",
+           "noisy_copy", "rewrite_in_m_kn", "template"]  # template: the experiment to fill in
 
 
 def grid_points(length: float, width: float, nx: int, ny: int, margin: float = 0.05
@@ -24,24 +26,6 @@ def grid_points(length: float, width: float, nx: int, ny: int, margin: float = 0
     x = np.linspace(margin * length, (1 - margin) * length, nx)
     y = np.linspace(margin * width, (1 - margin) * width, ny)
     return np.array([(a, b) for a in x for b in y])
-
-
-def template(length: float, width: float, displacements, points: np.ndarray,
-             angles: tuple[float, float] = (45.0, -45.0), clamp: str = "gradient",
-             name: str = "synthetic", test: str = "bias_extension",
-             options: dict | None = None, force: bool = True) -> Experiment:
-    """An Experiment with the geometry and loading filled in and zero measurements.
-
-    ``displacements``: the load path (one value per step); ``points``: field points (may be
-    empty: force only); ``force``: whether the test's reaction is measured."""
-    d = np.asarray(displacements, float)
-    steps = np.arange(1, len(d) + 1)
-    opts = {"clamp": clamp} if options is None else dict(options)
-    setup = Setup(test, float(length), float(width), tuple(angles), opts)
-    pts = np.asarray(points, float).reshape(-1, 2)
-    return Experiment(name, setup, steps, d, np.zeros(len(d)) if force else None,
-                      np.repeat(steps, len(pts)), np.tile(pts, (len(d), 1)),
-                      np.zeros((len(d) * len(pts), 2)))
 
 
 def correlated_field(points: np.ndarray, length: float, rng: np.random.Generator,
