@@ -29,8 +29,9 @@ INVERSE = {
 
 
 def test_light_root():
-    """``import fabricsurf, fabricsurf.network`` loads no FEniCSx module."""
-    code = ("import sys, fabricsurf, fabricsurf.network\n"
+    """``import fabricsurf, fabricsurf.network`` loads no FEniCSx module, nor does
+    ``fabricsurf.cli.demo`` (tests/test_demos.py reads the demos' checks with it)."""
+    code = ("import sys, fabricsurf, fabricsurf.network, fabricsurf.cli.demo\n"
             f"heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))\n"
             "assert not heavy, heavy\n"
             "assert fabricsurf.__version__ and 'fit' in fabricsurf.__all__\n")

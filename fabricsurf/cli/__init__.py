@@ -8,6 +8,10 @@ its converged steps and a failure.json) or removed (:func:`fabricsurf.cli.outdir
 an unexpected failure on one rank aborts all ranks instead of leaving the
 others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
 through the root logger) are hidden unless ``--verbose``.
+
+The commands' modules are imported when the parser is built, so that importing
+:mod:`fabricsurf.cli` (and :mod:`fabricsurf.cli.demo`, what every demo shares) loads no
+FEniCSx module.
 """
 
 from __future__ import annotations
@@ -23,9 +27,6 @@ from collections.abc import Iterator
 
 from mpi4py import MPI
 
-from fabricsurf.cli import bias as bias_cli
-from fabricsurf.cli import measure, outdir
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.errors import InputError
 
 COMM = MPI.COMM_WORLD
@@ -44,6 +45,7 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 def cmd_terms(args) -> int:
     """Print the vocabulary: names, moduli with units, and energy densities."""
+    from fabricsurf.discretise.output import rank0_print
     from fabricsurf.model.terms import EFFECTS
 
     rank0_print(COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
@@ -56,6 +58,9 @@ def cmd_terms(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from fabricsurf.cli import bias as bias_cli
+    from fabricsurf.cli import measure
+
     ap = argparse.ArgumentParser(prog="fabricsurf", formatter_class=HelpFormatter,
                                  description="Fabric surface models vs measurements: solve, "
                                  "compare, fit, diagnose the missing effect. Lengths in mm, "
@@ -109,6 +114,8 @@ def interruptible(command: str) -> Iterator[None]:
     previous handlers are restored on exit."""
     import threading
 
+    from fabricsurf.cli import outdir
+
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -151,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parse(argv)
     if isinstance(args, int):
         return args
+    from fabricsurf.discretise.output import rank0_print
+
     try:
         with interruptible(args.command), compiler_messages(args.verbose):
             return args.func(args)
