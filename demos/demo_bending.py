@@ -50,6 +50,7 @@ from fabricsurf.experiments.cantilever import rigidity_uNm, weight_per_area
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.model.rigidity import narrow_strip_rigidity
+from fabricsurf.verification.elastica import bending_length
 from research.demos.bending_parts import (
     elastica_study,
     figures,
@@ -60,7 +61,6 @@ from research.demos.bending_parts import (
 )
 from research.demos.checks import verify
 from research.demos.common import demo_parser, parse
-from research.verification.elastica import bending_length
 
 comm = MPI.COMM_WORLD
 ap = demo_parser(__doc__, "out/bending")  # --quick: coarse meshes, two load steps, twist alone

@@ -12,15 +12,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from geometry.specimen import square
-from research.verification.hypar import (
+from fabricsurf.verification.hypar import (
     Hypar,
     computed_corner_forces,
     l2_error,
     solve_dirichlet,
     solve_natural,
 )
-from research.verification.rates import rates
+from fabricsurf.verification.rates import rates
+from geometry.specimen import square
 
 SIZES = (0.5, 0.35, 0.25)
 

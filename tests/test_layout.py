@@ -13,8 +13,8 @@ PKG = ROOT / "fabricsurf"
 HEAVY = ("dolfinx", "petsc4py", "ufl", "ffcx", "basix")
 
 # the layers, bottom first: a module may import its own layer and the layers below it
-LAYERS = ["errors", "constants", "datasets", "model", "discretise", "experiments", "inverse",
-          "cli", "fabricsurf"]
+LAYERS = ["errors", "constants", "datasets", "model", "discretise", "experiments", "verification",
+          "inverse", "cli", "fabricsurf"]
 # the lattice reference stands beside the layers: it imports only these, and of the layers
 # only the synthetic-data generator (lattice measurements) imports it
 NETWORK_IMPORTS = ("network", "errors", "constants")

@@ -13,7 +13,7 @@ import numpy as np
 
 from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
 from fabricsurf.inverse.synthetic import generate as sy
-from research.verification.elastica import peirce_bending_length, solve_elastica
+from fabricsurf.verification.elastica import peirce_bending_length, solve_elastica
 
 
 def elastica_study(model: list, length: float, width: float, rho: float, c: float,

@@ -35,8 +35,8 @@ from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower
 from fabricsurf.experiments.followers import penalty_stretch as penalty_stretch  # re-exported
 from fabricsurf.model.materials import PantographBending, bipantographic
+from fabricsurf.verification.rates import richardson_summary
 from research.studies.bias_convergence import graded_specimen
-from research.verification.rates import richardson_summary
 
 RANGE_OPTIONS = dict(DOMAIN_AWARE)
 """Solver options of the whole-range runs (module docstring)."""
