@@ -1,5 +1,7 @@
 """Reference solutions the discretisation is checked against, for the demos, the tests and a
 user checking an installation or a new effect: the hyperbolic paraboloid, an exact solution of
 the theory (``hypar.py``); the heavy elastica, the inextensible cantilever under its own weight,
-with Peirce's bending length (``elastica.py``); observed rates and Richardson extrapolation
-(``rates.py``). Imported on use: ``import fabricsurf.verification`` loads no FEniCSx module."""
+with Peirce's bending length (``elastica.py``); the dispersion of chains and lattices against
+gradient continua, Mühlhaus & Oka 1996 (``dispersion.py``); observed rates and Richardson
+extrapolation (``rates.py``). Imported on use: ``import fabricsurf.verification`` loads no
+FEniCSx module."""
