@@ -1,6 +1,7 @@
 """Bias extension (Barchiesi et al. 2020): the bi-pantographic energy of eq. (2) (with its
-regularisation beyond the limit stretch), and the continuum-versus-lattice study of the demo
-(``research.studies.bias_study``) on a coarse run (tolerances from measured differences).
+regularisation beyond the limit stretch) and its penalty that follows the stretch. The
+continuum-versus-lattice study of demos/demo_bias_extension.py runs coarse in
+tests/test_demos.py (tolerances from measured differences).
 
 Runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``.
 """
@@ -124,7 +125,7 @@ def test_penalty_follows_the_stretch_up_to_the_limit(rho_c):
     inside eq. (2)'s domain however close the stretch comes to the limit ρ cos γ = 1: a fixed
     ceiling ρ_p cos γ ≤ 0.97 fell below the corner stretch of the finest position-clamp run and
     Newton stalled (docs/bipantographic.md, "Interior penalty"). ρ + margin where that is inside."""
-    from research.studies.bipantographic_range import penalty_stretch
+    from fabricsurf.verification.bipantographic_range import penalty_stretch
 
     gamma = math.pi / 6
     c = math.cos(gamma)

@@ -35,8 +35,8 @@ from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower
 from fabricsurf.experiments.followers import penalty_stretch as penalty_stretch  # re-exported
 from fabricsurf.model.materials import PantographBending, bipantographic
+from fabricsurf.verification.bias_convergence import graded_specimen
 from fabricsurf.verification.rates import richardson_summary
-from research.studies.bias_convergence import graded_specimen
 
 RANGE_OPTIONS = dict(DOMAIN_AWARE)
 """Solver options of the whole-range runs (module docstring)."""
@@ -122,9 +122,10 @@ def convergence(runs: list[dict], loads: list[float]) -> dict:
 
 
 def follow_penalty():
-    """An ``on_step(test, k, ū)`` callback for :func:`research.studies.bias_comparison.compare`
-    that records, per continuum test, the largest stretch its penalty follower saw at each step
-    (``followers``: one record holder per test, with ``history`` as in :func:`run_range`)."""
+    """An ``on_step(test, k, ū)`` callback for
+    :func:`fabricsurf.verification.bias_comparison.compare` that records, per continuum test,
+    the largest stretch its penalty follower saw at each step (``followers``: one record holder
+    per test, with ``history`` as in :func:`run_range`)."""
     followers: dict[int, _StretchRecord] = {}
 
     def on_step(test: BiasExtension, k: int, ubar: float) -> None:
