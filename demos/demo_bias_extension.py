@@ -170,8 +170,8 @@ t0 = time.perf_counter()
 # boundary layer √(A_g/k_l) wide, and the clamp corners are singular points of the
 # second-gradient solution. With F_n the force on level n and d_n = |F_n − F_2n|, the observed
 # rate is log2(d_n / d_2n) and the finest force's error is estimated as d / (2^rate − 1)
-# (`fabricsurf.verification.bias_convergence.force_convergence`; benchmarks/bias_convergence.py adds
-# level 16).
+# (`fabricsurf.verification.bias_convergence.force_convergence`; benchmarks/bias_convergence.py
+# adds level 16).
 
 # %%
 def _hencky(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras: dict) -> dict:
