@@ -203,7 +203,7 @@ def _bipantographic(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras:
                                               snes_options=opts, on_step=follow)
         if results[name]["failure"] is None:  # else the lattice steps were cut to its range
             latres = extras[name]["lat"]
-        results[name]["max_stretch"] = [f.history for f in follow.followers.values()][-1]
+        results[name]["max_stretch"] = follow.followers[-1].history
     n = sum(u <= BRACKET_FRAC * LENGTH + 1e-9 for u in latres["ubar"])
     extras["bipantographic_identified"]["clamp_offset"] = clamp_offset_bracket(
         identified_model(ident), latres, max(n, 1), s.h, comm, snes_options=opts)
