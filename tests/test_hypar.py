@@ -1,5 +1,5 @@
 """The hyperbolic paraboloid of Steigmann & dell'Isola 2015 §5 (the equations are in
-benchmarks/research/verification/hypar.py; docs/verification.md).
+fabricsurf/verification/hypar.py; docs/verification.md).
 
 Asserted on 1 and 2 ranks: Dirichlet case at solver tolerance; natural case recovered with the
 error of the traction quadrature (Gauss, exact to degree 5: O(h^6)) until round-off; corner
