@@ -18,7 +18,7 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments.bias_extension import default_model
-from research.studies.bias_convergence import force_convergence
+from fabricsurf.verification.bias_convergence import force_convergence
 
 
 def main() -> None:

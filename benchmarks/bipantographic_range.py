@@ -24,8 +24,8 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.network.homogenize import identify_macro
-from research.studies.bias_comparison import EPS_EXACT, IDENTIFIED_K_E
-from research.studies.bipantographic_range import (
+from fabricsurf.verification.bias_comparison import EPS_EXACT, IDENTIFIED_K_E
+from fabricsurf.verification.bipantographic_range import (
     RANGE_OPTIONS,
     convergence,
     run_range,

@@ -14,6 +14,7 @@ import argparse
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
+from fabricsurf.verification.rates import rates
 from research.verification.manufactured import (
     full_3d_model,
     in_plane_model,
@@ -21,7 +22,6 @@ from research.verification.manufactured import (
     u_2d,
     u_3d,
 )
-from research.verification.rates import rates
 
 
 def main() -> None:

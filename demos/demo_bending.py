@@ -35,32 +35,24 @@
 # alone. The verdict must still pass the significance and adequacy tests (docs/bending.md).
 
 # %%
-import sys
+import itertools
+import math
 import time
-from pathlib import Path
-
-# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print, write_json
-from fabricsurf.experiments.cantilever import rigidity_uNm, weight_per_area
+from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
+from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.rigidity import narrow_strip_rigidity
-from research.demos.bending_parts import (
-    elastica_study,
-    figures,
-    fit_each_alone,
-    report_diagnosis,
-    strip_data,
-    write_strips,
-)
-from research.demos.checks import verify
-from research.demos.common import demo_parser, parse
-from research.verification.elastica import bending_length
+from fabricsurf.verification.elastica import bending_length, peirce_bending_length, solve_elastica
 
 comm = MPI.COMM_WORLD
 ap = demo_parser(__doc__, "out/bending")  # --quick: coarse meshes, two load steps, twist alone
@@ -110,11 +102,29 @@ def model_with(params: dict) -> list:
 # ## 1. The 0° strip against the heavy elastica, under refinement
 # Centre-line points (x, w/2); error = max |u_FE − u_elastica| over 8 points along the strip. A
 # narrow strip (w = 1 mm) keeps the meshes one element wide; with this energy the 0° strip bends
-# cylindrically at every width (no K_L·K_M coupling), so the width does not enter.
+# cylindrically at every width (no K_L·K_M coupling), so the width does not enter. The elastica
+# is solved by scipy's `solve_bvp` (`fabricsurf.verification.elastica`), independently of the
+# finite elements; the rates are those between successive meshes.
 
 # %%
-tip, study, rates = elastica_study(model_with(TRUTH | {"twist": {"k_t": 0.0}}), LENGTH, WIDTH,
-                                   RHO, c0, (12, 24) if args.quick else (12, 24, 48, 96))
+elastica = solve_elastica(LENGTH, c0)
+X_line = np.linspace(LENGTH / 8, LENGTH, 8)
+u_elastica = elastica.displacement(X_line)  # (u_x, u_z) of the centre line
+line_setup = sy.template(LENGTH, WIDTH, [1.0], np.zeros((0, 2)), angles=(0.0, 90.0),
+                         test="cantilever", options={"areal_density_g_m2": RHO}).setup
+untwisted = model_with(TRUTH | {"twist": {"k_t": 0.0}})
+study = []
+for n in (12, 24) if args.quick else (12, 24, 48, 96):
+    strip = CantileverTest(line_setup, untwisted, LENGTH / n)
+    t0 = time.perf_counter()
+    strip.run(1.0, steps=4)
+    u = strip.displacement_at(np.column_stack([X_line, np.full(8, WIDTH / 2)]))
+    err = float(np.max(np.hypot(u[:, 0] - u_elastica[:, 0], u[:, 2] - u_elastica[:, 1])))
+    study.append({"n": n, "h": LENGTH / n, "error_mm": err, "tip_fe": strip.tip_deflection(),
+                  "seconds": time.perf_counter() - t0})
+rates = [math.log2(a["error_mm"] / b["error_mm"]) for a, b in itertools.pairwise(study)]
+tip = {"tip_deflection": elastica.tip_deflection,
+       "tip_angle_deg": math.degrees(elastica.tip_angle)}
 say(f"elastica: tip deflection {tip['tip_deflection']:.4f} mm, tip angle "
     f"{tip['tip_angle_deg']:.1f}°")
 for row in study:
@@ -126,11 +136,23 @@ lap("elastica")
 # ## 2. Measurements with a hidden twist
 # 20 × 10 mm strips at 0° and 45°; 10 × 5 points at every load factor of the ramp (quick: the
 # full weight only); noise 0.05 mm on every component (a stereo-DIC level). The data mesh is h/2:
-# the data are not the model's own discretisation.
+# the data are not the model's own discretisation. Each strip is written as a measurement
+# directory under `out/data` (a fixed noise draw per strip, the same on every rank) and read back.
 
 # %%
-exps = strip_data(comm, out, STRIPS, model_with(TRUTH), (SHORT, NARROW), PATH, RHO, H / 2,
-                  args.noise)
+hidden = model_with(TRUTH)
+exps = {}
+for i, (name, angles) in enumerate(STRIPS.items()):
+    exp = sy.template(SHORT, NARROW, PATH, sy.grid_points(SHORT, NARROW, 10, 5), angles=angles,
+                      name=name, test="cantilever", options={"areal_density_g_m2": RHO},
+                      force=False)
+    sy.continuum_data(exp, hidden, h=H / 2)  # collective
+    sy.add_noise(exp, args.noise, 0.0, seed=31 + i)
+    exp.source = {"note": "continuum normal_bending + twist on a fine mesh, plus noise"}
+    if comm.rank == 0:
+        write_experiment(out / "data" / name, exp, overwrite=True)
+    comm.barrier()
+    exps[name] = load_experiment(out / "data" / name)
 for name, exp in exps.items():
     say(f"{name}: {len(exp.X)} rows (ux, uy, uz), largest sag {-exp.u[:, 2].min():.2f} mm")
 lap("data")
@@ -146,8 +168,27 @@ lap("data")
 
 # %%
 START = {n: TRUTH[n] for n in FIXED} | {"normal_bending": {"k_b": 1.0}}
-alone = fit_each_alone(exps, lambda k0: model_with(START | {"normal_bending": {"k_b": k0}}),
-                       H, RHO)
+
+
+def peirce_rigidity(exp) -> float:
+    """ρ_A g c³ (N·mm) with Peirce's c from the mean chord angle of the outermost points at
+    the last load factor (the overhang l is their reference x)."""
+    rows = exp.step_rows(exp.steps[-1])
+    far = rows[np.isclose(exp.X[rows, 0], exp.X[rows, 0].max())]
+    x, u = exp.X[far, 0].mean(), exp.u[far].mean(axis=0)
+    c = peirce_bending_length(x, math.atan2(-u[2], x + u[0]))
+    return exp.path[-1] * weight_per_area(RHO) * c**3
+
+
+alone = {}
+for name, exp in exps.items():
+    k0 = peirce_rigidity(exp)
+    fm = ForwardModel(exp, model_with(START | {"normal_bending": {"k_b": k0}}), h=H)
+    res = fit(fm, [fm.names.index("normal_bending.k_b")], verbose=False, scale_start=False)
+    alone[name] = {"peirce_rigidity": k0, "misfit": res.misfit["combined"],
+                   "k_b": res.params()["normal_bending"]["k_b"],
+                   "adequate": sg.adequate(res.chi2, res.misfit["n"], 1),
+                   "forward_runs": res.forward_runs}
 for name, a in alone.items():
     say(f"baseline on {name} alone: Peirce rigidity {a['peirce_rigidity']:.4g} N·mm; misfit "
         f"{a['misfit']:.3f} (RMS residual / noise), k_b = {a['k_b']:.4g} N·mm, adequate: "
@@ -171,8 +212,19 @@ lap("diagnosis")
 diag = d.as_dict()
 write_json(comm, out / "diagnosis.json", diag)
 base, final = d.base_fit, d.final_fit
-fitted, per = report_diagnosis(d, say, seconds["diagnosis"])
-kb, kt = fitted["normal_bending.k_b"], fitted["twist.k_t"]
+fitted = {n: (float(v), float(s)) for n, v, s in zip(final.names, final.values, final.std)}
+per = {"baseline": {e["experiment"]: e["combined"] for e in base.misfit["experiments"]},
+       "final": {e["experiment"]: e["combined"] for e in final.misfit["experiments"]}}
+kb, kt = fitted["normal_bending.k_b"], fitted.get("twist.k_t", (0.0, 0.0))
+say(f"verdict: {d.verdict}; adequate: {d.adequate}; misfit {base.misfit['combined']:.3f} -> "
+    f"{final.misfit['combined']:.3f} ({seconds['diagnosis']:.0f} s, "
+    f"{base.forward_runs + final.forward_runs} forward runs in the two fits)")
+for name in per["baseline"]:
+    say(f"  {name}: misfit {per['baseline'][name]:.3f} -> {per['final'][name]:.3f}")
+for r in d.ranking:
+    say(f"  {r['effect']:15s} score {r['score']:10.1f} refit misfit {r['refit_misfit']}")
+say(f"k_b = {kb[0]:.5f} ± {kb[1]:.5f} N·mm (truth 0.02; {rigidity_uNm(kb[0]):.2f} µN·m), "
+    f"k_t = {kt[0]:.5f} ± {kt[1]:.5f} N·mm (truth 0.01)")
 assert d.verdict == "twist" and d.ranking[0]["effect"] == "twist"
 assert d.adequate and final.misfit["combined"] < base.misfit["combined"]
 for e in final.misfit["experiments"]:  # each strip at the noise level, not only the sum
@@ -189,11 +241,53 @@ for (v, s), truth in ((kb, 0.02), (kt, 0.01)):  # the noise, not a bias, limits 
 # `strip_*.xdmf`: the fitted model along the ramp with λ, μ, γ, J, K_L, K_M, T for ParaView.
 
 # %%
-preds = {"baseline": base.prediction, f"+ {d.verdict}": final.prediction}
+
+
+def figures(preds: dict) -> None:
+    """shapes_3d.png and residuals_uz.png, per model of ``preds`` (rank 0)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(12, 9))
+    for row, (name, exp) in enumerate(exps.items()):
+        rows = exp.step_rows(exp.steps[-1])
+        for col, (label, pr) in enumerate(preds.items()):
+            ax = fig.add_subplot(2, 2, 2 * row + col + 1, projection="3d")
+            P = exp.X[rows] + exp.u[rows, :2]
+            ax.scatter(P[:, 0], P[:, 1], exp.u[rows, 2], c="k", s=8, label="measured")
+            Um = pr[row].u[rows]
+            M = exp.X[rows] + Um[:, :2]
+            ax.plot_trisurf(M[:, 0], M[:, 1], Um[:, 2], alpha=0.5, color="tab:orange")
+            err = np.sqrt(np.mean(np.sum((Um - exp.u[rows]) ** 2, axis=1)))
+            ax.set(title=f"{name}, {label}: RMS error {err:.3f} mm", xlabel="x (mm)",
+                   ylabel="y (mm)", zlabel="z (mm)")
+    fig.tight_layout()
+    fig.savefig(out / "shapes_3d.png", dpi=110)
+    plt.close(fig)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for ax, (row, (name, exp)) in zip(axes, enumerate(exps.items())):
+        rows = exp.step_rows(exp.steps[-1])
+        for (label, pr), mk in zip(preds.items(), ("x", "o")):
+            ax.plot(exp.X[rows, 0], pr[row].u[rows, 2] - exp.u[rows, 2], mk, ms=4, label=label)
+        ax.axhspan(-2 * args.noise, 2 * args.noise, color="0.85", label="±2 noise std")
+        ax.set(title=f"{name}, full weight", xlabel="x (mm)", ylabel="model − measured u_z (mm)")
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "residuals_uz.png", dpi=110)
+    plt.close(fig)
+
+
 if comm.rank == 0:
-    figures(out, exps, preds, args.noise)
+    figures({"baseline": base.prediction, f"+ {d.verdict}": final.prediction})
 comm.barrier()
-write_strips(out, exps, model_with(final.params()), H, len(PATH))
+fitted_model = model_with(final.params())
+for name, exp in exps.items():  # the fitted model along each strip's ramp
+    strip = CantileverTest(exp.setup, fitted_model, H)
+    writer = FieldWriter(out / f"{name}.xdmf", strip.problem.u, strip.problem.energy.kin)
+    strip.run(1.0, steps=len(PATH), on_step=lambda k, t, w=writer: w.write(t))
+    writer.close()
 summary = {
     "truth": TRUTH, "areal_density_g_m2": RHO, "bending_length_mm": c0, "h": H,
     "noise_std": args.noise, "candidates": CANDIDATES, "fixed": FIXED,

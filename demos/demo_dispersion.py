@@ -56,20 +56,15 @@
 # %%
 import json
 import math
-import sys
 from pathlib import Path
-
-# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from dolfinx import fem, io
 from mpi4py import MPI
 
-from research.demos import dispersion_parts as parts
-from research.demos.checks import verify
-from research.demos.common import demo_parser, parse
-from research.demos.dispersion_figures import chain_figure, fabric_figure
+from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
+from fabricsurf.verification import dispersion as dp
 
 args = parse(demo_parser(__doc__, "out/dispersion"))  # --quick: a shorter β scan
 comm = MPI.COMM_WORLD
@@ -92,8 +87,62 @@ out.mkdir(parents=True, exist_ok=True)
 # neighbouring q_n); the two must agree to the spacing of the q_n, π/(N+1).
 
 # %%
+ORDERS = (2, 4, 6)
+NEXT = {2: -1.0 / 12.0, 4: 1.0 / 360.0, 6: -1.0 / 20160.0}
+"""The first neglected coefficient of v_p²/c0² for each truncation (eq. 15)."""
+
+
+def agreed(comm: MPI.Comm, x: float) -> float:
+    """A scalar reduced over the ranks (max); asserts that all ranks computed the same value."""
+    hi, lo = comm.allreduce(float(x), op=MPI.MAX), comm.allreduce(float(x), op=MPI.MIN)
+    assert hi == lo or abs(hi - lo) <= 1e-12 * max(1.0, abs(hi)), (hi, lo)
+    return hi
+
+
+def w2_formula(p: int, q: np.ndarray, k: float, m: float, D: float) -> np.ndarray:
+    """ω² of the ∂^p continuum: c0² q² v_p²/c0² with the truncated series (eqs. 10, 15)."""
+    return k * D**2 / m * q**2 * dp.vp2_truncated(q * D, p)
+
+
+def chain_modes(comm: MPI.Comm, N: int, D: float, k: float, m: float) -> tuple[dict, dict]:
+    """Chain modes from the network engine against eq. (12), and the continuum modes (dolfinx,
+    P5 with C0 interior penalty) against their formulas, error orders and departure points."""
+    q = dp.fixed_chain_wavenumbers(N, D)
+    qd = q * D
+    w2_chain = dp.chain_modes(N, k, m, D)
+    cont = dp.GradientContinuum1D(comm, (N + 1) * D, 2 * (N + 1), degree=5)
+    w2_fe, modes = {}, {}
+    for p in ORDERS:
+        w2_fe[p], overlap, _, modes[p] = cont.modes(*dp.gradient_moduli(p, k, D), m / D, N)
+        assert overlap.min() > 0.999, f"order {p}: a computed mode is not a sine ({overlap.min()})"
+    low = qd <= 1.5
+    res: dict = {"N": N, "chain_engine_max_rel_err_vs_eq12":
+                 agreed(comm, np.max(np.abs(w2_chain / dp.omega2_chain(qd, k, m) - 1.0))),
+                 "continuum": {}, "departure_qD_vp_1pct": {}}
+    xf = np.linspace(1e-3, np.pi, 20001)
+    for p in ORDERS:
+        err = np.abs(w2_fe[p] / w2_formula(p, q, k, m, D) - 1.0)
+        e = w2_chain - w2_fe[p]
+        sel = (np.abs(e) > 1e-6) & (qd <= 1.6)  # well above round-off, in the asymptotic range
+        i0 = int(np.flatnonzero(sel)[0])
+        lead = NEXT[p] * k / m * qd[i0] ** (p + 2)
+        res["continuum"][str(p)] = {
+            "fe_max_rel_err_vs_formula_qD_le_1.5": agreed(comm, err[low].max()),
+            "fe_max_rel_err_vs_formula_all": agreed(comm, err.max()),
+            "omega2_error_order_measured": agreed(comm, dp.fit_order(qd[sel], e[sel])),
+            "omega2_error_order_expected": p + 2,
+            "fit_qD_range": [agreed(comm, qd[sel].min()), agreed(comm, qd[sel].max())],
+            "error_over_leading_term_at_qD": [agreed(comm, qd[i0]), agreed(comm, e[i0] / lead)],
+        }
+        x_an = dp.departure_point(xf, np.sqrt(dp.vp2_truncated(xf, p) / dp.vp2_exact(xf)))
+        x_num = dp.departure_point(qd, np.sqrt(w2_fe[p] / w2_chain))
+        res["departure_qD_vp_1pct"][str(p)] = {"formula": agreed(comm, x_an),
+                                               "computed": agreed(comm, x_num)}
+    return res, {"qd": qd, "w2_chain": w2_chain, "w2_fe": w2_fe, "modes": modes, "cont": cont}
+
+
 N, D, k, m = 40, 1.0, 1.0, 1.0
-res1, arrays1 = parts.chain_modes(comm, N, D, k, m)
+res1, arrays1 = chain_modes(comm, N, D, k, m)
 
 # %% [markdown]
 # ### The sign problem: the ∂⁴ continuum is ill-posed, the ∂⁶ continuum is not
@@ -104,7 +153,24 @@ res1, arrays1 = parts.chain_modes(comm, N, D, k, m)
 # smallest eigenvalue stays the first physical mode, ω_1² = c0² q_1² (1 - (q_1D)²/12 + (q_1D)⁴/360).
 
 # %%
-res1["ill_posedness"] = parts.ill_posedness(comm, 10, D, k, m)
+def ill_posedness(comm: MPI.Comm, Ns: int, D: float, k: float, m: float) -> dict:
+    """Smallest eigenvalue of the ∂⁴ and ∂⁶ continua on a short domain under refinement."""
+    hs, lmin = [], {4: [], 6: []}
+    for cpd in (2, 4, 8):
+        short = dp.GradientContinuum1D(comm, (Ns + 1) * D, cpd * (Ns + 1), degree=5)
+        hs.append(D / cpd)
+        for p in (4, 6):
+            lmin[p].append(agreed(comm, short.modes(*dp.gradient_moduli(p, k, D), m / D, 1)[2]
+                                  .min()))
+    q1 = np.pi / ((Ns + 1) * D)
+    return {"h_over_D": hs, "min_eigenvalue_order4": lmin[4],
+            "min_eigenvalue_order6": lmin[6],
+            "order4_min_eigenvalue_exponent_in_h":
+                agreed(comm, dp.fit_order(np.array(hs), np.array(lmin[4]))),
+            "order6_first_mode_formula": agreed(comm, w2_formula(6, np.array([q1]), k, m, D)[0])}
+
+
+res1["ill_posedness"] = ill_posedness(comm, 10, D, k, m)
 
 # %% [markdown]
 # ## Part 2 — waves along the fibres of the Hencky lattice
@@ -147,15 +213,187 @@ res1["ill_posedness"] = parts.ill_posedness(comm, 10, D, k, m)
 # cancel: a fortuitous late departure, visible in the β scan.)
 
 # %%
+def lattice_bloch(kl: float, ks: float, ag: float, qq: np.ndarray, eps: float, rho: float
+                  ) -> tuple[np.ndarray, ...]:
+    """Bloch ω² (longitudinal, transverse) of a 5x5 Hencky lattice patch, from its Hessian."""
+    lat = hencky_lattice(4 * eps, 4 * eps, eps, (0.0, 90.0),
+                         **lattice_from_continuum(kl, ks, ag, eps, (0.0, 90.0)))
+    H = lat.net.hessian(lat.net.X)
+    return dp.bloch_omega2(H, lat.net.X, int(lat.grid[2, 2]), qq, lat.L, rho * eps**2)
+
+
+def fe_against_formula(comm: MPI.Comm, cont, qe: np.ndarray, k2: float, A: float, eps: float,
+                       rho: float) -> dict:
+    """The dolfinx modes of ρω² = k2 q² + A q⁴ against the formula at the wavenumbers qε =
+    ``qe``. A stiff A makes K ill-conditioned: the low modes are then accurate only to the
+    round-off floor eps·max|λ|/ω_1², reported with the errors."""
+    q = qe / eps
+    w2c, _, lam_all, _ = cont.modes(k2, A, 0.0, rho, len(q))
+    rel = np.abs(w2c / dp.fabric_omega2(q, k2, A, rho) - 1)
+    return {"q_eps_le_1.5": agreed(comm, rel[qe <= 1.5].max()), "all": agreed(comm, rel.max()),
+            "roundoff_floor": agreed(comm, np.finfo(float).eps * np.abs(lam_all).max()
+                                     / w2c.min())}
+
+
+def departure_vs_beta(comm: MPI.Comm, moduli: dict, betas: np.ndarray, xg: np.ndarray) -> dict:
+    """The transverse departure point (qε on the grid ``xg``) of the shear-only and of the
+    shear + geodesic_bending continuum from the lattice, for A_g = β k_s ε²."""
+    eps, rho, k_l, k_s = (moduli[n] for n in ("eps_mm", "rho", "k_l", "k_s"))
+    qg = xg / eps
+    dep = {"shear": [], "shear + geodesic_bending": []}
+    for b in betas:
+        wt_b = lattice_bloch(k_l, k_s, b * k_s * eps**2, qg, eps, rho)[1]
+        for key, A in (("shear", 0.0), ("shear + geodesic_bending", b * k_s * eps**2)):
+            r = np.sqrt(dp.fabric_omega2(qg, k_s, A, rho) / wt_b)
+            dep[key].append(agreed(comm, dp.departure_point(xg, r)))
+    return {"beta": betas.tolist(), **dep}
+
+
+def fabric_waves(comm: MPI.Comm, cont, q: np.ndarray, moduli: dict, betas: np.ndarray
+                 ) -> tuple[dict, dict]:
+    """Part 2: departure points of the fabric continua from the lattice's Bloch waves, the
+    dolfinx modes of two of them against their formulas, and the transverse departure against
+    β = A_g/(k_s ε²). ``cont`` and its wavenumbers ``q`` are part 1's mesh and modes."""
+    eps, rho, k_l, k_s, A_g = (moduli[n] for n in ("eps_mm", "rho", "k_l", "k_s", "A_g"))
+    xg = np.geomspace(1e-4, np.pi, 4000)  # qε
+    qg = xg / eps
+    wl, wt = lattice_bloch(k_l, k_s, A_g, qg, eps, rho)
+    res: dict = {"eps_mm": eps, "k_l": k_l, "k_s": k_s, "A_g": A_g, "beta": A_g / (k_s * eps**2),
+                 "bloch_vs_closed_form_max_rel_err": agreed(comm, max(
+                     np.max(np.abs(wl / dp.hencky_omega2(qg, eps, k_l, 0.0, rho) - 1)[xg > 1e-2]),
+                     np.max(np.abs(wt / dp.hencky_omega2(qg, eps, k_s, A_g, rho) - 1)[xg > 1e-2]))),
+                 "departure_qeps_vp_1pct": {}, "fe_max_rel_err_vs_formula": {}}
+    A_s = k_l * eps**2 / 12.0  # the size of the Taylor coefficient of the lattice
+    continua = {
+        "longitudinal: fibre_stretch": (k_l, 0.0, wl),
+        "longitudinal: + stretch_gradient A_s=+k_l eps^2/12": (k_l, A_s, wl),
+        "longitudinal: + stretch_gradient A_s=-k_l eps^2/12 (Taylor, ill-posed)": (k_l, -A_s, wl),
+        "transverse: shear": (k_s, 0.0, wt),
+        "transverse: + geodesic_bending": (k_s, A_g, wt),
+    }
+    vp_ratio = {}
+    for name, (k2, A, w_lat) in continua.items():
+        vp_ratio[name] = np.sqrt(np.maximum(dp.fabric_omega2(qg, k2, A, rho), 0.0) / w_lat)
+        res["departure_qeps_vp_1pct"][name] = agreed(comm, dp.departure_point(xg, vp_ratio[name]))
+    for name, (k2, A) in {"longitudinal A_s>0": (k_l, A_s),
+                          "transverse + geodesic_bending": (k_s, A_g)}.items():
+        res["fe_max_rel_err_vs_formula"][name] = fe_against_formula(comm, cont, q * eps, k2, A,
+                                                                    eps, rho)
+    res["departure_vs_beta"] = departure_vs_beta(comm, moduli, betas, xg)
+    dep = res["departure_qeps_vp_1pct"]
+    res["geodesic_bending_moves_departure_by_factor"] = (
+        dep["transverse: + geodesic_bending"] / dep["transverse: shear"])
+    return res, {"xg": xg, "qg": qg, "wl": wl, "wt": wt, "continua": list(continua),
+                 "vp_ratio": vp_ratio}
+
+
 moduli = {"eps_mm": 1.0, "rho": 1.0, "k_l": 30.0, "k_s": 0.5, "A_g": 40.0}  # N/mm, N/mm, N mm
 betas = np.geomspace(1e-2, 1e3, 6 if args.quick else 11)
-res2, arrays2 = parts.fabric_waves(comm, arrays1["cont"], arrays1["qd"] / D, moduli, betas)
+res2, arrays2 = fabric_waves(comm, arrays1["cont"], arrays1["qd"] / D, moduli, betas)
 
 # %% [markdown]
 # ## Figures, and a computed continuum mode for ParaView
 # Mode n = 5 of the ∂², ∂⁴ and ∂⁶ continua (P5, interpolated to P1 for XDMF in dolfinx 0.5.2).
 
 # %%
+COLOURS = ("C0", "C1", "C2")
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def chain_figure(out: Path, a1: dict, ill: dict) -> None:
+    """Part 1: ``a1`` the arrays of ``chain_modes``, ``ill`` its ill-posedness entries."""
+    plt = _plt()
+    qd, w2_chain, w2_fe = a1["qd"], a1["w2_chain"], a1["w2_fe"]
+    fig, ax = plt.subplots(2, 2, figsize=(11, 8.5))
+    xs = np.linspace(1e-3, np.pi, 400)
+    a = ax[0, 0]
+    a.plot(xs, np.sqrt(dp.vp2_exact(xs)), "k-", lw=2, label="discrete, eq. (12)")
+    a.plot(qd, np.sqrt(w2_chain) / qd, "ko", ms=3, mfc="none", label="chain modes (engine)")
+    for p, col in zip(ORDERS, COLOURS):
+        a.plot(xs, np.sqrt(dp.vp2_truncated(xs, p)), "--", color=col, label=f"∂^{p} continuum")
+        a.plot(qd, np.sqrt(w2_fe[p]) / qd, "+", color=col, label=f"∂^{p} modes (dolfinx)")
+    a.set(xlabel="qD", ylabel="v_p / c0", title="Phase velocity, 1D chain (Mühlhaus & Oka 1996 §2)")
+    a.legend(fontsize=7)
+    a = ax[0, 1]
+    xe = np.geomspace(0.05, np.pi, 200)
+    for p, col in zip(ORDERS, COLOURS):
+        a.loglog(qd, np.abs(w2_fe[p] / w2_chain - 1), "o", color=col, ms=3,
+                 label=f"∂^{p}: |v_p²/v_p²(eq.12) - 1|")
+        a.loglog(xe, np.abs(NEXT[p]) * xe**p, "-", color=col, lw=0.8, label=f"|C_{p}|(qD)^{p}")
+    a.axhspan(1e-12, 3e-7, color="0.9", zorder=0)
+    a.text(0.06, 1e-9, "round-off floor of the\n∂⁶ eigen-solve", fontsize=7)
+    a.set(xlabel="qD", ylabel="relative error in ω² (modes)", title="Truncation error vs order",
+          ylim=(1e-12, 1))
+    a.legend(fontsize=7)
+    a = ax[1, 0]
+    xl = np.linspace(0, 6, 400)
+    a.plot(xl, dp.omega2_chain(xl), "k-", lw=2, label="discrete, eq. (12)")
+    for p, col in zip(ORDERS, COLOURS):
+        a.plot(xl, xl**2 * dp.vp2_truncated(xl, p), "--", color=col, label=f"∂^{p} continuum")
+    a.axhline(0, color="gray", lw=0.5)
+    a.axvline(math.sqrt(12), color="C1", lw=0.5, ls=":")
+    a.set(xlabel="qD", ylabel="mω²/k", ylim=(-4, 8),
+          title="Sign problem: ∂⁴ gives ω² < 0 for qD > √12")
+    a.legend(fontsize=7)
+    a = ax[1, 1]
+    hs, l4, l6 = (np.array(ill[k]) for k in ("h_over_D", "min_eigenvalue_order4",
+                                             "min_eigenvalue_order6"))
+    a.loglog(hs, -l4, "C1o-", label="∂⁴: -min ω² (unstable)")
+    a.loglog(hs, l6, "C2s-", label="∂⁶: min ω² (first mode)")
+    a.loglog(hs, -l4[0] * (hs / hs[0]) ** -4, "k:", lw=0.8, label="∝ h⁻⁴")
+    a.set(xlabel="mesh size h / D", ylabel="|min eigenvalue| (k/m)",
+          title="Ill-posedness under refinement")
+    a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "dispersion_chain.png", dpi=120)
+    plt.close(fig)
+
+
+def fabric_figure(out: Path, res2: dict, a2: dict, rho: float) -> None:
+    """Part 2: ``res2`` the summary entries of ``fabric_waves``, ``a2`` its arrays."""
+    plt = _plt()
+    xg, qg, wl, wt, names, vp = (a2[k] for k in ("xg", "qg", "wl", "wt", "continua",
+                                                 "vp_ratio"))
+    dep, beta = res2["departure_qeps_vp_1pct"], res2["beta"]
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
+    a = ax[0]
+    base = np.sqrt(wl * rho / res2["k_l"]) / qg
+    a.plot(xg, base, "k-", lw=2, label="Hencky lattice (Bloch)")
+    for name, col in zip(names[:3], ("C0", "C3", "C1")):
+        a.plot(xg, vp[name] * base, "--", color=col, label=name.split(": ")[1])
+    a.set(xlabel="qε", ylabel="v_p / √(k_l/rho)", title="Longitudinal wave along L",
+          xlim=(0, np.pi))
+    a.legend(fontsize=7)
+    a = ax[1]
+    base = np.sqrt(wt) / qg / np.sqrt(res2["k_s"] / rho)
+    a.loglog(xg, base, "k-", lw=2, label="Hencky lattice (Bloch)")
+    for name, col in zip(names[3:], ("C0", "C2")):
+        a.loglog(xg, vp[name] * base, "--", color=col, label=name.split(": ")[1])
+        a.axvline(dep[name], color=col, lw=0.6, ls=":")
+    a.set(xlabel="qε", ylabel="v_p / √(k_s/rho)", title=f"Transverse wave along L, β = {beta:g}")
+    a.legend(fontsize=7)
+    a = ax[2]
+    db = res2["departure_vs_beta"]
+    betas = np.array(db["beta"])
+    a.loglog(betas, db["shear"], "C0o-", label="shear only")
+    a.loglog(betas, db["shear + geodesic_bending"], "C2s-", label="+ geodesic_bending")
+    a.loglog(betas, np.sqrt(0.02 / betas), "k:", lw=0.8, label="√(0.02/β)")
+    a.set(xlabel="β = A_g/(k_s ε²)", ylabel="qε at 1 % phase-velocity departure",
+          title="Transverse departure point")
+    a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "dispersion_fabric.png", dpi=120)
+    plt.close(fig)
+
+
 if comm.rank == 0:
     chain_figure(out, arrays1, res1["ill_posedness"])
     fabric_figure(out, res2, arrays2, moduli["rho"])
@@ -163,7 +401,7 @@ cont = arrays1["cont"]
 V1 = fem.FunctionSpace(cont.msh, ("Lagrange", 1))
 with io.XDMFFile(comm, out / "dispersion_modes.xdmf", "w") as xdmf:
     xdmf.write_mesh(cont.msh)
-    for p in parts.ORDERS:
+    for p in ORDERS:
         f1 = fem.Function(V1, name=f"mode5_order{p}")
         f1.interpolate(cont.function(arrays1["modes"][p][4]))
         xdmf.write_function(f1)
@@ -199,7 +437,7 @@ CHECKS = {
 }
 verify(summary, CHECKS)
 c1, ill = res1["continuum"], res1["ill_posedness"]
-for p in parts.ORDERS:
+for p in ORDERS:
     assert abs(c1[str(p)]["error_over_leading_term_at_qD"][1] - 1) < 0.02, p
     d1 = res1["departure_qD_vp_1pct"][str(p)]
     assert abs(d1["formula"] - d1["computed"]) < np.pi / (N + 1), p

@@ -26,17 +26,13 @@
 
 # %%
 import json
-import sys
 import time
-from pathlib import Path
-
-# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
+from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.output import rank0_print, write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
@@ -45,8 +41,6 @@ from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.report import result_lines
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.terms import parse_terms
-from research.demos.checks import verify
-from research.demos.common import demo_parser, parse
 
 comm = MPI.COMM_WORLD
 ap = demo_parser(__doc__, "out/hidden_effect")

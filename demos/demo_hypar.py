@@ -42,21 +42,14 @@
 
 # %%
 import dataclasses
-import sys
-from pathlib import Path
-
-# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
-from geometry.specimen import square
-from research.demos.checks import verify
-from research.demos.common import demo_parser, parse
-from research.verification.hypar import (
+from fabricsurf.verification.hypar import (
     CORNER_SIGNS,
     Hypar,
     computed_corner_forces,
@@ -64,7 +57,8 @@ from research.verification.hypar import (
     solve_dirichlet,
     solve_natural,
 )
-from research.verification.rates import rates
+from fabricsurf.verification.rates import rates
+from geometry.specimen import square
 
 comm = MPI.COMM_WORLD
 parser = demo_parser(__doc__.splitlines()[0] if __doc__ else None, "out/hypar")

@@ -1,6 +1,7 @@
 """Bias extension (Barchiesi et al. 2020): the bi-pantographic energy of eq. (2) (with its
-regularisation beyond the limit stretch), and the continuum-versus-lattice study of the demo
-(``research.studies.bias_study``) on a coarse run (tolerances from measured differences).
+regularisation beyond the limit stretch) and its penalty that follows the stretch. The
+continuum-versus-lattice study of demos/demo_bias_extension.py runs coarse in
+tests/test_demos.py (tolerances from measured differences).
 
 Runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``.
 """
@@ -124,7 +125,7 @@ def test_penalty_follows_the_stretch_up_to_the_limit(rho_c):
     inside eq. (2)'s domain however close the stretch comes to the limit ρ cos γ = 1: a fixed
     ceiling ρ_p cos γ ≤ 0.97 fell below the corner stretch of the finest position-clamp run and
     Newton stalled (docs/bipantographic.md, "Interior penalty"). ρ + margin where that is inside."""
-    from research.studies.bipantographic_range import penalty_stretch
+    from fabricsurf.experiments.followers import penalty_stretch
 
     gamma = math.pi / 6
     c = math.cos(gamma)
@@ -162,3 +163,26 @@ def test_cellwise_penalty_stretch(unit_square):
     assert uniform == pytest.approx(sum(_coefficients(1.0, t.K_E, t.K_F, c)), rel=1e-12)
     with pytest.raises(ValueError, match="cos γ < 1"):
         t.set_penalty_stretch(unit_square, np.full(n, 1.2))
+
+
+def test_stretch_records_one_per_test_even_when_an_id_is_reused():
+    """follow_penalty keeps one record per continuum test. Keyed by ``id(test)``, a test built
+    after the previous one was freed took its id, and the bias demo's summary then carried the
+    first comparison's stretch history in front of the next one's (seen in a 2-rank quick run)."""
+    from fabricsurf.experiments.followers import PenaltyFollower
+    from fabricsurf.verification.bipantographic_range import follow_penalty
+
+    class Test:  # what the callback reads of a BiasExtension: its penalty followers
+        def __init__(self, rho: float) -> None:
+            follower = object.__new__(PenaltyFollower)
+            follower.history = [{"max_stretch": rho}]
+            self.followers = [follower]
+
+    follow = follow_penalty()
+    for rho in (1.1, 1.2):  # CPython gives the second test the first one's freed id
+        test = Test(rho)
+        follow(test, 1, 5.0)
+        follow(test, 2, 10.0)
+        del test
+    assert [[h["max_stretch"] for h in f.history] for f in follow.followers] == [[1.1, 1.1],
+                                                                                 [1.2, 1.2]]

@@ -11,7 +11,7 @@ Checks:
 * the unit conversion g/m² → N/mm² and the assembled weight of a strip (∫ b = −ρ_A g L w);
 * Peirce's small-deflection relation δ = L⁴/(8c³), c = (k_b/ρ_A g)^(1/3), and his bending-length
   formula from the chord angle;
-* the 0° strip against the heavy elastica (scipy solve_bvp, research.verification.elastica)
+* the 0° strip against the heavy elastica (scipy solve_bvp, fabricsurf.verification.elastica)
   at a tip angle of 66°: the centre-line error falls at rate ≥ 2.5 (the rates observed are in
   docs/verification.md, "Margins of the tests"), with a recorded 1-rank value of the tip
   deflection that 2 ranks must reproduce;
@@ -39,7 +39,7 @@ from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.rigidity import narrow_strip_rigidity
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
-from research.verification.elastica import (
+from fabricsurf.verification.elastica import (
     bending_length,
     peirce_bending_length,
     small_deflection_tip,

@@ -6,8 +6,8 @@ Engel et al. 2002): broken-H2 error O(h), H1 and L2 errors O(h²) (for k = 2 dua
 extra order in L2). Asserted with a margin of 0.2 on the rate between the two finest meshes.
 """
 
+from fabricsurf.verification.rates import rates
 from research.verification.manufactured import in_plane_model, manufactured_solve, u_2d
-from research.verification.rates import rates
 
 THEORY = {"L2": 2.0, "H1": 2.0, "H2": 1.0}
 MARGIN = 0.2

@@ -16,7 +16,7 @@ import pytest
 from mpi4py import MPI
 from scipy.optimize import brentq
 
-from research.studies import dispersion as dp
+from fabricsurf.verification import dispersion as dp
 
 N = 40  # chain masses; q_n D = nπ/41 spans (0, π)
 NEXT = {2: -1.0 / 12.0, 4: 1.0 / 360.0, 6: -1.0 / 20160.0}  # first neglected coefficient

@@ -27,6 +27,7 @@ from mpi4py import MPI
 from scipy import stats
 
 import fabricsurf.cli as cli
+import fabricsurf.cli.bias as bias_cli
 from fabricsurf.cli import main
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import StepLog, write_json
@@ -383,7 +384,7 @@ def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
     importlib.import_module("fabricsurf.inverse.fitting.diagnose")
     built = []
     monkeypatch.setattr(forward, "ForwardSet", lambda *a, **k: built.append(a))
-    monkeypatch.setattr(cli.bias_cli, "BiasExtension", lambda *a, **k: built.append(a))
+    monkeypatch.setattr(bias_cli, "BiasExtension", lambda *a, **k: built.append(a))
     before = sorted(p.name for p in in_root.iterdir())
     rc, msg = run_cli(case["argv"], capsys)
     assert rc == 2, msg

@@ -1,5 +1,5 @@
 """The hyperbolic paraboloid of Steigmann & dell'Isola 2015 §5 (the equations are in
-benchmarks/research/verification/hypar.py; docs/verification.md).
+fabricsurf/verification/hypar.py; docs/verification.md).
 
 Asserted on 1 and 2 ranks: Dirichlet case at solver tolerance; natural case recovered with the
 error of the traction quadrature (Gauss, exact to degree 5: O(h^6)) until round-off; corner
@@ -12,15 +12,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from geometry.specimen import square
-from research.verification.hypar import (
+from fabricsurf.verification.hypar import (
     Hypar,
     computed_corner_forces,
     l2_error,
     solve_dirichlet,
     solve_natural,
 )
-from research.verification.rates import rates
+from fabricsurf.verification.rates import rates
+from geometry.specimen import square
 
 SIZES = (0.5, 0.35, 0.25)
 

@@ -13,12 +13,13 @@ PKG = ROOT / "fabricsurf"
 HEAVY = ("dolfinx", "petsc4py", "ufl", "ffcx", "basix")
 
 # the layers, bottom first: a module may import its own layer and the layers below it
-LAYERS = ["errors", "constants", "log", "datasets", "model", "discretise", "experiments", "inverse",
-          "cli", "fabricsurf"]
+LAYERS = ["errors", "constants", "log", "datasets", "model", "discretise", "experiments",
+          "verification", "inverse", "cli", "fabricsurf"]
 # the lattice reference stands beside the layers: it imports only these, and of the layers
-# only the synthetic-data generator (lattice measurements) imports it
+# only the synthetic-data generator (lattice measurements) and the reference solutions (the
+# chain's and lattice's dispersion against the continua) import it
 NETWORK_IMPORTS = ("network", "errors", "constants", "log")
-NETWORK_USERS = {("inverse", "synthetic")}
+NETWORK_USERS = {("inverse", "synthetic"), ("verification", None)}
 # within inverse: the sub-packages each may import
 INVERSE = {
     "contract": {"contract"},
@@ -30,8 +31,9 @@ INVERSE = {
 
 
 def test_light_root():
-    """``import fabricsurf, fabricsurf.network`` loads no FEniCSx module."""
-    code = ("import sys, fabricsurf, fabricsurf.network\n"
+    """``import fabricsurf, fabricsurf.network`` loads no FEniCSx module, nor does
+    ``fabricsurf.cli.demo`` (tests/test_demos.py reads the demos' checks with it)."""
+    code = ("import sys, fabricsurf, fabricsurf.network, fabricsurf.cli.demo\n"
             f"heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))\n"
             "assert not heavy, heavy\n"
             "assert fabricsurf.__version__ and 'fit' in fabricsurf.__all__\n")

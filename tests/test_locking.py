@@ -118,8 +118,8 @@ def test_stiff_fibres_with_geodesic_bending_keep_the_c0ip_rates():
     depend on K) with fibre_stretch at K/k_s = 1e6, shear and geodesic bending, on the
     structured crossed mesh whose diagonals follow the ±45° fibres: the C0-IP rates (L2 and
     H1 2, broken H2 1; margin 0.2 on the finest pair) are those of soft fibres."""
+    from fabricsurf.verification.rates import rates
     from research.verification.manufactured import manufactured_solve
-    from research.verification.rates import rates
 
     def chebyshev_net(x):
         c, d = 0.3, -0.2

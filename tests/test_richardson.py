@@ -1,8 +1,9 @@
-"""Observed rates and Richardson extrapolation (research.verification.rates.richardson_summary)."""
+"""Observed rates and Richardson extrapolation
+(fabricsurf.verification.rates.richardson_summary)."""
 
 import pytest
 
-from research.verification.rates import richardson_summary
+from fabricsurf.verification.rates import richardson_summary
 
 
 def test_exact_power_law():

@@ -11,6 +11,10 @@ mpirun's own: Open MPI 4.1 returns 1 when it is itself interrupted, whatever its
 an unexpected failure on one rank aborts all ranks instead of leaving the
 others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
 through the root logger) are hidden unless ``--verbose``.
+
+The commands' modules are imported when the parser is built, so that importing
+:mod:`fabricsurf.cli` (and :mod:`fabricsurf.cli.demo`, what every demo shares) loads no
+FEniCSx module.
 """
 
 from __future__ import annotations
@@ -26,9 +30,6 @@ from collections.abc import Iterator
 
 from mpi4py import MPI
 
-from fabricsurf.cli import bias as bias_cli
-from fabricsurf.cli import dic as dic_cli
-from fabricsurf.cli import measure, outdir
 from fabricsurf.errors import InputError
 from fabricsurf.log import progress, rank0_print
 
@@ -48,6 +49,7 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 def cmd_terms(args) -> int:
     """Print the vocabulary: names, moduli with units, and energy densities."""
+    from fabricsurf.discretise.output import rank0_print
     from fabricsurf.model.terms import EFFECTS
 
     rank0_print(COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
@@ -60,6 +62,10 @@ def cmd_terms(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from fabricsurf.cli import bias as bias_cli
+    from fabricsurf.cli import dic as dic_cli
+    from fabricsurf.cli import measure
+
     ap = argparse.ArgumentParser(prog="fabricsurf", formatter_class=HelpFormatter,
                                  description="Fabric surface models vs measurements: solve, "
                                  "compare, fit, diagnose the missing effect. Lengths in mm, "
@@ -116,6 +122,8 @@ def interruptible(command: str) -> Iterator[None]:
     that may call MPI, which could wait forever for a rank that has already stopped. The
     previous handlers are restored on exit."""
     import threading
+
+    from fabricsurf.cli import outdir
 
     if threading.current_thread() is not threading.main_thread():
         yield

@@ -1,3 +1,2 @@
-"""What the demos share and what they would otherwise carry: the declared checks of a demo's
-summary.json, its command line (quiet compiler unless ``--verbose``), and the figure and
-comparison code of the longer demos (not installed, see benchmarks/README.md)."""
+"""What demos/demo_woven_fabric.py and demos/demo_forming.py still import from the research tree
+until they run from the installed package alone (issue 42; the other demos do)."""

@@ -1,1 +1,1 @@
-"""Studies built on the layers: dispersion, bias-test convergence and comparisons, woven fabric."""
+"""Studies built on the layers: the woven-fabric benchmark."""

@@ -1,1 +1,2 @@
-"""Verification problems: manufactured solutions, hyperbolic paraboloid, rates, heavy elastica."""
+"""Verification problems not installed: manufactured solutions (the installed references, the
+hyperbolic paraboloid, the heavy elastica and rates, are in fabricsurf.verification)."""

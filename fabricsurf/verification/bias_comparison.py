@@ -1,9 +1,9 @@
 """Bias extension, continuum against spring lattices (Barchiesi et al. 2020, Figs. 9–11).
 
-The computations behind ``demos/demo_bias_extension.py`` (the demo keeps the narrative, the
-figures and the checks): lattice solves and node read-outs (the micro–macro correspondences of
-Barchiesi et al. 2020, eqs. 3–5), one continuum–lattice comparison, the three zones of the bias
-test, and the identified bi-pantographic models.
+The computations behind ``demos/demo_bias_extension.py`` and benchmarks/bipantographic_range.py
+(the demo keeps the narrative, the figures and the checks): lattice solves and node read-outs
+(the micro–macro correspondences of Barchiesi et al. 2020, eqs. 3–5), one continuum–lattice
+comparison, the three zones of the bias test, and the identified bi-pantographic models.
 """
 
 from __future__ import annotations

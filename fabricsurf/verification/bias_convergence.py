@@ -8,8 +8,8 @@ from mpi4py import MPI
 from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.terms import Term
+from fabricsurf.verification.rates import richardson_summary
 from geometry.specimen import BIAS_LENGTH, BIAS_WIDTH, Specimen, structured_rectangle
-from research.verification.rates import richardson_summary
 
 
 def graded_specimen(level: int, grading: float = 0.6, length: float = BIAS_LENGTH,
@@ -28,8 +28,9 @@ def force_convergence(model: list[Term], levels: list[int], ubar: float, steps: 
                       width: float = BIAS_WIDTH, base: tuple[int, int] = (11, 7),
                       comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
     """Grip force at ``ubar`` on the nested graded meshes of :func:`graded_specimen`, with the
-    observed rates and Richardson limit of :func:`~research.verification.rates.richardson_summary`
-    (``levels`` grow by a constant ratio). Returns a JSON-ready dict; scalars are reduced."""
+    observed rates and Richardson limit of
+    :func:`~fabricsurf.verification.rates.richardson_summary` (``levels`` grow by a constant
+    ratio). Returns a JSON-ready dict; scalars are reduced."""
     forces, angles = [], []
     for lev in levels:
         sp = graded_specimen(lev, grading, length, width, base, comm)

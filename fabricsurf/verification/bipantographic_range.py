@@ -33,10 +33,9 @@ from fabricsurf.discretise.solver import DOMAIN_AWARE
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower
-from fabricsurf.experiments.followers import penalty_stretch as penalty_stretch  # re-exported
 from fabricsurf.model.materials import PantographBending, bipantographic
-from research.studies.bias_convergence import graded_specimen
-from research.verification.rates import richardson_summary
+from fabricsurf.verification.bias_convergence import graded_specimen
+from fabricsurf.verification.rates import richardson_summary
 
 RANGE_OPTIONS = dict(DOMAIN_AWARE)
 """Solver options of the whole-range runs (module docstring)."""
@@ -122,14 +121,22 @@ def convergence(runs: list[dict], loads: list[float]) -> dict:
 
 
 def follow_penalty():
-    """An ``on_step(test, k, ū)`` callback for :func:`research.studies.bias_comparison.compare`
-    that records, per continuum test, the largest stretch its penalty follower saw at each step
-    (``followers``: one record holder per test, with ``history`` as in :func:`run_range`)."""
-    followers: dict[int, _StretchRecord] = {}
+    """An ``on_step(test, k, ū)`` callback for
+    :func:`fabricsurf.verification.bias_comparison.compare` that records, per continuum test,
+    the largest stretch its penalty follower saw at each step (``followers``: one record holder
+    per test, in the order the tests ran, with ``history`` as in :func:`run_range`).
+
+    A test is told from the previous one by identity, and the callback holds the test of its
+    last record: keyed by ``id(test)``, a test built after the previous one was freed could
+    take its id and have its records appended to the previous test's."""
+    followers: list[_StretchRecord] = []
+    current: list[BiasExtension | None] = [None]
 
     def on_step(test: BiasExtension, k: int, ubar: float) -> None:
-        rec = followers.setdefault(id(test), _StretchRecord())
-        rec.history.append({"ubar": ubar, **stretch_history(test)[-1]})
+        if test is not current[0]:
+            current[0] = test
+            followers.append(_StretchRecord())
+        followers[-1].history.append({"ubar": ubar, **stretch_history(test)[-1]})
 
     on_step.followers = followers
     return on_step
