@@ -31,7 +31,7 @@ from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.model.terms import FibreStretch, Shear
-from research.studies import woven as wv
+from fabricsurf.verification import woven as wv
 
 
 def model(k_yarn: float, k_s: float = 0.02) -> list:

@@ -32,16 +32,13 @@
 # Findings and numbers: `docs/woven_fabric.md`.
 
 # %%
-import sys
 import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
+from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.datasets import cao2008_plain_weave
 from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
 from fabricsurf.experiments import three_zone as tz
@@ -53,9 +50,7 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.fitting.misfit import scales
 from fabricsurf.model.terms import parse_terms
-from research.demos.checks import verify
-from research.demos.common import demo_parser, parse
-from research.studies import woven as wv
+from fabricsurf.verification import woven as wv
 
 comm = MPI.COMM_WORLD
 ap = demo_parser("The Cao et al. 2008 curve with real yarns: fit, diagnose, predict",

@@ -50,7 +50,7 @@ QUICK = {
 SLOW = {"demo_bending.py", "demo_woven_fabric.py", "demo_dic.py"}
 # not yet on the installed package alone (issue 42): they run from the checkout, and their scan
 # is expected to fail (strict: once converted, take them out of this set)
-PENDING = {"demo_woven_fabric.py", "demo_forming.py"}
+PENDING = {"demo_forming.py"}
 RANKS = 2
 # what FFCx, UFL and cffi/distutils print while compiling a form
 COMPILER = re.compile(r"^(INFO:|DEBUG:|.*\bgcc\b|.*\bcc1\b|running build_ext|building '|"

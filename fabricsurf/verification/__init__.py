@@ -5,5 +5,7 @@ with Peirce's bending length (``elastica.py``); the dispersion of chains and lat
 gradient continua, Mühlhaus & Oka 1996 (``dispersion.py``); the bias test against the Hencky
 and bi-pantographic lattices (``bias_comparison.py``), its grip force under refinement
 (``bias_convergence.py``) and over the whole range (``bipantographic_range.py``); observed
-rates and Richardson extrapolation (``rates.py``). Imported on use: ``import
+rates and Richardson extrapolation (``rates.py``); the real plain-weave curve of Cao et al. 2008
+against the model: fitted range, errors and the ranges no elastic term follows (``woven.py``).
+Imported on use: ``import
 fabricsurf.verification`` loads no FEniCSx module."""
