@@ -58,11 +58,12 @@ from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
 
-NEWTON_ITERATIONS = 50
-"""Newton iterations per attempt (full steps, then :data:`FALLBACK`) before the load stepper
-cuts the stroke increment."""
-FALLBACK = {"snes_linesearch_type": "l2"}
-"""Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver)."""
+FULL_STEP_ITERATIONS = 25
+"""Newton iterations of the full-step attempt: from the extrapolated start it converges in
+7–22 where it converges at all (docs/forming.md); beyond, the repeat with the line search."""
+FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
+"""Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
+if it fails too, the load stepper cuts the stroke increment."""
 
 class HemisphereForming(ExperimentSetup):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
@@ -113,7 +114,7 @@ class HemisphereForming(ExperimentSetup):
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
                            prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
-                           snes_options={"snes_max_it": NEWTON_ITERATIONS,
+                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
                                          "snes_linesearch_type": "basic",
                                          **(snes_options or {})})
         p.mirror("clamp", 0)
