@@ -54,6 +54,7 @@ from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import forming_options, get_test
 from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from research.forming.fishnet import bisector_shear
@@ -178,6 +179,24 @@ def test_size_and_stroke_guards():
     HemisphereForming.check_path([0, 1], [0.0, 2.0], "force.csv")
     with pytest.raises(DataError, match=r"force.csv: step 1: punch stroke -2 mm is negative"):
         HemisphereForming.check_path([0, 1], [0.0, -2.0], "force.csv")
+
+
+def test_step_log_lines():
+    """Every converged step gives its line at once, with the contact changes counted since the
+    step before and the l2 repeats of this step only; the totals add the records."""
+    states = iter([np.array([0, 0, 1]), np.array([1, 0, 1]), np.array([0, 1, 0])])
+    repeats = iter([0, 1, 1])
+    lines = []
+    book = StepLog(COMM, lambda: next(states), lambda: next(repeats), lines.append, "run: ")
+    book.step(0, 1.0, 0.5, 12, 2, 2)
+    book.step(1, 2.0, 0.9, 7, 1, 2)
+    n = COMM.size
+    assert [r["contact_changes"] for r in book.records] == [n, 3 * n]
+    assert [r["fallbacks"] for r in book.records] == [1, 0]
+    assert lines[0].startswith("run: step 1/2: stroke 1 mm, force 0.5 N, 12 Newton iterations, "
+                               f"1 cuts, 1 l2 repeats, {n} contact changes")
+    total = StepLog.totals(book.records)
+    assert (total["newton_iterations"], total["cuts"], total["fallbacks"]) == (19, 1, 1)
 
 
 def trapezoid(s, F, every: int) -> float:

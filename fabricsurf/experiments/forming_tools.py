@@ -8,9 +8,9 @@ so that the flat blank pressed into it is in equilibrium at s = 0 and the die's 
 active there: at d = 0 its stiffness would vanish and leave the vertical motion free) and
 the blank holder (below it, face at z = −g, g the gap) are plates with a circular opening of
 radius R_o and a rounded lip of radius r_d. The holder also presses the flange against the die
-with a pressure p_h, the potential −∫ p_h w(ρ) r_z dX, w rising smoothly (3t² − 2t³) from 0 at
-the end of the lip (ρ = R_o + r_d, ρ the current distance from the axis, where the die's face
-becomes flat) to 1 one lip radius further: it fixes the blank's
+with a pressure p_h, the potential −∫ p_h w(ρ) r_z dX, w rising smoothly (3t² − 2t³) from 0
+one lip radius beyond the end of the lip (ρ = R_o + 2 r_d, ρ the current distance from the
+axis; the die's face becomes flat at R_o + r_d) to 1 one lip radius further: it fixes the blank's
 vertical position from the first step (a blank in a gap alone could float up with the punch).
 Self-weight, optional, is the potential ∫ q r_z dX (q = ρ_A g per unit reference area).
 Contact is the penalty energy
@@ -96,7 +96,7 @@ class Tools:
 
     def holder_weight(self, r):
         """w(ρ) of the holder pressure (module docstring)."""
-        t = ufl.min_value(ufl.max_value((self._rho(r) - self.opening) / self.lip - 1.0, 0.0), 1.0)
+        t = ufl.min_value(ufl.max_value((self._rho(r) - self.opening) / self.lip - 2.0, 0.0), 1.0)
         return t**2 * (3.0 - 2.0 * t)
 
     def energy_density(self, r):

@@ -58,9 +58,10 @@ from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
 
-FULL_STEP_ITERATIONS = 25
-"""Newton iterations of the full-step attempt: from the extrapolated start it converges in
-7–22 where it converges at all (docs/forming.md); beyond, the repeat with the line search."""
+FULL_STEP_ITERATIONS = 40
+"""Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
+and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
+too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
 FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
 """Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
 if it fails too, the load stepper cuts the stroke increment."""
