@@ -17,7 +17,15 @@ of a 250 mm blank.
    stroke step, the load stepper's attempts, the time; then how the time grows with the number
    of elements.
 
-Run: ``mpirun -n 2 python benchmarks/forming.py [--study convergence|performance|both]``.
+3. ``--study steps [--size quick|intermediate|full] [--case kinematic|fitted]``: one run of
+   demos/demo_forming.py at its quick size (R = 20 mm, 72 mm blank, h = 4 mm), an intermediate
+   one (R = 35 mm, 105 mm blank, h = 5 mm) or its full size (R = 50 mm, 150 mm blank,
+   h = 5 mm), stroke 0.6 R in 12 steps: the step log (per step the Newton iterations, cuts,
+   l2 repeats, contact changes and time) and its totals, where the time of the demo goes, with
+   the CPU time of the busiest rank beside the wall time (a measure a shared machine does not
+   inflate).
+
+Run: ``mpirun -n 2 python benchmarks/forming.py [--study convergence|performance|both|steps]``.
 """
 
 import argparse
@@ -33,6 +41,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import rank0_print
+from fabricsurf.experiments.forming_log import StepLog
 from research.forming import parts
 from research.forming.fishnet import bisector_shear
 
@@ -62,6 +71,38 @@ def form(R: float, blank: float, h: float, values: dict | None = None,
                 "seconds": seconds, "iterations": list(its), "attempts": list(e.stepper.attempts),
                 "changes": changes, "force": e.force[-1],
                 "shear": float(p["shear_recovered_deg"][0]), "gap": float(p["gap"][0])}
+
+
+SIZES = {"quick": (20.0, 72.0, 4.0), "intermediate": (35.0, 105.0, 5.0),
+         "full": (50.0, 150.0, 5.0)}
+"""(R, blank, h) in mm of the step study; quick and full are those of demo_forming.py."""
+
+
+def steps(size: str, case: str) -> None:
+    R, blank, h = SIZES[size]
+    values = parts.KINEMATIC if case == "kinematic" else {
+        **parts.DOCUMENTED_PARAMS["params"], "normal_bending": {"k_b": 0.1},
+        "twist": {"k_t": 0.1}}
+    rank0_print(comm, f"== steps: {size} (R = {R:g} mm, {blank:g} mm blank, h = {h:g} mm), "
+                      f"{case}, {comm.size} ranks ==")
+    model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
+    with parts.experiment(R, blank, h, 45.0, model, comm) as e:
+        parts.set_moduli(e, values)
+        t0, c0 = time.perf_counter(), time.process_time()
+        e.run(STROKE_FRACTION * R, STEPS, log=lambda m: rank0_print(comm, m))
+        seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        cpu = comm.allreduce(time.process_time() - c0, op=MPI.MAX)
+        book = StepLog.totals(e.steps)
+    rank0_print(comm, "\n step  stroke  Newton  cuts  l2  contact   s")
+    for r in e.steps:
+        rank0_print(comm, f"{r['step']:5d} {r['stroke_mm']:7.2f} {r['newton_iterations']:7d} "
+                          f"{r['attempts'] - 1:5d} {r['fallbacks']:3d} {r['contact_changes']:8d}"
+                          f" {r['seconds']:5.1f}")
+    rank0_print(comm, f"total: {book['newton_iterations']} Newton iterations, {book['cuts']} "
+                      f"cuts, {book['fallbacks']} l2 repeats, {seconds:.1f} s wall "
+                      f"({seconds / max(book['newton_iterations'], 1):.3f} s per iteration), "
+                      f"{cpu:.1f} s of CPU on the busiest rank (the wall time on an idle "
+                      "machine; on a shared one the wall time is inflated)")
 
 
 def rates(values: list[float]) -> tuple[list[float], list[float]]:
@@ -127,8 +168,13 @@ def performance() -> None:
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--study", choices=("convergence", "performance", "both"), default="both")
+    ap.add_argument("--study", choices=("convergence", "performance", "both", "steps"),
+                    default="both")
+    ap.add_argument("--size", choices=tuple(SIZES), default="quick")
+    ap.add_argument("--case", choices=("kinematic", "fitted"), default="kinematic")
     args = ap.parse_args()
+    if args.study == "steps":
+        steps(args.size, args.case)
     if args.study in ("convergence", "both"):
         convergence()
     if args.study in ("performance", "both"):

@@ -10,6 +10,9 @@
 # # Forming: the calibrated fabric over a hemispherical punch
 #
 # Run with `mpirun -n 2 python demos/demo_forming.py --out out/forming` (`--quick`: small).
+# Each forming run prints a line per stroke step as it converges (Newton iterations, cuts,
+# contact changes, seconds); a run that cannot follow a step ends the demo with where it
+# stopped (`failure.json`).
 #
 # The model fitted to the Cao et al. 2008 curve by `demo_woven_fabric.py` (its params file,
 # `--params`; without one, the fitted values recorded in docs/woven_fabric.md, written to
@@ -74,8 +77,25 @@ rank0_print(comm, f"model from {source}")
 # angles along the diagonal against the fishnet drape of the same hemisphere.
 
 # %%
+def progress(message: str) -> None:
+    rank0_print(comm, message)
+
+
+def form(name: str, values: dict) -> dict:
+    """One forming run, a line per step as it converges; a step that cannot be followed ends
+    the demo with where it stopped (failure.json, the steps converged before it)."""
+    try:
+        return parts.reform(e, values, STROKE, STEPS, log=progress, label=f"{name}: ")
+    except LoadStepError as err:
+        report = {"run": name, **err.as_dict(), "converged_steps": e.steps}
+        write_json(comm, out / "failure.json", report)
+        rank0_print(comm, f"{name}: {err}\n{name}: the steps converged before are in "
+                          f"{out / 'failure.json'}")
+        sys.exit(1)
+
+
 e = parts.experiment(R, BLANK, H, 45.0, parts.forming_model(params, K_BEND, K_BEND), comm)
-kinematic = parts.reform(e, parts.KINEMATIC, STROKE, STEPS)
+kinematic = form("kinematic", parts.KINEMATIC)
 k = kinematic
 rank0_print(comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_punch']} points of "
                   f"the diagonal on the punch {k['diagonal_shear_max_diff_deg']:.2f} deg "
@@ -89,7 +109,7 @@ rank0_print(comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_punc
 fitted = {"shear": params["shear"],
           "crossover_friction": params.get("crossover_friction", {"tau_f": 0.0}),
           "normal_bending": {"k_b": K_BEND}, "twist": {"k_t": K_BEND}}
-cases = {"fitted": parts.reform(e, fitted, STROKE, STEPS)}
+cases = {"fitted": form("fitted", fitted)}
 grid = parts.shear_grid(e)
 with e.writer(out / "forming.xdmf") as w:
     w.write(STROKE)
@@ -108,7 +128,8 @@ if args.effects or not args.quick:
                 "locking at 40 deg": {**fitted, "shear_locking": {"k4": k4}}}
     for name, values in variants.items():
         try:
-            cases[name] = parts.reform(e, values, STROKE, STEPS)
+            cases[name] = parts.reform(e, values, STROKE, STEPS, log=progress,
+                                       label=f"{name}: ")
         except LoadStepError as err:
             failed[name] = err.as_dict()
             rank0_print(comm, f"{name}: {err}")
@@ -149,6 +170,8 @@ summary = {"diagonal_shear_max_diff_deg": kinematic["diagonal_shear_max_diff_deg
            "diagonal_shear_per_element_max_diff_deg": kinematic["per_element_max_diff_deg"],
            "diagonal_shear_centres_max_diff_deg": kinematic["centres_max_diff_deg"],
            "fibre_axis_max_shear_deg": max(abs(g) for g in main["fibre_profile"]["shear_deg"]),
+           "step_log": {"kinematic": kinematic["step_log"],
+                        **{name: c["step_log"] for name, c in cases.items()}},
            "seconds": time.perf_counter() - t_start}
 write_json(comm, out / "summary.json", summary)
 

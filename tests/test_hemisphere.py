@@ -52,8 +52,9 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import get_test
+from fabricsurf.experiments import forming_options, get_test
 from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from research.forming.fishnet import bisector_shear
@@ -135,6 +136,67 @@ def test_options():
     heavy = HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0},
                                              "material": {"areal_density_g_m2": 300}}, 1.0, "t")
     assert heavy["areal_density_g_m2"] == 300.0
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("locking_angle_deg", 500, r"locking_angle_deg = 500 .*0 < locking_angle_deg ≤ 90"),
+    ("friction", 1e6, r"friction = 1e\+06 .*0 ≤ friction ≤ 2"),
+    ("friction", -0.2, r"friction = -0\.2 .*0 ≤ friction ≤ 2"),
+    ("holder_gap", 1000, r"holder_gap = 1000 .*holder_gap ≤ die_lip"),
+    ("contact_stiffness", 1e-12, r"contact_stiffness = 1e-12 .*plausible range"),
+    ("holder_pressure", -0.01, r"holder_pressure = -0\.01"),
+    ("clearance", 50, r"clearance = 50 .*clearance ≤ 1 R"),
+    ("die_lip", -1, r"die_lip = -1")])
+def test_options_out_of_range(key, value, words):
+    """Each option outside its plausible range is refused before any computation, naming the
+    key, its value and the range (issues 40 and 41: these were accepted)."""
+    with pytest.raises(DataError, match=words):
+        HemisphereForming.parse_options({"tooling": {"punch_radius": 20.0, key: value}}, 1.0,
+                                        "t")
+
+
+def test_size_and_stroke_guards():
+    """A punch radius too small for the blank (its default mesh h = R/6 took 3.6 GB and
+    failed), a mesh too fine for the memory, a blank inside the die, and a stroke beyond what
+    the die allows are refused before meshing or forming."""
+    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 0.05}}, 1.0, "t")
+    with pytest.raises(DataError, match=r"punch_radius = 0\.05 .*plausible range"):
+        HemisphereForming.check_specimen(Setup("hemisphere", 150.0, 150.0, (45.0, -45.0), opts),
+                                         "t")
+    big = Setup("hemisphere", 150.0, 150.0, (45.0, -45.0), dict(TOOLING))
+    with pytest.raises(DataError, match=r"h = 0\.05 mm would mesh .* cells"):
+        forming_options.check_mesh(big, 0.05, False)
+    forming_options.check_mesh(big, 5.0, True)
+    with pytest.raises(DataError, match=r"blank 40 × 40 mm .*wider than the die"):
+        HemisphereForming.check_specimen(Setup("hemisphere", 40.0, 40.0, (45.0, -45.0),
+                                               dict(TOOLING)), "t")
+    top = forming_options.max_stroke(TOOLING, BLANK)
+    assert top == pytest.approx((0.5 * BLANK**2 - 24.0**2) ** 0.5)
+    forming_options.check_stroke(TOOLING, BLANK, DEEP)
+    for bad in (-1.0, 0.0, 1.01 * top, float("inf")):
+        with pytest.raises(DataError, match=r"stroke .* outside"):
+            forming_options.check_stroke(TOOLING, BLANK, bad)
+    HemisphereForming.check_path([0, 1], [0.0, 2.0], "force.csv")
+    with pytest.raises(DataError, match=r"force.csv: step 1: punch stroke -2 mm is negative"):
+        HemisphereForming.check_path([0, 1], [0.0, -2.0], "force.csv")
+
+
+def test_step_log_lines():
+    """Every converged step gives its line at once, with the contact changes counted since the
+    step before and the l2 repeats of this step only; the totals add the records."""
+    states = iter([np.array([0, 0, 1]), np.array([1, 0, 1]), np.array([0, 1, 0])])
+    repeats = iter([0, 1, 1])
+    lines = []
+    book = StepLog(COMM, lambda: next(states), lambda: next(repeats), lines.append, "run: ")
+    book.step(0, 1.0, 0.5, 12, 2, 2)
+    book.step(1, 2.0, 0.9, 7, 1, 2)
+    n = COMM.size
+    assert [r["contact_changes"] for r in book.records] == [n, 3 * n]
+    assert [r["fallbacks"] for r in book.records] == [1, 0]
+    assert lines[0].startswith("run: step 1/2: stroke 1 mm, force 0.5 N, 12 Newton iterations, "
+                               f"1 cuts, 1 l2 repeats, {n} contact changes")
+    total = StepLog.totals(book.records)
+    assert (total["newton_iterations"], total["cuts"], total["fallbacks"]) == (19, 1, 1)
 
 
 def trapezoid(s, F, every: int) -> float:

@@ -8,9 +8,9 @@ so that the flat blank pressed into it is in equilibrium at s = 0 and the die's 
 active there: at d = 0 its stiffness would vanish and leave the vertical motion free) and
 the blank holder (below it, face at z = −g, g the gap) are plates with a circular opening of
 radius R_o and a rounded lip of radius r_d. The holder also presses the flange against the die
-with a pressure p_h, the potential −∫ p_h w(ρ) r_z dX, w rising smoothly (3t² − 2t³) from 0 at
-the end of the lip (ρ = R_o + r_d, ρ the current distance from the axis, where the die's face
-becomes flat) to 1 one lip radius further: it fixes the blank's
+with a pressure p_h, the potential −∫ p_h w(ρ) r_z dX, w rising smoothly (3t² − 2t³) from 0
+one lip radius beyond the end of the lip (ρ = R_o + 2 r_d, ρ the current distance from the
+axis; the die's face becomes flat at R_o + r_d) to 1 one lip radius further: it fixes the blank's
 vertical position from the first step (a blank in a gap alone could float up with the punch).
 Self-weight, optional, is the potential ∫ q r_z dX (q = ρ_A g per unit reference area).
 Contact is the penalty energy
@@ -44,7 +44,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, placement
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.resources import release_vectors
-from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.discretise.solver import SOLVER_KEYS, SNESSolver
 from fabricsurf.model.terms import Term
 
 
@@ -130,39 +130,66 @@ class Tools:
         """Contact pressure k_c Σ ⟨−d⟩ (N/mm² of reference area)."""
         return self.k_c * sum(self.penetrations(r).values())
 
-    def lift(self, X: np.ndarray, u: np.ndarray) -> None:
-        """Raise the nodes below the punch cap (reference X, displacement u, n×3, in place)
-        onto it, vertically: the predictor of a stroke increment."""
-        rho2 = (X[:, 0] + u[:, 0]) ** 2 + (X[:, 1] + u[:, 1]) ** 2
-        top = float(self.stroke.value) - self.R + np.sqrt(np.maximum(self.R**2 - rho2, 0.0))
-        low = (rho2 < self.R**2) & (X[:, 2] + u[:, 2] < top)
-        u[low, 2] = top[low] - X[low, 2]
-
 
 class ContactSolver(SNESSolver):
-    """SNESSolver whose every solve starts from the nodes under the punch lifted onto it.
+    """SNESSolver that follows the stroke: a secant predictor, and full Newton steps with the
+    ``l2`` line search as a fallback.
 
     A solve starts from the last converged state (the load stepper restores it after a failed
     attempt): that state is copied to ``u_n``, the r_n of the friction potential, first, and
-    the regularising slip set from the stroke increment since it (``s_n``). A converged solve
-    adds the friction work of its step (``dissipation``, one quarter of the
-    blank) to :attr:`dissipated`."""
+    the regularising slip set from the stroke increment since it (``s_n``). The start is then
+    extrapolated along the path through the last two converged states (u_n + (s − s_n)/(s_n −
+    s_prev)·(u_n − u_prev)): a stroke increment moves the whole sheet (the flange draws in, the
+    net shears), and Newton started from the previous state spends most of its iterations
+    finding that motion. Newton takes full steps first; if that attempt fails, it is repeated
+    from the same predicted state with ``fallback`` options (the ``l2`` line search, which
+    damps the overshoot at the kinks of the contact residual) before the load stepper cuts the
+    increment (docs/forming.md, measured). :attr:`fallbacks` counts those repeats. A converged
+    solve adds the friction work of its step (``dissipation``, one quarter of the blank) to
+    :attr:`dissipated`."""
 
-    def __init__(self, *args, tools: Tools, u_n: fem.Function, dissipation, **kw) -> None:
+    def __init__(self, *args, tools: Tools, u_n: fem.Function, dissipation,
+                 fallback: dict | None = None, **kw) -> None:
         super().__init__(*args, **kw)
         self.tools, self.u_n = tools, u_n
         self._dissipation = fem.form(dissipation)
+        options = args[5] if len(args) > 5 else kw.get("options")
+        self._options = {k: v for k, v in (options or {}).items() if k not in SOLVER_KEYS}
+        self._fallback = fallback
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the flat blank at s = 0: no displacement, dissipation or path history."""
+        self.u.x.array[:] = 0.0
         self.dissipated, self.s_n = 0.0, 0.0
-        self.X = self.u.function_space.tabulate_dof_coordinates()
+        self.u_prev: np.ndarray | None = None
+        self.s_prev = 0.0
+        self.fallbacks = 0
+
+    def _predict(self, s: float) -> None:
+        """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s."""
+        if self.u_prev is not None and self.s_n != self.s_prev:
+            f = (s - self.s_n) / (self.s_n - self.s_prev)
+            self.u.x.array[:] += f * (self.u_n.x.array - self.u_prev)
 
     def solve(self) -> tuple[int, int]:
         self.u_n.x.array[:] = self.u.x.array
         s = float(self.tools.stroke.value)
         self.tools.eps.value = self.tools.slip_rate * max(abs(s - self.s_n), 1e-6 * self.tools.R)
-        self.tools.lift(self.X, self.u.x.array.reshape(-1, 3))
+        self._predict(s)
+        predicted = self.u.x.array.copy()
         reason, its = super().solve()
+        if reason <= 0 and self._fallback:
+            self.fallbacks += 1
+            self.u.x.array[:] = predicted
+            self.set_options({**self._options, **self._fallback})
+            try:
+                reason, more = super().solve()
+            finally:
+                self.set_options(self._options)
+            its += more
         if reason > 0:
-            self.s_n = s
+            self.u_prev, self.s_prev, self.s_n = self.u_n.x.array.copy(), self.s_n, s
             self.dissipated += self.comm.allreduce(fem.assemble_scalar(self._dissipation),
                                                    op=MPI.SUM)
         return reason, its
@@ -172,9 +199,10 @@ class ContactProblem(FabricProblem):
     """A FabricProblem whose energy also holds the tools' contact penalty; its residual and
     Jacobian are the variations of that one energy (``ufl.derivative``)."""
 
-    def __init__(self, specimen, model: list[Term], tools: Tools, **kw) -> None:
+    def __init__(self, specimen, model: list[Term], tools: Tools,
+                 fallback: dict | None = None, **kw) -> None:
         super().__init__(specimen, model, **kw)
-        self.tools = tools
+        self.tools, self.fallback = tools, fallback
         self.u_n = fem.Function(self.V, name="u_n")
         self.dx = ufl.Measure("dx", domain=self.msh,
                               metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
@@ -206,5 +234,6 @@ class ContactProblem(FabricProblem):
     def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
         return ContactSolver(F, J, self.u, self.bcs, self.prefix, self.snes_options,
                              nodal_forces, self.energy.multipliers, tools=self.tools,
+                             fallback=self.fallback,
                              u_n=self.u_n, dissipation=self.tools.dissipation_density(
                                  placement(self.u), placement(self.u_n)) * self.dx)

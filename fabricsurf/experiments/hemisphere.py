@@ -14,9 +14,12 @@ normal derivatives of the others vanish); these also remove the in-plane rigid m
 frictionless tools leave free. Reported forces and energies are those of the whole blank (four
 quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
 fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
-about the diagonal at ±45° (geometry.aligned.quarter_blank). Full Newton steps overshoot at the
-kinks of the contact residual and a backtracking line search stalls there: Newton uses PETSc's
-``l2`` line search (the step length minimising the residual norm, docs/forming.md).
+about the diagonal at ±45° (geometry.aligned.quarter_blank). Each stroke increment starts from
+the path extrapolated through the last two converged states, Newton takes full steps and, if
+that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
+cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
+keeps a step log and reports each step as it converges (forming_log.py); the options and their
+plausible ranges are checked before any computation (forming_options.py).
 
 Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
 tensions, the normal curvatures K_L, K_M, the contact pressure, a wrinkling indicator (a fibre in
@@ -46,27 +49,22 @@ from fabricsurf.discretise.evaluation import (
 from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
-from fabricsurf.experiments.cantilever import areal_density_option, weight_per_area
+from fabricsurf.experiments import forming_options
+from fabricsurf.experiments.base import ExperimentSetup, Setup
+from fabricsurf.experiments.cantilever import weight_per_area
+from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
 
-DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
-"""Tool sizes as fractions of the punch radius R (a mesh must resolve the clearance and the
-lip, h ≤ min of the two, for the punch force to converge: docs/forming.md)."""
-CONTACT_STIFFNESS = 100.0
-"""Default penalty k_c (N/mm³): a contact pressure p gives a penetration p / k_c."""
-NEWTON_ITERATIONS = 50
-"""Newton iterations per attempt before the load stepper cuts the stroke increment."""
-LOCKING_ANGLE_DEG = 50.0
-"""Default locking angle (woven fabrics lock at about 40–55°, Cao et al. 2008)."""
-PLAIN_DEFAULTS = {"contact_stiffness": CONTACT_STIFFNESS, "holder_pressure": 1e-3,
-                  "friction_slip_rate": 1e-2, "locking_angle_deg": LOCKING_ANGLE_DEG,
-                  "wrinkle_tension": 1e-3}
-"""Defaults of the options in their own units (N/mm³, N/mm², mm/mm, deg, N/mm)."""
-
+FULL_STEP_ITERATIONS = 40
+"""Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
+and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
+too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
+FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
+"""Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
+if it fails too, the load stepper cuts the stroke increment."""
 
 class HemisphereForming(ExperimentSetup):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
@@ -99,6 +97,7 @@ class HemisphereForming(ExperimentSetup):
         super().__init__(setup, model, h, comm)
         o = setup.options
         self.check_specimen(setup, "hemisphere")
+        forming_options.check_mesh(setup, h, h == self.default_h(setup))
         if h > min(o["clearance"], o["die_lip"]):
             warnings.warn(f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
                           f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not "
@@ -111,14 +110,14 @@ class HemisphereForming(ExperimentSetup):
         msh = self.specimen.mesh
         self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
                            o["contact_stiffness"], o["holder_pressure"],
-                           o.get("friction", 0.0),
-                           o.get("friction_slip_rate", PLAIN_DEFAULTS["friction_slip_rate"]),
+                           o.get("friction", 0.0), o.get("friction_slip_rate", 1e-2),
                            weight_per_area(o.get("areal_density_g_m2", 0.0)))
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
-                           prefix="fabricsurf_hemisphere_",
-                           snes_options={"snes_max_it": NEWTON_ITERATIONS,
-                                         "snes_linesearch_type": "l2", **(snes_options or {})})
+                           prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
+                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
+                                         "snes_linesearch_type": "basic",
+                                         **(snes_options or {})})
         p.mirror("clamp", 0)
         p.mirror("bottom", 1)
         self.problem, self.solver = p, p.solver()
@@ -134,34 +133,15 @@ class HemisphereForming(ExperimentSetup):
         self._pen_q = quadrature_expression(pen["punch"], msh, CELL_QUADRATURE_DEGREE)
         self.stroke: list[float] = []
         self.force: list[float] = []
+        self.steps: list[dict] = []
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
-        R = number_option(tables, "tooling", "punch_radius", where) * length_scale
-        out = {"punch_radius": R}
-        for key, frac in DEFAULTS.items():
-            default = frac * R / length_scale
-            out[key] = number_option(tables, "tooling", key, where, default) * length_scale
-        for key, default in PLAIN_DEFAULTS.items():
-            out[key] = number_option(tables, "tooling", key, where, default)
-        out["friction"] = number_option(tables, "tooling", "friction", where, 0.0,
-                                        positive=False)
-        if out["friction"] < 0:
-            raise DataError(f"{where}: [tooling] friction = {out['friction']:g} must not be "
-                            "negative")
-        out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
-        out["wrinkle_curvature"] = number_option(tables, "tooling", "wrinkle_curvature", where,
-                                                 1.0 / R * length_scale) / length_scale
-        return out
+        return forming_options.parse(tables, length_scale, where)
 
     @classmethod
     def check_specimen(cls, setup: Setup, where: str) -> None:
-        o = setup.options
-        R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
-        if setup.length != setup.width or setup.length <= 2 * (R + c):
-            raise DataError(f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
-                            f"a square wider than the die opening with its lip, 2(R + clearance"
-                            f" + die_lip) = {2 * (R + c):g} mm")
+        forming_options.check_specimen(setup, where)
         if blank_angle(tuple(setup.fibre_angles_deg)) is None:
             raise DataError(f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the "
                             "hemisphere test needs fibres at ±θ (0 < θ < 90) to the blank's "
@@ -171,6 +151,19 @@ class HemisphereForming(ExperimentSetup):
     @classmethod
     def default_h(cls, setup: Setup) -> float:
         return setup.options["punch_radius"] / 6.0
+
+    @classmethod
+    def check_path(cls, steps, path, where: str) -> None:
+        """No stroke may be negative (the punch touches the flat blank at s = 0)."""
+        for k, v in zip(steps, path):
+            if not v >= 0:
+                raise DataError(f"{where}: step {int(k)}: punch stroke {v:g} mm is negative: "
+                                "the punch starts touching the flat blank at 0 and pushes it "
+                                "up into the die")
+
+    def check_stroke(self, stroke: float) -> None:
+        """Refuse a stroke beyond what the die and the blank allow (forming_options)."""
+        forming_options.check_stroke(self.setup.options, self.setup.length, stroke)
 
     def set_load(self, t: float) -> None:
         self.tools.stroke.value = float(t)
@@ -288,20 +281,27 @@ class HemisphereForming(ExperimentSetup):
                 "gap": np.where(r[:, 2] > 0, dist - self.R, np.inf)}
 
     def run(self, stroke: float, steps: int = 8,
-            on_step: Callable[[int, float], None] | None = None) -> list[int]:
+            on_step: Callable[[int, float], None] | None = None,
+            log: Callable[[str], None] | None = None, label: str = "") -> list[int]:
         """Move the punch from s = 0 (touching the flat blank) to ``stroke`` in ``steps`` equal
-        requested steps (cut on divergence, LoadStepper); records :attr:`stroke` and
-        :attr:`force` at each. Returns the Newton iterations per step."""
-        self.solver.u.x.array[:] = 0.0
-        self.solver.dissipated = self.solver.s_n = 0.0
+        requested steps (cut on divergence, LoadStepper); records :attr:`stroke`,
+        :attr:`force` and the step log :attr:`steps` (forming_log.StepLog) at each, and
+        sends its line and every cut to ``log`` (prefixed with ``label``) as it happens.
+        Returns the Newton iterations per step; raises LoadStepError (where it stopped) if a
+        step cannot be followed, with :attr:`steps` holding the steps converged before."""
+        self.check_stroke(stroke)
+        self.solver.reset()
         self.set_load(0.0)
         self.stroke, self.force = [0.0], [0.0]
+        book = StepLog(self.comm, self.active_set, lambda: self.solver.fallbacks, log, label)
+        self.steps = book.records
 
         def done(k: int, s: float, its: int) -> None:
             self.stroke.append(s)
             self.force.append(self.reaction())
+            book.step(k, s, self.force[-1], its, self.stepper.attempts[-1], steps)
             if on_step is not None:
                 on_step(k, s)
 
-        self.stepper = LoadStepper(self.solver, self.set_load, done)
+        self.stepper = LoadStepper(self.solver, self.set_load, done, log=book.say)
         return self.stepper.run(np.linspace(stroke / steps, stroke, steps))

@@ -12,6 +12,7 @@ import numpy as np
 
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.model.terms import (
     CrossoverFriction,
@@ -83,11 +84,13 @@ def set_moduli(e: HemisphereForming, values: dict) -> None:
         terms[name].set(**v)
 
 
-def reform(e: HemisphereForming, values: dict, stroke: float, steps: int) -> dict:
-    """Set moduli ({term: {modulus: value}}), form to ``stroke``; the reduced results."""
+def reform(e: HemisphereForming, values: dict, stroke: float, steps: int,
+           log=None, label: str = "") -> dict:
+    """Set moduli ({term: {modulus: value}}), form to ``stroke`` (each step's line to ``log``,
+    prefixed with ``label``); the reduced results."""
     set_moduli(e, values)
     t0 = time.perf_counter()
-    its = e.run(stroke, steps)
+    its = e.run(stroke, steps, log=log, label=label)
     prof = e.profile(e.diagonal_deg, n=81)
     on = (prof["gap"] < TOUCH_FRACTION * e.R) & (prof["X"] > 0)
     kin = np.degrees(bisector_shear(e.R, prof["X"][on]))
@@ -102,6 +105,7 @@ def reform(e: HemisphereForming, values: dict, stroke: float, steps: int) -> dic
 
     return {"stroke_mm": list(e.stroke), "punch_force_N": list(e.force),
             "newton_iterations": list(its), "attempts": list(e.stepper.attempts),
+            "step_log": StepLog.totals(e.steps),
             "seconds": time.perf_counter() - t0,
             "max_shear_deg": e.max_shear_deg(), **e.area_fractions(),
             "diagonal_shear_deg": prof["shear_recovered_deg"].tolist(),

@@ -1,0 +1,133 @@
+"""The options of the hemisphere forming plug-in (experiments/hemisphere.py) and their checks,
+all made before any computation: each message names the key, its value and the range it must
+lie in.
+
+The ranges are those of the model, not of taste: the die's clearance, lip and the holder's
+gap are tools on the scale of the punch; the contact penalty must keep the holder's own
+penetration p_h/k_c (the offset of the die's face) well inside the holder's gap; a Coulomb
+coefficient of a fabric on tools is a fraction of one; a shear angle lies below 90°. The blank
+may be at most :data:`MAX_BLANK_RATIO` punch radii wide (the default mesh, h = R/6, then has a
+few thousand cells), and a mesh of more than :data:`MAX_ELEMENTS` cells on the quarter, default
+h or given, is refused before meshing. A stroke must leave the blank's edge on the die's face
+(:func:`max_stroke`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from fabricsurf.errors import DataError
+from fabricsurf.experiments.base import Setup, number_option
+from fabricsurf.experiments.cantilever import areal_density_option
+
+DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
+"""Tool sizes as fractions of the punch radius R (a mesh must resolve the clearance and the
+lip, h ≤ min of the two, for the punch force to converge: docs/forming.md)."""
+CONTACT_STIFFNESS = 100.0
+"""Default penalty k_c (N/mm³): a contact pressure p gives a penetration p / k_c."""
+LOCKING_ANGLE_DEG = 50.0
+"""Default locking angle (woven fabrics lock at about 40–55°, Cao et al. 2008)."""
+PLAIN_DEFAULTS = {"contact_stiffness": CONTACT_STIFFNESS, "holder_pressure": 1e-3,
+                  "friction_slip_rate": 1e-2, "locking_angle_deg": LOCKING_ANGLE_DEG,
+                  "wrinkle_tension": 1e-3}
+"""Defaults of the options in their own units (N/mm³, N/mm², mm/mm, deg, N/mm)."""
+RANGES = {"clearance": (0.0, 1.0, "R"), "die_lip": (0.0, 1.0, "R"),
+          "holder_pressure": (0.0, 1.0, "N/mm²"), "contact_stiffness": (0.0, 1e6, "N/mm³"),
+          "friction": (0.0, 2.0, ""), "friction_slip_rate": (0.0, 1.0, "mm/mm"),
+          "locking_angle_deg": (0.0, 90.0, "deg")}
+"""(low, high, unit) of each option: low excluded (friction: included), high included; "R":
+in punch radii."""
+MAX_BLANK_RATIO = 20.0
+"""The blank's side at most this many punch radii (forming tests: 3 to 6)."""
+MAX_ELEMENTS = 400_000
+"""Cells of the quarter's mesh at most (about 20 GB with the 3D model and MUMPS)."""
+PENETRATION_FRACTION = 0.1
+"""The holder's own penetration p_h / k_c at most this fraction of the holder's gap."""
+
+
+def _ranged(out: dict, key: str, where: str, R: float) -> None:
+    low, high, unit = RANGES[key]
+    scale, shown = (R, f" (= {high:g} R = {high * R:g} mm)") if unit == "R" else (1.0, "")
+    v = out[key]
+    closed = key == "friction"
+    if v < low * scale or (v == low * scale and not closed) or v > high * scale:
+        lo = f"{low:g} ≤" if closed else f"{low:g} <"
+        raise DataError(f"{where}: [tooling] {key} = {v:g} is outside its plausible range "
+                        f"{lo} {key} ≤ {high:g}{' ' + unit if unit else ''}{shown}")
+
+
+def parse(tables: dict, length_scale: float, where: str) -> dict:
+    """The ``[tooling]`` and ``[material]`` keys (docs/forming.md) in mm, N, checked."""
+    R = number_option(tables, "tooling", "punch_radius", where) * length_scale
+    out = {"punch_radius": R}
+    for key, frac in DEFAULTS.items():
+        default = frac * R / length_scale
+        out[key] = number_option(tables, "tooling", key, where, default) * length_scale
+    for key, default in PLAIN_DEFAULTS.items():
+        out[key] = number_option(tables, "tooling", key, where, default)
+    out["friction"] = number_option(tables, "tooling", "friction", where, 0.0, positive=False)
+    for key in RANGES:
+        _ranged(out, key, where, R)
+    if out["holder_gap"] > out["die_lip"]:
+        raise DataError(f"{where}: [tooling] holder_gap = {out['holder_gap']:g} mm is wider "
+                        f"than the die's lip ({out['die_lip']:g} mm): the holder would not "
+                        f"hold the flange; plausible range 0 < holder_gap ≤ die_lip")
+    sink = out["holder_pressure"] / out["contact_stiffness"]
+    if sink > PENETRATION_FRACTION * out["holder_gap"]:
+        need = out["holder_pressure"] / (PENETRATION_FRACTION * out["holder_gap"])
+        raise DataError(f"{where}: [tooling] contact_stiffness = {out['contact_stiffness']:g} "
+                        f"N/mm³ lets the holder's pressure sink the flange {sink:.3g} mm into "
+                        f"the die, more than a tenth of holder_gap ({out['holder_gap']:g} mm); "
+                        f"plausible range {need:.3g} ≤ contact_stiffness ≤ "
+                        f"{RANGES['contact_stiffness'][1]:g} N/mm³")
+    out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
+    out["wrinkle_curvature"] = number_option(tables, "tooling", "wrinkle_curvature", where,
+                                             1.0 / R * length_scale) / length_scale
+    return out
+
+
+def check_specimen(setup: Setup, where: str) -> None:
+    """A square blank wider than the die's opening with its lip, at most
+    :data:`MAX_BLANK_RATIO` punch radii wide."""
+    o = setup.options
+    R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
+    if setup.length != setup.width or setup.length <= 2 * (R + c):
+        raise DataError(f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
+                        f"a square wider than the die opening with its lip, 2(R + clearance"
+                        f" + die_lip) = {2 * (R + c):g} mm")
+    if setup.length > MAX_BLANK_RATIO * R:
+        raise DataError(f"{where}: [tooling] punch_radius = {R:g} mm is implausibly small "
+                        f"for a {setup.length:g} mm blank (at most {MAX_BLANK_RATIO:g} punch "
+                        f"radii wide; plausible range punch_radius ≥ "
+                        f"{setup.length / MAX_BLANK_RATIO:g} mm): is it in another unit?")
+
+
+def check_mesh(setup: Setup, h: float, default: bool) -> None:
+    """Refuse an element size whose quarter mesh would exceed :data:`MAX_ELEMENTS` cells
+    (estimated before meshing as 2 per h × h square)."""
+    n = 2 * math.ceil(0.5 * setup.length / h) ** 2
+    if n > MAX_ELEMENTS:
+        what = f"the default h = R/6 = {h:g} mm" if default else f"h = {h:g} mm"
+        raise DataError(f"hemisphere: {what} would mesh the quarter of the {setup.length:g} mm "
+                        f"blank with about {n:,} cells, more than {MAX_ELEMENTS:,}: give a "
+                        f"larger h (at least {setup.length / math.sqrt(2 * MAX_ELEMENTS):.3g} "
+                        "mm)")
+
+
+def max_stroke(o: dict, blank: float) -> float:
+    """The largest stroke that can leave the blank's edge on the die's face: every material
+    line of a net of inextensible fibres stretches at most by √2 (sheared to the limit), every
+    reference path from the centre to the edge is at least B/2 long, and any path from the
+    pole at stroke s around the lip to the die's face at ρ = R + clearance + die_lip at least
+    as long as the straight line, √(s² + ρ²): s ≤ √(B²/2 − ρ²)."""
+    rho = o["punch_radius"] + o["clearance"] + o["die_lip"]
+    return math.sqrt(max(0.5 * blank**2 - rho**2, 0.0))
+
+
+def check_stroke(o: dict, blank: float, stroke: float) -> None:
+    top = max_stroke(o, blank)
+    if not (math.isfinite(stroke) and 0.0 < stroke <= top):
+        raise DataError(f"hemisphere: stroke {stroke:g} mm is outside 0 < stroke ≤ {top:.4g} mm:"
+                        f" a {blank:g} mm blank would be drawn over the die's lip (radius "
+                        f"{o['punch_radius'] + o['clearance'] + o['die_lip']:g} mm to the die's "
+                        "face) before that, even with its fibres sheared to the limit")
