@@ -16,8 +16,8 @@ import time
 
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments.bias_extension import default_model
+from fabricsurf.log import rank0_print
 from fabricsurf.verification.bias_convergence import force_convergence
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
+from fabricsurf.log import rank0_print
 from fabricsurf.network.homogenize import identify_macro
 from fabricsurf.verification.bias_comparison import EPS_EXACT, IDENTIFIED_K_E
 from fabricsurf.verification.bipantographic_range import (

@@ -43,12 +43,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import write_json
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 from fabricsurf.network import ConvergenceError
 
 LENGTH, WIDTH = 60.0, 30.0

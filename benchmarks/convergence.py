@@ -13,7 +13,7 @@ import argparse
 
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
+from fabricsurf.log import rank0_print
 from fabricsurf.verification.rates import rates
 from research.verification.manufactured import (
     full_3d_model,

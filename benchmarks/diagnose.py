@@ -18,9 +18,9 @@ import argparse
 
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 
 
 def main() -> None:

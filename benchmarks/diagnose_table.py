@@ -35,12 +35,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import write_json
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 from fabricsurf.network import spanning_spacing
 from geometry.specimen import BIAS_LENGTH as LENGTH
 from geometry.specimen import BIAS_WIDTH as WIDTH

@@ -2,10 +2,10 @@
 of a 250 mm blank.
 
 1. ``--study convergence`` (R = 20 mm, 72 mm blank, die clearance and lip R/5 as in
-   research/forming/parts.py and tests/test_hemisphere.py, so that the meshes resolve the
-   tools): the fitted woven fabric of
-   docs/woven_fabric.md, with the assumed bending of demo_forming.py and the holder of
-   research/forming/parts.py (friction), formed to 0.6 R in 12 steps on meshes h = R/5·√2^k,
+   fabricsurf/verification/forming.py and tests/test_hemisphere.py, so that the meshes resolve
+   the tools): the fitted woven fabric of docs/woven_fabric.md, with the assumed bending of
+   demo_forming.py and the holder of fabricsurf/verification/forming.py (friction), formed to
+   0.6 R in 12 steps on meshes h = R/5·√2^k,
    k = 1, 0, −1, −2. Printed per mesh: DOFs, Newton iterations, time, the punch force at the
    final stroke and the recovered shear at X = R/2 on the diagonal; then the differences of
    successive meshes and the observed rates. The same meshes in the kinematic limit (shear and
@@ -40,10 +40,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments.forming_log import StepLog
-from research.forming import parts
-from research.forming.fishnet import bisector_shear
+from fabricsurf.log import rank0_print
+from fabricsurf.verification import forming as parts
+from fabricsurf.verification.fishnet import bisector_shear
 
 comm = MPI.COMM_WORLD
 STROKE_FRACTION, STEPS = 0.6, 12

@@ -30,9 +30,10 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.three_zone import kinematic_force
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import FibreStretch, Shear
 
 K_S, STEPS = 0.022, 6

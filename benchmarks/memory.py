@@ -22,9 +22,9 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 
 TARGET_MB = 5.0
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}

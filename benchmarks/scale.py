@@ -44,10 +44,10 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.inverse.contract.data import write_experiment
 from fabricsurf.inverse.fitting.diagnose import full_model
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 
 LENGTH, WIDTH, STEPS, STRAIN = 187.0, 119.0, 12, 0.15
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},

@@ -24,12 +24,13 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.datasets import cao2008_plain_weave
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import FibreStretch, Shear
 from fabricsurf.verification import woven as wv
 

@@ -43,7 +43,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, verify
-from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
+from fabricsurf.discretise.output import FieldWriter, write_json
 from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting import significance as sg
@@ -51,6 +51,7 @@ from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 from fabricsurf.model.rigidity import narrow_strip_rigidity
 from fabricsurf.verification.elastica import bending_length, peirce_bending_length, solve_elastica
 

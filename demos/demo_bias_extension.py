@@ -56,7 +56,8 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, verify
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import write_json
+from fabricsurf.log import rank0_print
 from fabricsurf.model.materials import TABLE3_MACRO, bipantographic
 from fabricsurf.network import hencky_lattice, lattice_from_continuum
 from fabricsurf.network.bipantographic import TABLE3, bipantographic_lattice

@@ -34,7 +34,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
-from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.dic.export import write_images
 from fabricsurf.inverse.dic.frame import Frame
@@ -42,6 +42,7 @@ from fabricsurf.inverse.dic.layouts import LAYOUTS
 from fabricsurf.inverse.dic.reader import find_header
 from fabricsurf.inverse.fitting.diagnose import full_model
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 
 ap = argparse.ArgumentParser(description=__doc__)
 ap.add_argument("--out", type=Path, default=Path("out/dic"), help="output directory")

@@ -37,23 +37,19 @@
 #    weakened tenfold, and with shear locking (k₄ chosen so that the model locks at 40°).
 
 # %%
+import csv
+import math
 import sys
 import time
 from pathlib import Path
 
-# The research code (benchmarks/research/) is not installed: put benchmarks/ on the path.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-
-import csv
-import math
-
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
-from research.demos.checks import verify
-from research.demos.common import demo_parser, parse
-from research.forming import parts
+from fabricsurf.log import rank0_print
+from fabricsurf.verification import forming as parts
 
 comm = MPI.COMM_WORLD
 ap = demo_parser("A fitted woven fabric formed over a hemisphere", "out/forming")

@@ -33,13 +33,14 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
 from fabricsurf.cli.demo import demo_parser, parse, verify
-from fabricsurf.discretise.output import rank0_print, write_json
+from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.report import result_lines
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import parse_terms
 
 comm = MPI.COMM_WORLD

@@ -48,7 +48,8 @@ from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.evaluation import eval_points
-from fabricsurf.discretise.output import FieldWriter, rank0_print, write_json
+from fabricsurf.discretise.output import FieldWriter, write_json
+from fabricsurf.log import rank0_print
 from fabricsurf.verification.hypar import (
     CORNER_SIGNS,
     Hypar,

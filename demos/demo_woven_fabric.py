@@ -40,7 +40,7 @@ from mpi4py import MPI
 from fabricsurf.cli import main as cli
 from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.datasets import cao2008_plain_weave
-from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting import significance as sg
@@ -49,6 +49,7 @@ from fabricsurf.inverse.fitting.diagnose import diagnose
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.fitting.misfit import scales
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import parse_terms
 from fabricsurf.verification import woven as wv
 

@@ -5,7 +5,7 @@ no compiler message.
 
 As a user runs it: a copy of the demo outside the repository, run by the python of a fresh
 virtual environment (on the system's FEniCSx) that holds a wheel of the package, so a demo that
-needs anything not installed fails (the demos in PENDING still run from the checkout). The
+needs anything not installed fails. The
 source of every demo is also scanned: it imports no research code and does not touch
 ``sys.path``.
 
@@ -48,9 +48,6 @@ QUICK = {
     "demo_dic.py": [],
 }
 SLOW = {"demo_bending.py", "demo_woven_fabric.py", "demo_dic.py"}
-# not yet on the installed package alone (issue 42): they run from the checkout, and their scan
-# is expected to fail (strict: once converted, take them out of this set)
-PENDING = {"demo_forming.py"}
 RANKS = 2
 # what FFCx, UFL and cffi/distutils print while compiling a form
 COMPILER = re.compile(r"^(INFO:|DEBUG:|.*\bgcc\b|.*\bcc1\b|running build_ext|building '|"
@@ -104,11 +101,8 @@ def test_demo_runs_and_meets_its_checks(name, tmp_path, request):
         pytest.skip(f"{name}: minutes even in quick mode; FABRICSURF_ALL_DEMOS=1 runs it")
     checks = declared(DEMOS / name)
     assert checks, f"{name} declares no checks"
-    if name in PENDING:
-        script, python = DEMOS / name, sys.executable
-    else:
-        script, python = tmp_path / name, request.getfixturevalue("installed")
-        shutil.copy(DEMOS / name, script)
+    script, python = tmp_path / name, request.getfixturevalue("installed")
+    shutil.copy(DEMOS / name, script)
     text = run_demo(script, tmp_path / "out", python)
     assert not COMPILER.search(text), f"compiler output reached the user:\n{text[-4000:]}"
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -146,9 +140,7 @@ def outside_the_package(script: Path) -> list[str]:
     return [f"{script.name}:{line}: {what}" for line, what in sorted(bad)]
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="issue 42: not converted yet"))
-    if n in PENDING else n for n in sorted(QUICK) if (DEMOS / n).is_file()])
+@pytest.mark.parametrize("name", [n for n in sorted(QUICK) if (DEMOS / n).is_file()])
 def test_demo_imports_only_installed_packages(name):
     """A demo imports the installed packages only: no research code, no ``sys.path``."""
     assert outside_the_package(DEMOS / name) == []

@@ -1,4 +1,4 @@
-"""The kinematic drape reference (benchmarks/research/forming/fishnet.py) of a hemisphere.
+"""The kinematic drape reference (fabricsurf/verification/fishnet.py) of a hemisphere.
 
 Checks that can fail independently of each other:
 * every net edge has length a and every node is on the sphere (the construction's two
@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from research.forming.fishnet import (
+from fabricsurf.verification.fishnet import (
     chebyshev_shear,
     drape,
     edge_lengths,

@@ -49,7 +49,6 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 def cmd_terms(args) -> int:
     """Print the vocabulary: names, moduli with units, and energy densities."""
-    from fabricsurf.discretise.output import rank0_print
     from fabricsurf.model.terms import EFFECTS
 
     rank0_print(COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "

@@ -28,11 +28,12 @@ from fabricsurf.cli.options import (
     saved_fit,
 )
 from fabricsurf.cli.outdir import OutputDir
-from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.bias_extension import BiasExtension, default_model, plot_curves
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS
 
 OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",

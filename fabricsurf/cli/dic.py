@@ -17,7 +17,8 @@ from mpi4py import MPI
 
 from fabricsurf import __version__
 from fabricsurf.cli.outdir import OutputDir
-from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.output import on_rank0, write_json
+from fabricsurf.log import rank0_print
 
 COMM = MPI.COMM_WORLD
 OUTPUTS = ("experiment.toml", "field.csv", "force.csv", "dic_import.json")

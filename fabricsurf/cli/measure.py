@@ -31,7 +31,7 @@ from fabricsurf.cli.options import (
     saved_fit,
 )
 from fabricsurf.cli.outdir import OutputDir
-from fabricsurf.discretise.output import on_rank0, rank0_print, write_json
+from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
@@ -39,6 +39,7 @@ from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.misfit import converged_steps
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.inverse.fitting.report import result_lines
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS
 
 COMM = MPI.COMM_WORLD

@@ -17,7 +17,6 @@ from petsc4py import PETSc
 
 from fabricsurf.discretise.resources import Owner, destroy
 from fabricsurf.errors import InputError
-from fabricsurf.log import rank0_print  # noqa: F401  TEMPORARY until the import sites move
 from fabricsurf.model.kinematics import Kinematics
 
 

@@ -27,7 +27,7 @@ from fabricsurf.discretise.evaluation import (
     max_over_cells,
     quadrature_expression,
 )
-from fabricsurf.discretise.output import FieldWriter, StepLog, rank0_print, write_json
+from fabricsurf.discretise.output import FieldWriter, StepLog, write_json
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
@@ -38,6 +38,7 @@ from fabricsurf.experiments.discretisation import (
     choose_fibre_treatment,
 )
 from fabricsurf.experiments.followers import step_followers
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
 from geometry.aligned import canonical_angles
 from geometry.fibre_mesh import bias_mesh

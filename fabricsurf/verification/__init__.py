@@ -6,6 +6,8 @@ gradient continua, Mühlhaus & Oka 1996 (``dispersion.py``); the bias test again
 and bi-pantographic lattices (``bias_comparison.py``), its grip force under refinement
 (``bias_convergence.py``) and over the whole range (``bipantographic_range.py``); observed
 rates and Richardson extrapolation (``rates.py``); the real plain-weave curve of Cao et al. 2008
-against the model: fitted range, errors and the ranges no elastic term follows (``woven.py``).
+against the model: fitted range, errors and the ranges no elastic term follows (``woven.py``);
+the kinematic (fishnet) drape of a woven net over a sphere (``fishnet.py``) and the forming
+study built on it: set-up, re-forming, shear maps and figures (``forming.py``).
 Imported on use: ``import
 fabricsurf.verification`` loads no FEniCSx module."""

@@ -14,9 +14,9 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.log import rank0_print
 from fabricsurf.model.materials import bipantographic
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear
 from fabricsurf.network import solve_steps

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import Term
 from fabricsurf.verification.rates import richardson_summary
 from geometry.specimen import BIAS_LENGTH, BIAS_WIDTH, Specimen, structured_rectangle

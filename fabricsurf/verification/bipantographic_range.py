@@ -28,11 +28,11 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.solver import DOMAIN_AWARE
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower
+from fabricsurf.log import rank0_print
 from fabricsurf.model.materials import PantographBending, bipantographic
 from fabricsurf.verification.bias_convergence import graded_specimen
 from fabricsurf.verification.rates import richardson_summary

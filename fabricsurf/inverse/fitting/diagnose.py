@@ -30,7 +30,6 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import linalg as la
@@ -45,6 +44,7 @@ from fabricsurf.inverse.fitting.report import (
     where_unexplained,
 )
 from fabricsurf.inverse.fitting.start import candidate_start
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
 

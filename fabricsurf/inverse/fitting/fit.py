@@ -29,13 +29,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.inverse.fitting import intervals, systematic
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
+from fabricsurf.log import rank0_print
 
 
 @dataclass

@@ -19,11 +19,11 @@ from dataclasses import replace
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.output import rank0_print
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
+from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import Term
 
 KEY = "grip_depth"

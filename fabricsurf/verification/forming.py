@@ -22,7 +22,7 @@ from fabricsurf.model.terms import (
     ShearLocking,
     Twist,
 )
-from research.forming.fishnet import bisector_shear
+from fabricsurf.verification.fishnet import bisector_shear
 
 DOCUMENTED_PARAMS = {"terms": ["fibre_stretch", "shear", "crossover_friction"],
                      "params": {"fibre_stretch": {"k_l": 6000.0, "k_m": 6000.0},

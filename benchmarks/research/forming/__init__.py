@@ -1,1 +1,0 @@
-"""Forming references: the kinematic drape (fishnet) of a hemisphere."""

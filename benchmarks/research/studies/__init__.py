@@ -1,1 +1,0 @@
-"""Studies built on the layers: the woven-fabric benchmark."""
