@@ -641,10 +641,10 @@ def test_max_elements_overrides_the_size_guard():
     a limit below 1 is refused naming the option."""
     args = cli.build_parser().parse_args(["bias", "--length", "230", "--width", "115", "--h",
                                           "0.05", "--max-elements", "30000000"])
-    assert cli.bias_cli._check(args) == 0.25 * 230
+    assert bias_cli._check(args) == 0.25 * 230
     args.max_elements = 0
     with pytest.raises(InputError, match=r"--max-elements 0: must be at least 1"):
-        cli.bias_cli._check(args)
+        bias_cli._check(args)
 
 
 def test_out_symlink_resolved(tmp_path):

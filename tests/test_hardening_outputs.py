@@ -22,6 +22,8 @@ from mpi4py import MPI
 from regenerate_input_errors import errors_table, table_row
 
 import fabricsurf.cli as cli
+import fabricsurf.cli.bias as bias_cli
+import fabricsurf.cli.measure as measure_cli
 from fabricsurf.cli.outdir import MANIFEST, OutputDir
 from fabricsurf.discretise.output import write_json
 from fabricsurf.errors import InputError
@@ -168,7 +170,7 @@ def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
 
     built = []
     monkeypatch.setattr(forward, "ForwardSet", lambda *a, **k: built.append(a))
-    monkeypatch.setattr(cli.bias_cli, "BiasExtension", lambda *a, **k: built.append(a))
+    monkeypatch.setattr(bias_cli, "BiasExtension", lambda *a, **k: built.append(a))
     before = sorted(p.name for p in in_root.iterdir())
     rc, msg = th.run_cli(case["argv"], capsys)
     assert rc == 2, msg
@@ -330,7 +332,7 @@ def test_two_non_latin_names_accepted(tmp_path):
     COMM.barrier()
     args = cli.build_parser().parse_args(["compare", str(base / "a"), str(base / "b"),
                                           "--terms", TERMS, "--out", str(base / "o")])
-    exps, _, _ = cli.measure._setup(args)
+    exps, _, _ = measure_cli._setup(args)
     assert [e.name for e in exps] == ["试验一", "试验二"]
 
 
