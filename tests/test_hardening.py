@@ -848,7 +848,7 @@ def test_help_shows_defaults_and_units(capsys):
     sub = next(a for a in parser._actions if a.choices and "bias" in a.choices).choices
     for name, p in sub.items():
         for a in p._actions:
-            if a.dest in ("help", "verbose") or a.required or a.option_strings == []:
+            if a.dest in ("help", "verbose", "quiet") or a.required or a.option_strings == []:
                 continue
             text = p.formatter_class("x")._get_help_string(a)
             assert "default" in text or a.default is False, (name, a.dest, text)
