@@ -116,8 +116,8 @@ def check_bias_angles(angles: tuple[float, float], length: float, width: float,
     """Refuse (ValueError naming the value) fibre pairs the bias test cannot have, before
     anything is computed: families closer than :data:`MIN_SEPARATION_DEG`; a family so close
     to the load axis (0°) that its fibres run from clamp to grip (φ ≤ atan(W/L): the test is
-    then a tensile test of the yarns); a family so close to 90° that the unsheared zone at
-    each grip, (W/2)·cot φ long, is shorter than the mesh size ``h``."""
+    then a tensile test of the yarns); a family steeper than 45° so close to 90° that the
+    unsheared zone at each grip, (W/2)·cot φ long, is shorter than the mesh size ``h``."""
     a, b = angles
     apart = abs(a - b) % 180.0
     apart = min(apart, 180.0 - apart)
@@ -133,7 +133,9 @@ def check_bias_angles(angles: tuple[float, float], length: float, width: float,
                 f"{length:g} x {width:g} mm specimen (they must make more than "
                 f"atan(W/L) = {steepest:.3g} deg with it): the test degenerates into a tensile "
                 "test of the yarns; cut the specimen on the bias (e.g. +-45 deg) or longer")
-        if h is not None and 0.5 * width / math.tan(math.radians(phi)) < h:
+        # only fibres steeper than the bias cut (45°) shorten the grip zones below W/2: a mesh
+        # coarser than that at ±45° (e.g. a fit's coarse scout) is coarse, not a bad angle
+        if h is not None and phi > 45.0 and 0.5 * width / math.tan(math.radians(phi)) < h:
             raise ValueError(
                 f"bias test: fibres at {phi:g} deg to the load leave unsheared zones "
                 f"{0.5 * width / math.tan(math.radians(phi)):.3g} mm long at the grips, "
