@@ -64,6 +64,8 @@ def test_compare_cli(tmp_path):
     m = json.loads((root / "out" / "misfit.json").read_text())
     assert 0.7 < m["combined"] < 1.3 and len(m["experiments"][0]["per_step"]) == 2
     assert m["provenance"]["params"]["geodesic_bending"] == TRUTH["geodesic_bending"]
+    used = m["provenance"]["discretisation"][exp.name]  # what the run got, not what was asked
+    assert used["h_requested"] == 5.0 and 0 < used["h_used"] <= 5.0 and used["mesh_kind"]
     for f in ("error_map.png", "force.png", "error_vs_step.png", "per_point.csv"):
         assert (root / "out" / f).is_file()
     assert main(["compare", str(root / "nodata"), "--terms", "shear", "--out",

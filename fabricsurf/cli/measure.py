@@ -133,8 +133,12 @@ def _summary(label: str, m: dict) -> str:
 
 
 def _prov(model, fs, args) -> dict:
-    return {"provenance": provenance(model, [str(d) for d in args.data],
-                                     [m.h for m in fs.models])}
+    """The provenance of a compare or fit, with the mesh kind, size and fibre treatment each
+    experiment actually got (the plug-in's record, where it keeps one)."""
+    prov = provenance(model, [str(d) for d in args.data], [m.h for m in fs.models])
+    prov["discretisation"] = {m.exp.name: getattr(m.test, "discretisation", None)
+                              for m in fs.models}
+    return {"provenance": prov}
 
 
 def cmd_compare(args) -> int:
