@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 from mpi4py import MPI
+from test_locking import tangent_zero_eigenvalues
 
 from fabricsurf.experiments.bias_extension import BiasExtension, specimen_mesh
 from fabricsurf.experiments.discretisation import check_bias_angles
@@ -136,23 +137,6 @@ def test_degenerate_fibre_pairs_are_refused_before_computing(angles, match):
         BiasExtension(length=230.0, width=115.0, h=11.5, fibre_angles=angles)
 
 
-def _tangent_zero_eigenvalues(b: BiasExtension, with_bcs: bool) -> int:
-    """Zero eigenvalues (relative 1e-10) of the tangent at the reference state, serial."""
-    import ufl
-    from dolfinx import fem
-    from dolfinx.fem import petsc as fem_petsc
-
-    p = b.problem
-    v, du = ufl.TestFunction(p.V), ufl.TrialFunction(p.V)
-    A = fem_petsc.assemble_matrix(fem.form(p.energy.jacobian(du, v)),
-                                  bcs=p.bcs if with_bcs else [])
-    A.assemble()
-    dense = A.convert("dense").getDenseArray().copy()
-    A.destroy()
-    eig = np.abs(np.linalg.eigvalsh(0.5 * (dense + dense.T)))
-    return int(np.sum(eig < 1e-10 * eig.max()))
-
-
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="dense eigenvalues of the whole tangent")
 @pytest.mark.parametrize("mesh, length, width, h", [("lattice_pair", 60.0, 20.0, 5.0),
                                                     ("lattice_pair", 47.0, 17.0, 4.0),
@@ -165,8 +149,8 @@ def test_tangent_null_space_on_the_new_meshes_is_the_continuum_one(mesh, length,
                       length=length, width=width, h=h, clamp="position", mesh=mesh,
                       comm=MPI.COMM_SELF, quiet=True)
     assert b.discretisation["mesh_kind"] == mesh
-    assert _tangent_zero_eigenvalues(b, with_bcs=False) == 3
-    assert _tangent_zero_eigenvalues(b, with_bcs=True) == 0
+    assert tangent_zero_eigenvalues(b, with_bcs=False) == 3
+    assert tangent_zero_eigenvalues(b, with_bcs=True) == 0
 
 
 def test_degenerate_fibre_pair_in_the_data_is_refused_by_key():

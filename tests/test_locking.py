@@ -86,7 +86,7 @@ def test_zone_angles_follow_eq13(tmp_path):
     assert np.isfinite(T).all() and b.problem.reaction("grip", 0) > 0
 
 
-def _tangent_zero_eigenvalues(b: BiasExtension, with_bcs: bool) -> int:
+def tangent_zero_eigenvalues(b: BiasExtension, with_bcs: bool) -> int:
     """Zero eigenvalues (relative 1e-10) of the tangent at the reference state, serial."""
     p = b.problem
     v, du = ufl.TestFunction(p.V), ufl.TrialFunction(p.V)
@@ -108,8 +108,8 @@ def test_tangent_null_space_is_the_continuum_one(ratio, mesh):
     none with them, on both meshes (small specimen), elastic or exactly inextensible."""
     small = BiasExtension([fibres(ratio), Shear(k_s=K_S)], length=40.0, width=20.0, h=5.0,
                           clamp="position", mesh=mesh, comm=MPI.COMM_SELF)
-    assert _tangent_zero_eigenvalues(small, with_bcs=False) == 3
-    assert _tangent_zero_eigenvalues(small, with_bcs=True) == 0
+    assert tangent_zero_eigenvalues(small, with_bcs=False) == 3
+    assert tangent_zero_eigenvalues(small, with_bcs=True) == 0
 
 
 def test_stiff_fibres_with_geodesic_bending_keep_the_c0ip_rates():
