@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "fabricsurf"
@@ -30,6 +31,8 @@ INVERSE = {
 }
 
 
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="starts a process of its own, which cannot "
+                    "initialise MPI inside an mpirun rank (serial session only)")
 def test_light_root():
     """``import fabricsurf, fabricsurf.network`` loads no FEniCSx module, nor does
     ``fabricsurf.cli.demo`` (tests/test_demos.py reads the demos' checks with it)."""
