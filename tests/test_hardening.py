@@ -751,24 +751,27 @@ def test_interrupt_cleanup_by_one_rank_without_mpi(tmp_path):
 
 def _interrupt(args: list[str], ranks: int, cwd: Path, after: str) -> tuple[int, str]:
     """Start ``fabricsurf ARGS`` (under ``mpirun -n ranks`` when ranks > 1), send SIGINT once
-    its output shows ``after``; the exit status and the output."""
+    its standard output shows ``after``; the exit status and the output, standard error first.
+    The two streams go to separate files: mpirun forwards each in its own chunks, so one
+    shared file can hold a progress line cut in two by an error message."""
     import signal
 
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     cmd = [sys.executable, "-m", "fabricsurf", *args]
-    log = cwd / "log.txt"
-    with open(log, "w") as fh:
+    out, err = cwd / "out.txt", cwd / "err.txt"
+    with open(out, "w") as fo, open(err, "w") as fe:
         p = subprocess.Popen(["mpirun", "-n", str(ranks), *cmd] if ranks > 1 else cmd,
-                             cwd=cwd, env=env, stdout=fh, stderr=subprocess.STDOUT)
+                             cwd=cwd, env=env, stdout=fo, stderr=fe)
         t0 = time.perf_counter()
-        while after not in log.read_text() and p.poll() is None:
-            assert time.perf_counter() - t0 < 180, log.read_text()
+        while after not in out.read_text() and p.poll() is None:
+            assert time.perf_counter() - t0 < 180, out.read_text() + err.read_text()
             time.sleep(0.1)
-        assert p.poll() is None, "ended before the interrupt: " + log.read_text()
+        assert p.poll() is None, "ended before the interrupt: " + out.read_text() + err.read_text()
         p.send_signal(signal.SIGINT)
         p.wait(timeout=120)
-    text = log.read_text()
-    log.unlink()
+    text = err.read_text() + "\n" + out.read_text()
+    out.unlink()
+    err.unlink()
     return p.returncode, text
 
 

@@ -134,8 +134,8 @@ def interruptible(command: str) -> Iterator[None]:
         for s in signals:
             signal.signal(s, signal.SIG_IGN)
         msg = outdir.interrupted(signal.Signals(signum).name)
-        if msg:
-            print(f"fabricsurf {command}: {msg}", flush=True)
+        if msg:  # on stderr: the handler may have cut a write to stdout (a progress line)
+            os.write(2, f"fabricsurf {command}: {msg}\n".encode())
         sys.stderr.flush()
         os._exit(130)
 
