@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricsurf.inverse.dic.export import write_images
+from fabricsurf.inverse.dic.export import spec_text, write_images
 from fabricsurf.inverse.dic.frame import Frame
 from fabricsurf.inverse.dic.layouts import LAYOUTS
 
@@ -40,27 +40,9 @@ print(json.dumps({"points": rep["points_read"], "rows": len(exp.X), "seconds":
 
 
 def spec(images: list[int], pitch: float | None) -> str:
-    steps = ", ".join(str(5.0 * k) for k in images)
-    binning = f"[binning]\npitch = {pitch}\n" if pitch else ""
-    return f"""name = "bench"
-[export]
-layout = "dice"
-files = "img/DICe_solution_{'*' if len(images) > 1 else '01'}.txt"
-[units]
-mm_per_pixel = {CAMERA.scale}
-[frame]
-origin = [{CAMERA.origin[0]}, {CAMERA.origin[1]}]
-angle_deg = {CAMERA.tilt_deg}
-[specimen]
-length = {L}
-width = {W}
-fibre_angles_deg = [45.0, -45.0]
-[loading]
-test = "bias_extension"
-[steps]
-images = {images}
-path = [{steps}]
-{binning}"""
+    files = f"img/DICe_solution_{'*' if len(images) > 1 else '01'}.txt"
+    return spec_text(CAMERA, name="bench", layout="dice", files=files, length=L, width=W,
+                     images=images, path=[5.0 * k for k in images], pitch=pitch)
 
 
 def main() -> None:

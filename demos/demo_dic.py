@@ -36,7 +36,7 @@ from mpi4py import MPI
 from fabricsurf.cli import main as cli
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.inverse.contract.data import load_experiment
-from fabricsurf.inverse.dic.export import write_images
+from fabricsurf.inverse.dic.export import spec_text, write_images
 from fabricsurf.inverse.dic.frame import Frame
 from fabricsurf.inverse.dic.layouts import LAYOUTS
 from fabricsurf.inverse.dic.reader import find_header
@@ -95,29 +95,10 @@ export = out / "export"
 files = on_rank0(comm, write_images, export, LAYOUTS["dice"], camera, [0, 1, 2, 3], X, shots,
                  holes=0.05, seed=7)
 spec = out / "dic.toml"
-on_rank0(comm, spec.write_text, f"""name = "dic-bias"
-[export]
-layout = "dice"
-files = "export/DICe_solution_*.txt"
-[units]
-mm_per_pixel = {camera.scale}
-[frame]
-origin = [{camera.origin[0]}, {camera.origin[1]}]
-grip = "left"
-angle_deg = {camera.tilt_deg}
-[specimen]
-length = {L}
-width = {W}
-fibre_angles_deg = [45.0, -45.0]
-[loading]
-test = "bias_extension"
-[steps]
-reference_images = [0]
-images = [1, 2, 3]
-path = {PATH}
-[binning]
-pitch = {args.pitch}
-""")
+on_rank0(comm, spec.write_text, spec_text(
+    camera, name="dic-bias", layout="dice", files="export/DICe_solution_*.txt", length=L,
+    width=W, reference_images=[0], images=[1, 2, 3], path=PATH, pitch=args.pitch))
+
 comm.barrier()
 
 # %% [markdown]

@@ -375,9 +375,9 @@ def in_root(root, monkeypatch):
     return root
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c["id"] for c in CASES])
-def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
-    """Each input class: exit 2 on every rank, one message, nothing computed or written."""
+def rejected_message(case: dict, root: Path, capsys, monkeypatch) -> str:
+    """Run ``case["argv"]`` with the forward solvers replaced by recorders: exit 2, the
+    message matching ``case["pattern"]``, nothing built and nothing written in ``root``."""
     import fabricsurf.inverse.fitting.forward as forward
 
     # binds the real ForwardSet first
@@ -385,15 +385,22 @@ def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
     built = []
     monkeypatch.setattr(forward, "ForwardSet", lambda *a, **k: built.append(a))
     monkeypatch.setattr(bias_cli, "BiasExtension", lambda *a, **k: built.append(a))
-    before = sorted(p.name for p in in_root.iterdir())
+    before = sorted(p.name for p in root.iterdir())
     rc, msg = run_cli(case["argv"], capsys)
     assert rc == 2, msg
     assert re.search(case["pattern"], msg), (case["pattern"], msg)
-    assert [ln for ln in msg.splitlines() if "error:" in ln] == [msg.splitlines()[-1]], msg
-    assert case["id"] == "usage" or len(msg.splitlines()) == 1, msg
     assert not built
     COMM.barrier()
-    assert sorted(p.name for p in in_root.iterdir()) == before  # no output, no staging left
+    assert sorted(p.name for p in root.iterdir()) == before  # no output, no staging left
+    return msg
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["id"] for c in CASES])
+def test_rejected_before_any_solve(case, in_root, capsys, monkeypatch):
+    """Each input class: exit 2 on every rank, one message, nothing computed or written."""
+    msg = rejected_message(case, in_root, capsys, monkeypatch)
+    assert [ln for ln in msg.splitlines() if "error:" in ln] == [msg.splitlines()[-1]], msg
+    assert case["id"] == "usage" or len(msg.splitlines()) == 1, msg
 
 
 # -- accepted variants: the same values as the plain file ----------------------------------------

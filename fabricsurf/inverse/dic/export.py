@@ -66,3 +66,27 @@ def write_images(directory: str | Path, layout: Layout, frame: Frame, images: li
             np.savetxt(fh, table, fmt="%.10g", delimiter=delim)
         out.append(path)
     return out
+
+
+def spec_text(frame: Frame, *, name: str, layout: str, files: str, length: float, width: float,
+              images: list[int], path: list[float], reference_images: list[int] | None = None,
+              pitch: float | None = None,
+              fibre_angles_deg: tuple[float, float] = (45.0, -45.0)) -> str:
+    """The ``dic.toml`` of a bias test exported by ``write_images`` in ``frame``
+    (docs/dic.md): the camera-to-specimen map, the specimen, the images with their grip
+    displacements ``path`` (mm) and, with ``pitch``, binning."""
+    lines = [f'name = "{name}"', "[export]", f'layout = "{layout}"', f'files = "{files}"',
+             "[units]", f"mm_per_pixel = {frame.scale}", "[frame]",
+             f"origin = [{frame.origin[0]}, {frame.origin[1]}]", f'grip = "{frame.grip}"',
+             f"y_down = {str(frame.y_down).lower()}"]
+    if frame.tilt_deg is not None:
+        lines.append(f"angle_deg = {frame.tilt_deg}")
+    lines += ["[specimen]", f"length = {length}", f"width = {width}",
+              f"fibre_angles_deg = [{fibre_angles_deg[0]}, {fibre_angles_deg[1]}]",
+              "[loading]", 'test = "bias_extension"', "[steps]"]
+    if reference_images is not None:
+        lines.append(f"reference_images = {list(reference_images)}")
+    lines += [f"images = {list(images)}", f"path = {[float(p) for p in path]}"]
+    if pitch:
+        lines += ["[binning]", f"pitch = {pitch}"]
+    return "\n".join(lines) + "\n"
