@@ -140,3 +140,22 @@ def test_compare_rejects_terms_outside_vocabulary():
 
     with pytest.raises(ValueError, match="not in the vocabulary"):
         ForwardModel(good_experiment(), bipantographic())
+
+
+def test_first_duplicate_is_the_earliest_repeat():
+    """The vectorised duplicate search names the same pair of rows as a scan in file order
+    (the message's two line numbers), on random small tables with many repeats."""
+    from fabricsurf.inverse.contract.checks import _first_duplicate
+
+    def scan(keys):
+        seen = {}
+        for i, k in enumerate(map(tuple, keys)):
+            if k in seen:
+                return seen[k], i
+            seen[k] = i
+        return None
+
+    rng = np.random.default_rng(1)
+    for _ in range(2000):
+        keys = rng.integers(0, 3, (rng.integers(0, 12), rng.integers(1, 4))).astype(float)
+        assert _first_duplicate(keys) == scan(keys), keys

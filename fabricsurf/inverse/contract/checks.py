@@ -36,12 +36,21 @@ def steps(values: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:
 
 
 def _first_duplicate(keys: np.ndarray) -> tuple[int, int] | None:
-    seen: dict = {}
-    for i, k in enumerate(map(tuple, keys)):
-        if k in seen:
-            return seen[k], i
-        seen[k] = i
-    return None
+    """(first row, repeat) of the earliest row of ``keys`` (n × k) that repeats an earlier
+    one, None if the rows are distinct: a stable sort puts equal rows next to each other in
+    their order in the file (O(n log n), no Python loop over the rows)."""
+    if len(keys) < 2:
+        return None
+    order = np.lexsort(keys.T[::-1])
+    ks = keys[order]
+    same = np.all(ks[1:] == ks[:-1], axis=1)
+    if not same.any():
+        return None
+    group = np.concatenate([[0], np.cumsum(~same)])
+    first = order[np.concatenate([[0], np.flatnonzero(~same) + 1])]
+    j = np.flatnonzero(same) + 1
+    k = np.argmin(order[j])
+    return int(first[group[j[k]]]), int(order[j[k]])
 
 
 def unique_steps(st: np.ndarray, lines: np.ndarray, name: str) -> None:
