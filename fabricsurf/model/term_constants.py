@@ -17,7 +17,8 @@ from dolfinx import fem
 
 class TermConstants:
     """``c[name]``: the UFL object (fem.Constant or fem.Function) of one parameter of one term,
-    on the mesh of the form that owns it; :meth:`assign` writes a value into it."""
+    on the mesh of the form that owns it; :meth:`assign` writes a value into it. The owner keeps
+    the object (``EnergyForm.bound``): :meth:`Term.set` reaches it only while it lives."""
 
     def __init__(self, values: dict[str, fem.Constant | fem.Function]) -> None:
         self._values = values
