@@ -44,11 +44,9 @@ def unit_square():
 def energy(msh, r, angles=(0.0, 90.0), model=None):
     """∫ W over the unit square for a placement r given as a UFL expression of X."""
     model = model or bipantographic()
-    for t in model:
-        t.bind(msh)
     L, M = fibre_directions(*angles)
     kin = Kinematics(ufl.grad(r), ufl.grad(ufl.grad(r)), L, M)
-    W = sum(t.density(kin) for t in model)
+    W = sum(t.density(kin, t.constants(msh)) for t in model)
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 10})
     return COMM.allreduce(fem.assemble_scalar(fem.form(W * dx)), op=MPI.SUM)
 
@@ -143,26 +141,27 @@ def test_cellwise_penalty_stretch(unit_square):
     ``set(penalty_stretch=...)`` makes it uniform again; a value outside the domain is refused."""
     from fabricsurf.model.materials import _coefficients
 
-    t = PantographBending().bind(unit_square)
+    t = PantographBending()
+    consts = t.constants(unit_square)
     tdim = unit_square.topology.dim
     imap = unit_square.topology.index_map(tdim)
     n = imap.size_local + imap.num_ghosts
     mid = dmesh.compute_midpoints(unit_square, tdim, np.arange(n, dtype=np.int32))
     rho = 1.0 + 0.12 * mid[:, 0]                       # varies from cell to cell
-    t.set_penalty_stretch(unit_square, rho)
+    t.set_penalty_stretch(consts, rho)
     c = math.cos(t.gamma)
     S = sum(_coefficients(rho, t.K_E, t.K_F, c))
     area = 1.0 / (2 * 6 * 6)
     expected = COMM.allreduce(float(np.sum(S[:imap.size_local])) * area, op=MPI.SUM)
-    got = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale() * ufl.dx)),
+    got = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale(consts) * ufl.dx)),
                          op=MPI.SUM)
     assert got == pytest.approx(expected, rel=1e-12)
     t.set(penalty_stretch=1.0)
-    uniform = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale() * ufl.dx)),
+    uniform = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale(consts) * ufl.dx)),
                              op=MPI.SUM)
     assert uniform == pytest.approx(sum(_coefficients(1.0, t.K_E, t.K_F, c)), rel=1e-12)
     with pytest.raises(ValueError, match="cos γ < 1"):
-        t.set_penalty_stretch(unit_square, np.full(n, 1.2))
+        t.set_penalty_stretch(consts, np.full(n, 1.2))
 
 
 def test_stretch_records_one_per_test_even_when_an_id_is_reused():

@@ -44,7 +44,8 @@ def _density_and_tangent(gamma: float) -> tuple[float, float, float]:
     a = ufl.exp(s)
     F = ufl.grad(ufl.as_vector([a * x[0], x[1] / a]))
     kin = Kinematics(F, None, L, M)
-    W = CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F).density(kin)
+    friction = CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)
+    W = friction.density(kin, friction.values())
     dW = ufl.diff(W, s) / ufl.diff(kin.gamma, s)
     d2 = ufl.diff(ufl.diff(W, s), s) / ufl.diff(kin.gamma, s) ** 2
     # a half-angle closing tan((π/2 − γ)/2) = 1/a² gives s for the wanted γ

@@ -141,8 +141,8 @@ def test_large_homogeneous_shear_matches_continuum_shear_and_locking(angles):
                      *kn.fibre_directions(*angles))
     model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), ShearLocking(k4=K4, k6=K6),
              CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)]
-    dens = fem.Expression(ufl.as_vector([kin.gamma, sum(t.density(kin) for t in model)]),
-                          np.array([[1 / 3, 1 / 3]]))
+    W = sum(t.density(kin, t.values()) for t in model)
+    dens = fem.Expression(ufl.as_vector([kin.gamma, W]), np.array([[1 / 3, 1 / 3]]))
     gam, w = dens.eval(np.arange(msh.topology.index_map(2).size_local, dtype=np.int32))[0]
     s0 = np.sin(np.radians(angles[0] - angles[1]))
     assert abs(gam) > 0.5, f"large shear wanted, gamma = {gam}"

@@ -53,23 +53,26 @@ def test_parse_terms_with_params():
     assert model[1].k_s == 2.5
 
 
-def test_set_updates_bound_constant_in_place():
+def test_set_updates_the_constants_of_a_form_in_place():
     msh = dmesh.create_unit_square(MPI.COMM_WORLD, 1, 1)
-    t = FibreStretch(k_l=3.0).bind(msh)
-    c = t.p("k_l")
+    t = FibreStretch(k_l=3.0)
+    consts = t.constants(msh)
+    c = consts["k_l"]
     t.set(k_l=7.0)
-    assert t.p("k_l") is c and float(c.value) == 7.0
+    assert consts["k_l"] is c and float(c.value) == 7.0
 
 
 def test_shear_locking_density_is_the_quartic_sextic_polynomial():
     """Simple shear r = (x + s y, y) of 0/90° fibres has γ = atan s: the density is
-    ¼k₄γ⁴ + ⅙k₆γ⁶, and one compiled expression serves all moduli (bound constants)."""
+    ¼k₄γ⁴ + ⅙k₆γ⁶, and one compiled expression serves all moduli (its own constants)."""
     msh = dmesh.create_unit_square(MPI.COMM_WORLD, 1, 1)
     s = 0.8
     x = ufl.SpatialCoordinate(msh)
     r = ufl.as_vector((x[0] + s * x[1], x[1]))
-    term = ShearLocking(k4=2.0, k6=3.0).bind(msh)
-    expr = fem.Expression(term.density(Kinematics(ufl.grad(r), None, *fibre_directions(0, 90))),
+    term = ShearLocking(k4=2.0, k6=3.0)
+    consts = term.constants(msh)
+    expr = fem.Expression(term.density(Kinematics(ufl.grad(r), None, *fibre_directions(0, 90)),
+                                       consts),
                           np.array([[1 / 3, 1 / 3]]))
     cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
     g = math.atan(s)

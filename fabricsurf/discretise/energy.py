@@ -16,6 +16,9 @@ its ratio to the physical stiffness when moduli change (no recompilation: S is b
 moduli's fem.Constants). S may vary from cell to cell (a term whose moduli depend on the
 state, e.g. the bi-pantographic coefficients, evaluates them on a DG0 field); on an interior
 facet the larger of the two cells' values is taken, so the penalty dominates on both sides.
+The constants belong to the form: an EnergyForm asks each term for its own on its mesh
+(``Term.constants``) and builds every expression from them, so forms on several meshes, of one
+model or several, never share or swap constants.
 α = 8 is the value of dolfinx's P2 biharmonic demo; the tests show
 that results change by less than the discretisation error for α in [4, 64] (test_penalty).
 """
@@ -32,7 +35,11 @@ from dolfinx import mesh as dmesh
 from fabricsurf.discretise.constraints import Multiplier
 from fabricsurf.discretise.jit_keys import stable_constant_order
 from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.term_constants import TermConstants
 from fabricsurf.model.terms import Term
+
+Bound = list[tuple[Term, TermConstants]]
+"""The terms of a model with the constants of one form."""
 
 DEFAULT_PENALTY = 8.0
 CELL_QUADRATURE_DEGREE = 4
@@ -83,14 +90,14 @@ def kinematics(u, L, M) -> Kinematics:
     return Kinematics(ufl.grad(r), ufl.grad(ufl.grad(r)), L, M)
 
 
-def strain_energy_density(model: list[Term], kin: Kinematics):
+def strain_energy_density(bound: Bound, kin: Kinematics):
     """W = Σ_terms density (per unit reference area)."""
-    return sum(t.density(kin) for t in model)
+    return sum(t.density(kin, c) for t, c in bound)
 
 
-def membrane_scale(model: list[Term], kin: Kinematics):
+def membrane_scale(bound: Bound, kin: Kinematics):
     """Sum of the first-gradient moduli of the unconstrained terms (UFL, N/mm)."""
-    return sum((t.p(q) for t in model if t.order == 1 and not t.constraints(kin)
+    return sum((c[q] for t, c in bound if t.order == 1 and not t.constraints(kin, c)
                 for q in t.parameters()), 0.0)
 
 
@@ -98,16 +105,16 @@ def has_second_gradient(model: list[Term]) -> bool:
     return any(t.order == 2 for t in model)
 
 
-def stiffness_scale(model: list[Term]):
-    """S: sum of the second-gradient moduli (UFL, from the bound constants)."""
-    return sum(t.stiffness_scale() for t in model if t.order == 2)
+def stiffness_scale(bound: Bound):
+    """S: sum of the second-gradient moduli (UFL, from the form's constants)."""
+    return sum(t.stiffness_scale(c) for t, c in bound if t.order == 2)
 
 
-def double_force(model: list[Term], kin: Kinematics):
+def double_force(bound: Bound, kin: Kinematics):
     """M = ∂W/∂H (d×2×2) of the second-gradient terms (Steigmann & dell'Isola 2015 eq. 82)."""
     H = ufl.variable(kin.H)
     k = Kinematics(kin.F, H, kin.L, kin.M)
-    W2 = sum(t.density(k) for t in model if t.order == 2)
+    W2 = sum(t.density(k, c) for t, c in bound if t.order == 2)
     return ufl.diff(W2, H)
 
 
@@ -123,7 +130,7 @@ class EnergyForm:
 
     ``normal_derivative`` maps a facet tag (or EVERYWHERE) to the prescribed ∂_n u there (a UFL
     d-vector; the zero vector for a clamp). ``tractions`` maps a facet tag to a dead load t (per
-    unit reference length, N/mm).
+    unit reference length, N/mm). ``bound`` pairs each term with the constants this form owns.
     """
 
     model: list[Term]
@@ -144,19 +151,22 @@ class EnergyForm:
                              f"{', '.join(FIBRE_TREATMENTS)}")
         stable_constant_order()  # before the moduli's Constants are made (jit_keys)
         msh = self.u.function_space.mesh
-        for t in self.model:
-            t.bind(msh)
+        self.bound: Bound = [(t, t.constants(msh)) for t in self.model]
         self.alpha = fem.Constant(msh, float(self.penalty))
         self.kin = kinematics(self.u, self.L, self.M)
-        scale = AUGMENTATION * membrane_scale(self.model, self.kin)
+        scale = AUGMENTATION * membrane_scale(self.bound, self.kin)
         self.multipliers = [Multiplier(name, g, r + scale, msh, self.term_degree(t))
-                            for t in self.model for name, g, r in t.constraints(self.kin)]
+                            for t, c in self.bound for name, g, r in t.constraints(self.kin, c)]
         self.dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": self.qdeg_cell})
         if self.reduced:
             self.dx, self.dx_fibre = reduced_measures(msh, self.qdeg_cell)
         md = {"quadrature_degree": self.qdeg_facet}
         self.dS = ufl.Measure("dS", domain=msh, metadata=md)
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=self.facet_tags, metadata=md)
+
+    def constants_of(self, term: Term) -> TermConstants:
+        """The constants of ``term`` (the very object, one of :attr:`model`) in this form."""
+        return next(c for t, c in self.bound if t is term)
 
     @property
     def reduced(self) -> bool:
@@ -175,13 +185,13 @@ class EnergyForm:
 
     def cell_energy(self):
         if not self.reduced:
-            W = strain_energy_density(self.model, self.kin)
+            W = strain_energy_density(self.bound, self.kin)
             W += sum(m.energy_density() for m in self.multipliers)
             return W * self.dx
         dx_f = self.dx_fibre
         form = 0
-        for t in self.model:
-            density = t.density(self.kin)
+        for t, c in self.bound:
+            density = t.density(self.kin, c)
             if not (isinstance(density, float) and density == 0.0):
                 form += density * (dx_f if t.fibre else self.dx)
         for m in self.multipliers:
@@ -192,9 +202,13 @@ class EnergyForm:
         """Fibre tensions per unit reference width (N/mm, UFL): the multipliers of exact
         constraints, else ∂W/∂λ and ∂W/∂μ of the elastic fibre terms."""
         fields = {m.name: m.tension() for m in self.multipliers}
-        for t in self.model:
-            fields.update(t.tensions(self.kin))
+        for t, c in self.bound:
+            fields.update(t.tensions(self.kin, c))
         return fields
+
+    def double_force(self):
+        """M = ∂W/∂H of this form's second-gradient terms (UFL, with its constants)."""
+        return double_force(self.bound, self.kin)
 
     def _ip_pieces(self):
         """(measure, jump, M_nn, S, h) of the C0-IP and Nitsche terms; jump is affine in u."""
@@ -202,8 +216,8 @@ class EnergyForm:
             return []
         msh = self.u.function_space.mesh
         n, h = ufl.FacetNormal(msh), ufl.CellDiameter(msh)
-        Mt = double_force(self.model, self.kin)
-        S = stiffness_scale(self.model)
+        Mt = self.double_force()
+        S = stiffness_scale(self.bound)
         F = self.kin.F
         jump = F("+") * n("+") + F("-") * n("-")
         avg_Mnn = 0.5 * (contract_nn(Mt("+"), n("+")) + contract_nn(Mt("-"), n("-")))

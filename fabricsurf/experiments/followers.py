@@ -93,7 +93,7 @@ class PenaltyFollower:
         cells = (nodal[self._cell_nodes].max(axis=1) if self.local
                  else np.full(len(self._cell_nodes), rho))
         for t in self.terms:
-            t.set_penalty_stretch(self.problem.msh, np.maximum(
+            t.set_penalty_stretch(self.problem.energy.constants_of(t), np.maximum(
                 t.penalty_stretch, penalty_stretch(cells, self.margin, t.gamma)))
         gamma = self.terms[0].gamma if self.terms else math.pi / 6
         self.history.append({"max_stretch": rho, "rho_cos_gamma": rho * math.cos(gamma),
@@ -102,8 +102,8 @@ class PenaltyFollower:
     def reset(self) -> None:
         """ρ_p back to each term's own ``penalty_stretch`` (uniform); the history is kept."""
         for t in self.terms:
-            t.set_penalty_stretch(self.problem.msh, np.full(len(self._cell_nodes),
-                                                            t.penalty_stretch))
+            t.set_penalty_stretch(self.problem.energy.constants_of(t),
+                                  np.full(len(self._cell_nodes), t.penalty_stretch))
 
 
 FOLLOWERS: dict[type[Term], FollowerFactory] = {PantographBending: PenaltyFollower}

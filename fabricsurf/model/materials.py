@@ -14,13 +14,13 @@ opened rhombi); the docs (docs/bipantographic.md) give the reading of the printe
 its checks, the domain and how the solver respects it, the interior penalty that follows the
 stretch (cell by cell, :class:`PantographBending` ``penalty_stretch``), the regularisation
 beyond a limit stretch, and the units (mm, N: K_S in N/mm, K_E and K_F in N·mm, γ in rad; all
-fem.Constants once bound).
+fem.Constants of the form that uses them).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -28,6 +28,7 @@ import ufl
 from dolfinx import fem
 
 from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.term_constants import Params, TermConstants
 from fabricsurf.model.terms import Term
 
 TABLE3_MACRO = {"K_S": 0.034, "K_E": 330.0, "K_F": 900.0}
@@ -59,10 +60,10 @@ class PantographPivot(Term):
     order: ClassVar[int] = 1
     units: ClassVar[dict[str, str]] = {"K_S": "N/mm", "gamma": "rad"}
 
-    def density(self, kin: Kinematics):
-        g = self.p("gamma")
+    def density(self, kin: Kinematics, p: Params):
+        g = p["gamma"]
         c = ufl.cos(g)
-        return self.p("K_S") * (_pivot(kin.lam, c, g) ** 2 + _pivot(kin.mu, c, g) ** 2)
+        return p["K_S"] * (_pivot(kin.lam, c, g) ** 2 + _pivot(kin.mu, c, g) ** 2)
 
 
 @dataclass
@@ -72,9 +73,10 @@ class PantographBending(Term):
 
     ``penalty_stretch`` ρ_p (dimensionless, ρ_p cos γ < 1) is not a modulus: it is the stretch
     at which the interior-penalty scale S = a_θ(ρ_p) + a_ρ(ρ_p) is taken (docs/bipantographic.md,
-    "Interior penalty"). Once bound, ρ_p lives in a cellwise-constant (DG0) field per mesh,
-    :meth:`penalty_field`: ``set(penalty_stretch=...)`` makes it uniform, a caller that
-    follows the local stretch writes it cell by cell; neither recompiles.
+    "Interior penalty"). In a form, ρ_p lives in a cellwise-constant (DG0) field of that form
+    (``constants["penalty_stretch"]``): ``set(penalty_stretch=...)`` makes it uniform in every
+    form, a caller that follows the local stretch writes one form's cell by cell
+    (:meth:`set_penalty_stretch`); neither recompiles.
     """
 
     K_E: float = TABLE3_MACRO["K_E"]
@@ -86,62 +88,49 @@ class PantographBending(Term):
     units: ClassVar[dict[str, str]] = {"K_E": "N·mm", "K_F": "N·mm", "gamma": "rad",
                                        "penalty_stretch": "1"}
 
-    _fields: list = field(default_factory=list, init=False, repr=False, compare=False)
-    _field: object = field(default=None, init=False, repr=False, compare=False)
-
     def __post_init__(self) -> None:
         super().__post_init__()
         _check_below_limit(self.name, "penalty_stretch", self.penalty_stretch, self.gamma)
 
-    def bind(self, msh) -> Term:
-        """As :meth:`Term.bind`, plus the DG0 field of ρ_p on ``msh`` (made current)."""
-        super().bind(msh)
-        try:
-            self._field = self.penalty_field(msh)
-        except RuntimeError:
-            self._field = fem.Function(fem.FunctionSpace(msh, ("DG", 0)), name="penalty_stretch")
-            self._field.x.array[:] = self.penalty_stretch
-            self._fields.append(self._field)
-        return self
+    def parameter_on(self, msh, name: str) -> fem.Constant | fem.Function:
+        """As :meth:`Term.parameter_on`; ρ_p in a DG0 field (uniform until set cell by cell)."""
+        if name != "penalty_stretch":
+            return super().parameter_on(msh, name)
+        f = fem.Function(fem.FunctionSpace(msh, ("DG", 0)), name="penalty_stretch")
+        f.x.array[:] = self.penalty_stretch
+        return f
 
-    def penalty_field(self, msh) -> fem.Function:
-        """The DG0 field of ρ_p on ``msh`` (the term must be bound to it)."""
-        for f in self._fields:
-            if f.function_space.mesh is msh:
-                return f
-        raise RuntimeError(f"term '{self.name}' is not bound to this mesh")
-
-    def set_penalty_stretch(self, msh, values: np.ndarray) -> None:
-        """Set ρ_p cell by cell on ``msh``: ``values`` in the order of the local cells,
-        ghosts included; each must lie inside the energy's domain."""
+    def set_penalty_stretch(self, constants: TermConstants, values: np.ndarray) -> None:
+        """Set ρ_p cell by cell in one form (``constants``: this term's in that form):
+        ``values`` in the order of the local cells of its mesh, ghosts included; each must
+        lie inside the energy's domain."""
         values = np.asarray(values, dtype=float)
         if not (values * math.cos(self.gamma) < 1.0).all():
             raise ValueError(f"term '{self.name}': penalty_stretch must satisfy "
                              f"penalty_stretch·cos γ < 1 in every cell")
-        f = self.penalty_field(msh)
+        f = constants["penalty_stretch"]
         f.x.array[f.function_space.dofmap.list.array] = values
         f.x.scatter_forward()
 
-    def _coeffs(self, rho):
-        return _coefficients(rho, self.p("K_E"), self.p("K_F"), ufl.cos(self.p("gamma")))
+    def _coeffs(self, rho, p: Params):
+        return _coefficients(rho, p["K_E"], p["K_F"], ufl.cos(p["gamma"]))
 
-    def _stretch(self, rho):
+    def _stretch(self, rho, p: Params):
         """The stretch at which the coefficients are evaluated (ρ itself; capped when
         regularised)."""
         return rho
 
-    def density(self, kin: Kinematics):
+    def density(self, kin: Kinematics, p: Params):
         W = 0
         for rho, geo, drho in ((kin.lam, kin.geodesic_l, kin.dlam_dL),
                                (kin.mu, kin.geodesic_m, kin.dmu_dM)):
-            a_theta, a_rho = self._coeffs(self._stretch(rho))
+            a_theta, a_rho = self._coeffs(self._stretch(rho, p), p)
             W += a_theta * (geo / rho) ** 2 + a_rho * drho**2
         return W
 
-    def stiffness_scale(self):
+    def stiffness_scale(self, p: Params):
         """a_θ + a_ρ at ρ = ``penalty_stretch`` (the penalty scale S of energy.py)."""
-        rho_p = self._field if self._field is not None else self.p("penalty_stretch")
-        a_theta, a_rho = self._coeffs(self._stretch(rho_p))
+        a_theta, a_rho = self._coeffs(self._stretch(p["penalty_stretch"], p), p)
         return a_theta + a_rho
 
     def reference_moduli(self) -> tuple[float, float]:
@@ -153,9 +142,6 @@ class PantographBending(Term):
             _check_below_limit(self.name, "penalty_stretch", values["penalty_stretch"],
                                values.get("gamma", self.gamma))
         super().set(**values)
-        if "penalty_stretch" in values:
-            for f in self._fields:
-                f.x.array[:] = float(values["penalty_stretch"])
 
 
 def _check_below_limit(name: str, key: str, rho: float, gamma: float) -> None:
@@ -188,8 +174,8 @@ class RegularisedPantographPivot(PantographPivot):
         super().__post_init__()
         _check_below_limit(self.name, "limit_stretch", self.limit_stretch, self.gamma)
 
-    def density(self, kin: Kinematics):
-        r, K, g = self.p("limit_stretch"), self.p("K_S"), self.p("gamma")
+    def density(self, kin: Kinematics, p: Params):
+        r, K, g = p["limit_stretch"], p["K_S"], p["gamma"]
         return _pivot_extension(kin.lam, r, K, g) + _pivot_extension(kin.mu, r, K, g)
 
 
@@ -205,8 +191,8 @@ class RegularisedPantographBending(PantographBending):
         super().__post_init__()
         _check_below_limit(self.name, "limit_stretch", self.limit_stretch, self.gamma)
 
-    def _stretch(self, rho):
-        return ufl.min_value(rho, self.p("limit_stretch"))
+    def _stretch(self, rho, p: Params):
+        return ufl.min_value(rho, p["limit_stretch"])
 
 
 def bipantographic(K_S: float = TABLE3_MACRO["K_S"], K_E: float = TABLE3_MACRO["K_E"],

@@ -1,21 +1,25 @@
 """Energy terms: the public vocabulary of physical effects (docs/theory.md, Steigmann & dell'Isola
 2015 eq. 60).
 
-Each term is a small dataclass with validated moduli and a ``density(kin)`` method giving its
-strain energy per unit reference area. A model is a list of terms::
+Each term is a small dataclass with validated moduli and a ``density(kin, p)`` method giving its
+strain energy per unit reference area, with ``p[name]`` the value of each modulus: the UFL
+objects of the form being built (:meth:`Term.constants`), or the floats of :meth:`Term.values`.
+A model is a list of terms::
 
     model = [FibreStretch(k_l=30.0), Shear(k_s=0.5), GeodesicBending(A_g=40.0)]
 
 Units (lengths in mm, forces in N): first-gradient moduli are energy per area, N/mm;
 second-gradient moduli are energy per area times length², N·mm.
 
-Once a term is bound to a mesh (:meth:`Term.bind`) its moduli live in ``fem.Constant``\\ s, so
-:meth:`Term.set` changes them without recompiling any form.
+Every form built from a term owns the ``fem.Constant``\\ s of its moduli, on its own mesh
+(fabricsurf/model/term_constants.py); :meth:`Term.set` changes them in every live form without
+recompiling any.
 """
 
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
@@ -24,6 +28,7 @@ from dolfinx import fem
 
 from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.term_constants import Params, TermConstants
 
 
 @dataclass
@@ -36,8 +41,8 @@ class Term:
     options: ClassVar[tuple[str, ...]] = ()  # fields that are switches, not moduli
     monotonic_only: ClassVar[bool] = False  # an elastic stand-in for a dissipative effect
     fibre: ClassVar[bool] = False  # stretches the fibres (integrated apart when "reduced")
-    _const: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-    _bound: list = field(default_factory=list, init=False, repr=False, compare=False)
+    _live: weakref.WeakSet = field(default_factory=weakref.WeakSet, init=False, repr=False,
+                                   compare=False)  # the constants of the live forms (set())
 
     def __post_init__(self) -> None:
         for p in self.parameters():
@@ -59,52 +64,49 @@ class Term:
                 f" ({self.units.get(p, '')})"
             )
 
-    def bind(self, msh) -> Term:
-        """Make the fem.Constants of the moduli on mesh ``msh`` the current ones (idempotent).
+    def constants(self, msh) -> TermConstants:
+        """New UFL objects of the parameters on mesh ``msh``, for one form to own.
 
-        A term may be bound to several meshes (one model, several experiments): each mesh gets
-        its own constants, :meth:`set` updates all of them, and :meth:`p` returns those of the
-        mesh bound last (the one whose forms are being built).
-        """
-        for consts in self._bound:
-            if next(iter(consts.values())).ufl_domain() == msh.ufl_domain():
-                self._const = consts
-                return self
-        self._const = {p: fem.Constant(msh, float(getattr(self, p))) for p in self.parameters()}
-        self._bound.append(self._const)
-        return self
+        Each form gets its own (one model may serve several experiments, on several meshes);
+        the term keeps a weak reference to them for :meth:`set`."""
+        consts = TermConstants({p: self.parameter_on(msh, p) for p in self.parameters()})
+        self._live.add(consts)
+        return consts
+
+    def parameter_on(self, msh, name: str) -> fem.Constant | fem.Function:
+        """The UFL object of parameter ``name`` on ``msh``: a fem.Constant (a term whose
+        parameter varies from cell to cell returns a field)."""
+        return fem.Constant(msh, float(getattr(self, name)))
 
     def set(self, **values: float) -> None:
-        """Change moduli; bound constants are updated in place (no recompilation)."""
+        """Change moduli, in the constants of every live form too (no recompilation)."""
         for p, v in values.items():
             if p not in self.parameters():
                 raise ValueError(f"term '{self.name}' has no parameter '{p}'; "
                                  f"it has {self.parameters()}")
             self._check(p, v)
             setattr(self, p, float(v))
-            for consts in self._bound:
-                consts[p].value = float(v)
-
-    def p(self, name: str):
-        """The modulus as a UFL object (its fem.Constant when bound, else the float)."""
-        return self._const.get(name, getattr(self, name))
+            for consts in self._live:
+                consts.assign(p, float(v))
 
     def values(self) -> dict[str, float]:
+        """The parameters as floats (usable as ``p`` of :meth:`density`: then compiled in)."""
         return {p: float(getattr(self, p)) for p in self.parameters()}
 
-    def stiffness_scale(self):
+    def stiffness_scale(self, p: Params):
         """Scale S of the second-gradient moduli, used by the interior penalty (zero if order 1)."""
-        return sum(self.p(q) for q in self.parameters()) if self.order == 2 else 0.0
+        return sum(p[q] for q in self.parameters()) if self.order == 2 else 0.0
 
-    def density(self, kin: Kinematics):
+    def density(self, kin: Kinematics, p: Params):
+        """W per unit reference area (UFL), with ``p[name]`` the value of each parameter."""
         raise NotImplementedError
 
-    def constraints(self, kin: Kinematics) -> list[tuple[str, object, object]]:
+    def constraints(self, kin: Kinematics, p: Params) -> list[tuple[str, object, object]]:
         """Exact constraints (name, g, r) with g(u) = 0 enforced by a multiplier and r the
         augmentation stiffness (discretise/constraints.py); none by default."""
         return []
 
-    def tensions(self, kin: Kinematics) -> dict:
+    def tensions(self, kin: Kinematics, p: Params) -> dict:
         """Named fibre tensions (N/mm, UFL) the term's own energy carries; none by default."""
         return {}
 
@@ -127,23 +129,23 @@ class FibreStretch(Term):
     units: ClassVar[dict[str, str]] = {"k_l": "N/mm", "k_m": "N/mm"}
     options: ClassVar[tuple[str, ...]] = ("inextensible",)
 
-    def density(self, kin: Kinematics):
+    def density(self, kin: Kinematics, p: Params):
         if self.inextensible:
             return 0.0
-        return 0.5 * self.p("k_l") * (kin.lam - 1) ** 2 + 0.5 * self.p("k_m") * (kin.mu - 1) ** 2
+        return 0.5 * p["k_l"] * (kin.lam - 1) ** 2 + 0.5 * p["k_m"] * (kin.mu - 1) ** 2
 
-    def tensions(self, kin: Kinematics) -> dict:
+    def tensions(self, kin: Kinematics, p: Params) -> dict:
         """Fibre tensions ∂W/∂λ, ∂W/∂μ per unit reference width (N/mm) of the elastic fibres
         (those of inextensible ones are the multipliers of :meth:`constraints`)."""
         if self.inextensible:
             return {}
-        return {"tension_l": self.p("k_l") * (kin.lam - 1),
-                "tension_m": self.p("k_m") * (kin.mu - 1)}
+        return {"tension_l": p["k_l"] * (kin.lam - 1),
+                "tension_m": p["k_m"] * (kin.mu - 1)}
 
-    def constraints(self, kin: Kinematics) -> list[tuple[str, object, object]]:
+    def constraints(self, kin: Kinematics, p: Params) -> list[tuple[str, object, object]]:
         if not self.inextensible:
             return []
-        return [("tension_l", kin.lam - 1, self.p("k_l")), ("tension_m", kin.mu - 1, self.p("k_m"))]
+        return [("tension_l", kin.lam - 1, p["k_l"]), ("tension_m", kin.mu - 1, p["k_m"])]
 
 
 @dataclass
@@ -154,8 +156,8 @@ class Shear(Term):
     name: ClassVar[str] = "shear"
     units: ClassVar[dict[str, str]] = {"k_s": "N/mm"}
 
-    def density(self, kin: Kinematics):
-        return 0.5 * self.p("k_s") * kin.gamma**2
+    def density(self, kin: Kinematics, p: Params):
+        return 0.5 * p["k_s"] * kin.gamma**2
 
 
 @dataclass
@@ -171,9 +173,9 @@ class ShearLocking(Term):
     name: ClassVar[str] = "shear_locking"
     units: ClassVar[dict[str, str]] = {"k4": "N/mm", "k6": "N/mm"}
 
-    def density(self, kin: Kinematics):
+    def density(self, kin: Kinematics, p: Params):
         g2 = kin.gamma**2
-        return (0.25 * self.p("k4") + self.p("k6") / 6.0 * g2) * g2**2
+        return (0.25 * p["k4"] + p["k6"] / 6.0 * g2) * g2**2
 
 
 @dataclass
@@ -201,12 +203,12 @@ class CrossoverFriction(Term):
             raise ValueError(f"term '{self.name}': shape angle gamma_f = {g!r} must be a number "
                              "in (0, π/4] rad (the friction is mobilised within 45°)")
 
-    def density(self, kin: Kinematics):
+    def density(self, kin: Kinematics, p: Params):
         g = kin.gamma
         # ln cosh x = x + ln(1 + e^(-2x)) - ln 2 for x = |γ|/γ_f ≥ 0: no overflow at any γ.
         # |γ| as a conditional, whose derivative ±1 is defined at γ = 0 (that of abs is not).
         x = ufl.conditional(ufl.ge(g, 0.0), g, -g) / self.gamma_f
-        return self.p("tau_f") * self.gamma_f * (x + ufl.ln(1 + ufl.exp(-2 * x)) - math.log(2))
+        return p["tau_f"] * self.gamma_f * (x + ufl.ln(1 + ufl.exp(-2 * x)) - math.log(2))
 
 
 @dataclass
@@ -221,8 +223,8 @@ class GeodesicBending(Term):
     order: ClassVar[int] = 2
     units: ClassVar[dict[str, str]] = {"A_g": "N·mm"}
 
-    def density(self, kin: Kinematics):
-        return 0.5 * self.p("A_g") * (kin.geodesic_l**2 + kin.geodesic_m**2)
+    def density(self, kin: Kinematics, p: Params):
+        return 0.5 * p["A_g"] * (kin.geodesic_l**2 + kin.geodesic_m**2)
 
 
 @dataclass
@@ -237,8 +239,8 @@ class StretchGradient(Term):
     order: ClassVar[int] = 2
     units: ClassVar[dict[str, str]] = {"A_s": "N·mm"}
 
-    def density(self, kin: Kinematics):
-        return 0.5 * self.p("A_s") * (kin.dlam_dL**2 + kin.dmu_dM**2)
+    def density(self, kin: Kinematics, p: Params):
+        return 0.5 * p["A_s"] * (kin.dlam_dL**2 + kin.dmu_dM**2)
 
 
 @dataclass
@@ -250,9 +252,9 @@ class ShearGradient(Term):
     order: ClassVar[int] = 2
     units: ClassVar[dict[str, str]] = {"A_Gamma": "N·mm"}
 
-    def density(self, kin: Kinematics):
+    def density(self, kin: Kinematics, p: Params):
         G = kin.Gamma
-        return 0.5 * self.p("A_Gamma") * ufl.dot(G, G)
+        return 0.5 * p["A_Gamma"] * ufl.dot(G, G)
 
 
 @dataclass
@@ -267,8 +269,8 @@ class NormalBending(Term):
     order: ClassVar[int] = 2
     units: ClassVar[dict[str, str]] = {"k_b": "N·mm"}
 
-    def density(self, kin: Kinematics):
-        return 0.5 * self.p("k_b") * (kin.K_L**2 + kin.K_M**2)
+    def density(self, kin: Kinematics, p: Params):
+        return 0.5 * p["k_b"] * (kin.K_L**2 + kin.K_M**2)
 
 
 @dataclass
@@ -280,8 +282,8 @@ class Twist(Term):
     order: ClassVar[int] = 2
     units: ClassVar[dict[str, str]] = {"k_t": "N·mm"}
 
-    def density(self, kin: Kinematics):
-        return 0.5 * self.p("k_t") * kin.T**2
+    def density(self, kin: Kinematics, p: Params):
+        return 0.5 * p["k_t"] * kin.T**2
 
 
 EFFECTS: dict[str, type[Term]] = {

@@ -21,7 +21,6 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.discretise.energy import double_force
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.stepping import LoadStepper
@@ -163,7 +162,7 @@ def l2_error(p: FabricProblem, hyp: Hypar, qdeg: int = 6) -> float:
 def computed_corner_forces(p: FabricProblem) -> dict:
     """f = −[M^{αβ}ν_ατ_β] (eq. 94) from the computed double force at each corner: with ν, τ
     along ±e1, ±e2 it is ±(M[:,0,1] + M[:,1,0]) with the signs of CORNER_SIGNS."""
-    Mt = double_force(p.model, p.energy.kin)
+    Mt = p.energy.double_force()
     q = ufl.as_vector([Mt[i, 0, 1] + Mt[i, 1, 0] for i in range(3)])
     qh = interpolate_expression(q, fem.VectorFunctionSpace(p.msh, ("DG", 1), dim=3))
     pts = np.array(list(CORNER_SIGNS))
