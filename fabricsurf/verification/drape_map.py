@@ -110,8 +110,8 @@ def shear_difference_map(R: float, points: np.ndarray, shear_deg: np.ndarray,
 
 def summary(result: dict) -> dict:
     """The scalars of :func:`shear_difference_map` (for a summary.json)."""
-    return {k: result[k] for k in ("continuum_vs_fishnet", "continuum_vs_goursat",
-                                   "fishnet_vs_goursat")} | {"points": len(result["points"])}
+    keys = ("continuum_vs_fishnet", "continuum_vs_goursat", "fishnet_vs_goursat", "excluded")
+    return {k: result[k] for k in keys if k in result} | {"points": len(result["points"])}
 
 
 def draw_difference_map(path: Path, result: dict, R: float) -> None:
