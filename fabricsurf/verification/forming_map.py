@@ -1,0 +1,49 @@
+"""The continuum forming result over the whole contact area, against both kinematic drapes
+(drape_map.py): the recovered shear angle and the gap to the punch at a grid of reference points
+of the solved quarter, the points on the punch compared with the fishnet and the Goursat net."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
+from fabricsurf.discretise.evaluation import eval_points, nodal_average
+from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.verification.drape_map import shear_difference_map
+
+TOUCH_FRACTION = 0.01
+"""Points within this fraction of R of the punch's cap count as on it (as along the diagonal,
+verification/forming.py)."""
+
+
+def contact_map(e: HemisphereForming, n: int = 41) -> dict[str, np.ndarray]:
+    """On an n × n grid of reference points of the quarter [0, B/2]²: the recovered shear angle
+    (deg, evaluation.nodal_average, the continuous field compared along the diagonal), the gap
+    to the punch's cap (mm; inf below the punch centre), whether the point is on the punch
+    (gap < TOUCH_FRACTION · R) and whether it lies within h of a mirror line that is a fibre
+    (fibres at 0/90°: the shear is odd across x = 0 and y = 0, zero on them, but the nodal
+    average there sees the cells of one side only, an error of the size of the shear one cell
+    away, docs/forming.md). The same on every rank."""
+    x = np.linspace(0.0, 0.5 * e.setup.length, n)
+    pts = np.column_stack([g.ravel() for g in np.meshgrid(x, x, indexing="ij")])
+    kin = e.problem.energy.kin
+    rec = nodal_average(kin.gamma * (180.0 / math.pi), e.specimen.mesh, CELL_QUADRATURE_DEGREE)
+    r = np.column_stack([pts, np.zeros(len(pts))]) + eval_points(e.problem.u, pts)
+    r[:, 2] -= float(e.tools.stroke.value) - e.R
+    dist = np.linalg.norm(r, axis=1)
+    gap = np.where(r[:, 2] > 0, dist - e.R, np.inf)
+    band = (e.theta == 0.0) & (pts.min(axis=1) < e.h)
+    return {"points": pts, "shear_deg": eval_points(rec, pts)[:, 0], "gap": gap,
+            "on": gap < TOUCH_FRACTION * e.R, "mirror_band": band}
+
+
+def compare_with_drapes(e: HemisphereForming, n: int = 41, a: float | None = None) -> dict:
+    """:func:`contact_map` against both drapes (drape_map.shear_difference_map) over the points
+    on the punch outside the mirror band, the drapes' fibres at the experiment's angles;
+    ``excluded``: the points on the punch in the band."""
+    m = contact_map(e, n)
+    out = shear_difference_map(e.R, m["points"], m["shear_deg"], tuple(e.setup.fibre_angles_deg),
+                               m["on"] & ~m["mirror_band"], a)
+    return {**out, "excluded": int((m["on"] & m["mirror_band"]).sum())}
