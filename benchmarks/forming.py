@@ -17,13 +17,17 @@ of a 250 mm blank.
    stroke step, the load stepper's attempts, the time; then how the time grows with the number
    of elements.
 
-3. ``--study steps [--size quick|intermediate|full] [--case kinematic|fitted]``: one run of
-   demos/demo_forming.py at its quick size (R = 20 mm, 72 mm blank, h = 4 mm), an intermediate
-   one (R = 35 mm, 105 mm blank, h = 5 mm) or its full size (R = 50 mm, 150 mm blank,
-   h = 5 mm), stroke 0.6 R in 12 steps: the step log (per step the Newton iterations, cuts,
-   l2 repeats, contact changes and time) and its totals, where the time of the demo goes, with
-   the CPU time of the busiest rank beside the wall time (a measure a shared machine does not
-   inflate).
+3. ``--study steps [--size quick|intermediate|full|full-150] [--case kinematic|fitted]``: one
+   run of demos/demo_forming.py at its quick size (R = 20 mm, 72 mm blank, h = 4 mm), an
+   intermediate one (R = 35 mm, 105 mm blank, h = 5 mm), its full size (R = 50 mm, 180 mm
+   blank, h = 5 mm) or the full size before issue 40 (150 mm blank), stroke 0.6 R in 12 steps:
+   the step log (per step the Newton iterations, cuts, l2 repeats, contact changes and time)
+   and its totals, where the time of the demo goes, with the CPU time of the busiest rank
+   beside the wall time (a measure a shared machine does not inflate).
+4. ``--study demo [--size ...] [--runs ...]``: the demo's four forming runs (kinematic check,
+   fitted, bending / 10, locking at 40°) on one experiment as the demo makes them: per run the
+   steps, Newton iterations, cuts, l2 repeats, wall and CPU time; the machine's load beside
+   them.
 
 Run: ``mpirun -n 2 python benchmarks/forming.py [--study convergence|performance|both|steps]``.
 """
@@ -40,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.log import rank0_print
 from fabricsurf.verification import forming as parts
@@ -74,8 +79,54 @@ def form(R: float, blank: float, h: float, values: dict | None = None,
 
 
 SIZES = {"quick": (20.0, 72.0, 4.0), "intermediate": (35.0, 105.0, 5.0),
-         "full": (50.0, 150.0, 5.0)}
-"""(R, blank, h) in mm of the step study; quick and full are those of demo_forming.py."""
+         "full": (50.0, 180.0, 5.0), "full-150": (50.0, 150.0, 5.0)}
+"""(R, blank, h) in mm of the step and demo studies; quick and full are those of
+demo_forming.py, full-150 its full size before issue 40 (the blank's edge inside the holder's
+pressure ramp)."""
+
+
+def demo(size: str, runs: list[str], steps: int = STEPS) -> None:
+    """The forming runs of demos/demo_forming.py on one experiment, in its order (each starts
+    from the flat blank; the forms are compiled once): per run the steps, Newton iterations,
+    cuts, l2 repeats, wall and CPU time (busiest rank), and the totals."""
+    R, blank, h = SIZES[size]
+    params = parts.DOCUMENTED_PARAMS["params"]
+    every = {"kinematic": parts.KINEMATIC, "fitted": parts.fitted_values(params, 0.1),
+             **parts.effect_variants(params, 0.1)}
+    rank0_print(comm, f"== demo runs: {size} (R = {R:g} mm, {blank:g} mm blank, h = {h:g} mm),"
+                      f" stroke {STROKE_FRACTION * R:g} mm in {steps} steps, {comm.size} ranks, "
+                      f"load {_load()} ==")
+    rows, t0 = [], time.perf_counter()
+    with parts.experiment(R, blank, h, 45.0, parts.forming_model(params, 0.1, 0.1), comm) as e:
+        setup = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        for name in [n for n in every if n in runs or "all" in runs]:
+            t, c = time.perf_counter(), time.process_time()
+            try:
+                r = parts.reform(e, every[name], STROKE_FRACTION * R, steps,
+                                 log=lambda m: rank0_print(comm, m), label=f"{name}: ")
+                book, note = r["step_log"], f"{r['diagonal_shear_max_diff_deg']:.2f} deg"
+            except LoadStepError as err:
+                book, note = StepLog.totals(e.steps), f"stopped at {err.last_load:.4g} mm"
+            rows.append((name, book, comm.allreduce(time.perf_counter() - t, op=MPI.MAX),
+                         comm.allreduce(time.process_time() - c, op=MPI.MAX), note))
+    rank0_print(comm, f"\nset-up (mesh, forms) {setup:.1f} s; load now {_load()}")
+    rank0_print(comm, "run                 steps  Newton  cuts  l2   wall s   CPU s  CPU s/it  "
+                      "diagonal vs fishnet / stop")
+    for name, b, wall, cpu, note in rows:
+        rank0_print(comm, f"{name:18s} {b['steps']:6d} {b['newton_iterations']:7d} "
+                          f"{b['cuts']:5d} {b['fallbacks']:3d} {wall:8.1f} {cpu:7.1f} "
+                          f"{cpu / max(b['newton_iterations'], 1):9.3f}  {note}")
+    its = sum(b["newton_iterations"] for _, b, *_ in rows)
+    rank0_print(comm, f"total: {its} Newton iterations, {sum(w for *_, w, _, _ in rows):.1f} s "
+                      f"wall, {sum(c for *_, c, _ in rows):.1f} s CPU on the busiest rank")
+
+
+def _load() -> str:
+    """The machine's 1-minute load average (the times of a shared machine depend on it)."""
+    try:
+        return Path("/proc/loadavg").read_text().split()[0]
+    except OSError:
+        return "?"
 
 
 def steps(size: str, case: str) -> None:
@@ -168,13 +219,19 @@ def performance() -> None:
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--study", choices=("convergence", "performance", "both", "steps"),
+    ap.add_argument("--study", choices=("convergence", "performance", "both", "steps", "demo"),
                     default="both")
     ap.add_argument("--size", choices=tuple(SIZES), default="quick")
+    ap.add_argument("--steps", type=int, default=STEPS, help="demo study: stroke steps")
+    ap.add_argument("--runs", nargs="+", default=["all"],
+                    help="demo study: which runs (kinematic, fitted, 'bending / 10', "
+                         "'locking at 40 deg'; default all)")
     ap.add_argument("--case", choices=("kinematic", "fitted"), default="kinematic")
     args = ap.parse_args()
     if args.study == "steps":
         steps(args.size, args.case)
+    if args.study == "demo":
+        demo(args.size, args.runs, args.steps)
     if args.study in ("convergence", "both"):
         convergence()
     if args.study in ("performance", "both"):
