@@ -183,6 +183,16 @@ def test_size_and_stroke_guards():
         HemisphereForming.check_path([0, 1], [0.0, -2.0], "force.csv")
 
 
+def test_unheld_edge():
+    """A blank whose sides end inside the holder's pressure ramp is named (the demo's full size
+    before issue 40: B/2 = 75 mm, full pressure from 90 mm); one that reaches it is not."""
+    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 50.0}}, 1.0, "t")
+    message = forming_options.unheld_edge(opts, 150.0)
+    assert message is not None and "75 mm" in message and "= 90 mm" in message
+    assert forming_options.unheld_edge(opts, 180.0) is None
+    assert forming_options.unheld_edge(TOOLING, BLANK) is None
+
+
 def test_step_log_lines():
     """Every converged step gives its line at once, with the contact changes counted since the
     step before and the l2 repeats of this step only; the totals add the records."""

@@ -114,6 +114,23 @@ def check_mesh(setup: Setup, h: float, default: bool) -> None:
                         "mm)")
 
 
+def unheld_edge(o: dict, blank: float) -> str | None:
+    """Why the flange at the middle of the blank's sides is not held, or None: the holder's
+    pressure rises from zero at ρ = R + clearance + 2 die_lip to its full value one lip radius
+    further (forming_tools.Tools.holder_weight); a blank whose half-side B/2 ends before that
+    leaves the flange there held by the holder's gap alone, free to buckle. On the demo's
+    full size before issue 40 (B/2 = 1.5 R against 1.8 R) it did, and Newton then followed
+    the stroke only with many cut steps (docs/forming.md)."""
+    full = o["punch_radius"] + o["clearance"] + 3.0 * o["die_lip"]
+    if 0.5 * blank >= full:
+        return None
+    return (f"hemisphere: the middle of the {blank:g} mm blank's sides ({0.5 * blank:g} mm "
+            f"from the axis) lies inside the radius where the holder's pressure is full "
+            f"(R + clearance + 3 die_lip = {full:g} mm): the flange there is held by the "
+            "holder's gap alone and may buckle (wrinkles, cut steps); a blank of side at least "
+            f"{2.0 * full:g} mm is held all round")
+
+
 def max_stroke(o: dict, blank: float) -> float:
     """The largest stroke that can leave the blank's edge on the die's face: every material
     line of a net of inextensible fibres stretches at most by √2 (sheared to the limit), every

@@ -103,6 +103,9 @@ class HemisphereForming(ExperimentSetup):
                           f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not "
                           "resolve the tools and the punch force is not mesh-converged",
                           stacklevel=2)
+        unheld = forming_options.unheld_edge(o, setup.length)
+        if unheld is not None:
+            warnings.warn(unheld, stacklevel=2)
         self.R, half = o["punch_radius"], 0.5 * setup.length
         self.theta = blank_angle(tuple(setup.fibre_angles_deg))
         self.diagonal_deg = 45.0 if self.theta == 0.0 else 0.0

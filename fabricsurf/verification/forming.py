@@ -5,6 +5,7 @@ fishnet drape, and the figures."""
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 
@@ -59,6 +60,25 @@ def forming_model(params: dict, k_b: float, k_t: float) -> list:
     return [FibreStretch(k_l=fs["k_l"], k_m=fs["k_m"]), Shear(k_s=sh["k_s"]),
             CrossoverFriction(tau_f=fr["tau_f"]), ShearLocking(k4=0.0, k6=0.0),
             NormalBending(k_b=k_b), Twist(k_t=k_t)]
+
+
+def fitted_values(params: dict, k_bend: float) -> dict:
+    """The fitted model's moduli for :func:`reform` (shear and crossover friction of the fit,
+    the assumed bending and twist ``k_bend``)."""
+    return {"shear": params["shear"],
+            "crossover_friction": params.get("crossover_friction", {"tau_f": 0.0}),
+            "normal_bending": {"k_b": k_bend}, "twist": {"k_t": k_bend}}
+
+
+def effect_variants(params: dict, k_bend: float) -> dict[str, dict]:
+    """The variants of the fitted model whose effect demos/demo_forming.py shows: the bending
+    weakened tenfold, and shear locking with k₄ chosen so that the model locks at 40°."""
+    k4 = params["shear"]["k_s"] / math.radians(40.0) ** 2
+    return {"bending / 10": {**fitted_values(params, k_bend),
+                             "normal_bending": {"k_b": 0.1 * k_bend},
+                             "twist": {"k_t": 0.1 * k_bend}},
+            "locking at 40 deg": {**fitted_values(params, k_bend),
+                                  "shear_locking": {"k4": k4}}}
 
 
 HOLDER = {"holder_pressure": 1e-2, "friction": 0.3}
