@@ -62,6 +62,8 @@ class FitResult:
     model_form: np.ndarray | None = None
     mesh_shift: np.ndarray | None = None
     chi2_h: float | None = None
+    size_effects: dict | None = None
+    """The size part's record (:func:`~.size_form.size_record`), when it was estimated."""
 
     def params(self) -> dict:
         """{term: {param: value}} (the --params file format)."""
@@ -96,9 +98,11 @@ class FitResult:
             return {"moduli": {}, "identifiable_combinations": [], "weak_directions": []}
         free = self.free
         lost = self.lost()
+        size = None if self.size_effects is None else np.array(
+            [self.size_effects["moduli_half_width"].get(self.names[k], 0.0) for k in free])
         out = intervals.summarise([self.names[k] for k in free], self.values[free],
                                   self.statistical.cov, self.statistical.t95(),
-                                  self.model_form, self.mesh_shift, lost)
+                                  self.model_form, self.mesh_shift, lost, size)
         for k, n in enumerate(self.names):
             if k not in free and self.values[k] > 0:  # held at a given modulus
                 out["moduli"][n] = {"value": float(self.values[k]), "fixed": True}
@@ -119,7 +123,8 @@ class FitResult:
                                                       "covariance")},
                 "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
                 "forward_runs": self.forward_runs, "history": self.history,
-                "undetermined": self.undetermined}
+                "undetermined": self.undetermined} | (
+                    {"size_effects": self.size_effects} if self.size_effects else {})
 
 
 Forward = ForwardModel | ForwardSet

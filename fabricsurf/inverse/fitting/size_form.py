@@ -1,0 +1,166 @@
+"""The model-form part of a prediction to another specimen size (docs/uncertainty.md).
+
+Effects with a length of their own (second-gradient boundary layers along the zone boundaries
+and at the grips, in-plane bending of the fibres) change the force of a specimen by a share that
+depends on its size. Fitted on one specimen without them, the moduli absorb what of such an
+effect looks like a modulus, right for the calibrating size and wrong for another. No check
+inside one data set sees the absorbed part; what one specimen can say is how large each
+*candidate size effect* may be without contradicting its curve.
+
+For a candidate term with modulus m (added to the fitted model), the profile over its length
+ℓ = √(m/k), k the fitted shear modulus, on the grid ℓ = h/2, h, 2h, … below half the width
+(h the mesh: a shorter layer is not resolved, and its force is the mesh's): at each ℓ the
+fitted moduli are refitted on the calibrating data with m held, χ²(ℓ). The data do not exclude
+the lengths with
+
+    χ²(ℓ) − χ²_min ≤ F_0.95(1, ν) χ²_min/ν,    ν = n − P − 1
+
+(the profile-likelihood interval of one parameter with the noise level estimated from the
+residuals, Bates & Watts 1988 §6.1; χ²_min over ℓ = 0 and the grid). The size part of a
+prediction is the largest |F(p_ℓ, m_ℓ) − F(p̂, 0)| over the lengths not excluded (p_ℓ the
+refitted moduli), one forward run of the other specimen per length; that of a modulus the
+largest |p_ℓ − p̂|. Both are the envelope of a 95 % set, hence 95 % half-widths, combined in
+quadrature with the statistical and model-form parts. On the calibrating specimen itself the
+part is at most what its own data allow. Coverage on synthetic pairs of sizes:
+benchmarks/size_coverage.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from fabricsurf.discretise.stepping import LoadStepError
+from fabricsurf.model.terms import EFFECTS, make_term
+
+SIZE_CANDIDATES = ("geodesic_bending",)
+"""The default candidates: the in-plane effect with a length whose boundary layers a planar
+force curve sees (shear and stretch gradients are alternatives a caller may add)."""
+
+METHOD = ("profile over the length of each candidate size effect, the lengths the calibrating "
+          "data do not exclude transferred to the other size (docs/uncertainty.md)")
+
+LEVEL = 0.95
+
+
+def extended_model(model: list, candidates) -> list:
+    """``model`` (fitted terms, their moduli as set) with each candidate not in it added at
+    modulus 0, in vocabulary order (the order of the compiled forms of the diagnosis)."""
+    have = {t.name for t in model}
+    new = []
+    for c in candidates:
+        if c not in EFFECTS:
+            raise ValueError(f"size candidates: '{c}' is not in the vocabulary "
+                             f"({', '.join(EFFECTS)})")
+        if c not in have:
+            t = make_term(c)
+            t.set(**{p: 0.0 for p in t.parameters()})
+            new.append(t)
+    order = list(EFFECTS)
+    return sorted([*model, *new], key=lambda t: order.index(t.name))
+
+
+def lengths(h: float, width: float) -> list[float]:
+    """The profile's grid ℓ = h/2, h, 2h, … below half the width (module docstring)."""
+    out, ell = [], h / 2
+    while ell <= width / 2:
+        out.append(ell)
+        ell *= 2
+    return out
+
+
+def threshold(chi2_min: float, n: int, p: int) -> float:
+    """F_0.95(1, ν) χ²_min/ν with ν = n − p − 1: the χ² rise the data allow (module docstring)."""
+    nu = max(n - p - 1, 1)
+    return float(stats.f.ppf(LEVEL, 1, nu) * chi2_min / nu)
+
+
+def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float,
+            grid: list[float]) -> list[dict]:
+    """χ² and refitted moduli at each length of ``grid`` for the candidate modulus
+    ``candidate`` of ``fm`` (held at k_ref ℓ²); ``fit_fn(fm, free)`` returns a FitResult.
+    Stops at a length whose run fails or whose χ² exceeds ``chi2_fit`` by ten thresholds (the
+    data exclude it and, the effect growing with ℓ, every longer one)."""
+    base = fm.values()
+    c = fm.names.index(candidate)
+    free = [fm.names.index(n) for n in fitted]
+    n = len(fm.residuals(fm.run())[0])
+    limit = chi2_fit + 10 * threshold(chi2_fit, n, len(free))
+    rows, start = [], base.copy()
+    for ell in grid:
+        vals = start.copy()
+        vals[c] = k_ref * ell**2
+        fm.set_values(vals)
+        try:
+            res = fit_fn(fm, free)
+        except LoadStepError:
+            break
+        rows.append({"length": ell, "value": float(vals[c]), "chi2": float(res.chi2),
+                     "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted},
+                     "n": n})
+        start = res.values.copy()
+        if res.chi2 > limit:
+            break
+    fm.set_values(base)
+    return rows
+
+
+def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
+                candidates=SIZE_CANDIDATES, k_ref: float | None = None) -> dict:
+    """The size part's record for a forward model ``fm`` of the calibrating data whose model
+    is :func:`extended_model` at the fitted moduli (as set; ``fitted`` their names, ``chi2_fit``
+    their χ²): per candidate its profile and the lengths not excluded (module docstring)."""
+    from fabricsurf.inverse.fitting.fit import fit
+
+    vals = fm.values()
+    k_ref = k_ref or float(vals[fm.names.index("shear.k_s")])
+    fit_fn = lambda f, free: fit(f, free, verbose=False, scale_start=False,  # noqa: E731
+                                 space="linear")
+    cands = {}
+    for t, p in fm.params:
+        name = f"{t.name}.{p}"
+        if t.name not in candidates or name in fitted:
+            continue
+        rows = profile(fm, fit_fn, fitted, chi2_fit, name, k_ref, lengths(h, width))
+        chi2_min = min([chi2_fit] + [r["chi2"] for r in rows])
+        allow = threshold(chi2_min, rows[0]["n"] if rows else 1, len(fitted))
+        for r in rows:
+            r["excluded"] = bool(r["chi2"] - chi2_min > allow)
+        cands[name] = {"profile": rows, "chi2_allowed": chi2_min + allow,
+                       "longest_not_excluded": max([r["length"] for r in rows
+                                                    if not r["excluded"]], default=0.0)}
+    return {"method": METHOD, "fitted": list(fitted), "chi2_fit": chi2_fit, "k_ref": k_ref,
+            "candidates": cands, "moduli_half_width": moduli_half_width(cands, fm, fitted)}
+
+
+def allowed(record: dict) -> list[tuple[str, dict]]:
+    """(candidate, profile row) of every length the data do not exclude."""
+    return [(c, r) for c, v in record["candidates"].items() for r in v["profile"]
+            if not r["excluded"]]
+
+
+def moduli_half_width(cands: dict, fm, fitted: list[str]) -> dict:
+    """{modulus: max |p_ℓ − p̂|} over the lengths not excluded."""
+    vals = fm.values()
+    rec = {"candidates": cands}
+    return {m: max([abs(r["moduli"][m] - vals[fm.names.index(m)]) for _, r in allowed(rec)],
+                   default=0.0) for m in fitted}
+
+
+def band_half_width(fm, record: dict, force: np.ndarray) -> np.ndarray:
+    """max |F(p_ℓ, m_ℓ) − F| over the lengths not excluded, at every point of ``fm``'s load
+    path (``force``: its prediction at the fitted moduli, the values of ``fm`` as set); one
+    forward run per length, the values restored."""
+    base = fm.values()
+    out = np.zeros(len(force))
+    try:
+        for cand, row in allowed(record):
+            vals = base.copy()
+            vals[fm.names.index(cand)] = row["value"]
+            for m, v in row["moduli"].items():
+                vals[fm.names.index(m)] = v
+            fm.set_values(vals)
+            out = np.maximum(out, np.abs(fm.run().force - force))
+    finally:
+        fm.set_values(base)
+    return out
