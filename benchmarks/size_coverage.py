@@ -1,10 +1,11 @@
 """Coverage of the prediction band from one specimen size to another (docs/uncertainty.md).
 
 For each hidden size effect × fabric × size ratio of :mod:`fabricsurf.inverse.synthetic.sizes`
-(lattice force curves, force only): fit the shear modulus on the smaller specimen, estimate the
-size part there (:mod:`fabricsurf.inverse.fitting.size_form`), predict the larger one, and
-print the share of its points inside the 95 % band and the band's mean half-width (% of the
-largest force), with the size part and without it (the band before), and the largest error:
+(lattice force curves, force only): fit the shear modulus on a 40 × 20 mm specimen, estimate
+the size part there (:mod:`fabricsurf.inverse.fitting.size_form`), predict the specimen
+``ratio`` times its size (larger, or smaller for a ratio below 1), and print the share of its
+points inside the 95 % band and the band's mean half-width (% of its largest force), with the
+size part and without it (the band before), and the largest error:
 
     mpirun -n 2 .venv/bin/python benchmarks/size_coverage.py [--quick] [--out OUT]
 
@@ -24,14 +25,14 @@ from mpi4py import MPI
 from fabricsurf.inverse.synthetic import sizes
 from fabricsurf.log import rank0_print
 
-SMALL = (40.0, 20.0)
+FITTED = (40.0, 20.0)
 RATIOS = (1.5, 2.0)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--h", type=float, default=2.5, help="mesh of the smaller specimen (mm)")
+    ap.add_argument("--h", type=float, default=2.5, help="mesh of the fitted specimen (mm)")
     ap.add_argument("--steps", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="out/size_coverage")
@@ -51,10 +52,10 @@ def main() -> None:
     for effect, fabric, ratio in itertools.product(a.effects, fabrics, ratios):
         t0 = time.perf_counter()
         seed = a.seed + 17 * len(rows)
-        small, _ = sizes.curve(*SMALL, fabric, effect, a.steps, seed)
-        large, _ = sizes.curve(ratio * SMALL[0], ratio * SMALL[1], fabric, effect, a.steps,
+        calib, _ = sizes.curve(*FITTED, fabric, effect, a.steps, seed)
+        other, _ = sizes.curve(ratio * FITTED[0], ratio * FITTED[1], fabric, effect, a.steps,
                                seed + 1)
-        row = sizes.pair_coverage(small, large, fabric, a.h, comm)
+        row = sizes.pair_coverage(calib, other, fabric, a.h, comm)
         row |= {"effect": effect, "fabric": fabric, "ratio": ratio,
                 "seconds": time.perf_counter() - t0}
         rows.append(row)

@@ -39,17 +39,21 @@ def test_allowed_lengths_and_moduli_part():
         pytest.approx(0.25))
 
 
+@pytest.mark.serial("the fit and the band of bias --params run on 2 ranks in test_experiments' "
+                    "test_cao_force_only_compare_and_fit; the size part adds forward runs of the "
+                    "same models (this test passes on 2 ranks: 3 min of an oversubscribed "
+                    "machine, the lattice solved on every rank)")
 def test_band_covers_the_other_size():
-    """Fitted on 24 × 12 mm, predicted for 36 × 18 mm (lattice spacing 1 mm, bending length
-    4 mm, 1 % force noise): the size effect shifts the larger specimen's curve by more than the
-    band without the size part allows (0 of 6 points inside), and every point lies inside the
-    band with it (90–99 % asked for: all 6 here). The band is no wider than the largest error
-    plus the size part's own resolution: below 3 times the largest error."""
+    """Fitted on 20 × 10 mm, predicted for 30 × 15 mm (lattice spacing 1 mm, fibre bending
+    length 4 mm, 1 % force noise, 6 steps): the size effect moves the other specimen's curve
+    outside the band without the size part (at most half its points inside; today none), and
+    with it every point is inside (90–99 % asked for; 6 points: all). A guard against a band that
+    covers by being huge: its mean half-width below 3 times the largest error (today about 2)."""
     from fabricsurf.inverse.synthetic import sizes
 
-    small, _ = sizes.curve(24.0, 12.0, "soft", "bending", 6, seed=3)
-    large, _ = sizes.curve(36.0, 18.0, "soft", "bending", 6, seed=4)
-    row = sizes.pair_coverage(small, large, "soft", 2.0)
+    calib, _ = sizes.curve(20.0, 10.0, "soft", "bending", 6, seed=3)
+    other, _ = sizes.curve(30.0, 15.0, "soft", "bending", 6, seed=4)
+    row = sizes.pair_coverage(calib, other, "soft", 2.5)
     assert row["coverage_without_size"] <= 0.5
     assert row["coverage"] == 1.0
     assert row["mean_half_width_pct"] < 3 * row["max_error_pct"]

@@ -108,8 +108,14 @@ class FitResult:
                 out["moduli"][n] = {"value": float(self.values[k]), "fixed": True}
         cov = {"names": [self.names[k] for k in free],
                "statistical": self.statistical.cov.tolist()}
+        parts = ["statistical"] + [k for k, v in (("model_form", self.model_form),
+                                                  ("mesh", self.mesh_shift),
+                                                  ("size_form", self.size_effects))
+                                   if v is not None]
         return out | {"statistics": self.statistical.as_dict(len(self.r)),
-                      "chi2_h_vs_h2": self.chi2_h, "covariance": cov}
+                      "chi2_h_vs_h2": self.chi2_h, "covariance": cov,
+                      "interval_parts": parts,
+                      "interval_omits": [] if self.size_effects else [OMITS_SIZE]}
 
     def as_dict(self) -> dict:
         m = strip_rows(self.misfit)
@@ -120,7 +126,8 @@ class FitResult:
                 "identifiable_combinations": u["identifiable_combinations"],
                 "weak_directions": u["weak_directions"],
                 "uncertainty": {k: u.get(k) for k in ("statistics", "chi2_h_vs_h2",
-                                                      "covariance")},
+                                                      "covariance", "interval_parts",
+                                                      "interval_omits")},
                 "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
                 "forward_runs": self.forward_runs, "history": self.history,
                 "undetermined": self.undetermined} | (
@@ -128,6 +135,9 @@ class FitResult:
 
 
 Forward = ForwardModel | ForwardSet
+
+OMITS_SIZE = ("the size part: moduli fitted on one specimen carry its share of effects with a "
+              "length, wrong for another size (size_form.size_record; docs/uncertainty.md)")
 
 
 def _try(fm: Forward, free: list[int], vals: np.ndarray):

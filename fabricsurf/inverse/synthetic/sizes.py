@@ -3,9 +3,10 @@ band from one size to the other (docs/uncertainty.md, "Prediction to another siz
 
 The data are force curves of the Hencky lattice in the bias test (force only, as the
 Cao et al. curve), two specimens of the same lattice and aspect ratio, the second ``ratio``
-times larger, loaded to the same displacement per length (the same zone-C shear). A first-
-gradient continuum (fibre stretch and shear) predicts the larger force as exactly ``ratio`` times
-the smaller: whatever departs from that is a size effect, hidden from the fitted model:
+times the size of the first, loaded to the same displacement per length (the same zone-C
+shear). A first-gradient continuum (fibre stretch and shear) predicts the second force as
+exactly ``ratio`` times the first: whatever departs from that is a size effect, hidden from the
+fitted model:
 
 - ``bending``: the lattice's fibres resist in-plane bending (bending length ``l_b`` = 4 mm):
   boundary layers along the zone boundaries and the grips, a larger share of a smaller specimen;
@@ -13,8 +14,8 @@ the smaller: whatever departs from that is a size effect, hidden from the fitted
   free edges and the grips, whose share falls with the size.
 
 Two fabrics: ``soft`` fibres (k_l/k_s = 60) and ``stiff`` ones (k_l/k_s = 2500). The model is
-fitted on the smaller specimen with the fibres' stiffness held (known, as the yarns' in the
-woven demo) and the shear modulus free; the band of the larger specimen's prediction is then
+fitted on the first specimen with the fibres' stiffness held (known, as the yarns' in the
+woven demo) and the shear modulus free; the band of the second specimen's prediction is then
 checked against its points.
 """
 
@@ -62,34 +63,34 @@ def base_model(fabric: str, k_s: float | None = None) -> list:
                                               "shear": {"k_s": k_s0 if k_s is None else k_s}})
 
 
-def pair_coverage(small: Experiment, large: Experiment, fabric: str, h: float,
+def pair_coverage(calib: Experiment, other: Experiment, fabric: str, h: float,
                   comm: MPI.Comm = MPI.COMM_WORLD, candidates=None) -> dict:
-    """Fit the shear modulus on ``small`` (h), estimate the size part there, predict ``large``
-    (h scaled with the size: the same mesh in the specimen's units) with its band, and count
-    the points of ``large`` inside it, with and without the size part."""
+    """Fit the shear modulus on ``calib`` (mesh h), estimate the size part there, predict
+    ``other`` (h scaled with the size: the same mesh in the specimen's units) with its band,
+    and count the points of ``other`` inside it, with and without the size part."""
     from fabricsurf.inverse.fitting import size_form as sz
     from fabricsurf.inverse.fitting.band import predicted_band
     from fabricsurf.inverse.fitting.fit import fit
     from fabricsurf.inverse.fitting.forward import ForwardModel
 
     start = 1.3 * FABRICS[fabric][1]
-    with ForwardModel(small, base_model(fabric, start), h=h, comm=comm) as fm:
+    with ForwardModel(calib, base_model(fabric, start), h=h, comm=comm) as fm:
         free = [fm.names.index("shear.k_s")]
         res = fit(fm, free, verbose=False, scale_start=False, space="linear")
         res.check_mesh(fm)
     fitted = base_model(fabric, float(res.values[free[0]]))
     ext = sz.extended_model(fitted, candidates or sz.SIZE_CANDIDATES)
-    with ForwardModel(small, ext, h=h, comm=comm) as fm:
-        res.size_effects = sz.size_record(fm, ["shear.k_s"], res.chi2, h, small.width,
+    with ForwardModel(calib, ext, h=h, comm=comm) as fm:
+        res.size_effects = sz.size_record(fm, ["shear.k_s"], res.chi2, h, calib.width,
                                           candidates or sz.SIZE_CANDIDATES)
-    scale = large.length / small.length
-    band = predicted_band(res.as_dict(), fitted, large.length, large.width, large.path,
+    scale = other.length / calib.length
+    band = predicted_band(res.as_dict(), fitted, other.length, other.width, other.path,
                           h * scale, comm=comm)
     F, half = np.array(band["force"]), np.array(band["half_width"])
     p = band["parts"]
     without = np.sqrt(np.square(p["statistical"]) + np.square(p["model_form"])) + p["mesh"]
-    err = np.abs(large.force - F)
-    fmax = float(np.max(np.abs(large.force)))
+    err = np.abs(other.force - F)
+    fmax = float(np.max(np.abs(other.force)))
     return {"k_s": float(res.values[free[0]]), "k_s_ci95": res.as_dict()["moduli"][
                 "shear.k_s"]["ci95"], "points": len(F),
             "coverage": float(np.mean(err <= half)),
