@@ -57,3 +57,57 @@ def test_band_covers_the_other_size():
     assert row["coverage_without_size"] <= 0.5
     assert row["coverage"] == 1.0
     assert row["mean_half_width_pct"] < 3 * row["max_error_pct"]
+
+
+def test_band_holds_the_size_part_and_says_so():
+    """On a force linear in the moduli: the size part is the largest |F(p_ℓ, m_ℓ) − F(p̂, 0)|
+    over the lengths not excluded, entering the half-width in quadrature, the moduli restored;
+    a fit without the record, or a model without the candidate, gives a band that omits it and
+    says so."""
+    from types import SimpleNamespace
+
+    from fabricsurf.inverse.fitting import band as bd
+
+    A = np.array([[1.0, 0.2], [2.0, 0.5], [3.0, 1.5]])  # dF/d(k_s, A_g) at three loads
+
+    class Linear:
+        def __init__(self, names):
+            self.names = names
+            self.params = [(SimpleNamespace(name=n.split(".")[0]), n.split(".")[1])
+                           for n in names]
+            self.exp = SimpleNamespace(has_force=True, has_field=False, path=np.arange(3.0))
+            self.v = np.zeros(len(names))
+
+        def values(self):
+            return self.v.copy()
+
+        def set_values(self, v):
+            self.v = np.array(v, float)
+
+        def run(self, sens=False):
+            M = A[:, :len(self.names)]
+            return SimpleNamespace(force=M @ self.v, dforce=M[:, :1] if sens else None,
+                                   u=None, du=None)
+
+    rec = {"candidates": {"geodesic_bending.A_g": {"profile": [
+        {"length": 1.0, "value": 0.5, "chi2": 9.0, "moduli": {"shear.k_s": 0.6},
+         "excluded": True},
+        {"length": 2.0, "value": 2.0, "chi2": 1.0, "moduli": {"shear.k_s": 0.4},
+         "excluded": False}]}}}
+    saved = {"params": {"shear": {"k_s": 0.65}},
+             "moduli": {"shear.k_s": {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0}},
+             "uncertainty": {"statistics": {"t95": 2.0},
+                             "covariance": {"names": ["shear.k_s"],
+                                            "statistical": [[1e-4]]}}}
+    fm = Linear(["shear.k_s", "geodesic_bending.A_g"])
+    band = bd.force_band(fm, saved | {"size_effects": rec}, check=False)
+    size = np.abs(A @ [0.4, 2.0] - A @ [0.65, 0.0])
+    stat = 2.0 * 1e-2 * A[:, 0]
+    assert np.allclose(band["parts"]["size_form"], size)
+    assert np.allclose(band["half_width"], np.sqrt(stat**2 + size**2))
+    assert band["parts_included"][-1] == "size_form" and band["omits"] == []
+    assert np.allclose(fm.values(), [0.65, 0.0])
+    assert bd.force_band(fm, saved, check=False)["omits"] == [bd.OMITS_SIZE]
+    lacking = bd.force_band(Linear(["shear.k_s"]), saved | {"size_effects": rec}, check=False)
+    assert lacking["omits"] == [bd.OMITS_SIZE_MODEL]
+    assert np.allclose(lacking["half_width"], stat)

@@ -113,6 +113,9 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
     from fabricsurf.inverse.fitting.fit import fit
 
     vals = fm.values()
+    if k_ref is None and "shear.k_s" not in fm.names:
+        raise ValueError("size form: the model has no shear.k_s to scale the candidates' "
+                         "lengths by; give k_ref (N/mm)")
     k_ref = k_ref or float(vals[fm.names.index("shear.k_s")])
     fit_fn = lambda f, free: fit(f, free, verbose=False, scale_start=False,  # noqa: E731
                                  space="linear")
