@@ -42,6 +42,10 @@ METHOD = ("profile over the length of each candidate size effect, the lengths th
 
 LEVEL = 0.95
 
+PROFILE_TOL, PROFILE_ITER = 1e-4, 10
+"""The profile's refits stop at a relative χ² change of 10⁻⁴ (the allowed rise is F(1, ν)/ν of
+χ²_min, above 0.1 for the curves this is for: three decades coarser) or after 10 iterations."""
+
 
 def extended_model(model: list, candidates) -> list:
     """``model`` (fitted terms, their moduli as set) with each candidate not in it added at
@@ -118,7 +122,7 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
                          "lengths by; give k_ref (N/mm)")
     k_ref = k_ref or float(vals[fm.names.index("shear.k_s")])
     fit_fn = lambda f, free: fit(f, free, verbose=False, scale_start=False,  # noqa: E731
-                                 space="linear")
+                                 space="linear", tol=PROFILE_TOL, max_iter=PROFILE_ITER)
     cands = {}
     for t, p in fm.params:
         name = f"{t.name}.{p}"
