@@ -203,9 +203,11 @@ say("spread over the meshes: " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in sp
 # %%
 t0 = time.perf_counter()
 fitted_names = [final.names[k] for k in final.free]
-ext = sz.extended_model(parse_terms(",".join(diag.terms), final_params), sz.SIZE_CANDIDATES)
+candidates = sz.default_candidates(diag.terms)
+ext = sz.extended_model(parse_terms(",".join(diag.terms), final_params), candidates)
 with ForwardModel(exp, ext, h=H_MESH, comm=comm) as fm_size:
-    final.size_effects = sz.size_record(fm_size, fitted_names, final.chi2, H_MESH, W)
+    final.size_effects = sz.size_record(fm_size, fitted_names, final.chi2, H_MESH, W,
+                                        candidates)
 seconds["size_profile"] = time.perf_counter() - t0
 for c, v in final.size_effects["candidates"].items():
     say(f"size candidate {c}: " + ", ".join(

@@ -111,3 +111,10 @@ def test_band_holds_the_size_part_and_says_so():
     lacking = bd.force_band(Linear(["shear.k_s"]), saved | {"size_effects": rec}, check=False)
     assert lacking["omits"] == [bd.OMITS_SIZE_MODEL]
     assert np.allclose(lacking["half_width"], stat)
+
+
+def test_candidates_are_never_fitted_terms():
+    """A fitted effect is no candidate: the default falls back to the next effect with a
+    length."""
+    assert sz.default_candidates(["fibre_stretch", "shear"]) == ("geodesic_bending",)
+    assert sz.default_candidates(["shear", "geodesic_bending"]) == ("shear_gradient",)

@@ -37,6 +37,16 @@ SIZE_CANDIDATES = ("geodesic_bending",)
 """The default candidates: the in-plane effect with a length whose boundary layers a planar
 force curve sees (shear and stretch gradients are alternatives a caller may add)."""
 
+ALTERNATIVES = ("shear_gradient", "stretch_gradient")
+"""Candidates in the order to try when the default ones are fitted terms already."""
+
+
+def default_candidates(fitted_terms) -> tuple[str, ...]:
+    """:data:`SIZE_CANDIDATES`, or the first of :data:`ALTERNATIVES` not among the fitted
+    terms when they all are."""
+    left = [c for c in SIZE_CANDIDATES if c not in fitted_terms]
+    return tuple(left) or tuple([c for c in ALTERNATIVES if c not in fitted_terms][:1])
+
 METHOD = ("profile over the length of each candidate size effect, the lengths the calibrating "
           "data do not exclude transferred to the other size (docs/uncertainty.md)")
 
@@ -123,6 +133,10 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
     k_ref = k_ref or float(vals[fm.names.index("shear.k_s")])
     fit_fn = lambda f, free: fit(f, free, verbose=False, scale_start=False,  # noqa: E731
                                  space="linear", tol=PROFILE_TOL, max_iter=PROFILE_ITER)
+    if not any(t.name in candidates and f"{t.name}.{p}" not in fitted for t, p in fm.params):
+        raise ValueError(f"size form: none of the candidates {list(candidates)} is in the "
+                         "model unfitted (extend it with extended_model; a fitted effect is "
+                         "no candidate)")
     cands = {}
     for t, p in fm.params:
         name = f"{t.name}.{p}"
