@@ -34,6 +34,7 @@ from fabricsurf.inverse.fitting import intervals, systematic
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.fitting.size_form import OMITS_INTERVALS
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 from fabricsurf.log import rank0_print
 
@@ -115,7 +116,7 @@ class FitResult:
         return out | {"statistics": self.statistical.as_dict(len(self.r)),
                       "chi2_h_vs_h2": self.chi2_h, "covariance": cov,
                       "interval_parts": parts,
-                      "interval_omits": [] if self.size_effects else [OMITS_SIZE]}
+                      "interval_omits": [] if self.size_effects else [OMITS_INTERVALS]}
 
     def as_dict(self) -> dict:
         m = strip_rows(self.misfit)
@@ -135,9 +136,6 @@ class FitResult:
 
 
 Forward = ForwardModel | ForwardSet
-
-OMITS_SIZE = ("the size part: moduli fitted on one specimen carry its share of effects with a "
-              "length, wrong for another size (size_form.size_record; docs/uncertainty.md)")
 
 
 def _try(fm: Forward, free: list[int], vals: np.ndarray):

@@ -52,6 +52,10 @@ METHOD = ("profile over the length of each candidate size effect, the lengths th
 
 LEVEL = 0.95
 
+OMITS_INTERVALS = ("the size part: moduli fitted on one specimen carry its share of effects "
+                   "with a length, wrong for another size (size_form.size_record; "
+                   "docs/uncertainty.md)")
+
 PROFILE_TOL, PROFILE_ITER = 1e-4, 10
 """The profile's refits stop at a relative χ² change of 10⁻⁴ (the allowed rise is F(1, ν)/ν of
 χ²_min, above 0.1 for the curves this is for: three decades coarser) or after 10 iterations."""
