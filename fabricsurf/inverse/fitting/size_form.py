@@ -40,13 +40,6 @@ force curve sees (shear and stretch gradients are alternatives a caller may add)
 ALTERNATIVES = ("shear_gradient", "stretch_gradient")
 """Candidates in the order to try when the default ones are fitted terms already."""
 
-
-def default_candidates(fitted_terms) -> tuple[str, ...]:
-    """:data:`SIZE_CANDIDATES`, or the first of :data:`ALTERNATIVES` not among the fitted
-    terms when they all are."""
-    left = [c for c in SIZE_CANDIDATES if c not in fitted_terms]
-    return tuple(left) or tuple([c for c in ALTERNATIVES if c not in fitted_terms][:1])
-
 METHOD = ("profile over the length of each candidate size effect, the lengths the calibrating "
           "data do not exclude transferred to the other size (docs/uncertainty.md)")
 
@@ -59,6 +52,13 @@ OMITS_INTERVALS = ("the size part: moduli fitted on one specimen carry its share
 PROFILE_TOL, PROFILE_ITER = 1e-4, 10
 """The profile's refits stop at a relative χ² change of 10⁻⁴ (the allowed rise is F(1, ν)/ν of
 χ²_min, above 0.1 for the curves this is for: three decades coarser) or after 10 iterations."""
+
+
+def default_candidates(fitted_terms) -> tuple[str, ...]:
+    """:data:`SIZE_CANDIDATES`, or the first of :data:`ALTERNATIVES` not among the fitted
+    terms when they all are."""
+    left = [c for c in SIZE_CANDIDATES if c not in fitted_terms]
+    return tuple(left) or tuple([c for c in ALTERNATIVES if c not in fitted_terms][:1])
 
 
 def extended_model(model: list, candidates) -> list:
@@ -94,17 +94,16 @@ def threshold(chi2_min: float, n: int, p: int) -> float:
 
 
 def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float,
-            grid: list[float]) -> list[dict]:
+            grid: list[float]) -> tuple[list[dict], int]:
     """χ² and refitted moduli at each length of ``grid`` for the candidate modulus
-    ``candidate`` of ``fm`` (held at k_ref ℓ²); ``fit_fn(fm, free)`` returns a FitResult.
-    Stops at a length whose run fails or whose χ² exceeds ``chi2_fit`` by ten thresholds (the
-    data exclude it and, the effect growing with ℓ, every longer one)."""
+    ``candidate`` of ``fm`` (held at k_ref ℓ²), and the number of residuals;
+    ``fit_fn(fm, free)`` returns a FitResult. Stops at a length whose run fails or whose χ²
+    exceeds ``chi2_fit`` by ten thresholds (the data exclude it and, the effect growing with
+    ℓ, every longer one)."""
     base = fm.values()
     c = fm.names.index(candidate)
     free = [fm.names.index(n) for n in fitted]
-    n = len(fm.residuals(fm.run())[0])
-    limit = chi2_fit + 10 * threshold(chi2_fit, n, len(free))
-    rows, start = [], base.copy()
+    rows, start, n = [], base.copy(), 0
     for ell in grid:
         vals = start.copy()
         vals[c] = k_ref * ell**2
@@ -113,14 +112,14 @@ def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_re
             res = fit_fn(fm, free)
         except LoadStepError:
             break
+        n = len(res.r)
         rows.append({"length": ell, "value": float(vals[c]), "chi2": float(res.chi2),
-                     "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted},
-                     "n": n})
+                     "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted}})
         start = res.values.copy()
-        if res.chi2 > limit:
+        if res.chi2 > chi2_fit + 10 * threshold(chi2_fit, n, len(free)):
             break
     fm.set_values(base)
-    return rows
+    return rows, n
 
 
 def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
@@ -146,12 +145,12 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
         name = f"{t.name}.{p}"
         if t.name not in candidates or name in fitted:
             continue
-        rows = profile(fm, fit_fn, fitted, chi2_fit, name, k_ref, lengths(h, width))
+        rows, n = profile(fm, fit_fn, fitted, chi2_fit, name, k_ref, lengths(h, width))
         chi2_min = min([chi2_fit] + [r["chi2"] for r in rows])
-        allow = threshold(chi2_min, rows[0]["n"] if rows else 1, len(fitted))
+        allow = threshold(chi2_min, n, len(fitted))
         for r in rows:
             r["excluded"] = bool(r["chi2"] - chi2_min > allow)
-        cands[name] = {"profile": rows, "chi2_allowed": chi2_min + allow,
+        cands[name] = {"profile": rows, "residuals": n, "chi2_allowed": chi2_min + allow,
                        "longest_not_excluded": max([r["length"] for r in rows
                                                     if not r["excluded"]], default=0.0)}
     return {"method": METHOD, "fitted": list(fitted), "chi2_fit": chi2_fit, "k_ref": k_ref,
