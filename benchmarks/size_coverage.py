@@ -4,8 +4,9 @@ For each hidden size effect × fabric × size ratio of :mod:`fabricsurf.inverse.
 (lattice force curves, force only): fit the shear modulus on a 40 × 20 mm specimen, estimate
 the size part there (:mod:`fabricsurf.inverse.fitting.size_form`), predict the specimen
 ``ratio`` times its size (larger, or smaller for a ratio below 1), and print the share of its
-points inside the 95 % band and the band's mean half-width (% of its largest force), with the
-size part and without it (the band before), and the largest error:
+points inside the 95 % band (noisy, and of its noise-free curve) and the band's mean half-width
+(% of its largest force), with the size part and without it (the band before), and the largest
+error:
 
     mpirun -n 2 .venv/bin/python benchmarks/size_coverage.py [--quick] [--out OUT]
 
@@ -47,26 +48,28 @@ def main() -> None:
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
     rows = []
-    say(f"{'effect':13s} {'fabric':6s} {'ratio':>5s} {'cover':>6s} {'width %':>8s} "
-        f"{'before':>6s} {'width %':>8s} {'max err %':>9s} {'s':>5s}")
+    say(f"{'effect':13s} {'fabric':6s} {'ratio':>5s} {'cover':>6s} {'clean':>6s} "
+        f"{'width %':>8s} {'before':>6s} {'width %':>8s} {'max err %':>9s} {'s':>5s}")
     for effect, fabric, ratio in itertools.product(a.effects, fabrics, ratios):
         t0 = time.perf_counter()
         seed = a.seed + 17 * len(rows)
         calib, _ = sizes.curve(*FITTED, fabric, effect, a.steps, seed)
-        other, _ = sizes.curve(ratio * FITTED[0], ratio * FITTED[1], fabric, effect, a.steps,
-                               seed + 1)
-        row = sizes.pair_coverage(calib, other, fabric, a.h, comm)
+        other, clean = sizes.curve(ratio * FITTED[0], ratio * FITTED[1], fabric, effect,
+                                   a.steps, seed + 1)
+        row = sizes.pair_coverage(calib, other, fabric, a.h, comm, other_clean=clean.force)
         row |= {"effect": effect, "fabric": fabric, "ratio": ratio,
                 "seconds": time.perf_counter() - t0}
         rows.append(row)
         say(f"{effect:13s} {fabric:6s} {ratio:5.1f} {row['coverage']:6.2f} "
+            f"{row['coverage_clean']:6.2f} "
             f"{row['mean_half_width_pct']:8.2f} {row['coverage_without_size']:6.2f} "
             f"{row['mean_half_width_without_pct']:8.2f} {row['max_error_pct']:9.2f} "
             f"{row['seconds']:5.0f}")
     n = sum(r["points"] for r in rows)
-    inside, before = (sum(r[k] * r["points"] for r in rows) / n
-                      for k in ("coverage", "coverage_without_size"))
-    say(f"all: {inside:.3f} of {n} points inside (without the size part {before:.3f})")
+    inside, clean, before = (sum(r[k] * r["points"] for r in rows) / n
+                             for k in ("coverage", "coverage_clean", "coverage_without_size"))
+    say(f"all: {inside:.3f} of {n} points inside, {clean:.3f} of the noise-free curve's "
+        f"(without the size part {before:.3f})")
     if comm.rank == 0:
         f = out / "size_coverage.json"
         old = json.loads(f.read_text()) if f.exists() else []

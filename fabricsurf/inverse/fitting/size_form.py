@@ -9,8 +9,9 @@ inside one data set sees the absorbed part; what one specimen can say is how lar
 
 For a candidate term with modulus m (added to the fitted model), the profile over its length
 ℓ = √(m/k), k the fitted shear modulus, on the grid ℓ = h/2, h, 2h, … below half the width
-(h the mesh: a shorter layer is not resolved, and its force is the mesh's): at each ℓ the
-fitted moduli are refitted on the calibrating data with m held, χ²(ℓ). The data do not exclude
+(h the mesh: a shorter layer is not resolved, and its force is the mesh's), and two more
+lengths towards the end of the interval not excluded (:func:`refine`): at each ℓ the fitted
+moduli are refitted on the calibrating data with m held, χ²(ℓ). The data do not exclude
 the lengths with
 
     χ²(ℓ) − χ²_min ≤ F_0.95(1, ν) χ²_min/ν,    ν = n − P − 1
@@ -48,6 +49,9 @@ LEVEL = 0.95
 OMITS_INTERVALS = ("the size part: moduli fitted on one specimen carry its share of effects "
                    "with a length, wrong for another size (size_form.size_record; "
                    "docs/uncertainty.md)")
+
+REFINE = 2
+"""Secant steps towards the end of the interval not excluded (:func:`refine`)."""
 
 PROFILE_TOL, PROFILE_ITER = 1e-4, 10
 """The profile's refits stop at a relative χ² change of 10⁻⁴ (the allowed rise is F(1, ν)/ν of
@@ -93,6 +97,19 @@ def threshold(chi2_min: float, n: int, p: int) -> float:
     return float(stats.f.ppf(LEVEL, 1, nu) * chi2_min / nu)
 
 
+def _refit_at(fm, fit_fn, candidate: str, fitted: list[str], ell: float, k_ref: float,
+              start: np.ndarray) -> tuple[dict, np.ndarray, int]:
+    """The fitted moduli refitted from ``start`` with the candidate held at k_ref ℓ²: its
+    profile row, the refitted values and the number of residuals (raises LoadStepError)."""
+    vals = start.copy()
+    vals[fm.names.index(candidate)] = k_ref * ell**2
+    fm.set_values(vals)
+    res = fit_fn(fm, [fm.names.index(n) for n in fitted])
+    row = {"length": ell, "value": float(k_ref * ell**2), "chi2": float(res.chi2),
+           "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted}}
+    return row, res.values.copy(), len(res.r)
+
+
 def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float,
             grid: list[float]) -> tuple[list[dict], int]:
     """χ² and refitted moduli at each length of ``grid`` for the candidate modulus
@@ -101,25 +118,48 @@ def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_re
     exceeds ``chi2_fit`` by ten thresholds (the data exclude it and, the effect growing with
     ℓ, every longer one)."""
     base = fm.values()
-    c = fm.names.index(candidate)
-    free = [fm.names.index(n) for n in fitted]
     rows, start, n = [], base.copy(), 0
-    for ell in grid:
-        vals = start.copy()
-        vals[c] = k_ref * ell**2
-        fm.set_values(vals)
-        try:
-            res = fit_fn(fm, free)
-        except LoadStepError:
-            break
-        n = len(res.r)
-        rows.append({"length": ell, "value": float(vals[c]), "chi2": float(res.chi2),
-                     "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted}})
-        start = res.values.copy()
-        if res.chi2 > chi2_fit + 10 * threshold(chi2_fit, n, len(free)):
-            break
+    try:
+        for ell in grid:
+            row, start, n = _refit_at(fm, fit_fn, candidate, fitted, ell, k_ref, start)
+            rows.append(row)
+            if row["chi2"] > chi2_fit + 10 * threshold(chi2_fit, n, len(fitted)):
+                break
+    except LoadStepError:
+        pass
     fm.set_values(base)
     return rows, n
+
+
+def refine(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float,
+           rows: list[dict], level: float) -> list[dict]:
+    """``rows`` with up to REFINE more lengths at the end of the interval not excluded, where
+    the secant of χ²(ℓ) between the longest length with χ² ≤ ``level`` (or the fit itself,
+    ℓ = 0) and the next longer one crosses ``level``, or at their midpoint when the secant
+    moves less than a tenth of the way (the grid's factor 2 would otherwise leave up to half the
+    interval's last length out of the envelope)."""
+    base = fm.values()
+    zero = {"length": 0.0, "chi2": chi2_fit,
+            "moduli": {m: float(base[fm.names.index(m)]) for m in fitted}}
+    try:
+        for _ in range(REFINE):
+            a = max([zero] + [r for r in rows if r["chi2"] <= level], key=lambda r: r["length"])
+            beyond = [r for r in rows if r["length"] > a["length"]]
+            if a["chi2"] > level or not beyond:
+                break
+            e = min(beyond, key=lambda r: r["length"])
+            gap = e["length"] - a["length"]
+            ell = a["length"] + (level - a["chi2"]) / (e["chi2"] - a["chi2"]) * gap
+            if ell - a["length"] < 0.1 * gap:  # a steep χ²: the secant barely moves, bisect
+                ell = a["length"] + 0.5 * gap
+            start = base.copy()
+            for m, v in a["moduli"].items():
+                start[fm.names.index(m)] = v
+            rows.append(_refit_at(fm, fit_fn, candidate, fitted, ell, k_ref, start)[0])
+    except LoadStepError:
+        pass
+    fm.set_values(base)
+    return sorted(rows, key=lambda r: r["length"])
 
 
 def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
@@ -146,6 +186,9 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
         if t.name not in candidates or name in fitted:
             continue
         rows, n = profile(fm, fit_fn, fitted, chi2_fit, name, k_ref, lengths(h, width))
+        chi2_min = min([chi2_fit] + [r["chi2"] for r in rows])
+        rows = refine(fm, fit_fn, fitted, chi2_fit, name, k_ref, rows,
+                      chi2_min + threshold(chi2_min, n, len(fitted)))
         chi2_min = min([chi2_fit] + [r["chi2"] for r in rows])
         allow = threshold(chi2_min, n, len(fitted))
         for r in rows:

@@ -64,10 +64,12 @@ def base_model(fabric: str, k_s: float | None = None) -> list:
 
 
 def pair_coverage(calib: Experiment, other: Experiment, fabric: str, h: float,
-                  comm: MPI.Comm = MPI.COMM_WORLD, candidates=None) -> dict:
+                  comm: MPI.Comm = MPI.COMM_WORLD, candidates=None,
+                  other_clean: np.ndarray | None = None) -> dict:
     """Fit the shear modulus on ``calib`` (mesh h), estimate the size part there, predict
     ``other`` (h scaled with the size: the same mesh in the specimen's units) with its band,
-    and count the points of ``other`` inside it, with and without the size part."""
+    and count the points of ``other`` inside it, with and without the size part, and those of
+    its noise-free force ``other_clean`` when given (the curve the band is a band of)."""
     from fabricsurf.inverse.fitting import size_form as sz
     from fabricsurf.inverse.fitting.band import predicted_band
     from fabricsurf.inverse.fitting.fit import fit
@@ -98,4 +100,6 @@ def pair_coverage(calib: Experiment, other: Experiment, fabric: str, h: float,
             "mean_half_width_pct": 100 * float(np.mean(half)) / fmax,
             "mean_half_width_without_pct": 100 * float(np.mean(without)) / fmax,
             "max_error_pct": 100 * float(np.max(err)) / fmax,
+            "coverage_clean": None if other_clean is None else float(
+                np.mean(np.abs(np.asarray(other_clean) - F) <= half)),
             "size_effects": res.size_effects, "reliable": band["reliable"]}
