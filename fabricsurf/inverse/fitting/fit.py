@@ -34,6 +34,7 @@ from fabricsurf.inverse.fitting import intervals, systematic
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.fitting.size_form import OMITS_INTERVALS
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 from fabricsurf.log import rank0_print
 
@@ -62,6 +63,8 @@ class FitResult:
     model_form: np.ndarray | None = None
     mesh_shift: np.ndarray | None = None
     chi2_h: float | None = None
+    size_effects: dict | None = None
+    """The size part's record (:func:`~.size_form.size_record`), when it was estimated."""
 
     def params(self) -> dict:
         """{term: {param: value}} (the --params file format)."""
@@ -96,16 +99,24 @@ class FitResult:
             return {"moduli": {}, "identifiable_combinations": [], "weak_directions": []}
         free = self.free
         lost = self.lost()
+        size = None if self.size_effects is None else np.array(
+            [self.size_effects["moduli_half_width"].get(self.names[k], 0.0) for k in free])
         out = intervals.summarise([self.names[k] for k in free], self.values[free],
                                   self.statistical.cov, self.statistical.t95(),
-                                  self.model_form, self.mesh_shift, lost)
+                                  self.model_form, self.mesh_shift, lost, size)
         for k, n in enumerate(self.names):
             if k not in free and self.values[k] > 0:  # held at a given modulus
                 out["moduli"][n] = {"value": float(self.values[k]), "fixed": True}
         cov = {"names": [self.names[k] for k in free],
                "statistical": self.statistical.cov.tolist()}
+        parts = ["statistical"] + [k for k, v in (("model_form", self.model_form),
+                                                  ("mesh", self.mesh_shift),
+                                                  ("size_form", self.size_effects))
+                                   if v is not None]
         return out | {"statistics": self.statistical.as_dict(len(self.r)),
-                      "chi2_h_vs_h2": self.chi2_h, "covariance": cov}
+                      "chi2_h_vs_h2": self.chi2_h, "covariance": cov,
+                      "interval_parts": parts,
+                      "interval_omits": [] if self.size_effects else [OMITS_INTERVALS]}
 
     def as_dict(self) -> dict:
         m = strip_rows(self.misfit)
@@ -116,10 +127,12 @@ class FitResult:
                 "identifiable_combinations": u["identifiable_combinations"],
                 "weak_directions": u["weak_directions"],
                 "uncertainty": {k: u.get(k) for k in ("statistics", "chi2_h_vs_h2",
-                                                      "covariance")},
+                                                      "covariance", "interval_parts",
+                                                      "interval_omits")},
                 "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
                 "forward_runs": self.forward_runs, "history": self.history,
-                "undetermined": self.undetermined}
+                "undetermined": self.undetermined} | (
+                    {"size_effects": self.size_effects} if self.size_effects else {})
 
 
 Forward = ForwardModel | ForwardSet

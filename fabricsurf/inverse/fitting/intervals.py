@@ -2,15 +2,16 @@
 
 Per modulus: the statistical standard deviation σ (:mod:`~.uncertainty`), the model-form τ and
 the mesh shift δ (:mod:`~.systematic`), combined into
-    ci95 = p ± [√((t σ)² + (1.96 τ)²) + MESH_FACTOR |δ|],
-the random parts in quadrature, the mesh bias added in full (it is an estimate of a bias, not a
-random error). A modulus is *identifiable* when it is not in a null direction of the Fisher
-matrix and its interval excludes zero. For the moduli that are not, the eigenvectors of their
-covariance in log-moduli name the combinations the data do determine, each a weighted geometric
-mean Π p_i^{w_i} (Σ w_i = 1) whose log-interval half-width is below 1 (a relative ± below 100 %,
-the same criterion to first order); the other directions are not determined. The weak
-directions of the whole fit are the eigenvectors of the covariance of the log-moduli whose
-95 % half-width exceeds WEAK.
+    ci95 = p ± [√((t σ)² + (1.96 τ)² + w²) + MESH_FACTOR |δ|],
+w the size part when a prediction to another specimen size is in question (:mod:`~.size_form`,
+already a 95 % half-width), the random parts in quadrature, the mesh bias added in full (it is
+an estimate of a bias, not a random error). A modulus is *identifiable* when it is not in a null
+direction of the Fisher matrix and its interval excludes zero. For the moduli that are not, the
+eigenvectors of their covariance in log-moduli name the combinations the data do determine, each
+a weighted geometric mean Π p_i^{w_i} (Σ w_i = 1) whose log-interval half-width is below 1 (a
+relative ± below 100 %, the same criterion to first order); the other directions are not
+determined. The weak directions of the whole fit are the eigenvectors of the covariance of the
+log-moduli whose 95 % half-width exceeds WEAK.
 """
 
 from __future__ import annotations
@@ -33,12 +34,13 @@ NULL_TOL = 1e-12
 puts in the null directions of the Fisher matrix: not determined, not known exactly."""
 
 
-def half_width(sd: np.ndarray, t: float, tau: np.ndarray | None, shift: np.ndarray | None
-               ) -> np.ndarray:
+def half_width(sd: np.ndarray, t: float, tau: np.ndarray | None, shift: np.ndarray | None,
+               size: np.ndarray | None = None) -> np.ndarray:
     """The combined 95 % half-width of the module docstring."""
     tau = np.zeros_like(sd) if tau is None else tau
     shift = np.zeros_like(sd) if shift is None else shift
-    return np.sqrt((t * sd) ** 2 + (Z95 * tau) ** 2) + MESH_FACTOR * np.abs(shift)
+    size = np.zeros_like(sd) if size is None else size
+    return np.sqrt((t * sd) ** 2 + (Z95 * tau) ** 2 + size**2) + MESH_FACTOR * np.abs(shift)
 
 
 def _text(v: np.ndarray, names: list[str]) -> str:
@@ -99,12 +101,14 @@ def weak_directions(names, values, cov) -> list[dict]:
 
 
 def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
-              tau: np.ndarray | None, shift: np.ndarray | None, lost: set[str]) -> dict:
+              tau: np.ndarray | None, shift: np.ndarray | None, lost: set[str],
+              size: np.ndarray | None = None) -> dict:
     """{"moduli": {name: {value, ci95, std_statistical, systematic_mesh, systematic_model,
-    identifiable}}, "identifiable_combinations", "weak_directions"} for the fitted moduli;
-    ``lost``: the moduli in a null direction of the Fisher matrix."""
+    [systematic_size,] identifiable}}, "identifiable_combinations", "weak_directions"} for the
+    fitted moduli; ``lost``: the moduli in a null direction of the Fisher matrix; ``size``: the
+    size part (95 % half-widths) when given."""
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    half = half_width(sd, t, tau, shift)
+    half = half_width(sd, t, tau, shift, size)
     moduli, weak = {}, []
     for i, n in enumerate(names):
         ok = bool(n not in lost and np.isfinite(half[i]) and values[i] - half[i] > 0)
@@ -116,6 +120,8 @@ def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
                      "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),
                      "systematic_model": None if tau is None else float(tau[i]),
                      "identifiable": ok}
+        if size is not None:
+            moduli[n]["systematic_size"] = float(size[i])
         if not ok and values[i] > 0:
             weak.append(i)
     return {"moduli": moduli,
