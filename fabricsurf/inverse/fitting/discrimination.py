@@ -3,9 +3,10 @@
 For two tied candidates a (the verdict) and b (:mod:`~.ties`), each refitted model predicts a
 few candidate experiments built from the data's first experiment: the same test at twice the
 displacement, another fibre angle, a narrower specimen (bias tests), a picture-frame test with
-clamped fibres, the field where the data gave forces only. Each gets the data's noise levels and
-as many load steps and field points per step as the data, so the candidates are compared at the
-same cost of measurement. At the refits' moduli the two predictions differ by
+clamped fibres (for a first-gradient effect), the field where the data gave forces only. Each
+gets the data's noise levels and as many load steps and field points per step as the data, so
+the candidates are compared at the same cost of measurement. At the refits' moduli the two
+predictions differ by
 
     S₀ = Σ ((u_a − u_b)/s_u)² + Σ ((F_a − F_b)/s_F)²
 
@@ -118,8 +119,11 @@ def bias_shear(d: float, length: float, width: float) -> float:
     return math.pi / 2 - 2.0 * math.acos(min((D + d) / (math.sqrt(2.0) * D), 1.0))
 
 
-def candidates(e0: Experiment) -> list[Candidate]:
-    """The experiments tried, built from the data's first experiment (module docstring)."""
+def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
+    """The experiments tried, built from the data's first experiment (module docstring);
+    the picture frame only if ``first_gradient`` (a tied effect of the first gradient: the
+    frame's exact solution is a homogeneous shear, in which every second-gradient energy
+    vanishes, so it cannot separate two of them)."""
     L, W, ang, path = e0.length, e0.width, e0.fibre_angles_deg, np.asarray(e0.path, float)
     out = [_like(e0, "larger_displacement", f"the same {e0.test} test to twice the "
                  f"displacement ({2 * path[-1]:.3g} mm)", L, W, 2.0 * path, ang)]
@@ -129,6 +133,7 @@ def candidates(e0: Experiment) -> list[Candidate]:
                          f"±{other[0]:g}°", L, W, path, other))
         out.append(_like(e0, "narrower_specimen", f"the same bias test on a specimen half as "
                          f"wide ({L:g} × {W / 2:g} mm)", L, W / 2, path, ang))
+    if e0.test == "bias_extension" and first_gradient:
         gamma = bias_shear(float(path[-1]), L, W) if L > W else 0.2
         d = frame_displacement(max(gamma, 0.05), W)
         out.append(_like(e0, "picture_frame", f"a picture-frame test (clamped frame, side "
@@ -214,7 +219,7 @@ def design(exps: list[Experiment], ra: FitResult, rb: FitResult, effects: list[s
         maps.append((f"as measured ({e0.name})", e0, du0))
     h = float(h or get_test(e0.test).default_h(e0.setup))
     rows, diff = [], {}
-    for c in candidates(e0):
+    for c in candidates(e0, any(make_term(n).order < 2 for n in effects)):
         if keys is not None and c.key not in keys:
             continue
         row = {"key": c.key, "description": c.description, "test": c.exp.test,
