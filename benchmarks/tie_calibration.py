@@ -11,7 +11,8 @@ data set and the table of rates; "wrong top refit" counts the outcomes the forme
 best refit named alone) would have got wrong, and how many of those the tie rule turns into a
 tie holding the truth.
 
-    .venv/bin/python benchmarks/tie_calibration.py [--seeds 2] [--json OUT.json]
+    .venv/bin/python benchmarks/tie_calibration.py [--seeds 2] [--first-seed 0] [--json OUT]
+    .venv/bin/python benchmarks/tie_calibration.py --table OUT1.json OUT2.json  # merge
 """
 
 from __future__ import annotations
@@ -54,10 +55,10 @@ def outcome(d, hidden: str) -> str:
     return "right single" if d.verdict == hidden else "wrong single"
 
 
-def run(seeds: int) -> list[dict]:
+def run(seeds: int, first: int = 0) -> list[dict]:
     rows = []
     for hidden, (regime, d_max), noise, seed in itertools.product(
-            HIDDEN, DISPLACEMENTS.items(), NOISES, range(seeds)):
+            HIDDEN, DISPLACEMENTS.items(), NOISES, range(first, first + seeds)):
         t0 = time.perf_counter()
         exp = data(hidden, d_max, noise, 100 + seed)
         d = diagnose(exp, ["fibre_stretch", "shear"], h=3.5, confirm=3, max_effects=1,
@@ -101,9 +102,19 @@ def table(rows: list[dict]) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--json", default=None, help="write the rows to this file")
+    ap.add_argument("--table", nargs="*", default=None,
+                    help="only print the table of these --json files (no runs)")
     args = ap.parse_args()
-    rows = run(args.seeds)
+    if args.table:
+        rows = []
+        for name in args.table:
+            with open(name) as f:
+                rows += json.load(f)
+        table(rows)
+        return
+    rows = run(args.seeds, args.first_seed)
     table(rows)
     if args.json and MPI.COMM_WORLD.rank == 0:
         with open(args.json, "w") as f:
