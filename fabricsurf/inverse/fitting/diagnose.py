@@ -205,7 +205,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
                 break
             c = sig[0]["effect"]
             if not added:
-                tie = find_tie(fs, sig, refits, free, cand)
+                tie = find_tie(fs, rows, refits, free, cand)
             cur, free = refits[c], sorted(free + cand[c])
             terms.append(c)
             added.append(c)
