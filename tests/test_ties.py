@@ -70,3 +70,21 @@ and the data it takes for an expected z of z_crit + 2."""
     assert np.isclose(out["field"], 4 * 9.0) and np.isclose(out["force"], 4.0)
     assert np.isclose(out["expected_z"], 0.5 * np.sqrt(40.0)) and not out["separates"]
     assert np.isclose(out["data_factor"], (2 * (dc.Z_CRIT + 2)) ** 2 / 40.0)
+
+
+def test_candidates_measure_what_the_data_measure():
+    """Force-only data: the candidates measure the force only, but for the one that adds the
+    field; the picture frame (square, clamped) is tried only for a first-gradient tie (its
+    homogeneous shear has no second gradient)."""
+    e = template(60.0, 30.0, [1.0, 2.0], np.zeros((0, 2)))
+    e.force_noise_std = 0.1
+    second = {c.key: c.exp for c in dc.candidates(e, first_gradient=False)}
+    assert set(second) == {"larger_displacement", "other_fibre_angle", "narrower_specimen",
+                           "field_data"}
+    assert [k for k, x in second.items() if x.has_field] == ["field_data"]
+    assert all(x.force_noise_std == 0.1 for x in second.values())
+    assert list(second["larger_displacement"].path) == [2.0, 4.0]
+    frame = {c.key: c.exp for c in dc.candidates(e)}["picture_frame"]
+    assert frame.length == frame.width == 30.0 and frame.setup.options == {"frame": "clamped"}
+    assert np.isclose(dc.frame_displacement(dc.bias_shear(2.0, 60.0, 30.0), 30.0),
+                      frame.path[-1])

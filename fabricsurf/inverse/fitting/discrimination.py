@@ -84,6 +84,8 @@ class Design:
 
 def _grid(length: float, width: float, n: int) -> np.ndarray:
     """About ``n`` points on a grid inside the specimen (5 % margins), square-ish cells."""
+    if n == 0:
+        return np.zeros((0, 2))
     nx = max(2, round(math.sqrt(n * length / width)))
     ny = max(2, round(n / nx))
     x = np.linspace(0.05 * length, 0.95 * length, nx)
@@ -94,8 +96,10 @@ def _grid(length: float, width: float, n: int) -> np.ndarray:
 def _like(e0: Experiment, key: str, description: str, length: float, width: float,
           path: np.ndarray, angles, test: str | None = None, options: dict | None = None
           ) -> Candidate:
-    """A candidate with ``e0``'s noise, steps and points per step (module docstring)."""
-    n = len(e0.field_step) // max(len(e0.steps), 1) or 50
+    """A candidate with ``e0``'s noise, steps and points per step (module docstring); the
+    field where ``e0`` has none only for the key "field_data" (on 50 points a step)."""
+    n = (len(e0.field_step) // max(len(e0.steps), 1) if e0.has_field
+         else 50 if key == "field_data" else 0)
     exp = template(length, width, path, _grid(length, width, n), angles=angles,
                    name=key, test=test or e0.test,
                    options=dict(e0.setup.options) if options is None else options,
