@@ -36,7 +36,7 @@ class Diagnosis:
     noise_known: bool
     grip_depth: dict | None = None
     tie: Tie | None = None
-    """The first round's best refit against the other significant ones (:mod:`~.ties`)."""
+    """The first round's best significant refit against the other refits (:mod:`~.ties`)."""
     separating_experiment: dict | None = None
     """For a tie: the experiments that would separate it, best first (:mod:`~.discrimination`,
     filled in by the caller: it costs forward runs)."""
