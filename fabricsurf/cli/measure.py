@@ -38,7 +38,7 @@ from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.misfit import converged_steps
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
-from fabricsurf.inverse.fitting.report import result_lines
+from fabricsurf.inverse.fitting.report import result_lines, tie_lines
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS
 
@@ -190,6 +190,21 @@ def cmd_fit(args) -> int:
     return 0
 
 
+def separate_tie(d, exps, h, stage) -> None:
+    """For a tie, the experiments that would separate it (``d.separating_experiment``) and the
+    map of the two models' difference (tie_difference_map.png in ``stage``)."""
+    from fabricsurf.inverse.fitting.discrimination import design
+    from fabricsurf.inverse.plots import figures
+
+    if not d.tied():
+        return
+    a, b = d.tie.members[:2]
+    des = design(exps, d.tie.refits[a], d.tie.refits[b], [a, b], h=h, comm=COMM)
+    d.separating_experiment = des.as_dict()
+    on_rank0(COMM, figures.difference_map, des.maps, [a, b],
+             stage / "tie_difference_map.png")
+
+
 def cmd_diagnose(args) -> int:
     from fabricsurf.inverse.fitting.diagnose import diagnose
     from fabricsurf.inverse.plots import figures
@@ -215,6 +230,7 @@ def cmd_diagnose(args) -> int:
                          grip_depths=depths)
         except ValueError as e:
             raise InputError(str(e)) from None
+        separate_tie(d, exps, args.h, stage)
         out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
                                                       args.h and [args.h])}
         write_json(COMM, stage / "diagnosis.json", out)
@@ -236,7 +252,9 @@ def cmd_diagnose(args) -> int:
         rank0_print(COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
                     f"{r['refit_misfit']}  Wald p {r.get('wald_p')}  significant "
                     f"{r['significant']}")
-    rank0_print(COMM, f"verdict: {d.verdict}; final {'+'.join(d.terms)} misfit "
+    for line in tie_lines(d):
+        rank0_print(COMM, line)
+    rank0_print(COMM, f"verdict: {d.verdict_text()}; final {'+'.join(d.terms)} misfit "
                 f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}")
     for line in result_lines(out["final"]):
         rank0_print(COMM, line)

@@ -19,7 +19,8 @@
 4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
    from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
 
-The verdict is the first effect added (None if none); ``adequate`` tells whether the final model
+The verdict is the first effect added (None if none), with the candidates the data cannot tell
+from it (a tie, :mod:`~.ties`); ``adequate`` tells whether the final model
 explains the data at the noise level, allowing for the discretisation error measured at h/2.
 A final model that is not adequate with nothing left to add is reported as unexplained misfit,
 with the steps and regions where it remains (:func:`~.report.where_unexplained`).
@@ -44,6 +45,7 @@ from fabricsurf.inverse.fitting.report import (
     where_unexplained,
 )
 from fabricsurf.inverse.fitting.start import candidate_start
+from fabricsurf.inverse.fitting.ties import find_tie
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
@@ -187,7 +189,8 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         t0 = MPI.Wtime()
         cur = base = fit(fs, free, verbose=verbose, space="linear")
         t_fit = MPI.Wtime() - t0
-        terms, path, rankings, added, alternatives = list(baseline), [], [], [], []
+        terms, path, rankings, added = list(baseline), [], [], []
+        tie = None
         path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})
         say(f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
         while True:
@@ -202,9 +205,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
                 break
             c = sig[0]["effect"]
             if not added:
-                s2 = max(1.0, sg.reduced(sig[0]["refit_chi2"], cur.misfit["n"], len(free) + 1))
-                alternatives = [q["effect"] for q in sig[1:]
-                                if q["refit_chi2"] - sig[0]["refit_chi2"] < sg.CHI2_CRIT * s2]
+                tie = find_tie(fs, rows, refits, free, cand)
             cur, free = refits[c], sorted(free + cand[c])
             terms.append(c)
             added.append(c)
@@ -221,9 +222,10 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         return Diagnosis(
             baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
             ranking=rankings[0] if rankings else [], rounds=rankings,
-            verdict=added[0] if added else None, alternatives=alternatives, adequate=ok, path=path,
+            verdict=added[0] if added else None, alternatives=tie.others() if tie else [],
+            adequate=ok, path=path,
             not_identifiable=invisible, discretisation_chi2=chi2_h,
             unexplained=None if ok else where_unexplained(
                 exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not
                 any(q["significant"] for q in rankings[-1]) else None),
-            fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip)
+            fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip, tie=tie)

@@ -8,6 +8,7 @@ import numpy as np
 
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.fit import FitResult, strip_rows
+from fabricsurf.inverse.fitting.ties import Tie
 
 UNCERTAINTY_KEYS = ("moduli", "identifiable_combinations", "weak_directions", "undetermined",
                     "uncertainty")
@@ -34,6 +35,19 @@ class Diagnosis:
     fit_seconds: float
     noise_known: bool
     grip_depth: dict | None = None
+    tie: Tie | None = None
+    """The first round's best significant refit against the other refits (:mod:`~.ties`)."""
+    separating_experiment: dict | None = None
+    """For a tie: the experiments that would separate it, best first (:mod:`~.discrimination`,
+    filled in by the caller: it costs forward runs)."""
+
+    def tied(self) -> list[str] | None:
+        """The effects the data cannot tell apart, the verdict first (None: no tie)."""
+        return self.tie.members if self.tie is not None and self.tie.tied else None
+
+    def verdict_text(self) -> str | None:
+        """The verdict as a user reads it: "a or b" for a tie."""
+        return " or ".join(self.tied() or [self.verdict]) if self.verdict else None
 
     def too_coarse(self) -> bool:
         """The h/2 check says the mesh is too coarse for these data (:func:`~.sg.too_coarse`)."""
@@ -42,7 +56,9 @@ class Diagnosis:
 
     def outcome(self) -> str:
         if self.verdict is not None:
-            text = f"add {self.verdict}" + ("" if self.adequate else " (still not adequate)")
+            text = (f"add {self.verdict_text()}" + (" (a tie: the data cannot tell them apart)"
+                                                     if self.tied() else "")
+                    + ("" if self.adequate else " (still not adequate)"))
         else:
             text = "nothing missing" if self.adequate else "unexplained misfit"
         return text + ("; the mesh is too coarse for these data (refine h)"
@@ -56,6 +72,8 @@ class Diagnosis:
             "baseline": {"terms": self.baseline, "misfit": b.misfit["combined"], "chi2": b.chi2,
                          "n": b.misfit["n"], "params": b.params(), "std": b.as_dict()["std"]},
             "ranking": self.ranking, "rounds": self.rounds, "verdict": self.verdict,
+            "tie": self.tied(), "tie_test": None if self.tie is None else self.tie.as_dict(),
+            "separating_experiment": self.separating_experiment,
             "indistinguishable_from_verdict": self.alternatives, "adequate": self.adequate,
             "outcome": self.outcome(), "path": self.path,
             "final": {"terms": self.terms, "params": f.params(), "std": f.as_dict()["std"]}
@@ -165,4 +183,40 @@ def result_lines(u: dict) -> list[str]:
         lines.append(f"  not determined by the data (rank-deficient Fisher matrix): {c}")
     for w in u["weak_directions"]:
         lines.append(f"  weak direction (log-moduli, σ {w['std_log']:.2g}): {w['direction']}")
+    return lines
+
+
+def tie_lines(d) -> list[str]:
+    """The tie and the separating experiment, as text (docs/diagnosis.md, "Ties")."""
+    if not d.tied():
+        return []
+    lines = []
+    for c in d.tie.comparisons:
+        if c["tied"]:
+            lines.append(
+                f"tie: {' or '.join(c['effects'])}: chi2 {c['chi2'][0]:.6g} vs "
+                f"{c['chi2'][1]:.6g}, difference {c['delta_chi2']:.3g} against a resolution "
+                f"of {c['resolution']:.3g} (Vuong z = {c['z']:.2f}, p = {c['p']:.3g}); their "
+                f"predictions differ by {c['prediction_difference']:.3g} noise units over all "
+                f"the data; cosine of their sensitivities {c['cosine']:.4f}")
+    sep = d.separating_experiment or {}
+    best, own = sep.get("suggested"), sep.get("as_measured", {})
+    if own:
+        where = own.get("where_they_differ_most")
+        lines.append(f"  the data's own test separates them by S = {own['separation']:.3g} "
+                     f"(expected z ≈ √S/2 = {own['expected_z']:.2f})" + (
+                         f"; they differ most at x {where['x_mm'][0]:.3g}–{where['x_mm'][1]:.3g}"
+                         f" mm, y {where['y_mm'][0]:.3g}–{where['y_mm'][1]:.3g} mm "
+                         f"({where['share_of_separation']:.0%} of it)" if where else ""))
+    if best:
+        lines.append(f"separating experiment: {best['description']}: S = "
+                     f"{best['separation']:.3g}, expected z ≈ {best['expected_z']:.2f} "
+                     + ("(separates: above " if best["separates"] else "(not enough: below ")
+                     + f"{sep['z_critical']:.2f}); reliably (98 %) with "
+                     f"{best['data_factor']:.2g}× its points, steps or 1/noise²; map: "
+                     "tie_difference_map.png")
+        for q in sep["candidates"][1:]:
+            lines.append(f"  then: {q['description']}: " + (
+                f"S = {q['separation']:.3g}" if q["separation"] is not None
+                else f"not run ({q['failed']})"))
     return lines

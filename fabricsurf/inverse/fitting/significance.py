@@ -35,7 +35,6 @@ import numpy as np
 from scipy import stats
 
 LEVEL = 0.999
-CHI2_CRIT = float(stats.chi2.ppf(LEVEL, 1))
 FRACTION_OF_EXCESS = 0.25
 
 

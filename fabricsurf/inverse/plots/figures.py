@@ -214,3 +214,23 @@ def default_steps(exp: Experiment) -> list[int]:
     """The middle and the last step."""
     s = [int(exp.steps[len(exp.steps) // 2]), int(exp.steps[-1])]
     return sorted(set(s))
+
+
+def difference_map(maps: list[tuple[str, Experiment, np.ndarray]], effects: list[str],
+                   path: Path) -> None:
+    """|u_a − u_b|/s_u of two tied models' predictions at the last step of each experiment of
+    ``maps`` (title, experiment, value per field row): where the data cannot separate them and
+    where the suggested experiment would (:mod:`~fabricsurf.inverse.fitting.discrimination`)."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, max(len(maps), 1), squeeze=False,
+                             figsize=(4.8 * max(len(maps), 1), 3.4))
+    for ax, (title, exp, values) in zip(axes[0], maps):
+        rows = exp.step_rows(exp.steps[-1])
+        sc = _field(ax, exp, rows, values[rows], _shape(exp, [int(exp.steps[-1])]),
+                    cmap="magma", vmin=0.0)
+        ax.set_title(f"{title}\nlast step (max {np.nanmax(values[rows]):.3g})", fontsize=8)
+        fig.colorbar(sc, ax=ax, shrink=0.8,
+                     label=f"|u({effects[0]}) − u({effects[1]})| / noise")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
