@@ -339,7 +339,7 @@ CASES = [
          pattern=r"--candidates normal_bending: these data cannot see normal_bending"),
     dict(id="max-dofs-zero", klass="`diagnose --max-dofs 0` (the mesh selection's budget)",
          make=nothing, argv=dgn("--max-dofs", "0"),
-         pattern=r"--max-dofs 0: must be at least 1 \(unknowns of the finest mesh"),
+         pattern=r"--max-dofs 0: must be at least 1 \(displacement unknowns of the finest mesh"),
     dict(id="time-budget-negative", klass="`diagnose --time-budget -5`", make=nothing,
          argv=dgn("--time-budget", "-5"),
          pattern=r"--time-budget -5: must be a finite time in seconds > 0"),

@@ -13,6 +13,7 @@ docs/diagnosis.md "Mesh selection").
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from mpi4py import MPI
 from fabricsurf.cli import main
 from fabricsurf.inverse.contract.data import write_experiment
 from fabricsurf.inverse.fitting.mesh_choice import Budget, _why_not
+from fabricsurf.inverse.fitting.report import Diagnosis
 from geometry.aligned import lattice_divisions
 from geometry.lattice_pair import pair_divisions
 
@@ -134,3 +136,51 @@ def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
         t, p = name.split(".")
         lo, hi = m["ci95"]
         assert lo <= finer.final_fit.params()[t][p] <= hi, (name, m)
+
+
+class _Level:
+    """What diagnose_on_mesh reads of a diagnosis, with a given h/2 check (no FEniCSx)."""
+
+    def __init__(self, hs, chi2_h, calls):
+        from fabricsurf.inverse.fitting.fit import FitResult
+
+        self.meshes = [{"h": h, "cells": int(800 / h**2), "dofs": int(3300 / h**2),
+                        "mesh_kind": "aligned"} for h in hs]
+        self.discretisation_chi2, self.verdict, self.terms = chi2_h, "geodesic_bending", []
+        self.adequate, self.grip_depth, self.mesh_selection, self.baseline = True, None, None, []
+        self.final_fit = FitResult(["shear.k_s"], np.array([0.5]), np.zeros(1), 100.0,
+                                   {"n": 122, "combined": 1.0}, None, 1, 1)
+        self.base_fit = self.final_fit
+        calls.append(hs)
+
+    def too_coarse(self):
+        return self.discretisation_chi2 > 45.0
+
+    mesh_note = Diagnosis.mesh_note
+
+
+def test_refinement_loop_stops_at_the_budget_on_every_rank(monkeypatch):
+    """h halves while the check says too coarse; the refinement the budget refuses is named in
+    the outcome's note; ranks whose clocks differ take the same decision (rank 0's)."""
+    import fabricsurf.inverse.fitting.mesh_choice as mc
+
+    calls, checks = [], iter([400.0, 100.0, 30.0])
+    monkeypatch.setattr(mc, "diagnose", lambda exps, b, h, **kw: _Level(h, next(checks), calls))
+    exp = SimpleNamespace(test="bias_extension", setup=SimpleNamespace(length=25.0, width=20.0))
+    d = mc.diagnose_on_mesh(exp, ["shear"], verbose=False)
+    assert calls == [[2.0], [1.0], [0.5]] and d.mesh_selection["stopped"] is None
+    assert d.mesh_selection["refinements"] == 2 and d.mesh_note() == ""
+    calls.clear()
+    checks = iter([400.0, 100.0])
+    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(max_dofs=3300), verbose=False)
+    assert calls == [[2.0], [1.0]]
+    assert "refine h): the mesh budget is spent: h = 0.5 mm would have about 13,200 " \
+           "unknowns, more than max_dofs = 3,300 (--max-dofs)" in d.mesh_note()
+    calls.clear()
+    checks = iter([400.0, 100.0])
+    clock = iter(np.arange(0.0, 1e4, 100.0) * (1 + 0.01 * MPI.COMM_WORLD.rank))
+    monkeypatch.setattr(mc.MPI, "Wtime", lambda: float(next(clock)))
+    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(seconds=900.0), verbose=False)
+    assert len(calls) == 2 and "the time budget is spent" in d.mesh_selection["stopped"]
+    assert MPI.COMM_WORLD.allgather(d.mesh_selection["stopped"]) == \
+        [d.mesh_selection["stopped"]] * MPI.COMM_WORLD.size

@@ -109,8 +109,8 @@ def mesh_budget(args):
     from fabricsurf.inverse.fitting.mesh_choice import Budget
 
     if args.max_dofs < 1:
-        raise InputError(f"--max-dofs {args.max_dofs}: must be at least 1 (unknowns of the "
-                         "finest mesh the diagnosis may refine to)")
+        raise InputError(f"--max-dofs {args.max_dofs}: must be at least 1 (displacement "
+                         "unknowns of the finest mesh the diagnosis may fit on)")
     t = args.time_budget
     if not (math.isfinite(t) and t > 0):
         raise InputError(f"--time-budget {t:g}: must be a finite time in seconds > 0")
