@@ -98,12 +98,15 @@ def too_coarse_data():
 
 
 
+@pytest.mark.serial("the refinement loop's decisions on 2 ranks are "
+                    "test_refinement_loop_stops_at_the_budget_on_every_rank's, the diagnosis "
+                    "command line's on 2 ranks test_diagnose's")
 def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
     """The command line at the default h: the h/2 check says the mesh is too coarse (the code
     before mesh selection ended "refine h" here), the diagnosis refines once on its own, stays
-    fibre-aligned and ends adequate with the hidden effect named; on 1 rank one further
-    refinement (a diagnosis at h/2 of the chosen mesh) gives the same verdict and moduli
-    inside the chosen mesh's 95 % intervals."""
+    fibre-aligned and ends adequate with the hidden effect named; one further refinement (a
+    diagnosis at h/2 of the chosen mesh) gives the same verdict and moduli inside the chosen
+    mesh's 95 % intervals."""
     comm = MPI.COMM_WORLD
     root = Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None))
     exp = too_coarse_data()
@@ -124,8 +127,6 @@ def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
     assert levels[1]["dofs"] > 3.5 * levels[0]["dofs"]
     assert d["provenance"]["h_mm"] == [WIDTH / 20] == [m["h"] for m in
                                                        d["discretisation"]["meshes"]]
-    if comm.size > 1:  # the further refinement once, in the serial session
-        return
     from fabricsurf.inverse.fitting.diagnose import diagnose
 
     finer = diagnose(exp, ["fibre_stretch", "shear"], h=WIDTH / 40, confirm=1, max_effects=1,
