@@ -6,8 +6,8 @@ moduli. When that exceeds the noise tolerance band (:func:`~.significance.too_co
 diagnosis cannot tell model error from mesh error. :func:`diagnose_on_mesh` then halves h of
 every experiment and diagnoses again, until the check passes or the budget is spent:
 
-* uniform refinement by 2: the bias plug-in's mesh stays fibre-aligned (a P × Q lattice at h
-  is a 2P × 2Q lattice at h/2, within the size window of h/2; tests/test_mesh_choice.py);
+* uniform refinement by 2: the bias plug-in's mesh stays fibre-aligned (where a P × Q lattice
+  fits at h, the 2P × 2Q one fits at h/2, within its size window; tests/test_mesh_choice.py);
 * warm-started: the baseline fit starts at the baseline moduli found on the coarser mesh (no
   scan by decades), every effect added there is refitted again (whatever its linearised score:
   a score linearised at modulus 0 can rank a strongly nonlinear effect low) from its moduli
