@@ -26,6 +26,7 @@ from fabricsurf.cli.options import (
     error_map_steps,
     grip_depths,
     input_paths,
+    mesh_budget,
     out_path,
     positive_start,
     saved_fit,
@@ -36,6 +37,11 @@ from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment
+from fabricsurf.inverse.fitting.mesh_choice import (
+    DEFAULT_MAX_DOFS,
+    DEFAULT_SECONDS,
+    LEVEL_GROWTH,
+)
 from fabricsurf.inverse.fitting.misfit import converged_steps
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.inverse.fitting.report import result_lines, tie_lines
@@ -206,7 +212,7 @@ def separate_tie(d, exps, h, stage) -> None:
 
 
 def cmd_diagnose(args) -> int:
-    from fabricsurf.inverse.fitting.diagnose import diagnose
+    from fabricsurf.inverse.fitting.mesh_choice import diagnose_on_mesh
     from fabricsurf.inverse.plots import figures
     from fabricsurf.inverse.plots.outputs import write_comparison
 
@@ -214,6 +220,7 @@ def cmd_diagnose(args) -> int:
         raise InputError(f"--confirm {args.confirm}: must be at least 1")
     if args.max_effects < 0:
         raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
+    budget = mesh_budget(args)
     exps, model, params = _setup(args, refine=2)
     positive_start(model, args)
     depths = grip_depths(args.grip_depths, exps)
@@ -224,15 +231,15 @@ def cmd_diagnose(args) -> int:
                    inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         try:
-            d = diagnose(exps, [t.name for t in model], h=args.h, params=params,
-                         confirm=args.confirm, max_effects=args.max_effects, comm=COMM,
-                         candidates=candidates, fixed=fixed,
-                         grip_depths=depths)
+            d = diagnose_on_mesh(exps, [t.name for t in model], h=args.h, budget=budget,
+                                 params=params, confirm=args.confirm,
+                                 max_effects=args.max_effects, comm=COMM,
+                                 candidates=candidates, fixed=fixed, grip_depths=depths)
         except ValueError as e:
             raise InputError(str(e)) from None
         separate_tie(d, exps, args.h, stage)
         out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
-                                                      args.h and [args.h])}
+                                                      [m["h"] for m in d.meshes])}
         write_json(COMM, stage / "diagnosis.json", out)
         b, f = d.base_fit, d.final_fit
         preds, mfs = [("baseline", b.prediction)], [("baseline", b.misfit)]
@@ -298,6 +305,15 @@ def add_parsers(sub, formatter) -> None:
                    "0,0.5,1: the depth is fitted as a nuisance parameter first (the best of "
                    "these by baseline chi2), then the diagnosis uses it (default: the depth "
                    "in the data)")
+    p.add_argument("--max-dofs", type=int, default=DEFAULT_MAX_DOFS,
+                   help="mesh selection: when the h/2 check says the mesh is too coarse for the "
+                   "data, the diagnosis halves h and runs again, up to this many displacement "
+                   "unknowns (all experiments; the check solves on ~4x as many) and within "
+                   "--max-elements for the check's mesh (docs/diagnosis.md)")
+    p.add_argument("--time-budget", type=float, default=DEFAULT_SECONDS,
+                   help="mesh selection: a refined level is started only if it is predicted "
+                   f"to end within this many seconds of the start ({LEVEL_GROWTH:g}x the last "
+                   "level's time)")
     p.add_argument("--add-best", action="store_true",
                    help="also save the final model as model_best.json (a --params file)")
     p.set_defaults(func=cmd_diagnose)

@@ -103,6 +103,20 @@ def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
                          "or raise --max-elements if the machine has the memory")
 
 
+def mesh_budget(args):
+    """``--max-dofs`` and ``--time-budget`` of diagnose (with ``--max-elements``) as the mesh
+    selection's budget (:class:`~fabricsurf.inverse.fitting.mesh_choice.Budget`)."""
+    from fabricsurf.inverse.fitting.mesh_choice import Budget
+
+    if args.max_dofs < 1:
+        raise InputError(f"--max-dofs {args.max_dofs}: must be at least 1 (displacement "
+                         "unknowns of the finest mesh the diagnosis may fit on)")
+    t = args.time_budget
+    if not (math.isfinite(t) and t > 0):
+        raise InputError(f"--time-budget {t:g}: must be a finite time in seconds > 0")
+    return Budget(max_dofs=args.max_dofs, max_cells=args.max_elements, seconds=t)
+
+
 def saved_fit(args) -> dict | None:
     """The --params file's contents when it is a saved fit with a covariance (fit.json or
     model_best.json, whose prediction bands can then be given) and --no-band is not set; else

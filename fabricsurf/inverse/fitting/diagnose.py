@@ -101,9 +101,14 @@ def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: lis
 
 
 def _refit(fs: ForwardSet, cur: FitResult, free: list[int], idx: list[int], estimate: float,
-           gn: np.ndarray, verbose: bool) -> FitResult:
-    """Nested refit from the current optimum, the candidate at its best start."""
-    fs.set_values(candidate_start(fs, cur.values, free, idx, estimate, cur.chi2, extra=[gn]))
+           gn: np.ndarray, verbose: bool, warm: np.ndarray | None = None) -> FitResult:
+    """Nested refit from the current optimum, the candidate at its best start (among them,
+    with ``warm``, the moduli a coarser mesh found for it)."""
+    extra = [gn]
+    if warm is not None and np.any(warm[idx] > 0):
+        extra.append(cur.values.copy())
+        extra[-1][free + idx] = warm[free + idx]
+    fs.set_values(candidate_start(fs, cur.values, free, idx, estimate, cur.chi2, extra=extra))
     res = fit(fs, free + idx, verbose=verbose, scale_start=False, space="linear")
     fs.set_values(cur.values)
     return res
@@ -117,16 +122,18 @@ def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
     return unc.wald(rf.values[idx], st.cov[np.ix_(pos, pos)], st.dof)
 
 
-def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, verbose: bool):
+def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, verbose: bool,
+                warm: np.ndarray | None = None):
     fs.set_values(cur.values)
     r, Jr = fs.residuals(fs.run(sens=True))
     sc = scores(r, Jr, cur.values, free, cand)
     order = sorted(cand, key=lambda c: -sc[c][0])
     refits, rows = {}, []
     n = cur.misfit["n"]
-    for c in order[:confirm]:
+    again = [] if warm is None else [c for c in order[confirm:] if np.any(warm[cand[c]] > 0)]
+    for c in order[:confirm] + again:  # and every effect a coarser mesh added
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        refits[c] = _refit(fs, cur, free, cand[c], sc[c][1], gn, verbose)
+        refits[c] = _refit(fs, cur, free, cand[c], sc[c][1], gn, verbose, warm)
     for c in order:
         row = {"effect": c, "score": sc[c][0], "linearised_modulus": sc[c][1],
                "refit_misfit": None, "significant": None}
@@ -149,18 +156,24 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
     return rows, refits
 
 
-def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float | None = None,
+def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
+             h: float | list[float] | None = None,
              params: dict | None = None, confirm: int = 2, max_effects: int = 2,
              check_discretisation: bool = True, comm: MPI.Comm = MPI.COMM_WORLD,
              verbose: bool = True, candidates: list[str] | None = None,
              fixed: list[str] | None = None,
-             grip_depths: list[float] | None = None) -> Diagnosis:
+             grip_depths: list[float] | None = None,
+             warm_start: dict | None = None) -> Diagnosis:
     """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
 
     ``candidates``: the effects to consider (default: every effect the data can see);
     ``fixed``: baseline terms held at their moduli in ``params`` (known from other tests);
     ``grip_depths``: candidate grip depths (mm) of the bias experiments, profiled first
-    (:mod:`~fabricsurf.inverse.fitting.nuisance`); the best is used.
+    (:mod:`~fabricsurf.inverse.fitting.nuisance`); the best is used. ``h``: one element size,
+    or one per experiment; ``warm_start``: the final moduli {term: {param: value}} of this
+    diagnosis on a coarser mesh (:mod:`~.mesh_choice`; ``params`` then hold its baseline
+    optimum): the baseline fit skips its scan by decades, and every effect it added is refitted
+    in each round (best-scored or not), starting also from its moduli there.
     """
     exps = exps if isinstance(exps, list) else [exps]
     fixed = list(fixed or [])
@@ -187,7 +200,9 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
         free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
         say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
         t0 = MPI.Wtime()
-        cur = base = fit(fs, free, verbose=verbose, space="linear")
+        warm = None if warm_start is None else np.array(
+            [warm_start.get(t.name, {}).get(p, 0.0) for t, p in fs.params])
+        cur = base = fit(fs, free, verbose=verbose, space="linear", scale_start=warm is None)
         t_fit = MPI.Wtime() - t0
         terms, path, rankings, added = list(baseline), [], [], []
         tie = None
@@ -198,7 +213,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
             ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
             if not cand or (ok and rankings) or len(added) >= max_effects:
                 break
-            rows, refits = _rank_round(fs, cur, free, cand, confirm, verbose)
+            rows, refits = _rank_round(fs, cur, free, cand, confirm, verbose, warm)
             rankings.append(rows)
             sig = [q for q in rows if q["significant"]]
             if ok or not sig:
@@ -228,4 +243,5 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str], h: float 
             unexplained=None if ok else where_unexplained(
                 exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not
                 any(q["significant"] for q in rankings[-1]) else None),
-            fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip, tie=tie)
+            fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip, tie=tie,
+            meshes=fs.meshes())

@@ -88,6 +88,16 @@ class ForwardModel(Owner):
             self._coarse = ForwardModel(self.exp, self.model, self.h * factor, self.comm)
         return self._coarse
 
+    def mesh(self) -> dict:
+        """The mesh this model solves on: h, cells and displacement unknowns (all ranks) and,
+        where the plug-in keeps a discretisation record, the mesh kind and the h it used."""
+        msh, V = self.test.problem.msh, self.test.problem.V
+        rec = getattr(self.test, "discretisation", None) or {}
+        return {"experiment": self.exp.name, "h": self.h,
+                "cells": int(msh.topology.index_map(msh.topology.dim).size_global),
+                "dofs": int(V.dofmap.index_map.size_global * V.dofmap.index_map_bs),
+                "mesh_kind": rec.get("mesh_kind"), "h_used": rec.get("h_used", self.h)}
+
     # -- parameters ----------------------------------------------------------------------
     def values(self) -> np.ndarray:
         return np.array([getattr(t, p) for t, p in self.params])
@@ -221,6 +231,10 @@ class ForwardSet(Owner):
             self._coarse = ForwardSet(self.experiments, self.model,
                                       [m.h * factor for m in self.models], self.comm)
         return self._coarse
+
+    def meshes(self) -> list[dict]:
+        """:meth:`ForwardModel.mesh` of every experiment."""
+        return [m.mesh() for m in self.models]
 
     def values(self) -> np.ndarray:
         return self.models[0].values()

@@ -40,6 +40,11 @@ class Diagnosis:
     separating_experiment: dict | None = None
     """For a tie: the experiments that would separate it, best first (:mod:`~.discrimination`,
     filled in by the caller: it costs forward runs)."""
+    meshes: list | None = None
+    """The mesh of each experiment (:meth:`~.forward.ForwardSet.meshes`)."""
+    mesh_selection: dict | None = None
+    """The meshes tried and why the refinement stopped (:mod:`~.mesh_choice`); None when the
+    diagnosis ran on one mesh only."""
 
     def tied(self) -> list[str] | None:
         """The effects the data cannot tell apart, the verdict first (None: no tie)."""
@@ -61,8 +66,15 @@ class Diagnosis:
                     + ("" if self.adequate else " (still not adequate)"))
         else:
             text = "nothing missing" if self.adequate else "unexplained misfit"
-        return text + ("; the mesh is too coarse for these data (refine h)"
-                       if self.too_coarse() else "")
+        return text + self.mesh_note()
+
+    def mesh_note(self) -> str:
+        """"" when the mesh is fine enough; else "refine h", with why the mesh selection (if it
+        ran) refined no further: its budget, spent."""
+        if not self.too_coarse():
+            return ""
+        why = (self.mesh_selection or {}).get("stopped")
+        return "; the mesh is too coarse for these data (refine h)" + (f": {why}" if why else "")
 
     def as_dict(self) -> dict:
         b, f = self.base_fit, self.final_fit
@@ -84,7 +96,8 @@ class Diagnosis:
                 "chi2_h_vs_h2": self.discretisation_chi2,
                 "misfit": (None if self.discretisation_chi2 is None
                            else float(np.sqrt(self.discretisation_chi2 / max(n, 1)))),
-                "too_coarse": self.too_coarse()},
+                "too_coarse": self.too_coarse(), "meshes": self.meshes,
+                "mesh_selection": self.mesh_selection},
             "significance": {"level": sg.LEVEL, "test": "Wald, cluster-robust covariance",
                              "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
                              "noise_known": self.noise_known,
