@@ -216,10 +216,6 @@ def cmd_diagnose(args) -> int:
     from fabricsurf.inverse.plots import figures
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    if args.confirm < 1:
-        raise InputError(f"--confirm {args.confirm}: must be at least 1")
-    if args.max_effects < 0:
-        raise InputError(f"--max-effects {args.max_effects}: must be at least 0")
     budget = mesh_budget(args)
     exps, model, params = _setup(args, refine=2)
     positive_start(model, args)

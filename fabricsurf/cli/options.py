@@ -10,7 +10,6 @@ from pathlib import Path
 
 from fabricsurf.cli.data_checks import planar_candidates
 from fabricsurf.errors import InputError
-from fabricsurf.model.terms import EFFECTS
 
 MAX_ELEMENTS = 400_000
 """Default of ``--max-elements``: about 20 GB at KB_PER_ELEMENT, what a 24 GB machine holds."""
@@ -228,51 +227,20 @@ def grip_depths(spec: str | None, exps: list) -> list[float] | None:
 
 def diagnose_options(args, exps: list, model: list, params: dict
                       ) -> tuple[list[str] | None, list[str] | None]:
-    """--candidates and --fixed, checked against the vocabulary, the baseline (--terms), the
-    data and --params: no combination that silently answers another question."""
+    """--candidates, --fixed, --confirm and --max-effects, checked against the vocabulary, the
+    baseline (--terms), the data and --params (:mod:`~fabricsurf.inverse.fitting.choices`,
+    the library's own checks, worded with the options' names)."""
+    from fabricsurf.inverse.fitting.choices import Labels, check_choices
     from fabricsurf.inverse.fitting.diagnose import visible_effects
 
     baseline = [t.name for t in model]
-    terms = f"--terms {','.join(baseline)}"
     cands, fixed = name_list(args.candidates), name_list(args.fixed)
-    for option, spec, names in (("--candidates", args.candidates, cands),
-                                ("--fixed", args.fixed, fixed)):
-        if names is None:
-            continue
-        if not names:
-            raise InputError(f"{option} {spec!r}: names no effect")
-        bad = [n for n in names if n not in EFFECTS]
-        if bad:
-            raise InputError(f"{option} {spec}: unknown term '{bad[0]}'; valid terms are: "
-                             f"{', '.join(EFFECTS)}")
-        dup = [n for n in names if names.count(n) > 1]
-        if dup:
-            raise InputError(f"{option} {spec}: '{dup[0]}' is given twice")
-    if fixed is not None:
-        outside = [n for n in fixed if n not in baseline]
-        if outside:
-            raise InputError(f"--fixed {args.fixed}: '{outside[0]}' is not a baseline term "
-                             f"({terms}); only baseline terms can be held fixed")
-        if set(fixed) == set(baseline):
-            raise InputError(f"--fixed {args.fixed}: every baseline term ({terms}) is fixed, "
-                             "so the baseline has no modulus to fit; leave at least one free "
-                             "(compare evaluates a model with given moduli)")
-        missing = [f"{n}.{p}" for n in fixed for p in EFFECTS[n].parameters()
-                   if p not in params.get(n, {})]
-        if missing:
-            where = f"in --params {args.params}" if args.params else "(no --params file)"
-            raise InputError(f"--fixed {args.fixed}: a fixed term is held at its moduli from "
-                             f"--params, and {', '.join(missing)} is not given {where}; give "
-                             "the known moduli of every fixed term")
+    labels = Labels(candidates=f"--candidates {args.candidates}", fixed=f"--fixed {args.fixed}",
+                    baseline=f"--terms {','.join(baseline)}", params="--params",
+                    params_where=(f"in --params {args.params}" if args.params
+                                  else "(no --params file)"),
+                    confirm="--confirm", max_effects="--max-effects")
+    check_choices(baseline, cands, fixed, params, visible_effects(exps), args.confirm,
+                  args.max_effects, labels)
     planar_candidates(exps, cands)
-    if cands is not None:
-        hidden = [c for c in cands if c not in visible_effects(exps)]
-        if hidden:
-            raise InputError(f"--candidates {args.candidates}: these data cannot see "
-                             f"{', '.join(hidden)} (planar data cannot see out-of-plane "
-                             "effects)")
-        if all(c in baseline for c in cands):
-            raise InputError(f"--candidates {args.candidates}: every candidate is already in "
-                             f"the baseline ({terms}), so nothing would be tested; name "
-                             "effects that are not in --terms")
     return cands, fixed

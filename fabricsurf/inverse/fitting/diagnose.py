@@ -36,6 +36,7 @@ from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting import uncertainty as unc
+from fabricsurf.inverse.fitting.choices import check_choices, library_labels
 from fabricsurf.inverse.fitting.fit import FitResult, fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.fitting.nuisance import grip_profile, with_depth
@@ -176,20 +177,11 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
     in each round (best-scored or not), starting also from its moduli there.
     """
     exps = exps if isinstance(exps, list) else [exps]
-    fixed = list(fixed or [])
-    for name in [*baseline, *(candidates or []), *fixed]:
-        make_term(name)
-    if confirm < 1 or max_effects < 0:
-        raise ValueError(f"diagnose: confirm = {confirm} must be ≥ 1 and max_effects = "
-                         f"{max_effects} ≥ 0")
-    if set(fixed) - set(baseline):
-        raise ValueError(f"diagnose: fixed terms {sorted(set(fixed) - set(baseline))} are not "
-                         "in the baseline")
     visible = seen = visible_effects(exps)
+    check_choices(list(baseline), candidates, fixed, params or {}, visible, confirm,
+                  max_effects, library_labels(list(baseline), candidates, fixed))
+    fixed = list(fixed or [])
     if candidates is not None:
-        hidden = [c for c in candidates if c not in visible]
-        if hidden:
-            raise ValueError(f"diagnose: these data cannot see {hidden} (planar data)")
         visible = [n for n in visible if n in candidates or n in baseline]
     grip = None if grip_depths is None else grip_profile(
         exps, grip_depths, lambda: full_model(baseline, params, visible),
