@@ -5,6 +5,7 @@ noise widens it; the separation of a candidate experiment (discrimination.py) is
 
 import numpy as np
 
+from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import template
 from fabricsurf.inverse.fitting import discrimination as dc
 from fabricsurf.inverse.fitting.forward import Prediction
@@ -86,5 +87,5 @@ def test_candidates_measure_what_the_data_measure():
     assert list(second["larger_displacement"].path) == [2.0, 4.0]
     frame = {c.key: c.exp for c in dc.candidates(e)}["picture_frame"]
     assert frame.length == frame.width == 30.0 and frame.setup.options == {"frame": "clamped"}
-    assert np.isclose(dc.frame_displacement(dc.bias_shear(2.0, 60.0, 30.0), 30.0),
+    assert np.isclose(dc.frame_displacement(float(zone_c_shear_angle(2.0, 60.0, 30.0)), 30.0),
                       frame.path[-1])

@@ -229,8 +229,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
         return Diagnosis(
             baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
             ranking=rankings[0] if rankings else [], rounds=rankings,
-            verdict=added[0] if added else None, alternatives=tie.others() if tie else [],
-            adequate=ok, path=path,
+            verdict=added[0] if added else None, adequate=ok, path=path,
             not_identifiable=invisible, discretisation_chi2=chi2_h,
             unexplained=None if ok else where_unexplained(
                 exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not

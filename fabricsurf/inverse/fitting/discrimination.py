@@ -37,6 +37,7 @@ from scipy import stats
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import get_test
+from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import Experiment, template
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import misfit as mf
@@ -116,13 +117,6 @@ def frame_displacement(gamma: float, a: float) -> float:
     return 2.0 * a * math.cos(math.pi / 4 - gamma / 2) - a * math.sqrt(2.0)
 
 
-def bias_shear(d: float, length: float, width: float) -> float:
-    """The central zone's shear angle of a ±45° bias test at displacement ``d`` (three-zone
-    kinematics, Cao et al. 2008): π/2 − 2 acos((L − W + d)/(√2 (L − W)))."""
-    D = length - width
-    return math.pi / 2 - 2.0 * math.acos(min((D + d) / (math.sqrt(2.0) * D), 1.0))
-
-
 def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
     """The experiments tried, built from the data's first experiment (module docstring);
     the picture frame only if ``first_gradient`` (a tied effect of the first gradient: the
@@ -138,7 +132,8 @@ def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
         out.append(_like(e0, "narrower_specimen", f"the same bias test on a specimen half as "
                          f"wide ({L:g} × {W / 2:g} mm)", L, W / 2, path, ang))
     if e0.test == "bias_extension" and first_gradient:
-        gamma = bias_shear(float(path[-1]), L, W) if L > W else 0.2
+        gamma = (float(np.nan_to_num(zone_c_shear_angle(path[-1], L, W), nan=math.pi / 2))
+                 if L > W else 0.2)  # beyond the lock: 90°
         d = frame_displacement(max(gamma, 0.05), W)
         out.append(_like(e0, "picture_frame", f"a picture-frame test (clamped frame, side "
                          f"{W:g} mm, fibres along the bars) to the same shear angle "

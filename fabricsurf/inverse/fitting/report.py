@@ -26,7 +26,6 @@ class Diagnosis:
     ranking: list
     rounds: list
     verdict: str | None
-    alternatives: list
     adequate: bool
     path: list
     not_identifiable: list
@@ -49,6 +48,12 @@ class Diagnosis:
     def tied(self) -> list[str] | None:
         """The effects the data cannot tell apart, the verdict first (None: no tie)."""
         return self.tie.members if self.tie is not None and self.tie.tied else None
+
+    @property
+    def alternatives(self) -> list[str]:
+        """The other effects of a tie (empty without one): the data cannot tell them from the
+        verdict."""
+        return self.tie.others() if self.tie is not None else []
 
     def verdict_text(self) -> str | None:
         """The verdict as a user reads it: "a or b" for a tie."""

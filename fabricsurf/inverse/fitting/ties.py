@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.fit import FitResult
@@ -100,7 +101,8 @@ def projected_cosine(ra: FitResult, rb: FitResult, base: list[int], ia: list[int
     def column(rf: FitResult, idx: list[int]) -> np.ndarray:
         return rf.J[:, [rf.free.index(i) for i in idx]].sum(axis=1)
 
-    Q, _ = np.linalg.qr(ra.J[:, [ra.free.index(i) for i in base]])
+    Q = la.thin_q(ra.J[:, [ra.free.index(i) for i in base]], "ties: the fitted moduli's "
+                 "sensitivities")
     sa, sb = column(ra, ia), column(rb, ib)
     sa, sb = sa - Q @ (Q.T @ sa), sb - Q @ (Q.T @ sb)
     na, nb = np.linalg.norm(sa), np.linalg.norm(sb)
