@@ -5,6 +5,7 @@ noise widens it; the separation of a candidate experiment (discrimination.py) is
 
 import numpy as np
 
+from fabricsurf.experiments.picture_frame import frame_displacement, frame_shear_angle
 from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import template
 from fabricsurf.inverse.fitting import discrimination as dc
@@ -87,5 +88,13 @@ def test_candidates_measure_what_the_data_measure():
     assert list(second["larger_displacement"].path) == [2.0, 4.0]
     frame = {c.key: c.exp for c in dc.candidates(e)}["picture_frame"]
     assert frame.length == frame.width == 30.0 and frame.setup.options == {"frame": "clamped"}
-    assert np.isclose(dc.frame_displacement(float(zone_c_shear_angle(2.0, 60.0, 30.0)), 30.0),
+    assert np.isclose(frame_displacement(float(zone_c_shear_angle(2.0, 60.0, 30.0)), 30.0),
                       frame.path[-1])
+
+
+def test_frame_displacement_inverts_the_frame_shear_angle():
+    """d(γ) is the inverse of the frame's γ(d) over the frame's range (a round trip to
+    round-off), so the separating picture-frame test reaches the bias test's zone-C shear."""
+    for a in (30.0, 80.0):
+        for g in np.radians([0.5, 10.0, 35.0, 60.0, 85.0]):
+            assert abs(frame_shear_angle(frame_displacement(float(g), a), a) - g) < 1e-12

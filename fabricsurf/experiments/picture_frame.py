@@ -49,6 +49,12 @@ def frame_shear_angle(d: float, a: float) -> float:
     return 0.5 * math.pi - 2.0 * frame_half_angle(d, a)
 
 
+def frame_displacement(gamma: float, a: float) -> float:
+    """The crosshead displacement d at which the frame's shear angle is ``gamma`` (rad), the
+    inverse of :func:`frame_shear_angle`: d = 2a cos φ − a√2 with φ = π/4 − γ/2."""
+    return 2.0 * a * math.cos(0.25 * math.pi - 0.5 * gamma) - a * math.sqrt(2.0)
+
+
 def frame_gradient(d: float, a: float) -> tuple[np.ndarray, np.ndarray]:
     """F₀ = [e₁ e₂] and dF₀/dd."""
     phi = frame_half_angle(d, a)

@@ -37,6 +37,7 @@ from scipy import stats
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import get_test
+from fabricsurf.experiments import picture_frame as pf
 from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import Experiment, template
 from fabricsurf.inverse.fitting import linalg as la
@@ -111,12 +112,6 @@ def _like(e0: Experiment, key: str, description: str, length: float, width: floa
     return Candidate(key, description, exp)
 
 
-def frame_displacement(gamma: float, a: float) -> float:
-    """The picture-frame crosshead displacement giving the frame shear angle ``gamma``
-    (rad): D = 2a cos φ, φ = π/4 − γ/2, minus the diagonal a√2."""
-    return 2.0 * a * math.cos(math.pi / 4 - gamma / 2) - a * math.sqrt(2.0)
-
-
 def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
     """The experiments tried, built from the data's first experiment (module docstring);
     the picture frame only if ``first_gradient`` (a tied effect of the first gradient: the
@@ -134,7 +129,7 @@ def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
     if e0.test == "bias_extension" and first_gradient:
         gamma = (float(np.nan_to_num(zone_c_shear_angle(path[-1], L, W), nan=math.pi / 2))
                  if L > W else 0.2)  # beyond the lock: 90°
-        d = frame_displacement(max(gamma, 0.05), W)
+        d = pf.frame_displacement(max(gamma, 0.05), W)
         out.append(_like(e0, "picture_frame", f"a picture-frame test (clamped frame, side "
                          f"{W:g} mm, fibres along the bars) to the same shear angle "
                          f"({math.degrees(gamma):.3g}°, crosshead {d:.3g} mm)", W, W,
