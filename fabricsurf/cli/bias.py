@@ -31,7 +31,7 @@ from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
-from fabricsurf.experiments.bias_extension import BiasExtension, default_model, plot_curves
+from fabricsurf.experiments.bias_extension import BiasExtension, BiasResult, default_model
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS
@@ -39,6 +39,26 @@ from fabricsurf.model.terms import EFFECTS
 OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
            "force.png", "force_band.csv", "force_band.png", "summary.json", "failure.json")
 
+
+
+def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:
+    """Force and shear angles at A and B against ū (PNG; call on rank 0)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    ax[0].plot(res.ubar, res.force, "o-", label=label)
+    ax[0].set(xlabel="grip displacement ū (mm)", ylabel="reaction force (N)")
+    ax[1].plot(res.ubar, res.angle_A_deg, "o-")
+    ax[1].set(xlabel="ū (mm)", ylabel="shear angle at A (deg)")
+    ax[2].plot(res.ubar, res.angle_B_deg, "o-")
+    ax[2].set(xlabel="ū (mm)", ylabel="shear angle at B (deg)")
+    ax[0].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=out_path, default=Path("out/bias"),

@@ -228,26 +228,6 @@ def _writer_degree(energy) -> int:
     return 2
 
 
-def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:
-    """Force and shear angles at A and B against ū (PNG; call on rank 0)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
-    ax[0].plot(res.ubar, res.force, "o-", label=label)
-    ax[0].set(xlabel="grip displacement ū (mm)", ylabel="reaction force (N)")
-    ax[1].plot(res.ubar, res.angle_A_deg, "o-")
-    ax[1].set(xlabel="ū (mm)", ylabel="shear angle at A (deg)")
-    ax[2].plot(res.ubar, res.angle_B_deg, "o-")
-    ax[2].set(xlabel="ū (mm)", ylabel="shear angle at B (deg)")
-    ax[0].legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
 class BiasExtensionTest(ExperimentSetup):
     """The bias-extension test as an experiment plug-in: rectangle length × width (x along the
     load), grips at x = 0 and x = length; load path: grip displacement along +x (mm); reaction:
