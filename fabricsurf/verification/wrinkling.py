@@ -64,10 +64,10 @@ def lip_end(e) -> float:
 
 
 def amplitude(e, n: int = 81, band: float = 1.0) -> dict:
-    """The flange's out-of-plane deviation beyond the four-fold forming field (module
-    docstring) on an n × n reference grid of the quarter: ``points`` (n²×2), ``residual``
-    (mm, NaN off the flange), ``amplitude`` (its largest magnitude), ``bands`` (per band:
-    inner ρ, points, largest residual). The same on every rank."""
+    """The flange's out-of-plane deviation beyond its own long-wave field (module docstring)
+    on an n × n reference grid of the quarter: ``points`` (n²×2), ``residual`` (mm, NaN off
+    the flange), ``amplitude`` (its largest magnitude), ``bands`` (per band: inner ρ, points,
+    largest residual). The same on every rank."""
     P = _grid(e, n)
     rho, phi, z = _polar(e, P)
     residual = np.full(len(P), np.nan)
@@ -75,7 +75,7 @@ def amplitude(e, n: int = 81, band: float = 1.0) -> dict:
     start = lip_end(e)
     for a in np.arange(start, np.nanmax(rho), band):
         s = (rho >= a) & (rho < a + band)
-        if s.sum() < 6:
+        if s.sum() < 3 * (3 + 2 * len(HARMONICS)):  # too few points to fit and leave a residual
             continue
         dr = rho[s] - (a + 0.5 * band)
         smooth = [np.ones(s.sum()), dr, dr**2]
@@ -179,7 +179,7 @@ def draw_map(path, result: dict, blank: float, R: float) -> None:
     marked = result["marked"]
     ax.plot(P[marked, 0], P[marked, 1], "k.", ms=2, label="indicator")
     ax.add_patch(plt.Circle((0, 0), R, fill=False, color="k", ls="--"))
-    fig.colorbar(im, label="out-of-plane deviation beyond the long-wave field (mm)")
+    fig.colorbar(im, label="wrinkle: deviation from the long-wave field (mm)")
     ax.set(xlabel="x (mm, reference)", ylabel="y (mm, reference)", xlim=(0, half),
            ylim=(0, half), title="flange wrinkles and the indicator")
     ax.legend(fontsize=8, loc="upper right")
