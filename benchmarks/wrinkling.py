@@ -87,18 +87,27 @@ def main(hs: list[float], names: list[str], bound: float, blank: float = BLANK) 
                                   f" D = {b['D']:.3f} N·mm, b = {b['b']:g} mm, N_cr "
                                   f"{b['N_cr']['simply supported']:.3f} (s.s.) – "
                                   f"{b['N_cr']['clamped']:.3f} (clamped) N/mm")
+                rank0_print(comm, "  " + line(name, h, r))
     rank0_print(comm, f"\nreference: |residual| > {bound} mm; indicator: T < "
                       f"-{TOOLING['wrinkle_tension']:g} N/mm and |K| > κ_w; points of the "
                       f"81 × 81 sample grid of the quarter")
-    rank0_print(comm, "variant           h (mm)  amplitude (mm)  ref. area  ref. points  "
-                      "N_hoop  N_cr(ss)  ratio | κ_w·R: indicator area, points, overlap")
+    rank0_print(comm, HEADER)
     for name, h, _, r in rows:
-        b = r["buckling"]
-        marks = "; ".join(f"{i['curvature'] * R:g}: {i['area']:.4f}, {i['points']}, "
-                          f"{i['overlap']}" for i in r["indicator"])
-        rank0_print(comm, f"{name:16s} {h:7.3g} {r['amplitude']:15.4f} {r['reference_area']:10.4f}"
-                          f" {r['reference_points']:12d} {b['hoop']:7.3f} "
-                          f"{b['N_cr']['simply supported']:8.3f} {b['ratio']:6.2f} | {marks}")
+        rank0_print(comm, line(name, h, r))
+
+
+HEADER = ("variant           h (mm)  amplitude (mm)  ref. area  ref. points  N_hoop  N_cr(ss)  "
+          "ratio | κ_w·R: indicator area, points, overlap")
+
+
+def line(name: str, h: float, r: dict) -> str:
+    """One row of the comparison table (:data:`HEADER`)."""
+    b = r["buckling"]
+    marks = "; ".join(f"{i['curvature'] * R:g}: {i['area']:.4f}, {i['points']}, "
+                      f"{i['overlap']}" for i in r["indicator"])
+    return (f"{name:16s} {h:7.3g} {r['amplitude']:15.4f} {r['reference_area']:10.4f}"
+            f" {r['reference_points']:12d} {b['hoop']:7.3f} "
+            f"{b['N_cr']['simply supported']:8.3f} {b['ratio']:6.2f} | {marks}")
 
 
 if __name__ == "__main__":
