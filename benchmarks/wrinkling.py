@@ -12,7 +12,7 @@ the four-fold field), the fraction of the sample grid whose residual exceeds ``-
 overlap of the two, the hoop compression in the strip against the plate buckling load, and per
 step the amplitude and the buckling ratio (when wrinkles start).
 
-Run: ``python benchmarks/wrinkling.py [--h 4 2.83 2] [--variants ...] [--bound 0.05]``
+Run: ``python benchmarks/wrinkling.py [--h 4 2.83 2] [--variants ...] [--bound 0.05] [--blank 72]``
 (serial or under ``mpirun -n 2``).
 """
 
