@@ -36,7 +36,8 @@
 #    area-weighted nodal average a post-processor shows), and the per-element values are
 #    reported too.
 # 2. The fitted model: shear map, diagonal profile against the kinematic drape, punch force,
-#    where it wrinkles and where it passes the locking angle; XDMF for ParaView.
+#    where it wrinkles (the indicator against the flange's out-of-plane amplitude, a wrinkle
+#    map) and where it passes the locking angle; XDMF for ParaView.
 # 3. Which effects matter (full mode, or `--quick --effects`): the profile with the bending
 #    weakened tenfold, and with shear locking (k₄ chosen so that the model locks at 40°).
 
@@ -53,7 +54,7 @@ from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.log import rank0_print
-from fabricsurf.verification import drape_map
+from fabricsurf.verification import drape_map, wrinkling
 from fabricsurf.verification import forming as parts
 from fabricsurf.verification.forming_map import compare_with_drapes
 
@@ -133,6 +134,31 @@ on_rank0(comm, drape_map.draw_difference_map, out / "shear_difference_map.png", 
 # %%
 cases = {"fitted": form("fitted", parts.fitted_values(params, K_BEND))}
 grid = parts.shear_grid(e)
+
+# %% [markdown]
+# Where it wrinkles: the indicator (a compressed fibre bending more sharply than the punch)
+# against the flange's out-of-plane amplitude beyond the die's lip, the deviation from the
+# flange's own long-wave field (fabricsurf/verification/wrinkling.py; docs/forming.md,
+# "Wrinkling": the amplitude converges with the mesh, the indicator does not), and the hoop
+# compression of the strip the tools leave unpressed against its plate buckling load.
+# `wrinkle_map.png` shows the amplitude with the indicator's points. The die and the holder
+# confine the flange, so the amplitude cannot exceed the holder's gap.
+
+# %%
+GAP = e.setup.options["holder_gap"]
+wrinkles = wrinkling.compare(e, GAP / 8.0)
+strip = wrinkling.buckling(e)
+wrinkle_summary = {"amplitude_mm": wrinkles["amplitude"], "bound_mm": GAP / 8.0,
+                   "amplitude_per_gap": wrinkles["amplitude"] / GAP,
+                   "holder_gap_mm": GAP, "reference_area": wrinkles["reference_area"],
+                   "indicator": wrinkles["indicator"][0], "hoop_N_mm": strip["hoop"],
+                   "buckling_N_mm": strip["N_cr"], "buckling_ratio": strip["ratio"]}
+rank0_print(comm, "wrinkling: amplitude {a:.3f} mm (holder gap {g:g} mm), {r:.1%} of the quarter "
+                  "beyond {b:.3g} mm; indicator {i:.2%} of the blank; strip hoop force {n:.3g} "
+                  "N/mm, {q:.2f} of its buckling load".format(
+                      a=wrinkles["amplitude"], g=GAP, r=wrinkles["reference_area"], b=GAP / 8.0,
+                      i=wrinkles["indicator"][0]["area"], n=strip["hoop"], q=strip["ratio"]))
+on_rank0(comm, wrinkling.draw_map, out / "wrinkle_map.png", wrinkles, BLANK, R)
 with e.writer(out / "forming.xdmf") as w:
     w.write(STROKE)
 
@@ -185,6 +211,7 @@ summary = {"diagonal_shear_max_diff_deg": kinematic["diagonal_shear_max_diff_deg
            "bending_assumed_N_mm": K_BEND, "holder": parts.HOLDER,
            "effects_max_change_deg": effects, "effects_failed": failed,
            "kinematic_points": kinematic["points_on_punch"], "contact_map": drape_summary,
+           "wrinkling": wrinkle_summary,
            "diagonal_shear_per_element_max_diff_deg": kinematic["per_element_max_diff_deg"],
            "diagonal_shear_centres_max_diff_deg": kinematic["centres_max_diff_deg"],
            "fibre_axis_max_shear_deg": max(abs(g) for g in main["fibre_profile"]["shear_deg"]),
@@ -205,6 +232,7 @@ write_json(comm, out / "summary.json", summary)
 # within 1° inside three quarters of the contact radius (the rim of the contact, where the
 # sheet leaves the punch, holds the largest differences: 1.9° in quick and full mode, a
 # difference that does not fall with h), and the two drapes agree within 0.05° of each other.
+# The flange's wrinkle amplitude lies within the holder's gap, which confines it.
 
 # %%
 CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, None),
@@ -217,6 +245,7 @@ CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, No
           "fibre_axis_max_shear_deg": (0.0, 1e-6),
           "punch_force_N/*": (0.0, None), "max_shear_deg": (1.0, 60.0),
           "wrinkle_area_fraction": (0.0, 1.0), "seconds": (0.0, None), "stroke_mm": ...,
+          "wrinkling/amplitude_per_gap": (0.0, 1.0),
           "effects_failed": {}}
 verify(summary, CHECKS)
 rank0_print(comm, f"done in {summary['seconds']:.1f} s; outputs in {out}")

@@ -34,7 +34,6 @@ import warnings
 from collections.abc import Callable
 
 import numpy as np
-import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -54,6 +53,7 @@ from fabricsurf.experiments.base import ExperimentSetup, Setup
 from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
+from fabricsurf.experiments.wrinkling import Indicators
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
@@ -126,9 +126,11 @@ class HemisphereForming(ExperimentSetup):
         self.problem, self.solver = p, p.solver()
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
+        self.indicators = Indicators.from_options(msh, o)
         self._forms = {"force": self.tools.force_density(self.r) * p.dx,
                        "stored": p.energy.internal(), "tools": p.contact_energy(),
-                       "wrinkle": self._wrinkle(kin) * p.dx, "locked": self._locked(kin) * p.dx}
+                       "wrinkle": self._wrinkle(kin) * p.dx,
+                       "locked": self.indicators.locked(kin) * p.dx}
         self._forms = {k: fem.form(v) for k, v in self._forms.items()}
         self._S = fem.FunctionSpace(msh, ("DG", 2))
         self._pen = pen
@@ -215,16 +217,7 @@ class HemisphereForming(ExperimentSetup):
 
     # -- fields and profiles ---------------------------------------------------------------
     def _wrinkle(self, kin):
-        o = self.setup.options
-        tw, kw = o["wrinkle_tension"], o["wrinkle_curvature"]
-        t = self.problem.energy.tension_fields()
-        flags = [ufl.conditional(ufl.And(ufl.lt(t[f"tension_{f}"], -tw), ufl.gt(abs(K), kw)),
-                                 1.0, 0.0) for f, K in (("l", kin.K_L), ("m", kin.K_M))]
-        return ufl.max_value(*flags)
-
-    def _locked(self, kin):
-        lock = math.radians(self.setup.options["locking_angle_deg"])
-        return ufl.conditional(ufl.gt(abs(kin.gamma), lock), 1.0, 0.0)
+        return self.indicators.wrinkle(kin, self.problem.energy.tension_fields())
 
     def fields(self) -> dict:
         """Forming fields for FieldWriter(extra=...) (module docstring)."""
@@ -232,7 +225,7 @@ class HemisphereForming(ExperimentSetup):
         fl, fm = l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)
         out = {"shear_deg": kin.gamma * (180.0 / math.pi),
                "contact_pressure": self.tools.pressure(self.r),
-               "wrinkle": self._wrinkle(kin), "beyond_locking": self._locked(kin)}
+               "wrinkle": self._wrinkle(kin), "beyond_locking": self.indicators.locked(kin)}
         out.update({f"{n}_{c}": v[i] for n, v in (("l", fl), ("m", fm))
                     for i, c in enumerate("xyz")})
         out.update(self.problem.energy.tension_fields())
