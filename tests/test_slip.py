@@ -29,6 +29,9 @@ from fabricsurf.network.hencky import (
 )
 from fabricsurf.network.solver import Dirichlet, solve_steps
 
+pytestmark = pytest.mark.serial("numpy lattices and one cell's density: nothing parallel "
+                                 "(the term's forms run on 2 ranks in every diagnosis test)")
+
 K_L, K_S, TAU_F = 2.0, 0.3, 0.05  # post-slip fibre stiffness, shear, friction (N/mm)
 T_S, EPS_S = 0.4, 0.01  # slip tension (N/mm) and slip strain
 
@@ -36,7 +39,7 @@ T_S, EPS_S = 0.4, 0.01  # slip tension (N/mm) and slip strain
 def _densities(Fs: list, angles, model) -> np.ndarray:
     """Rows (γ, W, ∂W/∂F[0, 0]) of ``model``'s UFL densities at the homogeneous gradients
     ``Fs`` (one compiled expression, F a constant)."""
-    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 1, 1)
+    msh = dmesh.create_unit_square(MPI.COMM_SELF, 1, 1)
     Fc = fem.Constant(msh, np.zeros((2, 2)))
     Fv = ufl.variable(Fc)
     kin = Kinematics(Fv, None, *kn.fibre_directions(*angles))

@@ -57,22 +57,19 @@ def unexplained_ranges(d, error, measured, s_F: float, length: float, width: flo
 
 LARGE_SHEAR_BASE = ["fibre_stretch", "shear", "crossover_friction"]
 """The baseline of the large-shear diagnosis: the yarns' extensibility free (the net may extend
-along its yarns, which a sticking glass net cannot), shear and the crossings' friction."""
+along its yarns, which a sticking glass net cannot), shear and the crossings' friction; its
+candidates are :data:`LARGE_SHEAR_CANDIDATES`."""
+LARGE_SHEAR_CANDIDATES = ["yarn_slip", "shear_locking"]
 
 
-def large_shear_range(full, h: float, comm, start: dict, quick: bool) -> dict:
-    """Diagnose the whole curve, past 60 deg of zone-C shear too (docs/woven_fabric.md "The
-    large-shear range"): the model fitted up to 60 deg on all points (three-zone force: it is
-    the force of inextensible yarns on the fibre-aligned mesh, and it needs no solve near the
-    net's lock), then :func:`~fabricsurf.inverse.fitting.diagnose.diagnose` from
-    :data:`LARGE_SHEAR_BASE` with ``yarn_slip`` and ``shear_locking`` as candidates. ``start``:
-    moduli {term: {param: value}} to start from. Errors over the whole range, up to and past
-    60 deg, and χ² in the error unit of the whole curve (1 % of its largest force)."""
-    from fabricsurf.inverse.fitting.diagnose import diagnose
-    from fabricsurf.inverse.fitting.misfit import scales
-
+def large_shear_record(full, s_F: float, start: dict, diag) -> dict:
+    """The whole-curve diagnosis ``diag`` of ``full`` (docs/woven_fabric.md "The large-shear
+    range"), past 60 deg of zone-C shear too, beside the net of inextensible yarns with the
+    moduli ``start`` fitted up to 60 deg (its three-zone force: the force of inextensible yarns
+    on the fibre-aligned mesh, with no solve near the net's lock): χ² in the error unit ``s_F``
+    and errors over the whole curve, up to and past 60 deg; ranking, verdict, what is not
+    identifiable and the final model's unexplained ranges."""
     d, F, H, W = full.path, full.force, full.length, full.width
-    s_F = scales(full)[1]
     past = np.degrees(tz.zone_c_shear_angle(d, H, W)) > 60.0
 
     def errors(model) -> dict:
@@ -81,16 +78,13 @@ def large_shear_range(full, h: float, comm, start: dict, quick: bool) -> dict:
                 "up_to_60_deg": force_errors(model[~past], F[~past]),
                 "past_60_deg": force_errors(model[past], F[past])}
 
-    net = tz.kinematic_force(d, H, W, start)
-    diag = diagnose(full, LARGE_SHEAR_BASE, h=h, params=start, comm=comm, verbose=False,
-                    candidates=["yarn_slip", "shear_locking"], confirm=2,
-                    max_effects=1 if quick else 2, check_discretisation=False)
     base, final = diag.base_fit, diag.final_fit
     fits = {k: {"terms": t, "params": {n: v for n, v in r.params().items() if n in t}}
             | errors(r.prediction[0].force)
-            for k, t, r in (("baseline", LARGE_SHEAR_BASE, base), ("final", diag.terms, final))}
+            for k, t, r in (("baseline", diag.baseline, base), ("final", diag.terms, final))}
     return {"points": len(d), "past_60_deg_points": int(past.sum()), "error_unit_N": s_F,
-            "h_mm": h, "inextensible_net_fitted_to_60_deg": errors(net), **fits,
+            "inextensible_net_fitted_to_60_deg": errors(tz.kinematic_force(d, H, W, start)),
+            **fits,
             "ranking": [{k: q.get(k) for k in ("effect", "score", "refit_chi2", "refit_params",
                                                 "significant")} for q in diag.ranking],
             "verdict": diag.verdict, "outcome": diag.outcome(),
