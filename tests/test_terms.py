@@ -21,7 +21,7 @@ from fabricsurf.model.terms import (
 )
 
 VOCABULARY = ["fibre_stretch", "shear", "shear_locking", "crossover_friction", "geodesic_bending",
-              "stretch_gradient", "shear_gradient", "normal_bending", "twist"]
+              "stretch_gradient", "shear_gradient", "normal_bending", "twist", "yarn_slip"]
 
 
 def test_vocabulary_is_exact():

@@ -292,6 +292,9 @@ EFFECTS: dict[str, type[Term]] = {
                 StretchGradient, ShearGradient, NormalBending, Twist)
 }
 """The vocabulary of effects, by exact name (docs/theory.md)."""
+from fabricsurf.model.slip import YarnSlip  # noqa: E402  (a Term: imported once Term exists)
+
+EFFECTS[YarnSlip.name] = YarnSlip
 
 IN_PLANE_INVISIBLE = ("normal_bending", "twist")
 """Effects that planar (2D) data cannot see."""

@@ -8,6 +8,9 @@ Extensional spring (i, j) with stiffness k (N/mm) and rest length l0 (mm) [B (8)
 
     E_e = 1/2 k (l - l0)^2,   l = |x_j - x_i|
 
+optionally with a slipping part f_s l0 eps_s ln cosh((l - l0)/(l0 eps_s)) (tension capped at
+f_s: yarns sliding through the crossings, the ``yarn_slip`` effect).
+
 Rotational spring (i, j, k) with stiffness kr (N mm / rad^2) and rest angle phi0 [B (12)-(17)]::
 
     E_r = 1/2 kr d^2 + 1/4 kr4 d^4 + 1/6 kr6 d^6,   d = phi2 - phi1 - phi0,
@@ -76,10 +79,16 @@ class SpringNetwork:
         Saturating (friction-like) part of the rotational springs: energy
         ``m_fric phi_f ln cosh(d / phi_f)``, moment ``m_fric tanh(d / phi_f)`` (N mm), rising
         over the first ``phi_f`` (rad) of rotation and then constant (default 0: none).
+    f_slip, eps_slip : (m_e,) array or scalar, and a positive scalar
+        Slipping (friction-capped) part of the extensional springs: energy
+        ``f_slip l0 eps_slip ln cosh(s)``, ``s = (l - l0) / (l0 eps_slip)``, tension
+        ``f_slip tanh(s)`` (N) mobilised within the strain ``eps_slip`` and then constant:
+        the yarns' friction at the crossings against sliding through them (default 0: none).
     """
 
     def __init__(self, X, ext, k_ext, l0=None, rot=None, k_rot=0.0, phi0=None,
-                 k_rot4=0.0, k_rot6=0.0, m_fric=0.0, phi_f: float = 1.0) -> None:
+                 k_rot4=0.0, k_rot6=0.0, m_fric=0.0, phi_f: float = 1.0, f_slip=0.0,
+                 eps_slip: float = 1.0) -> None:
         self.X = np.asarray(X, dtype=float).reshape(-1, 2)
         self.ext = np.asarray(ext, dtype=np.int64).reshape(-1, 2)
         self.rot = np.asarray(rot if rot is not None else [], dtype=np.int64).reshape(-1, 3)
@@ -92,6 +101,10 @@ class SpringNetwork:
         if not (np.isfinite(phi_f) and phi_f > 0.0):
             raise ValueError(f"SpringNetwork: friction shape angle phi_f = {phi_f!r} must be > 0")
         self.phi_f = float(phi_f)
+        self.f_slip = np.broadcast_to(np.asarray(f_slip, float), (me,)).copy()
+        if not (np.isfinite(eps_slip) and eps_slip > 0.0):
+            raise ValueError(f"SpringNetwork: slip strain eps_slip = {eps_slip!r} must be > 0")
+        self.eps_slip = float(eps_slip)
         self.l0 = self.lengths(self.X) if l0 is None else np.broadcast_to(
             np.asarray(l0, float), (me,)).copy()
         self.phi0 = self.turning_angles(self.X) if phi0 is None else np.broadcast_to(
@@ -133,7 +146,11 @@ class SpringNetwork:
     def spring_energies(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-spring energies (N mm): extensional [B (10)] and rotational [B (16)]."""
         x = np.asarray(x, float).reshape(-1, 2)
-        ee = 0.5 * self.k_ext * (self.lengths(x) - self.l0) ** 2
+        stretch = self.lengths(x) - self.l0
+        ee = 0.5 * self.k_ext * stretch**2
+        s = np.abs(stretch) / (self.l0 * self.eps_slip)  # ln cosh s without overflow
+        ee = ee + self.f_slip * self.l0 * self.eps_slip * (
+            s + np.log1p(np.exp(-2.0 * s)) - np.log(2.0))
         d = self.angle_deviations(x)
         d2 = d * d
         er = (0.5 * self.k_rot + (0.25 * self.k_rot4 + self.k_rot6 / 6.0 * d2) * d2) * d2
@@ -147,9 +164,13 @@ class SpringNetwork:
         return float(ee.sum() + er.sum())
 
     def _ext_terms(self, x):
+        """Unit vectors, lengths, tensions t = E_e'(l) and stiffnesses E_e''(l)."""
         d = x[self.ext[:, 1]] - x[self.ext[:, 0]]
         ell = np.hypot(d[:, 0], d[:, 1])
-        return d / ell[:, None], ell, self.k_ext * (ell - self.l0)
+        ts = np.tanh((ell - self.l0) / (self.l0 * self.eps_slip))
+        t = self.k_ext * (ell - self.l0) + self.f_slip * ts
+        k = self.k_ext + self.f_slip * (1.0 - ts * ts) / (self.l0 * self.eps_slip)
+        return d / ell[:, None], ell, t, k
 
     def _rot_terms(self, x):
         a, b = self._arms(x)
@@ -168,7 +189,7 @@ class SpringNetwork:
         """Internal generalised forces f = dE/dq [B (11), (17), (22)], shape (n, 2) in N."""
         x = np.asarray(x, float).reshape(-1, 2)
         n = len(x)
-        e, _, t = self._ext_terms(x)
+        e, _, t, _ = self._ext_terms(x)
         fe = t[:, None] * e  # force on node j; -fe on node i
         _, _, dphi, m, _ = self._rot_terms(x)
         fr = m[:, None] * dphi
@@ -201,9 +222,9 @@ class SpringNetwork:
     def element_hessians(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Dense spring Hessians: (m_e, 4, 4) extensional and (m_r, 6, 6) rotational."""
         x = np.asarray(x, float).reshape(-1, 2)
-        e, ell, t = self._ext_terms(x)
+        e, ell, t, k = self._ext_terms(x)
         ee = np.einsum("mi,mj->mij", e, e)
-        K = self.k_ext[:, None, None] * ee + (t / ell)[:, None, None] * (_I2 - ee)
+        K = k[:, None, None] * ee + (t / ell)[:, None, None] * (_I2 - ee)
         He = np.empty((len(K), 4, 4))
         He[:, :2, :2] = He[:, 2:, 2:] = K
         He[:, :2, 2:] = He[:, 2:, :2] = -K

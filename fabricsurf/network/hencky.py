@@ -36,6 +36,10 @@ and dividing by A (p = l rotated +90 deg)::
     k_s       = k_sh / (eps^2 s0)   (N/mm)   shear
     k4, k6    = k_sh4, k_sh6 / (eps^2 s0)  (N/mm)   shear_locking
     A_g       = k_b / s0            (N mm)   geodesic_bending   (exact only at lam ~ 1)
+    T_s       = f_slip / (eps s0)   (N/mm)   yarn_slip (slip strain eps_s = eps_slip)
+
+(a slipping spring's energy f_slip eps eps_s ln cosh((lam - 1)/eps_s) per node, exact for an
+affine placement).
 
 For an affine placement the quadrant changes are exactly -+gamma, so the shear identification
 is exact at any gamma (tested with a large shear in ``tests/test_network_lattices.py``).
@@ -115,19 +119,22 @@ def _sin_theta0(angles_deg):
 def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
                            angles_deg: tuple[float, float] = (45.0, -45.0),
                            k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0,
-                           gamma_f: float = FRICTION_ANGLE) -> dict:
+                           gamma_f: float = FRICTION_ANGLE, T_s: float = 0.0,
+                           eps_s: float = 1.0) -> dict:
     """Lattice stiffnesses for continuum moduli (module docstring), ready for
     :func:`hencky_lattice`: ``k_e`` (N/mm), ``k_sh``, ``k_sh4``, ``k_sh6``, ``k_b``, ``m_shf``
-    (N mm) and ``gamma_f`` (rad).
+    (N mm), ``gamma_f`` (rad), ``f_slip`` (N) and ``eps_slip``.
 
     ``k_l`` (N/mm, both families), ``k_s`` and the ``shear_locking`` moduli ``k4``, ``k6``
     (N/mm), ``A_g`` (N mm); the ``crossover_friction`` modulus ``tau_f`` (N/mm) and its shape
-    angle ``gamma_f``; spacing eps (mm). The node area ``eps^2 sin θ0`` scales all.
+    angle ``gamma_f``; the ``yarn_slip`` tension ``T_s`` (N/mm) and its slip strain ``eps_s``;
+    spacing eps (mm). The node area ``eps^2 sin θ0`` scales all.
     """
     s0 = _sin_theta0(angles_deg)[0]
     cell = s0 * spacing**2
     return {"k_e": k_l * s0, "k_sh": k_s * cell, "k_b": A_g * s0,
-            "k_sh4": k4 * cell, "k_sh6": k6 * cell, "m_shf": tau_f * cell, "gamma_f": gamma_f}
+            "k_sh4": k4 * cell, "k_sh6": k6 * cell, "m_shf": tau_f * cell, "gamma_f": gamma_f,
+            "f_slip": T_s * s0 * spacing, "eps_slip": eps_s}
 
 
 def spanning_spacing(length: float, spacing: float,
@@ -146,13 +153,15 @@ def spanning_spacing(length: float, spacing: float,
 def continuum_from_lattice(k_e: float, k_sh: float, k_b: float, spacing: float,
                            angles_deg: tuple[float, float] = (45.0, -45.0),
                            k_sh4: float = 0.0, k_sh6: float = 0.0, m_shf: float = 0.0,
-                           gamma_f: float = FRICTION_ANGLE) -> dict:
+                           gamma_f: float = FRICTION_ANGLE, f_slip: float = 0.0,
+                           eps_slip: float = 1.0) -> dict:
     """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g", "k4", "k6",
-    "tau_f", "gamma_f"}``."""
+    "tau_f", "gamma_f", "T_s", "eps_s"}``."""
     s0 = _sin_theta0(angles_deg)[0]
     cell = s0 * spacing**2
     return {"k_l": k_e / s0, "k_s": k_sh / cell, "A_g": k_b / s0,
-            "k4": k_sh4 / cell, "k6": k_sh6 / cell, "tau_f": m_shf / cell, "gamma_f": gamma_f}
+            "k4": k_sh4 / cell, "k6": k_sh6 / cell, "tau_f": m_shf / cell, "gamma_f": gamma_f,
+            "T_s": f_slip / (s0 * spacing), "eps_s": eps_slip}
 
 
 def _crossings(length, width, eps, L, M, origin):
@@ -198,7 +207,8 @@ def hencky_lattice(length: float, width: float, spacing: float,
                    k_sh: float = 1.0, k_b: float = 1.0,
                    origin: tuple[float, float] = (0.0, 0.0),
                    k_sh4: float = 0.0, k_sh6: float = 0.0, m_shf: float = 0.0,
-                   gamma_f: float = FRICTION_ANGLE) -> Lattice:
+                   gamma_f: float = FRICTION_ANGLE, f_slip: float = 0.0,
+                   eps_slip: float = 1.0) -> Lattice:
     """Build the Hencky-type fabric lattice of the module docstring.
 
     Parameters
@@ -214,6 +224,8 @@ def hencky_lattice(length: float, width: float, spacing: float,
         N mm/rad^6), split like ``k_sh``.
     m_shf, gamma_f : saturated friction moment per crossing (N mm) and its shape angle (rad):
         the shear springs' moment ``m_shf tanh(d / gamma_f)``, split like ``k_sh``.
+    f_slip, eps_slip : slip tension per fibre spring (N) and its slip strain: the fibre
+        springs' tension ``k_e (l - l0) + f_slip tanh((l - l0) / (l0 eps_slip))``.
     """
     L, M = fibre_directions(angles_deg)
     grid, X = _crossings(length, width, spacing, L, M, np.asarray(origin, float))
@@ -229,7 +241,8 @@ def hencky_lattice(length: float, width: float, spacing: float,
                               for k in (k_sh4, k_sh6, m_shf))
     phi0 = np.concatenate([np.zeros(nb), np.full(len(shear), np.nan)])
     net = SpringNetwork(X, ext, k_e, l0=spacing, rot=rot, k_rot=k_rot, phi0=phi0,
-                        k_rot4=k_rot4, k_rot6=k_rot6, m_fric=m_fric, phi_f=gamma_f)
+                        k_rot4=k_rot4, k_rot6=k_rot6, m_fric=m_fric, phi_f=gamma_f,
+                        f_slip=f_slip, eps_slip=eps_slip)
     ref = net.turning_angles(X)
     net.phi0[nb:] = ref[nb:]
     w = spacing * max(abs(L[0]), abs(M[0]))

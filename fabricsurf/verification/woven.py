@@ -12,7 +12,8 @@ import numpy as np
 from fabricsurf.experiments import three_zone as tz
 
 KNEE = "initial knee (friction at the crossovers: no elastic term starts with a finite force)"
-BEYOND = "beyond locking (yarn slip, wrinkling: softer than any elastic shear response)"
+BEYOND = ("beyond locking (softer than any shear law on a net of inextensible yarns: the net "
+          "extends along its yarns, yarn slip at the zone boundaries, or the grips slip)")
 MIDDLE = "intermediate range"
 
 
@@ -52,6 +53,49 @@ def unexplained_ranges(d, error, measured, s_F: float, length: float, width: flo
                     "model below data"})
         k = j + 1
     return out
+
+
+LARGE_SHEAR_BASE = ["fibre_stretch", "shear", "crossover_friction"]
+"""The baseline of the large-shear diagnosis: the yarns' extensibility free (the net may extend
+along its yarns, which a sticking glass net cannot), shear and the crossings' friction; its
+candidates are :data:`LARGE_SHEAR_CANDIDATES`."""
+LARGE_SHEAR_CANDIDATES = ["yarn_slip", "shear_locking"]
+
+
+def large_shear_record(full, s_F: float, start: dict, diag) -> dict:
+    """The whole-curve diagnosis ``diag`` of ``full`` (docs/woven_fabric.md "The large-shear
+    range"), past 60 deg of zone-C shear too, beside the net of inextensible yarns with the
+    moduli ``start`` fitted up to 60 deg (its three-zone force: the force of inextensible yarns
+    on the fibre-aligned mesh, with no solve near the net's lock): χ² in the error unit ``s_F``
+    and errors over the whole curve, up to and past 60 deg; ranking, verdict, what is not
+    identifiable and the final model's unexplained ranges."""
+    d, F, H, W = full.path, full.force, full.length, full.width
+    past = np.degrees(tz.zone_c_shear_angle(d, H, W)) > 60.0
+
+    def errors(model) -> dict:
+        model = np.asarray(model, float)
+        return {"chi2": float(np.sum(((model - F) / s_F) ** 2)), "whole": force_errors(model, F),
+                "up_to_60_deg": force_errors(model[~past], F[~past]),
+                "past_60_deg": force_errors(model[past], F[past])}
+
+    base, final = diag.base_fit, diag.final_fit
+    fits = {k: {"terms": t, "params": {n: v for n, v in r.params().items() if n in t}}
+            | errors(r.prediction[0].force)
+            for k, t, r in (("baseline", diag.baseline, base), ("final", diag.terms, final))}
+    return {"points": len(d), "past_60_deg_points": int(past.sum()), "error_unit_N": s_F,
+            "inextensible_net_fitted_to_60_deg": errors(tz.kinematic_force(d, H, W, start)),
+            **fits,
+            "ranking": [{k: q.get(k) for k in ("effect", "score", "refit_chi2", "refit_params",
+                                                "significant")} for q in diag.ranking],
+            "verdict": diag.verdict, "outcome": diag.outcome(),
+            "not_identifiable": diag.not_identifiable,
+            "unexplained": _unexplained(final.prediction[0].force, full, s_F)}
+
+
+def _unexplained(model, full, s_F: float) -> list[dict]:
+    """:func:`unexplained_ranges` of a model's force on the whole curve."""
+    return unexplained_ranges(full.path, np.asarray(model) - full.force, full.force, s_F,
+                              full.length, full.width)
 
 
 def up_to_angle(exp, max_deg: float):

@@ -43,6 +43,7 @@ from fabricsurf.inverse.fitting.nuisance import grip_profile, with_depth
 from fabricsurf.inverse.fitting.report import (
     Diagnosis,
     best_lead,
+    look_alikes,
     where_unexplained,
 )
 from fabricsurf.inverse.fitting.start import candidate_start
@@ -226,6 +227,8 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
         ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
         invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
                      for n in EFFECTS if n not in seen and n not in baseline]
+        invisible += look_alikes(terms + [q["effect"] for r in rankings for q in r
+                                          if q["significant"]], exps)
         return Diagnosis(
             baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
             ranking=rankings[0] if rankings else [], rounds=rankings,

@@ -9,6 +9,7 @@ import numpy as np
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting.fit import FitResult, strip_rows
 from fabricsurf.inverse.fitting.ties import Tie
+from fabricsurf.model.terms import EFFECTS
 
 UNCERTAINTY_KEYS = ("moduli", "identifiable_combinations", "weak_directions", "undetermined",
                     "uncertainty")
@@ -109,6 +110,17 @@ class Diagnosis:
                              "rule": sg.__doc__.split("*Adequate*")[1].strip()},
             "grip_depth": self.grip_depth,
             "seconds": {"baseline_fit": self.fit_seconds}}
+
+
+def look_alikes(effects: list[str], exps: list) -> list[dict]:
+    """The effects among ``effects`` that these data cannot tell from a mechanism outside the
+    vocabulary (a term's ``look_alike``: the mechanism, the evidence, the data that would
+    identify it), when the data are force curves of one specimen size only."""
+    if any(e.has_field for e in exps) or len({(e.length, e.width) for e in exps}) > 1:
+        return []
+    return [{"effect": n, "reason": "one force curve cannot tell it from "
+             + EFFECTS[n].look_alike["mechanism"]} | EFFECTS[n].look_alike
+            for n in dict.fromkeys(effects) if getattr(EFFECTS[n], "look_alike", None)]
 
 
 def _force_ranges(exp, per_step: list, s_F: float) -> list:
