@@ -49,14 +49,14 @@ from fabricsurf.discretise.evaluation import (
 from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import forming_options
+from fabricsurf.experiments import forming_blank, forming_options
 from fabricsurf.experiments.base import ExperimentSetup, Setup
 from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
+from geometry.aligned import blank_angle, lattice_divisions, square_divisions
 
 FULL_STEP_ITERATIONS = 40
 """Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
@@ -74,7 +74,7 @@ class HemisphereForming(ExperimentSetup):
     d = 3
     path_label = "punch stroke (mm)"
     reaction_label = "punch force (N)"
-    keys = {"tooling": {
+    keys = {"tooling": {**forming_blank.KEYS,
         "punch_radius": "punch radius R (mm, required)",
         "clearance": "die opening radius minus R (mm, default R/5)",
         "die_lip": "lip radius of die and holder (mm, default R/5)",
@@ -97,19 +97,21 @@ class HemisphereForming(ExperimentSetup):
         super().__init__(setup, model, h, comm)
         o = setup.options
         self.check_specimen(setup, "hemisphere")
-        forming_options.check_mesh(setup, h, h == self.default_h(setup))
+        forming_blank.check_mesh(setup, h, h == self.default_h(setup))
         if h > min(o["clearance"], o["die_lip"]):
             warnings.warn(f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
                           f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not "
                           "resolve the tools and the punch force is not mesh-converged",
                           stacklevel=2)
-        unheld = forming_options.unheld_edge(o, setup.length)
+        unheld = forming_blank.unheld_edge(setup)
         if unheld is not None:
             warnings.warn(unheld, stacklevel=2)
-        self.R, half = o["punch_radius"], 0.5 * setup.length
+        self.R = o["punch_radius"]
         self.theta = blank_angle(tuple(setup.fibre_angles_deg))
-        self.diagonal_deg = 45.0 if self.theta == 0.0 else 0.0
-        self.specimen = quarter_blank(half, h, self.theta, comm)
+        self.diagonal_deg = forming_blank.bisector_deg(tuple(setup.fibre_angles_deg))
+        self.domain = forming_blank.domain(setup)
+        self.copies = 4.0 if self.domain == "quarter" else 1.0
+        self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
                            o["contact_stiffness"], o["holder_pressure"],
@@ -121,8 +123,11 @@ class HemisphereForming(ExperimentSetup):
                            snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
                                          "snes_linesearch_type": "basic",
                                          **(snes_options or {})})
-        p.mirror("clamp", 0)
+        p.mirror("clamp", 0)  # the full blank has no such edges: the same forms, no terms
         p.mirror("bottom", 1)
+        self.pins, self.rotation_vertex = ({}, None) if self.domain == "quarter" else \
+            forming_blank.pin_rigid_motions(p, self.R, o.get("friction", 0.0) == 0.0)
+        self.discretisation = self._record(h)
         self.problem, self.solver = p, p.solver()
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
@@ -140,16 +145,36 @@ class HemisphereForming(ExperimentSetup):
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
-        return forming_options.parse(tables, length_scale, where)
+        return {**forming_options.parse(tables, length_scale, where),
+                **forming_blank.parse(tables, where)}
 
     @classmethod
     def check_specimen(cls, setup: Setup, where: str) -> None:
-        forming_options.check_specimen(setup, where)
-        if blank_angle(tuple(setup.fibre_angles_deg)) is None:
-            raise DataError(f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the "
-                            "hemisphere test needs fibres at ±θ (0 < θ < 90) to the blank's "
-                            "sides or along them ([0, 90]), mapped onto themselves by its "
-                            "mid-lines")
+        forming_blank.check_specimen(setup, where)
+
+    def pin_reactions(self) -> dict[str, float]:
+        """The force each pin of the full blank exerts (N, the residual's virtual work on a
+        unit motion of the pinned dof, reduced over ranks): zero when the pins remove only
+        motions the answer does not have."""
+        out = {}
+        for name, dofs in self.pins.items():
+            w = fem.Function(self.problem.V)
+            w.x.array[dofs] = 1.0
+            out[name] = self.solver.virtual_work(w)
+        return out
+
+    def _record(self, h: float) -> dict:
+        """What the run computed on: mesh kind, h asked and used, blank, domain, how the rigid
+        motions are removed, cells."""
+        msh = self.specimen.mesh
+        how = ("mirror conditions on x = 0 and y = 0" if self.domain == "quarter" else
+               "pole pinned in-plane" + (", u_x = 0 at " + str(tuple(round(c, 6) for c in
+                                                                  self.rotation_vertex))
+                                         if self.rotation_vertex is not None else ""))
+        return {"mesh_kind": self.specimen.kind, "h_requested": float(h),
+                "h_used": float(self.specimen.h), "blank": forming_blank.shape(self.setup),
+                "domain": self.domain, "rigid_motions": how, "mesh_note": self.specimen.note,
+                "cells": int(msh.topology.index_map(2).size_global)}
 
     @classmethod
     def default_h(cls, setup: Setup) -> float:
@@ -166,15 +191,15 @@ class HemisphereForming(ExperimentSetup):
 
     def check_stroke(self, stroke: float) -> None:
         """Refuse a stroke beyond what the die and the blank allow (forming_options)."""
-        forming_options.check_stroke(self.setup.options, self.setup.length, stroke)
+        forming_blank.check_stroke(self.setup, stroke)
 
     def set_load(self, t: float) -> None:
         self.tools.stroke.value = float(t)
 
     # -- reduced scalars (whole blank) ---------------------------------------------------
     def _scalar(self, name: str) -> float:
-        return 4.0 * float(self.comm.allreduce(fem.assemble_scalar(self._forms[name]),
-                                               op=MPI.SUM))
+        return self.copies * float(self.comm.allreduce(
+            fem.assemble_scalar(self._forms[name]), op=MPI.SUM))
 
     def reaction(self) -> float:
         """The punch force F = ∂Π/∂s (N, forming_tools.py), reduced over ranks."""
@@ -189,11 +214,11 @@ class HemisphereForming(ExperimentSetup):
     def dissipated(self) -> float:
         """The energy dissipated by friction under the holder since the start of :meth:`run`
         (N·mm, whole blank): with it the work balance reads ∫ F ds = ΔΠ + D."""
-        return 4.0 * self.solver.dissipated
+        return self.copies * self.solver.dissipated
 
     def area_fractions(self) -> dict[str, float]:
         """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
-        area = self.setup.length**2
+        area = forming_blank.area(self.setup)
         return {"wrinkle": self._scalar("wrinkle") / area, "locked": self._scalar("locked") / area}
 
     def max_penetration(self, tool: str = "punch") -> float:
@@ -249,6 +274,9 @@ class HemisphereForming(ExperimentSetup):
         the discrete sheet is nearly constant on each element of the aligned mesh (it behaves
         as a pin-jointed net of cell size h) and jumps between elements: there an element's
         value stands for its mean."""
+        if self.theta is None or forming_blank.shape(self.setup) != "square":
+            raise ValueError("element_centres: only on the aligned quarter's mesh (a square "
+                             "blank with fibres at ±θ or 0/90)")
         half = 0.5 * self.setup.length
         if self.theta == 0.0:
             d = half / square_divisions(half, self.h)
@@ -267,7 +295,7 @@ class HemisphereForming(ExperimentSetup):
         per-element staircase of a stiff net), and the gap to the punch's cap (mm; negative:
         penetration). The same on every rank."""
         t = math.radians(direction_deg)
-        reach = 0.5 * self.setup.length / max(abs(math.cos(t)), abs(math.sin(t)))
+        reach = forming_blank.reach(self.setup, direction_deg)
         X = np.linspace(0.0, reach, n) if X is None else np.asarray(X, dtype=float)
         n = len(X)
         pts = np.column_stack([X * math.cos(t), X * math.sin(t)])
