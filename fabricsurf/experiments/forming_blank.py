@@ -198,3 +198,16 @@ def pin_rigid_motions(p, R: float, rotation: bool) -> tuple[dict, tuple | None]:
     for dofs, i in pins.values():
         p.bcs.append(fem.dirichletbc(zero, dofs.astype(np.int32), p.V.sub(i)))
     return {k: d for k, (d, _) in pins.items()}, vertex
+
+
+def record(setup: Setup, specimen, domain_: str, rotation_vertex: tuple | None, h: float
+           ) -> dict:
+    """What a run computed on: mesh kind, h asked and used, blank, domain, how the rigid
+    motions were removed, cells (the experiment's ``discretisation``)."""
+    how = ("mirror conditions on x = 0 and y = 0" if domain_ == "quarter" else
+           "pole pinned in-plane" + ("" if rotation_vertex is None else
+                                     ", u_x = 0 at (%.6g, %.6g)" % tuple(rotation_vertex)))
+    return {"mesh_kind": specimen.kind, "h_requested": float(h), "h_used": float(specimen.h),
+            "blank": shape(setup), "domain": domain_, "rigid_motions": how,
+            "mesh_note": specimen.note,
+            "cells": int(specimen.mesh.topology.index_map(2).size_global)}

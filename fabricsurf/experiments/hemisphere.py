@@ -127,7 +127,8 @@ class HemisphereForming(ExperimentSetup):
         p.mirror("bottom", 1)
         self.pins, self.rotation_vertex = ({}, None) if self.domain == "quarter" else \
             forming_blank.pin_rigid_motions(p, self.R, o.get("friction", 0.0) == 0.0)
-        self.discretisation = self._record(h)
+        self.discretisation = forming_blank.record(setup, self.specimen, self.domain,
+                                                   self.rotation_vertex, h)
         self.problem, self.solver = p, p.solver()
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
@@ -162,19 +163,6 @@ class HemisphereForming(ExperimentSetup):
             w.x.array[dofs] = 1.0
             out[name] = self.solver.virtual_work(w)
         return out
-
-    def _record(self, h: float) -> dict:
-        """What the run computed on: mesh kind, h asked and used, blank, domain, how the rigid
-        motions are removed, cells."""
-        msh = self.specimen.mesh
-        how = ("mirror conditions on x = 0 and y = 0" if self.domain == "quarter" else
-               "pole pinned in-plane" + (", u_x = 0 at " + str(tuple(round(c, 6) for c in
-                                                                  self.rotation_vertex))
-                                         if self.rotation_vertex is not None else ""))
-        return {"mesh_kind": self.specimen.kind, "h_requested": float(h),
-                "h_used": float(self.specimen.h), "blank": forming_blank.shape(self.setup),
-                "domain": self.domain, "rigid_motions": how, "mesh_note": self.specimen.note,
-                "cells": int(msh.topology.index_map(2).size_global)}
 
     @classmethod
     def default_h(cls, setup: Setup) -> float:
