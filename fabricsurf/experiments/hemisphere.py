@@ -14,7 +14,10 @@ normal derivatives of the others vanish); these also remove the in-plane rigid m
 frictionless tools leave free. Reported forces and energies are those of the whole blank (four
 quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
 fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
-about the diagonal at ±45° (geometry.aligned.quarter_blank). Each stroke increment starts from
+about the diagonal at ±45° (geometry.aligned.quarter_blank). Other blanks (rectangles, circles,
+``[tooling] blank``) and fibre pairs without that symmetry are solved on the full blank, meshed by
+a fibre lattice clipped to its outline, with its rigid motions pinned (forming_blank.py; which
+one, on what: :attr:`discretisation`). Each stroke increment starts from
 the path extrapolated through the last two converged states, Newton takes full steps and, if
 that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
 cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
