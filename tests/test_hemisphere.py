@@ -110,8 +110,8 @@ def test_registered():
 
 
 def test_rejects_bad_set_up():
-    with pytest.raises(DataError, match="fibre_angles_deg"):
-        HemisphereForming.check_specimen(Setup("hemisphere", BLANK, BLANK, (30.0, 90.0),
+    with pytest.raises(DataError, match="fibre_angles_deg"):  # 20° apart: slivers
+        HemisphereForming.check_specimen(Setup("hemisphere", BLANK, BLANK, (70.0, 90.0),
                                                dict(TOOLING)), "t")
     with pytest.raises(DataError, match="square wider"):
         HemisphereForming.check_specimen(Setup("hemisphere", 40.0, 40.0, (45.0, -45.0),

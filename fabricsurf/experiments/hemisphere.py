@@ -14,7 +14,10 @@ normal derivatives of the others vanish); these also remove the in-plane rigid m
 frictionless tools leave free. Reported forces and energies are those of the whole blank (four
 quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
 fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
-about the diagonal at ±45° (geometry.aligned.quarter_blank). Each stroke increment starts from
+about the diagonal at ±45° (geometry.aligned.quarter_blank). Other blanks (rectangles, circles,
+``[tooling] blank``) and fibre pairs without that symmetry are solved on the full blank, meshed by
+a fibre lattice clipped to its outline, with its rigid motions pinned (forming_blank.py; which
+one, on what: :attr:`discretisation`). Each stroke increment starts from
 the path extrapolated through the last two converged states, Newton takes full steps and, if
 that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
 cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
@@ -48,7 +51,7 @@ from fabricsurf.discretise.evaluation import (
 from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import forming_options
+from fabricsurf.experiments import forming_blank, forming_options
 from fabricsurf.experiments.base import ExperimentSetup, Setup
 from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming_log import StepLog
@@ -56,7 +59,7 @@ from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.experiments.wrinkling import Indicators
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import blank_angle, lattice_divisions, quarter_blank, square_divisions
+from geometry.aligned import blank_angle, lattice_divisions, square_divisions
 
 FULL_STEP_ITERATIONS = 40
 """Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
@@ -74,7 +77,7 @@ class HemisphereForming(ExperimentSetup):
     d = 3
     path_label = "punch stroke (mm)"
     reaction_label = "punch force (N)"
-    keys = {"tooling": {
+    keys = {"tooling": {**forming_blank.KEYS,
         "punch_radius": "punch radius R (mm, required)",
         "clearance": "die opening radius minus R (mm, default R/5)",
         "die_lip": "lip radius of die and holder (mm, default R/5)",
@@ -97,19 +100,21 @@ class HemisphereForming(ExperimentSetup):
         super().__init__(setup, model, h, comm)
         o = setup.options
         self.check_specimen(setup, "hemisphere")
-        forming_options.check_mesh(setup, h, h == self.default_h(setup))
+        forming_blank.check_mesh(setup, h, h == self.default_h(setup))
         if h > min(o["clearance"], o["die_lip"]):
             warnings.warn(f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
                           f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not "
                           "resolve the tools and the punch force is not mesh-converged",
                           stacklevel=2)
-        unheld = forming_options.unheld_edge(o, setup.length)
+        unheld = forming_blank.unheld_edge(setup)
         if unheld is not None:
             warnings.warn(unheld, stacklevel=2)
-        self.R, half = o["punch_radius"], 0.5 * setup.length
+        self.R = o["punch_radius"]
         self.theta = blank_angle(tuple(setup.fibre_angles_deg))
-        self.diagonal_deg = 45.0 if self.theta == 0.0 else 0.0
-        self.specimen = quarter_blank(half, h, self.theta, comm)
+        self.diagonal_deg = forming_blank.bisector_deg(tuple(setup.fibre_angles_deg))
+        self.domain = forming_blank.domain(setup)
+        self.copies = 4.0 if self.domain == "quarter" else 1.0
+        self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
                            o["contact_stiffness"], o["holder_pressure"],
@@ -121,8 +126,12 @@ class HemisphereForming(ExperimentSetup):
                            snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
                                          "snes_linesearch_type": "basic",
                                          **(snes_options or {})})
-        p.mirror("clamp", 0)
+        p.mirror("clamp", 0)  # the full blank has no such edges: the same forms, no terms
         p.mirror("bottom", 1)
+        self.pins, self.rotation_vertex = ({}, None) if self.domain == "quarter" else \
+            forming_blank.pin_rigid_motions(p, self.R, o.get("friction", 0.0) == 0.0)
+        self.discretisation = forming_blank.record(setup, self.specimen, self.domain,
+                                                   self.rotation_vertex, h)
         self.problem, self.solver = p, p.solver()
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
@@ -142,16 +151,23 @@ class HemisphereForming(ExperimentSetup):
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
-        return forming_options.parse(tables, length_scale, where)
+        return {**forming_options.parse(tables, length_scale, where),
+                **forming_blank.parse(tables, where)}
 
     @classmethod
     def check_specimen(cls, setup: Setup, where: str) -> None:
-        forming_options.check_specimen(setup, where)
-        if blank_angle(tuple(setup.fibre_angles_deg)) is None:
-            raise DataError(f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the "
-                            "hemisphere test needs fibres at ±θ (0 < θ < 90) to the blank's "
-                            "sides or along them ([0, 90]), mapped onto themselves by its "
-                            "mid-lines")
+        forming_blank.check_specimen(setup, where)
+
+    def pin_reactions(self) -> dict[str, float]:
+        """The force each pin of the full blank exerts (N, the residual's virtual work on a
+        unit motion of the pinned dof, reduced over ranks): zero when the pins remove only
+        motions the answer does not have."""
+        out = {}
+        for name, dofs in self.pins.items():
+            w = fem.Function(self.problem.V)
+            w.x.array[dofs] = 1.0
+            out[name] = self.solver.virtual_work(w)
+        return out
 
     @classmethod
     def default_h(cls, setup: Setup) -> float:
@@ -168,15 +184,15 @@ class HemisphereForming(ExperimentSetup):
 
     def check_stroke(self, stroke: float) -> None:
         """Refuse a stroke beyond what the die and the blank allow (forming_options)."""
-        forming_options.check_stroke(self.setup.options, self.setup.length, stroke)
+        forming_blank.check_stroke(self.setup, stroke)
 
     def set_load(self, t: float) -> None:
         self.tools.stroke.value = float(t)
 
     # -- reduced scalars (whole blank) ---------------------------------------------------
     def _scalar(self, name: str) -> float:
-        return 4.0 * float(self.comm.allreduce(fem.assemble_scalar(self._forms[name]),
-                                               op=MPI.SUM))
+        return self.copies * float(self.comm.allreduce(
+            fem.assemble_scalar(self._forms[name]), op=MPI.SUM))
 
     def reaction(self) -> float:
         """The punch force F = ∂Π/∂s (N, forming_tools.py), reduced over ranks."""
@@ -191,11 +207,11 @@ class HemisphereForming(ExperimentSetup):
     def dissipated(self) -> float:
         """The energy dissipated by friction under the holder since the start of :meth:`run`
         (N·mm, whole blank): with it the work balance reads ∫ F ds = ΔΠ + D."""
-        return 4.0 * self.solver.dissipated
+        return self.copies * self.solver.dissipated
 
     def area_fractions(self) -> dict[str, float]:
         """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
-        area = self.setup.length**2
+        area = forming_blank.area(self.setup)
         return {"wrinkle": self._scalar("wrinkle") / area, "locked": self._scalar("locked") / area}
 
     def max_penetration(self, tool: str = "punch") -> float:
@@ -242,6 +258,9 @@ class HemisphereForming(ExperimentSetup):
         the discrete sheet is nearly constant on each element of the aligned mesh (it behaves
         as a pin-jointed net of cell size h) and jumps between elements: there an element's
         value stands for its mean."""
+        if self.theta is None or forming_blank.shape(self.setup) != "square":
+            raise ValueError("element_centres: only on the aligned quarter's mesh (a square "
+                             "blank with fibres at ±θ or 0/90)")
         half = 0.5 * self.setup.length
         if self.theta == 0.0:
             d = half / square_divisions(half, self.h)
@@ -260,7 +279,7 @@ class HemisphereForming(ExperimentSetup):
         per-element staircase of a stiff net), and the gap to the punch's cap (mm; negative:
         penetration). The same on every rank."""
         t = math.radians(direction_deg)
-        reach = 0.5 * self.setup.length / max(abs(math.cos(t)), abs(math.sin(t)))
+        reach = forming_blank.reach(self.setup, direction_deg)
         X = np.linspace(0.0, reach, n) if X is None else np.asarray(X, dtype=float)
         n = len(X)
         pts = np.column_stack([X * math.cos(t), X * math.sin(t)])

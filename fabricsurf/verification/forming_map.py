@@ -1,6 +1,7 @@
 """The continuum forming result over the whole contact area, against both kinematic drapes
 (drape_map.py): the recovered shear angle and the gap to the punch at a grid of reference points
-of the solved quarter, the points on the punch compared with the fishnet and the Goursat net."""
+of the solved quarter or full blank, the points on the punch compared with the fishnet and the
+Goursat net drawn with the experiment's fibre directions from the pole."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, nodal_average
+from fabricsurf.experiments import forming_blank
 from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.verification.drape_map import shear_difference_map
 
@@ -19,24 +21,37 @@ verification/forming.py)."""
 
 
 def contact_map(e: HemisphereForming, n: int = 41) -> dict[str, np.ndarray]:
-    """On an n × n grid of reference points of the quarter [0, B/2]²: the recovered shear angle
-    (deg, evaluation.nodal_average, the continuous field compared along the diagonal), the gap
-    to the punch's cap (mm; inf below the punch centre), whether the point is on the punch
-    (gap < TOUCH_FRACTION · R) and whether it lies within h of a mirror line that is a fibre
-    (fibres at 0/90°: the shear is odd across x = 0 and y = 0, zero on them, but the nodal
-    average there sees the cells of one side only, an error of the size of the shear one cell
-    away, docs/forming.md). The same on every rank."""
-    x = np.linspace(0.0, 0.5 * e.setup.length, n)
-    pts = np.column_stack([g.ravel() for g in np.meshgrid(x, x, indexing="ij")])
+    """On a grid of reference points of the solved domain, n points per half side (the quarter
+    [0, B/2]², or the full blank, 2n − 1 per side, the points inside its outline): the recovered
+    shear angle (deg, evaluation.nodal_average, the continuous field compared along the
+    diagonal), the gap to the punch's cap (mm; inf below the punch centre), whether the point is
+    on the punch (gap < TOUCH_FRACTION · R) and whether it lies within h of a mirror line that
+    is a fibre (the quarter at 0/90°: the shear is odd across x = 0 and y = 0, zero on them, but
+    the nodal average there sees the cells of one side only, an error of the size of the shear
+    one cell away, docs/forming.md). The same on every rank."""
+    pts = _grid(e, n)
     kin = e.problem.energy.kin
     rec = nodal_average(kin.gamma * (180.0 / math.pi), e.specimen.mesh, CELL_QUADRATURE_DEGREE)
     r = np.column_stack([pts, np.zeros(len(pts))]) + eval_points(e.problem.u, pts)
     r[:, 2] -= float(e.tools.stroke.value) - e.R
     dist = np.linalg.norm(r, axis=1)
     gap = np.where(r[:, 2] > 0, dist - e.R, np.inf)
-    band = (e.theta == 0.0) & (pts.min(axis=1) < e.h)
+    band = (e.domain == "quarter") & (e.theta == 0.0) & (pts.min(axis=1) < e.h)
     return {"points": pts, "shear_deg": eval_points(rec, pts)[:, 0], "gap": gap,
             "on": gap < TOUCH_FRACTION * e.R, "mirror_band": band}
+
+
+def _grid(e: HemisphereForming, n: int) -> np.ndarray:
+    """The reference points of :func:`contact_map`."""
+    a, b = 0.5 * e.setup.length, 0.5 * e.setup.width
+    if e.domain == "quarter":
+        x = y = np.linspace(0.0, a, n)
+    else:
+        x, y = np.linspace(-a, a, 2 * n - 1), np.linspace(-b, b, 2 * n - 1)
+    pts = np.column_stack([g.ravel() for g in np.meshgrid(x, y, indexing="ij")])
+    if forming_blank.shape(e.setup) == "circle":
+        pts = pts[np.hypot(*pts.T) <= a * (1 - 1e-9)]
+    return pts
 
 
 def compare_with_drapes(e: HemisphereForming, n: int = 41, a: float | None = None) -> dict:
