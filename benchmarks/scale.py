@@ -20,6 +20,13 @@ building, form set-up, the fit's own loop). The peak resident memory of each ran
 read from VmHWM after resetting it at the stage's start (/proc/self/clear_refs). The growth
 exponent of each stage is log(t₂/t₁)/log(N₂/N₁) between successive sizes (≈ 1: O(N); stages
 that take well under a second are dominated by fixed costs, their exponents mean little).
+The CPU seconds of each stage are printed beside its wall time (on a shared machine the wall
+time is mostly waiting; MPI's busy waiting counts as CPU), and per command the forward runs per
+element size (with or without sensitivities), their Newton iterations and seconds.
+``--profile`` writes rank 0's cProfile of each command; ``--cold`` turns the warm start of the
+forward runs off (inverse/fitting/warm_start.py: every load step from the last converged one,
+as before), for comparison; ``--diagnose-args`` passes options to diagnose (e.g.
+``--max-dofs 1``: the default mesh only, no mesh selection).
 Aims (issue 36): at 10⁶ points ≤ 2 GB per rank, a one-effect diagnosis ≤ 2 min on 2 ranks.
 ``--limit-gb`` sets an address-space limit per process (RLIMIT_AS) to show what fails under it.
 
@@ -30,11 +37,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import cProfile
 import functools
 import importlib
 import io
 import json
 import math
+import pstats
 import resource
 import sys
 import time
@@ -102,22 +111,39 @@ class Stages:
 
     def reset(self) -> None:
         self.t = dict.fromkeys(STAGES, 0.0)
+        self.cpu = dict.fromkeys(STAGES, 0.0)
         self.peak = dict.fromkeys(STAGES, 0.0)
-        self.stack: list[list] = []  # [stage, start, time in nested stages, peak so far]
+        # [stage, start, time in nested stages, peak so far, CPU start, CPU in nested stages]
+        self.stack: list[list] = []
+        self.counts: dict[str, int] = {}  # forward runs per mesh size, Newton iterations
+
+    def count_run(self, fn):
+        """Wrap ForwardModel.run: count the runs per element size and their Newton iterations."""
+        @functools.wraps(fn)
+        def counted(model, *a, **k):
+            pred = fn(model, *a, **k)
+            key = f"h={model.h:.4g}" + (" +sens" if (a and a[0]) or k.get("sens") else "")
+            for name, v in ((f"runs {key}", 1), (f"newton {key}", pred.newton),
+                            (f"seconds {key}", round(pred.seconds, 1))):
+                self.counts[name] = self.counts.get(name, 0) + v
+            return pred
+        return counted
 
     def enter(self, stage: str) -> None:
         if self.stack:
             self.stack[-1][3] = max(self.stack[-1][3], peak_mb())
         peak_mb(reset=True)
-        self.stack.append([stage, time.perf_counter(), 0.0, 0.0])
+        self.stack.append([stage, time.perf_counter(), 0.0, 0.0, time.process_time(), 0.0])
 
     def leave(self) -> None:
-        stage, t0, nested, peak = self.stack.pop()
-        dt = time.perf_counter() - t0
+        stage, t0, nested, peak, c0, cnested = self.stack.pop()
+        dt, dc = time.perf_counter() - t0, time.process_time() - c0
         self.t[stage] += dt - nested
+        self.cpu[stage] += dc - cnested
         peak = max(peak, peak_mb())
         self.peak[stage] = max(self.peak[stage], peak)
         if self.stack:
+            self.stack[-1][5] += dc
             self.stack[-1][2] += dt
             self.stack[-1][3] = max(self.stack[-1][3], peak)
 
@@ -132,7 +158,10 @@ class Stages:
         return timed
 
     def install(self) -> None:
-        """Wrap every hooked function where it is defined and wherever it was imported."""
+        """Wrap every hooked function where it is defined and wherever it was imported (the
+        forward runs counted first, inside their timer)."""
+        from fabricsurf.inverse.fitting.forward import ForwardModel
+        ForwardModel.run = self.count_run(ForwardModel.run)
         for stage, hooks in HOOKS.items():
             for modname, name in hooks:
                 try:
@@ -190,28 +219,48 @@ COMMANDS = {
 
 
 def run(st: Stages, command: str, data: Path, out: Path, comm: MPI.Comm,
-        h: float | None = None) -> dict:
+        h: float | None = None, extra: list[str] | None = None,
+        profile: bool = False) -> dict:
     """One command under the stage timers: {"status", "seconds", "stages": {stage: [s, MB per
-    rank]}}."""
+    rank]}, "counts"}; its output in ``out``/COMMAND.log and, with ``profile``, rank 0's
+    cProfile in ``out``/COMMAND.prof (and the top functions in COMMAND.prof.txt)."""
     st.reset()
     comm.barrier()
     peak_mb(reset=True)
     t0 = time.perf_counter()
     st.enter("other")
     sink = io.StringIO()
+    prof = cProfile.Profile() if profile and comm.rank == 0 else None
+    args = COMMANDS[command](data, out) + ([] if h is None else ["--h", str(h)]) + (extra or [])
     try:
         with contextlib.redirect_stdout(sink):
-            status = main(COMMANDS[command](data, out) + ([] if h is None else ["--h", str(h)]))
+            if prof is not None:
+                prof.enable()
+            try:
+                status = main(args)
+            finally:
+                if prof is not None:
+                    prof.disable()
     except MemoryError as e:
         status = f"MemoryError: {e}"
     st.leave()
+    if comm.rank == 0:
+        (out / f"{command}.log").write_text(sink.getvalue())
+        if prof is not None:
+            prof.dump_stats(out / f"{command}.prof")
+            text = io.StringIO()
+            pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(40)
+            (out / f"{command}.prof.txt").write_text(text.getvalue())
     wall = time.perf_counter() - t0
     peaks = comm.gather([st.peak[s] for s in STAGES])
     times = np.max(comm.allgather([st.t[s] for s in STAGES]), axis=0)
+    cpus = np.max(comm.allgather([st.cpu[s] for s in STAGES]), axis=0)
     note = [ln for ln in sink.getvalue().splitlines() if "failed" in ln or "error" in ln]
     return {"status": status, "note": note[:2], "seconds": comm.allreduce(wall, op=MPI.MAX),
-            "stages": {s: [float(times[i]), [p[i] for p in peaks] if peaks else None]
-                       for i, s in enumerate(STAGES)}}
+            "cpu": float(np.sum(cpus)),
+            "stages": {s: [float(times[i]), [p[i] for p in peaks] if peaks else None,
+                           float(cpus[i])] for i, s in enumerate(STAGES)},
+            "counts": dict(sorted(st.counts.items()))}
 
 
 def table(results: dict, comm: MPI.Comm) -> None:
@@ -222,19 +271,24 @@ def table(results: dict, comm: MPI.Comm) -> None:
         if not rows:
             continue
         rank0_print(comm, f"\n{command}: " + "  ".join(
-            f"N={n}: {r['seconds']:.1f} s, status {r['status']}" for n, r in rows))
-        head = f"{'stage':22s}" + "".join(f"{'N=' + n:>26s}" for n, _ in rows) + "  exponents"
+            f"N={n}: {r['seconds']:.1f} s (CPU {r.get('cpu', 0):.1f} s, the busier rank), "
+            f"status {r['status']}" for n, r in rows))
+        head = f"{'stage':22s}" + "".join(f"{'N=' + n:>38s}" for n, _ in rows) + "  exponents"
         rank0_print(comm, head)
         for s in STAGES:
             cells, ts = "", []
             for _, r in rows:
-                t, mb = r["stages"][s]
-                cells += f"{t:9.2f} s {'/'.join(f'{m:.0f}' for m in (mb or [])):>11s} MB"
+                t, mb, cpu = (r["stages"][s] + [0.0])[:3]
+                cells += (f"{t:9.2f} s (CPU {cpu:7.2f}) "
+                          f"{'/'.join(f'{m:.0f}' for m in (mb or [])):>11s} MB")
                 ts.append(t)
             ns = [int(n) for n, _ in rows]
             exps = [math.log(max(ts[i + 1], 1e-3) / max(ts[i], 1e-3)) / math.log(ns[i + 1] / ns[i])
                     for i in range(len(ns) - 1)]
             rank0_print(comm, f"{s:22s}{cells}  " + " ".join(f"{e:5.2f}" for e in exps))
+        for n, r in rows:
+            rank0_print(comm, f"N={n} counts: " + ", ".join(
+                f"{k} {v}" for k, v in r.get("counts", {}).items()))
 
 
 def main_benchmark() -> None:
@@ -249,9 +303,18 @@ def main_benchmark() -> None:
     ap.add_argument("--steps", type=int, default=STEPS, help="load steps")
     ap.add_argument("--limit-gb", type=float, default=None,
                     help="address-space limit per process (RLIMIT_AS), GB")
+    ap.add_argument("--diagnose-args", default="",
+                    help="further options of diagnose, e.g. '--max-dofs 1' (no mesh selection)")
+    ap.add_argument("--cold", action="store_true",
+                    help="no warm start of the forward runs (every load step from the last "
+                    "converged one, as before; inverse/fitting/warm_start.py)")
+    ap.add_argument("--profile", action="store_true",
+                    help="cProfile on rank 0: OUT/out_N/COMMAND.prof and COMMAND.prof.txt")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     root = Path(args.out)
+    if args.cold:
+        importlib.import_module("fabricsurf.inverse.fitting.warm_start").ENABLED = False
     results: dict = {}
     st = Stages()
     st.install()
@@ -262,8 +325,9 @@ def main_benchmark() -> None:
         if args.limit_gb:
             resource.setrlimit(resource.RLIMIT_AS, (int(args.limit_gb * 2**30), limit[1]))
         for command in args.commands.split(","):
+            extra = args.diagnose_args.split() if command == "diagnose" else []
             results[str(n)][command] = res = run(st, command, data, root / f"out_{n}", comm,
-                                                 args.h)
+                                                 args.h, extra, args.profile)
             rank0_print(comm, f"[scale] N = {n} {command}: {res['seconds']:.1f} s, status "
                         f"{res['status']} {res['note']}")
         if args.limit_gb:

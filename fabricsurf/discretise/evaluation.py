@@ -7,6 +7,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, geometry, la
 from mpi4py import MPI
+from scipy import sparse
 
 
 def _owned_cells_at(msh, points3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -23,11 +24,44 @@ def _owned_cells_at(msh, points3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rows[keep], cells[keep]
 
 
+def _basis_matrix(V: fem.FunctionSpace, points3: np.ndarray, rows: np.ndarray,
+                  cells: np.ndarray, n: int) -> sparse.csr_matrix | None:
+    """B (n points × local nodes of ``V``, each node a block of ``bs`` dofs): the sum over the
+    (point ``rows``, owned ``cells``) pairs of the cell's scalar basis functions at the point,
+    so that B U (U: nodes × bs) is the sum of a function's values over the pairs, which
+    ``Function.eval`` computes by tabulating the element anew at every call. None where that
+    shortcut does not hold: a mesh not made of straight-sided triangles in the plane, an
+    element with dof transformations or a non-scalar base element (``eval`` is used)."""
+    msh = V.mesh
+    if (msh.topology.cell_name() != "triangle" or msh.geometry.cmap.degree != 1
+            or V.element.needs_dof_transformations):
+        return None
+    e = V.element.basix_element
+    if len(e.value_shape) != 0:
+        return None
+    xg = msh.geometry.x
+    if np.any(xg[:, 2] != 0.0):
+        return None
+    n_nodes = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+    if not len(cells):
+        return sparse.csr_matrix((n, n_nodes))
+    geo = msh.geometry.dofmap.array.reshape(-1, 3)[cells]
+    v = xg[geo][:, :, :2]
+    J = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]], axis=2)
+    X = np.linalg.solve(J, (points3[:, :2] - v[:, 0])[..., None])[..., 0]
+    phi = e.tabulate(0, X)[0, :, :, 0]
+    nodes = V.dofmap.list.array.reshape(-1, e.dim)[cells]
+    return sparse.csr_matrix((phi.ravel(), (np.repeat(rows, e.dim), nodes.ravel())),
+                             shape=(n, n_nodes))
+
+
 class PointLocator:
     """The owned cells containing each of a fixed set of points (n×2) of one mesh, found once:
     every function on that mesh is then evaluated there by :meth:`__call__` at the cost of one
     ``eval`` and one reduction (a load step's displacement and all its sensitivities share the
-    points; locating them was most of the evaluation)."""
+    points; locating them was most of the evaluation). For Lagrange-type elements on
+    straight-sided triangles the basis values at the points are kept too, per function space,
+    and a function is evaluated by one sparse product (:func:`_basis_matrix`)."""
 
     def __init__(self, msh, points: np.ndarray) -> None:
         pts = np.asarray(points, dtype=float)
@@ -41,16 +75,29 @@ class PointLocator:
         counts = np.bincount(self.rows, minlength=self.n).astype(float)
         self.counts = np.empty_like(counts)
         msh.comm.Allreduce(counts, self.counts, op=MPI.SUM)
+        self._tables: dict[int, tuple] = {}
 
-    def __call__(self, f: fem.Function) -> np.ndarray:
-        """Values of ``f`` at the points, the same on every rank; NaN outside the mesh (the
-        mean over the owned cells containing a point, over all ranks: :func:`eval_points`)."""
-        bs = f.function_space.dofmap.index_map_bs
+    def _sums(self, f: fem.Function, bs: int) -> np.ndarray:
+        """Σ of ``f`` over the (point, owned cell) pairs of this rank, per point (n × bs)."""
+        V = f.function_space
+        if id(V) not in self._tables:  # V kept with its matrix: its id is not reused
+            self._tables[id(V)] = (V, _basis_matrix(V, self.pts3[self.rows], self.rows,
+                                                    self.cells, self.n))
+        B = self._tables[id(V)][1]
+        if B is not None:
+            return B @ f.x.array.reshape(-1, bs)
         sums = np.zeros((self.n, bs))
         if len(self.rows):
             vals = f.eval(self.pts3[self.rows], self.cells).reshape(-1, bs)
             for k in range(bs):
                 sums[:, k] = np.bincount(self.rows, weights=vals[:, k], minlength=self.n)
+        return sums
+
+    def __call__(self, f: fem.Function) -> np.ndarray:
+        """Values of ``f`` at the points, the same on every rank; NaN outside the mesh (the
+        mean over the owned cells containing a point, over all ranks: :func:`eval_points`)."""
+        bs = f.function_space.dofmap.index_map_bs
+        sums = np.ascontiguousarray(self._sums(f, bs), dtype=float)
         total = np.empty_like(sums)
         self.msh.comm.Allreduce(sums, total, op=MPI.SUM)
         with np.errstate(invalid="ignore", divide="ignore"):

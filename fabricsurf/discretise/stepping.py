@@ -1,6 +1,14 @@
 """Load stepping with automatic step cutting on divergence (docs/theory.md), apart from the
 Newton solver it drives (as dolfiny keeps continuation apart from Newton): any object with
 ``solve() -> (reason, iterations)``, ``state()``, ``restore(state)`` and ``u`` can be stepped.
+
+A ``predictor`` may offer, for each requested step, a state to start Newton from instead of the
+last converged one (e.g. the same step of an earlier run with nearby moduli, corrected by its
+sensitivities: fabricsurf/inverse/fitting/warm_start.py). The step is then tried once from that
+state at its full load; if Newton does not converge from it, the step is followed as without a
+predictor, from the last converged state. For a problem whose equilibrium at a load does not
+depend on the path taken to it (elastic, no friction or history), the converged state is the
+same up to Newton's tolerance.
 """
 
 from __future__ import annotations
@@ -43,21 +51,28 @@ class LoadStepper:
     ``on_converged(k, t, iters)`` is called for each requested value t_k (k from 0) once
     converged (write output there: everything converged is on disk when a later step fails).
     Messages and :class:`LoadStepError` count steps from 1, as the output files do.
+    ``predictor(k, t_k)``, called with the load already set to t_k, returns a start for Newton
+    (an array like ``solver.u.x.array``, ghosts included) or None (module docstring);
+    ``predicted`` records per step whether the predicted start converged (None: no start).
     """
 
     def __init__(self, solver: SNESSolver, set_load: Callable[[float], None],
                  on_converged: Callable[[int, float, int], None] | None = None,
-                 min_fraction: float = 1e-4, log: Callable | None = None):
+                 min_fraction: float = 1e-4, log: Callable | None = None,
+                 predictor: Callable[[int, float], np.ndarray | None] | None = None):
         self.solver, self.set_load, self.on_converged = solver, set_load, on_converged
-        self.min_fraction = min_fraction
+        self.min_fraction, self.predictor = min_fraction, predictor
         self.log = log or (lambda msg: None)
         self.t = 0.0
         self.iterations: list[int] = []
         self.attempts: list[int] = []
+        self.predicted: list[bool | None] = []
 
-    def _try(self, t: float) -> tuple[bool, int, int]:
+    def _try(self, t: float, start: np.ndarray | None = None) -> tuple[bool, int, int]:
         backup = self.solver.state()
         self.set_load(t)
+        if start is not None:
+            self.solver.u.x.array[:] = start
         reason, its = self.solver.solve()
         finite = bool(np.isfinite(self.solver.u.x.array).all())
         comm = getattr(self.solver, "comm", MPI.COMM_SELF)
@@ -69,8 +84,11 @@ class LoadStepper:
     def advance_to(self, target: float, k: int) -> int:
         """Reach load ``target`` (requested step ``k``, 0-based) from the current load;
         returns the total Newton iterations (failed attempts included)."""
+        done, total = self._predicted(target, k)
+        if done:
+            return total
         span = target - self.t
-        dt, total, tried = span, 0, []
+        dt, tried = span, []
         while abs(target - self.t) > 1e-14 * max(1.0, abs(target)):
             t_next = self.t + dt if abs(dt) < abs(target - self.t) else target
             ok, reason, its = self._try(t_next)
@@ -90,6 +108,28 @@ class LoadStepper:
                                     k + 1, target, self.t, reason, tried)
         self.attempts.append(len(tried))
         return total
+
+    def _predicted(self, target: float, k: int) -> tuple[bool, int]:
+        """Step ``k`` from the predictor's start, if it offers one (class docstring): (whether
+        the step is done, the Newton iterations it cost)."""
+        start = None
+        if self.predictor is not None:
+            self.set_load(target)
+            start = self.predictor(k, target)
+            if start is None:
+                self.set_load(self.t)
+        if start is None:
+            self.predicted.append(None)
+            return False, 0
+        ok, reason, its = self._try(target, start)
+        self.predicted.append(ok)
+        if ok:
+            self.t = target
+            self.attempts.append(1)
+        else:
+            self.log(f"step {k + 1}: SNES {reason_name(reason)} from the predicted state; "
+                     "stepping from the last converged one")
+        return ok, its
 
     def run(self, targets: Sequence[float]) -> list[int]:
         for k, target in enumerate(targets):

@@ -29,6 +29,7 @@ from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import misfit as mf
+from fabricsurf.inverse.fitting import warm_start
 from fabricsurf.model.terms import EFFECTS, Term
 
 
@@ -185,7 +186,10 @@ class ForwardModel(Owner):
                 if dF is not None:
                     dF[k, j] = dfj
 
-        stepper = LoadStepper(sol, self.test.set_load, converged)
+        # warm start of each step from the last run (fabricsurf/inverse/fitting/warm_start.py)
+        ws = warm_start.of(self)
+        stepper = LoadStepper(sol, self.test.set_load, ws.recording(converged, len(exp.path)),
+                              predictor=ws.predictor())
         try:
             iters = stepper.run(exp.path)
         except LoadStepError as e:

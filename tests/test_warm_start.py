@@ -1,0 +1,109 @@
+"""Warm starts of the forward runs (fabricsurf/inverse/fitting/warm_start.py): a fit gives the
+same moduli and χ² as with every load step started cold, to what Newton's tolerance allows,
+with fewer Newton iterations; the load stepper falls back to the last converged state when
+Newton fails from a predicted one.
+
+The tolerance: SNES stops at a residual of 1e-10 (absolute, or relative to the start's), so
+two converged states differ by about 1e-10 / k in displacement (k ≥ 0.4 N/mm here), i.e.
+≤ 1e-9 mm, 2e-7 of the noise level: the residuals and their sensitivities agree to about that
+relative precision, and a fit that takes the same steps ends at moduli and χ² that agree to
+well below 1e-6 (the fit's own stopping tolerance on χ² is 1e-6)."""
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.discretise.stepping import LoadStepper
+from fabricsurf.inverse.fitting import warm_start
+from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.synthetic import generate as sy
+
+TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
+         "geodesic_bending": {"A_g": 12.0}}
+START = {"fibre_stretch": {"k_l": 20.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
+         "geodesic_bending": {"A_g": 8.0}}
+
+
+def one_fit(exp, warm: bool):
+    """A fit from START, the forward runs warm-started or not: (result, Newton iterations of
+    each forward run)."""
+    old = warm_start.ENABLED
+    warm_start.ENABLED = warm
+    try:
+        with ForwardModel(exp, full_model(list(TRUTH), START), h=4.0) as fm:
+            newton = []
+            run = fm.run
+
+            def counted(*a, **k):
+                pred = run(*a, **k)
+                newton.append(pred.newton)
+                return pred
+
+            fm.run = counted
+            free = [i for i, (t, _) in enumerate(fm.params) if t.name in TRUTH]
+            res = fit(fm, free, verbose=False, scale_start=False, space="linear")
+            return res, newton
+    finally:
+        warm_start.ENABLED = old
+
+
+def test_warm_fit_equals_cold_fit_with_fewer_newton_iterations():
+    exp = sy.template(48.0, 24.0, [2.0], sy.grid_points(48.0, 24.0, 8, 4))
+    sy.continuum_data(exp, full_model(list(TRUTH), TRUTH), h=4.0)
+    sy.add_noise(exp, 0.005, 0.005, 31)
+    cold, n_cold = one_fit(exp, False)
+    warm, n_warm = one_fit(exp, True)
+    print("cold", cold.values[cold.free], cold.chi2, n_cold)
+    print("warm", warm.values[warm.free], warm.chi2, n_warm)
+    assert len(n_warm) == len(n_cold) and cold.iterations == warm.iterations
+    free = cold.free
+    assert np.allclose(warm.values[free], cold.values[free], rtol=1e-7, atol=0.0)
+    assert abs(warm.chi2 - cold.chi2) <= 1e-8 * cold.chi2
+    assert np.allclose(warm.std[free], cold.std[free], rtol=1e-6)
+    # the first run is cold in both; then each step starts from the last run's, corrected by
+    # the sensitivities: fewer iterations, and at the optimum's small steps two instead of four
+    assert n_warm[0] == n_cold[0] and sum(n_warm) < sum(n_cold)
+    assert n_warm[-1] <= 0.5 * n_cold[-1]
+    same = MPI.COMM_WORLD.allgather((n_warm, float(warm.chi2)))
+    assert all(x == same[0] for x in same)
+
+
+class Stub:
+    """Converges from any start within ``basin`` of the load's solution u = t, else fails."""
+
+    def __init__(self, basin: float):
+        self.basin, self.t = basin, 0.0
+        self.u = type("U", (), {"x": type("X", (), {"array": np.zeros(1)})()})()
+
+    def state(self):
+        return [self.u.x.array.copy()]
+
+    def restore(self, state):
+        self.u.x.array[:] = state[0]
+
+    def set(self, t):
+        self.t = t
+
+    def solve(self):
+        if abs(self.u.x.array[0] - self.t) <= self.basin:
+            self.u.x.array[:] = self.t
+            return 2, 1
+        return -5, 25
+
+
+def test_stepper_uses_a_good_prediction_and_falls_back_from_a_bad_one():
+    s = Stub(basin=1.5)
+    stepper = LoadStepper(s, s.set, predictor=lambda k, t: np.array([t + 0.1]))
+    assert stepper.run([1.0, 2.0, 3.0]) == [1, 1, 1]
+    assert stepper.predicted == [True, True, True] and stepper.attempts == [1, 1, 1]
+    s = Stub(basin=1.5)
+    logged = []
+    stepper = LoadStepper(s, s.set, predictor=lambda k, t: np.array([t + 10.0]),
+                          log=logged.append)
+    assert stepper.run([1.0, 2.0]) == [26, 26]  # the failed start's 25, then one from u_k−1
+    assert stepper.predicted == [False, False] and s.u.x.array[0] == 2.0
+    assert logged[0].startswith("step 1: SNES DIVERGED_MAX_IT (-5) from the predicted state")
+    stepper = LoadStepper(s, s.set, predictor=lambda k, t: None)
+    s.u.x.array[:] = 0.0
+    assert stepper.run([1.0]) == [1] and stepper.predicted == [None]
