@@ -51,7 +51,6 @@ from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import forming_options
 from fabricsurf.experiments.base import ExperimentSetup, Setup
-from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.model.kinematics import l_dir, m_dir
@@ -81,7 +80,10 @@ class HemisphereForming(ExperimentSetup):
         "holder_gap": "gap between holder and die (mm, default R/50)",
         "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
         "contact_stiffness": "penalty k_c (N/mm³, default 100)",
-        "friction": "Coulomb coefficient between the flange and holder and die (default 0)",
+        "friction": "Coulomb coefficient between the flange and holder and die's face "
+                    "(default 0)",
+        "punch_friction": "Coulomb coefficient between the sheet and the punch (default 0)",
+        "die_friction": "Coulomb coefficient between the sheet and the die's lip (default 0)",
         "friction_slip_rate": "slip rate below which friction is regularised (mm of slip per "
                               "mm of stroke, default 0.01)",
         "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
@@ -111,10 +113,7 @@ class HemisphereForming(ExperimentSetup):
         self.diagonal_deg = 45.0 if self.theta == 0.0 else 0.0
         self.specimen = quarter_blank(half, h, self.theta, comm)
         msh = self.specimen.mesh
-        self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
-                           o["contact_stiffness"], o["holder_pressure"],
-                           o.get("friction", 0.0), o.get("friction_slip_rate", 1e-2),
-                           weight_per_area(o.get("areal_density_g_m2", 0.0)))
+        self.tools = Tools.from_options(msh, o)
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
                            prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
