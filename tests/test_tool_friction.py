@@ -22,7 +22,8 @@ with friction under the holder, on the punch and over the lip:
 * punch friction: more of it raises the punch force at the final stroke (the punch also does
   the work its friction dissipates) and lowers the draw-in of the blank's corner (the friction
   holds the sheet on the punch against its slip away from the pole, so less of the flange
-  is pulled in; measured 0.242106, 0.242057, 0.242013 mm at μ_p = 0, 0.3, 0.6). The effect is
+  is pulled in; measured 0.242106, 0.242057, 0.242013 mm at μ_p = 0, 0.3, 0.6; the test
+  compares 0 and 0.3). The effect is
   small on this set-up (about 10⁻⁴ of the
   force at μ_p = 0.3): a sheet that forms by shear of inextensible fibres does not slide on the
   punch once it touches it (the fishnet drape's material points stay where they land), only
@@ -95,10 +96,10 @@ def balance(n: dict) -> float:
 
 
 RUNS = {"holder": (0.0, 0.0, STEPS), "punch_0": (0.0, 0.3, STEPS),
-        f"all_{STEPS}": (0.3, 0.3, STEPS), "punch_0.6": (0.6, 0.3, STEPS),
+        f"all_{STEPS}": (0.3, 0.3, STEPS),
         f"all_{2 * STEPS}": (0.3, 0.3, 2 * STEPS), f"all_{4 * STEPS}": (0.3, 0.3, 4 * STEPS)}
 """(μ_p, μ_d, steps) of the runs the tests read; the holder's μ = 0.3 in all."""
-PARALLEL = ("punch_0", f"all_{STEPS}")
+PARALLEL = (f"all_{STEPS}",)
 """The runs repeated on 2 ranks."""
 
 
@@ -160,13 +161,12 @@ def test_zero_tool_friction_is_todays_force(numbers):
 
 @pytest.mark.serial("1 = 2 ranks: test_serial_matches_two_ranks runs the same under mpirun")
 def test_punch_friction_monotone(numbers):
-    runs_ = [numbers[k] for k in ("punch_0", f"all_{STEPS}", "punch_0.6")]
-    for a, b in pairwise(runs_):
-        print(f"punch force {a['force'][-1]:.7g} -> {b['force'][-1]:.7g} N, dissipated "
-              f"{a['dissipated']:.7g} -> {b['dissipated']:.7g} N·mm, draw-in "
-              f"{np.round(a['draw_in'], 6)} -> {np.round(b['draw_in'], 6)} mm")
-        assert b["force"][-1] > a["force"][-1] and b["dissipated"] > a["dissipated"]
-        assert b["draw_in"][1] < a["draw_in"][1]
+    a, b = numbers["punch_0"], numbers[f"all_{STEPS}"]
+    print(f"punch force {a['force'][-1]:.7g} -> {b['force'][-1]:.7g} N, dissipated "
+          f"{a['dissipated']:.7g} -> {b['dissipated']:.7g} N·mm, draw-in "
+          f"{np.round(a['draw_in'], 6)} -> {np.round(b['draw_in'], 6)} mm")
+    assert b["force"][-1] > a["force"][-1] and b["dissipated"] > a["dissipated"]
+    assert b["draw_in"][1] < a["draw_in"][1]
 
 
 @pytest.mark.serial("starts mpirun -n 2 itself (serial session only)")
