@@ -15,7 +15,8 @@ of a 250 mm blank.
    h = R/4, R/5, R/7.07 (the finest in the range the convergence study shows to be
    asymptotic) and R/10 (issue 40's size). Printed per mesh: DOFs, Newton iterations and
    contact active-set changes per stroke step, the load stepper's attempts, the wall and CPU
-   time; then how the CPU time grows with the number of elements.
+   time; then how the CPU time grows with the number of elements. ``--tool-friction``: the
+   same with friction on the punch and over the die's lip (μ = 0.3, as under the holder).
 
 3. ``--study steps [--size quick|intermediate|full|full-150] [--case kinematic|fitted]``: one
    run of demos/demo_forming.py at its quick size (R = 20 mm, 72 mm blank, h = 4 mm), an
@@ -54,11 +55,15 @@ comm = MPI.COMM_WORLD
 STROKE_FRACTION, STEPS = 0.6, 12
 
 
+TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}
+"""Friction on the punch and over the die's lip, as under the holder (fabric on steel)."""
+
+
 def form(R: float, blank: float, h: float, values: dict | None = None,
-         count_changes: bool = False) -> dict:
+         count_changes: bool = False, tooling: dict | None = None) -> dict:
     """One forming run; its DOFs, cost, punch force and recovered shear at X = R/2."""
     model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
-    with parts.experiment(R, blank, h, 45.0, model, comm) as e:
+    with parts.experiment(R, blank, h, 45.0, model, comm, **(tooling or {})) as e:
         parts.set_moduli(e, values or {})
         dofs = 3 * e.problem.V.dofmap.index_map.size_global
         changes, last = [], [e.active_set()]
@@ -75,7 +80,7 @@ def form(R: float, blank: float, h: float, values: dict | None = None,
         p = e.profile(e.diagonal_deg, np.array([0.5 * R]))
         return {"h": h, "dofs": dofs, "cells": e.specimen.mesh.topology.index_map(2).size_global,
                 "seconds": seconds, "cpu": cpu, "iterations": list(its),
-                "attempts": list(e.stepper.attempts),
+                "attempts": list(e.stepper.attempts), "dissipated": e.dissipated(),
                 "changes": changes, "force": e.force[-1],
                 "shear": float(p["shear_recovered_deg"][0]), "gap": float(p["gap"][0])}
 
@@ -196,16 +201,20 @@ def convergence() -> None:
                       f"; gaps to the punch {np.round([k['gap'] for k in kin], 4).tolist()} mm")
 
 
-def performance() -> None:
+def performance(tools: bool = False) -> None:
+    """The 250 mm blank on four meshes; with ``tools`` friction on the punch and the die's lip
+    too (:data:`TOOL_FRICTION`), else under the holder only."""
     R, blank = 50.0, 250.0
-    rank0_print(comm, f"== performance: R = {R:g} mm, {blank:g} mm blank, {comm.size} ranks, "
-                      f"load {_load()} ==")
+    which = "friction on all tools" if tools else "friction under the holder"
+    rank0_print(comm, f"== performance: R = {R:g} mm, {blank:g} mm blank, {which}, {comm.size} "
+                      f"ranks, load {_load()} ==")
     rows = []
     for h in (R / 4.0, R / 5.0, R / 5.0 / math.sqrt(2.0), R / 10.0):
-        r = form(R, blank, h, count_changes=True)
+        r = form(R, blank, h, count_changes=True, tooling=TOOL_FRICTION if tools else None)
         rows.append(r)
         rank0_print(comm, f"h = {h:.3f} mm: {r['dofs']} DOFs, {r['cells']} cells, "
-                          f"{r['seconds']:.1f} s, force {r['force']:.5g} N")
+                          f"{r['seconds']:.1f} s, force {r['force']:.5g} N, dissipated "
+                          f"{r['dissipated']:.5g} N·mm")
         rank0_print(comm, f"  Newton iterations per step {r['iterations']}; attempts "
                           f"{r['attempts']}")
         rank0_print(comm, f"  active-set changes per step {r['changes']}")
@@ -231,6 +240,8 @@ if __name__ == "__main__":
                     help="demo study: which runs (kinematic, fitted, 'bending / 10', "
                          "'locking at 40 deg'; default all)")
     ap.add_argument("--case", choices=("kinematic", "fitted"), default="kinematic")
+    ap.add_argument("--tool-friction", action="store_true",
+                    help="performance study: friction on the punch and the die's lip too")
     args = ap.parse_args()
     if args.study == "steps":
         steps(args.size, args.case)
@@ -239,4 +250,4 @@ if __name__ == "__main__":
     if args.study in ("convergence", "both"):
         convergence()
     if args.study in ("performance", "both"):
-        performance()
+        performance(args.tool_friction)

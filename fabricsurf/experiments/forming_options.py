@@ -33,10 +33,14 @@ PLAIN_DEFAULTS = {"contact_stiffness": CONTACT_STIFFNESS, "holder_pressure": 1e-
 """Defaults of the options in their own units (N/mm³, N/mm², mm/mm, deg, N/mm)."""
 RANGES = {"clearance": (0.0, 1.0, "R"), "die_lip": (0.0, 1.0, "R"),
           "holder_pressure": (0.0, 1.0, "N/mm²"), "contact_stiffness": (0.0, 1e6, "N/mm³"),
-          "friction": (0.0, 2.0, ""), "friction_slip_rate": (0.0, 1.0, "mm/mm"),
+          "friction": (0.0, 2.0, ""), "punch_friction": (0.0, 2.0, ""),
+          "die_friction": (0.0, 2.0, ""), "friction_slip_rate": (0.0, 1.0, "mm/mm"),
           "locking_angle_deg": (0.0, 90.0, "deg")}
-"""(low, high, unit) of each option: low excluded (friction: included), high included; "R":
-in punch radii."""
+"""(low, high, unit) of each option: low excluded (the Coulomb coefficients: included), high
+included; "R": in punch radii."""
+FRICTION_KEYS = ("friction", "punch_friction", "die_friction")
+"""Coulomb coefficients (default 0: frictionless) of the flange under the holder (both faces),
+of the punch and of the die's lip (forming_tools, forming_friction)."""
 MAX_BLANK_RATIO = 20.0
 """The blank's side at most this many punch radii (forming tests: 3 to 6)."""
 MAX_ELEMENTS = 400_000
@@ -49,7 +53,7 @@ def _ranged(out: dict, key: str, where: str, R: float) -> None:
     low, high, unit = RANGES[key]
     scale, shown = (R, f" (= {high:g} R = {high * R:g} mm)") if unit == "R" else (1.0, "")
     v = out[key]
-    closed = key == "friction"
+    closed = key in FRICTION_KEYS
     if v < low * scale or (v == low * scale and not closed) or v > high * scale:
         lo = f"{low:g} ≤" if closed else f"{low:g} <"
         raise DataError(f"{where}: [tooling] {key} = {v:g} is outside its plausible range "
@@ -65,7 +69,8 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
         out[key] = number_option(tables, "tooling", key, where, default) * length_scale
     for key, default in PLAIN_DEFAULTS.items():
         out[key] = number_option(tables, "tooling", key, where, default)
-    out["friction"] = number_option(tables, "tooling", "friction", where, 0.0, positive=False)
+    for key in FRICTION_KEYS:
+        out[key] = number_option(tables, "tooling", key, where, 0.0, positive=False)
     for key in RANGES:
         _ranged(out, key, where, R)
     if out["holder_gap"] > out["die_lip"]:

@@ -53,7 +53,6 @@ from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import forming_blank, forming_options
 from fabricsurf.experiments.base import ExperimentSetup, Setup
-from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
 from fabricsurf.experiments.wrinkling import Indicators
@@ -84,7 +83,10 @@ class HemisphereForming(ExperimentSetup):
         "holder_gap": "gap between holder and die (mm, default R/50)",
         "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
         "contact_stiffness": "penalty k_c (N/mm³, default 100)",
-        "friction": "Coulomb coefficient between the flange and holder and die (default 0)",
+        "friction": "Coulomb coefficient between the flange and holder and die's face "
+                    "(default 0)",
+        "punch_friction": "Coulomb coefficient between the sheet and the punch (default 0)",
+        "die_friction": "Coulomb coefficient between the sheet and the die's lip (default 0)",
         "friction_slip_rate": "slip rate below which friction is regularised (mm of slip per "
                               "mm of stroke, default 0.01)",
         "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
@@ -116,10 +118,7 @@ class HemisphereForming(ExperimentSetup):
         self.copies = 4.0 if self.domain == "quarter" else 1.0
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
-        self.tools = Tools(msh, self.R, self.R + o["clearance"], o["holder_gap"], o["die_lip"],
-                           o["contact_stiffness"], o["holder_pressure"],
-                           o.get("friction", 0.0), o.get("friction_slip_rate", 1e-2),
-                           weight_per_area(o.get("areal_density_g_m2", 0.0)))
+        self.tools = Tools.from_options(msh, o)
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
                            prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
@@ -129,7 +128,8 @@ class HemisphereForming(ExperimentSetup):
         p.mirror("clamp", 0)  # the full blank has no such edges: the same forms, no terms
         p.mirror("bottom", 1)
         self.pins, self.rotation_vertex = ({}, None) if self.domain == "quarter" else \
-            forming_blank.pin_rigid_motions(p, self.R, o.get("friction", 0.0) == 0.0)
+            forming_blank.pin_rigid_motions(p, self.R, not any(
+                o.get(k, 0.0) for k in ("friction", "punch_friction", "die_friction")))
         self.discretisation = forming_blank.record(setup, self.specimen, self.domain,
                                                    self.rotation_vertex, h)
         self.problem, self.solver = p, p.solver()
@@ -205,7 +205,7 @@ class HemisphereForming(ExperimentSetup):
         return self._scalar("stored"), self._scalar("tools")
 
     def dissipated(self) -> float:
-        """The energy dissipated by friction under the holder since the start of :meth:`run`
+        """The energy dissipated by friction on the tools since the start of :meth:`run`
         (N·mm, whole blank): with it the work balance reads ∫ F ds = ΔΠ + D."""
         return self.copies * self.solver.dissipated
 

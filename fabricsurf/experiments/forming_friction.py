@@ -1,0 +1,87 @@
+"""Coulomb friction of the sheet on the punch and over the die's lip (forming_tools.Tools), as
+incremental dissipation potentials of a load step, and the punch force they add.
+
+The same variational update as the holder's friction (Ortiz & Stainier 1999; forming_tools):
+a step from the converged state r_n at stroke s_n to the stroke s adds to the energy
+
+    Φ_tool(u; s) = ∫ μ_tool p_n (√(|Δr_t|² + ε²) − ε) dX,    ε = v_ε |s − s_n|,
+
+with, for each tool,
+
+* p_n = k_c ⟨−d(r_n)⟩ the tool's contact pressure at r_n (per unit reference area): the
+  normal pressure is explicit within the step, as the holder's is;
+* Δr_t = P_n (Δr − Δs_tool e_z) the slip relative to the tool, projected on the tool's tangent
+  plane at r_n (P_n = I − n nᵀ, n the tool's outward normal at r_n): the punch moves with the
+  stroke, Δs_tool = s − s_n; the die stands still, Δs_tool = 0.
+
+The die's friction acts over its lip only (where the die's nearest point is on the lip's torus
+at r_n, ρ_n < R_o + r_d): on the die's flat face the flange is pressed by the holder, and its
+friction on both faces is the holder's term (coefficient ``friction``, 2 μ p_h w).
+
+Variation: the friction traction on the sheet is −τ, τ = μ p_n Δr_t / √(|Δr_t|² + ε²) —
+Coulomb's law regularised for slips slower than v_ε per unit stroke. The energy dissipated in
+the step is τ·Δr_t (traction times the relative slip).
+
+**The punch force with punch friction.** The punch's potential depends on s through the
+relative slip, ∂Φ_p/∂s|_u = −∫ τ_z dX (τ at fixed ε: ε is a regularisation, not a state). The
+force on the punch is the vertical force the sheet exerts on it, the normal pressure's and the
+friction's, F = ∫ (k_c ⟨−d_p⟩ n_z − τ_z) dX = ∂(Π + Φ)/∂s|_u. Along a path of equilibria
+(∂Π/∂u = −τ in the continuous limit) dΠ/ds = ∂Π/∂s − τ·u′, so
+
+    F − dΠ/ds = τ·u′ − τ_z = τ·(u′ − e_z) ≥ 0,
+
+the rate of dissipation on the punch (the holder's and the lip's add τ·u′ the same way, their
+potentials not depending on s): ∫ F ds = ΔΠ + D, D the sum of the steps' τ·Δr_t. The force
+∂Π/∂s alone (without −τ_z) would miss the punch friction's work, and the balance would fail by
+the punch's share of D. The discrete balance errs by the trapezoid rule's O(Δs²) on F and the
+explicit pressure's lag, so it converges as the steps are refined (tests/test_tool_friction.py).
+"""
+
+from __future__ import annotations
+
+import ufl
+
+
+def _tangential(v, n):
+    """v projected on the plane normal to the unit vector n."""
+    return v - ufl.dot(v, n) * n
+
+
+def punch_slip(tools, r, r_n):
+    """(μ_p p_n, the limit traction; Δr_t, the slip relative to the punch in its tangent plane
+    at r_n) of the step from (r_n, s_n) to (r, s)."""
+    d_n, n = tools.punch_normal(r_n, tools.stroke_n)
+    rel = r - r_n - (tools.stroke - tools.stroke_n) * ufl.as_vector([0.0, 0.0, 1.0])
+    limit = tools.mu_punch * tools.k_c * ufl.max_value(-d_n, 0.0)
+    return limit, _tangential(rel, n)
+
+
+def lip_slip(tools, r, r_n):
+    """(μ_d p_n, the limit traction over the die's lip; Δr_t, the slip in the lip's tangent
+    plane at r_n)."""
+    penetration, n = tools.lip_contact(r_n)
+    return tools.mu_die * tools.k_c * penetration, _tangential(r - r_n, n)
+
+
+def _slips(tools, r, r_n):
+    return (punch_slip(tools, r, r_n), lip_slip(tools, r, r_n))
+
+
+def potential_density(tools, r, r_n):
+    """Σ μ p_n (√(|Δr_t|² + ε²) − ε) over punch and lip (N/mm per unit reference area)."""
+    return sum(limit * (ufl.sqrt(ufl.dot(t, t) + tools.eps**2) - tools.eps)
+               for limit, t in _slips(tools, r, r_n))
+
+
+def dissipation_density(tools, r, r_n):
+    """Σ τ·Δr_t = μ p_n |Δr_t|² / √(|Δr_t|² + ε²) over punch and lip: the step's dissipation
+    (N/mm per unit reference area)."""
+    return sum(limit * ufl.dot(t, t) / ufl.sqrt(ufl.dot(t, t) + tools.eps**2)
+               for limit, t in _slips(tools, r, r_n))
+
+
+def punch_force_density(tools, r, r_n):
+    """−τ_z of the punch's friction: its share of the punch force per unit reference area
+    (N/mm², module docstring)."""
+    limit, t = punch_slip(tools, r, r_n)
+    return -limit * t[2] / ufl.sqrt(ufl.dot(t, t) + tools.eps**2)

@@ -1,0 +1,123 @@
+"""The Newton solver of the forming problem (forming_tools.ContactProblem): a secant predictor
+along the stroke, full Newton steps with the ``l2`` line search as a fallback, the friction of
+the punch and the die's lip added to residual and Jacobian while it is on, and the dissipation
+of each converged step (docs/forming.md)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from dolfinx import cpp as _cpp
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from fabricsurf.discretise.solver import SOLVER_KEYS, SNESSolver
+
+if TYPE_CHECKING:
+    from fabricsurf.experiments.forming_tools import Tools
+
+
+class ContactSolver(SNESSolver):
+    """SNESSolver that follows the stroke: a secant predictor, and full Newton steps with the
+    ``l2`` line search as a fallback.
+
+    A solve starts from the last converged state (the load stepper restores it after a failed
+    attempt): that state is copied to ``u_n``, the r_n of the friction potential, first, and
+    the regularising slip set from the stroke increment since it (``s_n``). The start is then
+    extrapolated along the path through the last two converged states (u_n + (s − s_n)/(s_n −
+    s_prev)·(u_n − u_prev)): a stroke increment moves the whole sheet (the flange draws in, the
+    net shears), and Newton started from the previous state spends most of its iterations
+    finding that motion. Newton takes full steps first; if that attempt fails, it is repeated
+    from the same predicted state with ``fallback`` options (the ``l2`` line search, which
+    damps the overshoot at the kinks of the contact residual) before the load stepper cuts the
+    increment (docs/forming.md, measured). :attr:`fallbacks` counts those repeats. A converged
+    solve adds the friction work of its step (``dissipation``, one quarter of the blank) to
+    :attr:`dissipated`. ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
+    friction potentials are compiled when first needed and added to R and J only while
+    Tools.tool_friction() holds (Dirichlet rows and columns left out, as in the main forms;
+    their lifting vanishes, every iterate meeting the homogeneous mirror conditions)."""
+
+    def __init__(self, *args, tools: Tools, u_n: fem.Function, dissipation,
+                 tool_friction: tuple | None = None, fallback: dict | None = None,
+                 **kw) -> None:
+        super().__init__(*args, **kw)
+        self.tools, self.u_n = tools, u_n
+        self._dissipation = fem.form(dissipation)
+        self._tool_friction, self._friction_forms = tool_friction, None
+        self._bf = self.b.duplicate()
+        options = args[5] if len(args) > 5 else kw.get("options")
+        self._options = {k: v for k, v in (options or {}).items() if k not in SOLVER_KEYS}
+        self._fallback = fallback
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the flat blank at s = 0: no displacement, dissipation or path history."""
+        self.u.x.array[:] = 0.0
+        self.dissipated, self.s_n = 0.0, 0.0
+        self.u_prev: np.ndarray | None = None
+        self.s_prev = 0.0
+        self.fallbacks = 0
+
+    def _release(self) -> None:
+        super()._release()
+        self._bf.destroy()
+
+    def _friction(self) -> tuple | None:
+        """The compiled (residual, Jacobian) of the tools' friction while it is on, else None."""
+        if self._tool_friction is None or not self.tools.tool_friction():
+            return None
+        if self._friction_forms is None:
+            self._friction_forms = tuple(fem.form(f) for f in self._tool_friction)
+        return self._friction_forms
+
+    def _F(self, snes, x, b) -> None:
+        super()._F(snes, x, b)
+        forms = self._friction()
+        if forms is not None:
+            with self._bf.localForm() as local:
+                local.set(0.0)
+            fem_petsc.assemble_vector(self._bf, forms[0])
+            self._bf.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            fem_petsc.set_bc(self._bf, self.bcs, x, 0.0)
+            b.axpy(1.0, self._bf)
+
+    def _J(self, snes, x, A, P) -> None:
+        super()._J(snes, x, A, P)
+        forms = self._friction()
+        if forms is not None:
+            a = forms[1]
+            _cpp.fem.petsc.assemble_matrix(A, a, _cpp.fem.pack_constants(a),
+                                           _cpp.fem.pack_coefficients(a), self.bcs)
+            A.assemble()
+
+    def _predict(self, s: float) -> None:
+        """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s."""
+        if self.u_prev is not None and self.s_n != self.s_prev:
+            f = (s - self.s_n) / (self.s_n - self.s_prev)
+            self.u.x.array[:] += f * (self.u_n.x.array - self.u_prev)
+
+    def solve(self) -> tuple[int, int]:
+        self.u_n.x.array[:] = self.u.x.array
+        self.tools.stroke_n.value = self.s_n
+        s = float(self.tools.stroke.value)
+        self.tools.eps.value = self.tools.slip_rate * max(abs(s - self.s_n), 1e-6 * self.tools.R)
+        self._predict(s)
+        predicted = self.u.x.array.copy()
+        reason, its = super().solve()
+        if reason <= 0 and self._fallback:
+            self.fallbacks += 1
+            self.u.x.array[:] = predicted
+            self.set_options({**self._options, **self._fallback})
+            try:
+                reason, more = super().solve()
+            finally:
+                self.set_options(self._options)
+            its += more
+        if reason > 0:
+            self.u_prev, self.s_prev, self.s_n = self.u_n.x.array.copy(), self.s_n, s
+            self.dissipated += self.comm.allreduce(fem.assemble_scalar(self._dissipation),
+                                                   op=MPI.SUM)
+        return reason, its
