@@ -9,6 +9,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 
@@ -21,6 +22,28 @@ def _toml_value(v) -> str:
     return repr(float(v)) if isinstance(v, float) else repr(v)
 
 
+def _plugin_tables(plugin, options: dict) -> dict[str, dict]:
+    """The plug-in's keys of ``options`` by table, without those at the value the plug-in's
+    parser gives when the key is absent (a default such as "no self-weight" may be a value the
+    key itself may not take, e.g. an areal density of 0)."""
+    tables: dict[str, dict] = {}
+    for table, keys in plugin.keys.items():
+        for k in keys:
+            if k in options:
+                tables.setdefault(table, {})[k] = options[k]
+    for table, kv in tables.items():
+        for k in list(kv):
+            rest = {t: {q: v for q, v in d.items() if (t, q) != (table, k)}
+                    for t, d in tables.items()}
+            try:
+                same = plugin.parse_options(rest, 1.0, "writer").get(k) == kv[k]
+            except DataError:
+                same = False
+            if same:
+                del kv[k]
+    return {t: kv for t, kv in tables.items() if kv}
+
+
 def toml_text(exp: Experiment) -> str:
     """experiment.toml of ``exp`` (units mm and N; the plug-in's options in their tables)."""
     plugin = get_test(exp.test)
@@ -29,17 +52,17 @@ def toml_text(exp: Experiment) -> str:
         "specimen": {"length": exp.length, "width": exp.width,
                      "fibre_angles_deg": [float(a) for a in exp.fibre_angles_deg]},
         "loading": {"test": exp.test}, "data": {}}
-    for table, keys in plugin.keys.items():
-        for k in keys:
-            if k in exp.setup.options:
-                tables.setdefault(table, {})[k] = exp.setup.options[k]
+    for table, kv in _plugin_tables(plugin, exp.setup.options).items():
+        tables.setdefault(table, {}).update(kv)
     if not exp.has_force:
         tables["loading"]["path"] = [float(p) for p in exp.path]
     if exp.has_field:
         tables["data"]["field"] = "field.csv"
     if exp.has_force:
         tables["data"]["force"] = "force.csv"
-    for key in ("noise_std", "force_noise_std"):
+    if exp.has_shear:
+        tables["data"]["shear"] = "shear.csv"
+    for key in ("noise_std", "force_noise_std", "shear_noise_deg"):
         if getattr(exp, key) is not None:
             tables["data"][key] = float(getattr(exp, key))
     if exp.source:
@@ -66,6 +89,12 @@ def _write_files(tmp: Path, exp: Experiment) -> None:
             w.writerow(["step", "X", "Y", *comps])
             for s, x, u in zip(exp.field_step, exp.X, exp.u):
                 w.writerow([int(s), *(repr(float(v)) for v in (*x, *u))])
+    if exp.has_shear:
+        with open(tmp / "shear.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["step", "X", "Y", "shear_deg"])
+            for s, x, g in zip(exp.shear_step, exp.shear_X, exp.shear):
+                w.writerow([int(s), *(repr(float(v)) for v in (*x, g))])
 
 
 def write_experiment(directory: str | Path, exp: Experiment, overwrite: bool = False) -> Path:
