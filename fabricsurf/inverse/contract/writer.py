@@ -23,25 +23,31 @@ def _toml_value(v) -> str:
 
 
 def _plugin_tables(plugin, options: dict) -> dict[str, dict]:
-    """The plug-in's keys of ``options`` by table, without those at the value the plug-in's
-    parser gives when the key is absent (a default such as "no self-weight" may be a value the
-    key itself may not take, e.g. an areal density of 0)."""
+    """The plug-in's keys of ``options`` by table. A key whose value the plug-in's parser
+    refuses when written but gives when the key is absent (a default that the key itself may
+    not take, e.g. "no self-weight" as an areal density of 0) is left out."""
     tables: dict[str, dict] = {}
     for table, keys in plugin.keys.items():
         for k in keys:
             if k in options:
                 tables.setdefault(table, {})[k] = options[k]
-    for table, kv in tables.items():
-        for k in list(kv):
-            rest = {t: {q: v for q, v in d.items() if (t, q) != (table, k)}
-                    for t, d in tables.items()}
-            try:
-                same = plugin.parse_options(rest, 1.0, "writer").get(k) == kv[k]
-            except DataError:
-                same = False
-            if same:
-                del kv[k]
+    for table, k in [(t, k) for t, kv in tables.items() for k in kv]:
+        if _parsed(plugin, tables) is not None:
+            break
+        rest = {t: {q: v for q, v in d.items() if (t, q) != (table, k)}
+                for t, d in tables.items()}
+        parsed = _parsed(plugin, rest)
+        if parsed is not None and parsed.get(k) == tables[table][k]:
+            tables = rest
     return {t: kv for t, kv in tables.items() if kv}
+
+
+def _parsed(plugin, tables: dict) -> dict | None:
+    """The plug-in's options from ``tables``, None if its parser refuses them."""
+    try:
+        return plugin.parse_options(tables, 1.0, "")
+    except DataError:
+        return None
 
 
 def toml_text(exp: Experiment) -> str:
