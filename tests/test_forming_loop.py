@@ -153,3 +153,33 @@ def test_compare_forming_data_one_rank_equals_two(tmp_path):
     assert 0.5 < m["combined"] < 1.5  # the noise level: the data's own model and mesh
     for f in ("shear.png", "shear_per_point.csv", "force.png", "error_vs_step.png"):
         assert (root / "out" / f).is_file()
+
+
+LOCKING_TOOLS = TOOLING | {"holder_pressure": 1e-2, "friction": 0.3}
+"""The holder with friction: the fibres are tensioned, the sheet wraps the punch and shears."""
+LOCKING = {"fibre_stretch": {"k_l": 1e3, "k_m": 1e3}, "shear": {"k_s": 0.01},
+           "shear_locking": {"k4": 0.1, "k6": 0.0}, "normal_bending": {"k_b": 1e-3},
+           "twist": {"k_t": 1e-3}}
+"""A soft shear modulus and shear locking, ¼k₄γ⁴, three times the shear stress of k_s at 30°
+(the terms in vocabulary order: the data's model is the diagnosis's, one compiled form)."""
+
+
+@pytest.mark.serial("a diagnosis is many forward runs; its parallel path is test_diagnose's "
+                    "CLI test, and this file's compare test runs forming on 2 ranks")
+def test_diagnosis_names_hidden_shear_locking():
+    """Forming data (the punch force and the shear angles at mid-stroke and at the end, 1 % and
+    0.5° noise) made with shear locking: the baseline without it is misfit, and the diagnosis
+    adds shear locking and explains the data at the noise level."""
+    from fabricsurf.inverse.fitting.diagnose import diagnose
+    from fabricsurf.model.terms import make_term
+
+    exp = sf.hemisphere_template(BLANK, LOCKING_TOOLS, [3.0, 6.0, 9.0, 12.0],
+                                 sf.part_points(BLANK, R, 8), shear_steps=[2, 4])
+    sf.forming_data(exp, [make_term(k, **v) for k, v in LOCKING.items()], H, COMM)
+    sf.add_forming_noise(exp, 0.01 * np.abs(exp.force).max(), 0.5, seed=11)
+    d = diagnose([exp], ["fibre_stretch", "shear", "normal_bending", "twist"], h=H,
+                 params=LOCKING, fixed=["fibre_stretch", "normal_bending", "twist"],
+                 candidates=["shear_locking"], confirm=1, max_effects=1,
+                 check_discretisation=False, comm=COMM, verbose=False).as_dict()
+    assert d["baseline"]["misfit"] > 2.0
+    assert d["verdict"] == "shear_locking" and d["path"][-1]["misfit"] < 1.3
