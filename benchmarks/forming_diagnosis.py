@@ -38,7 +38,7 @@ TOOLS = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
 CASES = {
     "locking": {"tools": {"holder_pressure": 1e-2, "friction": 0.3}, "stroke": 12.0, "steps": 6,
                 "truth": {"fibre_stretch": {"k_l": 1e3, "k_m": 1e3}, "shear": {"k_s": 0.01},
-                          "shear_locking": {"k4": 0.1, "k6": 0.0},
+                          "shear_locking": {"k4": 1.0, "k6": 0.0},
                           "normal_bending": {"k_b": 1e-3}, "twist": {"k_t": 1e-3}},
                 "baseline": ["fibre_stretch", "shear", "normal_bending", "twist"],
                 "fixed": ["fibre_stretch"]},

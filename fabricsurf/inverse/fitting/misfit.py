@@ -96,7 +96,7 @@ def misfit(exp: Experiment, pred) -> dict:
         row = {"step": int(s), "load": float(exp.path[k]),
                "field_rms": float(np.sqrt(e2 / max(c * len(rows), 1))) if len(rows) else None,
                "combined": float(np.sqrt(((e2 / s_u**2 if len(rows) else 0.0) + (fk / s_F) ** 2
-                                          + g2 / s_g**2) / max(n, 1)))}
+                                          + (g2 / s_g**2 if len(grows) else 0.0)) / max(n, 1)))}
         if exp.has_shear:
             row["shear_rms_deg"] = float(np.sqrt(g2 / len(grows))) if len(grows) else None
         if dF is not None:
