@@ -177,7 +177,7 @@ def test_diagnosis_names_hidden_shear_locking():
     from fabricsurf.model.terms import make_term
 
     exp = sf.hemisphere_template(BLANK, LOCKING_TOOLS, [3.0, 6.0, 9.0, 12.0],
-                                 sf.part_points(BLANK, R, 8), shear_steps=[2, 4])
+                                 sf.part_points(BLANK, R, 4), shear_steps=[4])
     sf.forming_data(exp, [make_term(k, **v) for k, v in LOCKING.items()], H, COMM)
     sf.add_forming_noise(exp, 0.01 * np.abs(exp.force).max(), 0.5, seed=11)
     d = diagnose([exp], ["fibre_stretch", "shear", "normal_bending", "twist"], h=H,
