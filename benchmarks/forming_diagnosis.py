@@ -17,7 +17,7 @@ The data are made on a mesh ``--data-h`` (default: the fit's h, so that the disc
 error stays out of the verdict; a finer one shows what it adds). Prints the data's sizes, the
 baseline and final misfits, the ranking with every refit, the verdict and the time.
 
-    .venv/bin/python benchmarks/forming_diagnosis.py --case locking [--candidates a,b]
+    .venv/bin/python benchmarks/forming_diagnosis.py --case locking [--k4 0.1] [--candidates a,b]
 """
 
 from __future__ import annotations
@@ -72,10 +72,14 @@ def main() -> None:
                     help="force noise as a fraction of the largest force")
     ap.add_argument("--shear-noise", type=float, default=0.5, help="shear noise (deg)")
     ap.add_argument("--candidates", default=None, help="comma-separated (default: all seen)")
+    ap.add_argument("--k4", type=float, default=None,
+                    help="shear locking's k4 of the locking case (N/mm, default 1)")
     a = ap.parse_args()
     comm = MPI.COMM_WORLD
     say = lambda *s: rank0_print(comm, *s)  # noqa: E731
     case = CASES[a.case]
+    if a.k4 is not None and "shear_locking" in case["truth"]:
+        case["truth"] = case["truth"] | {"shear_locking": {"k4": a.k4, "k6": 0.0}}
     t0 = MPI.Wtime()
     exp = data(case, a.data_h or a.h, a.force_noise, a.shear_noise, comm)
     say(f"case {a.case}: {len(exp.steps)} strokes to {exp.path[-1]:g} mm, punch force up to "
