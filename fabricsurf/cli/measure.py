@@ -130,7 +130,9 @@ def _summary(label: str, m: dict) -> str:
              f"{m['chi2']:.5g} over {m['n']} data"]
     for e in m["experiments"]:
         bits = [f"field RMS {e['field_rms']:.4g} mm" if e["field_rms"] is not None else "",
-                f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else ""]
+                f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else "",
+                f"shear RMS {e['shear_rms_deg']:.4g} deg" if e.get("shear_rms_deg") is not None
+                else ""]
         parts.append(f"  {e['experiment']}: misfit {e['combined']:.4g}; "
                      + ", ".join(b for b in bits if b)
                      + (f"; points outside the mesh: {e['points_outside']}"

@@ -11,7 +11,13 @@ the load path (one value per measured step); at a converged state the generic fo
 * the measured reaction as a virtual-work functional R(u)·w, with w =
   :meth:`~ExperimentSetup.reaction_weight` the derivative of the prescribed boundary motion
   with respect to the load-path value (so edge and corner forces are included, and the
-  sensitivity of the reaction is (∂R/∂p + K du/dp)·w).
+  sensitivity of the reaction is (∂R/∂p + K du/dp)·w); or, for a test whose reaction is not
+  the work conjugate of a prescribed boundary motion (a rigid tool's force through a contact
+  penalty: the hemisphere's punch), a general reaction functional F(u) =
+  :meth:`~ExperimentSetup.reaction_form` (a UFL form), with the sensitivity ∂F/∂p + (∂F/∂u)·du/dp,
+* scalar fields at points (the shear angle of a formed part, as optical measurement gives it):
+  :meth:`~ExperimentSetup.shear_angle` and :meth:`~ExperimentSetup.shear_points` (points of the
+  whole specimen mapped onto the solved part by the set-up's symmetry).
 
 Each plug-in validates its own keys of ``experiment.toml`` (:attr:`~ExperimentSetup.keys`,
 :meth:`~ExperimentSetup.parse_options`); keys it does not declare are rejected by the loader.
@@ -24,6 +30,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import ClassVar
 
+import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -55,9 +62,12 @@ class ExperimentSetup(Owner, ABC):
     plane), ``path_unit`` ("length": the load path is a displacement converted with the length
     unit; "1": a dimensionless factor), ``has_reaction`` (whether a force column may be given),
     ``path_label``/``reaction_label`` (axis labels), ``keys`` ({table: {key: help}}: the
-    plug-in's own keys of experiment.toml), ``weak_terms`` (effects whose moduli the test
-    hardly determines: a fit's start scan leaves them at their given values instead of moving
-    them by decades into values that break the forward model).
+    plug-in's own keys of experiment.toml), ``takes_shear`` (whether measured shear angles at
+    points may be given: :meth:`shear_angle`), ``reaction_scales_with_moduli`` (every modulus
+    times c gives the same u and c times the reaction: a displacement-driven test without
+    other stiffness; not so against a contact penalty and a holder's pressure), ``weak_terms``
+    (effects whose moduli the test hardly determines: a fit's start scan leaves them at their
+    given values instead of moving them by decades into values that break the forward model).
 
     A plug-in owns its problem's PETSc objects: :meth:`close` (or ``with``) destroys them when
     a run ends (discretise/resources.py).
@@ -67,6 +77,8 @@ class ExperimentSetup(Owner, ABC):
     d: ClassVar[int] = 2
     path_unit: ClassVar[str] = "length"
     has_reaction: ClassVar[bool] = True
+    takes_shear: ClassVar[bool] = False
+    reaction_scales_with_moduli: ClassVar[bool] = True
     path_label: ClassVar[str] = "load path"
     reaction_label: ClassVar[str] = "reaction (N)"
     keys: ClassVar[dict[str, dict[str, str]]] = {}
@@ -114,6 +126,26 @@ class ExperimentSetup(Owner, ABC):
     def reaction_weight(self) -> fem.Function | None:
         """w with reaction = R(u)·w (None when the test measures no reaction)."""
         return None
+
+    def reaction_form(self):
+        """A UFL form (a functional of the solution u, affine in the moduli) whose value is the
+        measured reaction, for tests whose reaction is no virtual work R(u)·w; None (the
+        default): the reaction is R(u)·w with :meth:`reaction_weight`."""
+        return None
+
+    def shear_angle(self):
+        """The shear angle (deg) as a UFL expression of u, for tests whose data may hold
+        measured shear angles at points (``shear.csv``, docs/contracts.md); None (the default):
+        the test takes no shear data."""
+        return None
+
+    def shear_points(self, X):
+        """(points of the solved domain, sign): the measured points ``X`` (n×2, the data's
+        frame: origin at the specimen's lower-left corner) mapped onto the mesh, and the sign
+        that carries the shear angle there to the measured point (a mirror may reverse it).
+        Default: the mesh is the whole specimen in the data's frame."""
+        X = np.asarray(X, dtype=float).reshape(-1, 2)
+        return X, np.ones(len(X))
 
     def reaction(self) -> float:
         """The measured reaction at the current state (reduced over ranks)."""

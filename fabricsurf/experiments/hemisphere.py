@@ -320,3 +320,33 @@ class HemisphereForming(ExperimentSetup):
 
         self.stepper = LoadStepper(self.solver, self.set_load, done, log=book.say)
         return self.stepper.run(np.linspace(stroke / steps, stroke, steps))
+
+    # -- observations of the compare/fit/diagnose loop (docs/forming.md, "In the loop") -----
+    takes_shear = True
+    reaction_scales_with_moduli = False
+
+    def reaction_form(self):
+        """The punch force of the whole blank, ∫ k_c ⟨−d_p⟩ n_z dX (with the punch's friction
+        traction, forming_friction.py) over the solved domain times :attr:`copies` (a UFL form;
+        its value is :meth:`reaction`): the forward model differentiates it along du/dp (it
+        does not depend on the moduli)."""
+        return self.copies * self.tools.force_density(self.r) * self.problem.dx
+
+    def shear_angle(self):
+        """The shear angle γ (deg) as a UFL expression of u (the ``shear_deg`` output)."""
+        return self.problem.energy.kin.gamma * (180.0 / math.pi)
+
+    def shear_points(self, X) -> tuple[np.ndarray, np.ndarray]:
+        """Points of the whole blank (data frame: origin at the lower-left corner of its
+        bounding box) in the solved domain's frame (origin on the punch axis), and the sign of
+        γ there. The full blank: the points as they are, sign 1. The quarter: mapped onto it by
+        the mid-lines' mirrors; ±θ fibres are swapped by a mirror (l·m and γ unchanged),
+        0°/90° fibres have one family reversed by it (γ changes sign across each mid-line)."""
+        centre = 0.5 * np.array([self.setup.length, self.setup.width])
+        rel = np.asarray(X, dtype=float).reshape(-1, 2) - centre
+        sign = np.ones(len(rel))
+        if self.domain != "quarter":
+            return rel, sign
+        if self.theta == 0.0:
+            sign = np.where(rel[:, 0] < 0, -1.0, 1.0) * np.where(rel[:, 1] < 0, -1.0, 1.0)
+        return np.abs(rel), sign

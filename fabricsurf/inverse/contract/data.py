@@ -21,6 +21,7 @@ from fabricsurf.experiments import get_test
 from fabricsurf.experiments.base import Setup, number_option
 from fabricsurf.inverse.contract import checks
 from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.contract.shear import read_shear, zero_shear
 from fabricsurf.inverse.contract.tables import read_csv, read_toml
 from fabricsurf.inverse.contract.writer import write_experiment
 
@@ -33,7 +34,7 @@ CONTRACT_KEYS = {
     "units": ("length", "force"),
     "specimen": ("length", "width", "fibre_angles_deg"),
     "loading": ("test", "path"),
-    "data": ("field", "force", "noise_std", "force_noise_std"),
+    "data": ("field", "force", "shear", "noise_std", "force_noise_std", "shear_noise_deg"),
 }
 """Keys of the contract common to every test; plug-ins add their own (``keys``)."""
 __all__ = ["DataError", "Experiment", "load_experiment", "write_experiment"]
@@ -135,14 +136,14 @@ def load_experiment(directory: str | Path) -> Experiment:
     ls, fs = LENGTH_UNITS[lu], FORCE_UNITS[fu]
     setup = _setup(t, plugin, plugin.name, ls)
     data = t.get("data", {})
-    fname, gname = data.get("field"), data.get("force")
-    for key, v in (("field", fname), ("force", gname)):
+    fname, gname, sname = data.get("field"), data.get("force"), data.get("shear")
+    for key, v in (("field", fname), ("force", gname), ("shear", sname)):
         if v is not None and (not isinstance(v, str) or not v.strip()):
             raise DataError(f"experiment.toml: [data] {key} = {v!r} must be a file name in "
                             f'quotes, e.g. {key} = "{key}.csv"')
-    if fname is None and gname is None:
-        raise DataError("experiment.toml: [data] needs field = \"...\" or force = \"...\" "
-                        "(or both)")
+    if fname is None and gname is None and sname is None:
+        raise DataError("experiment.toml: [data] needs field = \"...\", force = \"...\" or "
+                        "shear = \"...\" (or several)")
     if gname is not None and not plugin.has_reaction:
         raise DataError(f"experiment.toml: [data] force: the '{plugin.name}' test measures no "
                         "reaction; give its load path as [loading] path")
@@ -157,17 +158,21 @@ def load_experiment(directory: str | Path) -> Experiment:
     plugin.check_path(steps, path, str(gname) if gname is not None
                       else "experiment.toml: [loading] path")
     noise = {k: (number_option(t, "data", k, "experiment.toml") * s if k in data else None)
-             for k, s in (("noise_std", ls), ("force_noise_std", fs))}
+             for k, s in (("noise_std", ls), ("force_noise_std", fs), ("shear_noise_deg", 1.0))}
     name = t.get("name", d.name)
     if not isinstance(name, str) or not name.strip():
         raise DataError(f"experiment.toml: name = {name!r} must be a non-empty string")
     exp = Experiment(name, setup, steps, path, force,
                      noise_std=noise["noise_std"], force_noise_std=noise["force_noise_std"],
+                     shear_noise_deg=noise["shear_noise_deg"],
                      source=dict(t.get("source", {})), directory=str(d.resolve()),
-                     files=tuple(str(d / f) for f in ("experiment.toml", fname, gname)
+                     files=tuple(str(d / f) for f in ("experiment.toml", fname, gname, sname)
                                  if f is not None))
     if fname is not None:
         _read_field(exp, d / str(fname), ls, plugin.d)
+    if sname is not None:
+        read_shear(exp, d / str(sname), ls, plugin)
+        zero_shear(exp, str(sname))
     checks.magnitudes(exp, lu)
     checks.zero_data(exp, fname and str(fname), gname and str(gname))
     return exp

@@ -16,6 +16,7 @@ class Experiment:
     ``steps``, ``path`` (load-path value: a displacement in mm, or a factor), ``force`` (the
     measured reaction, or None): one entry per load step, sorted by step number.
     ``field_step``, ``X`` (n×2), ``u`` (n×2 or n×3): the full-field rows (n = 0: force only).
+    ``shear_step``, ``shear_X``, ``shear``: measured shear angles at points (a formed part).
     """
 
     name: str
@@ -29,6 +30,12 @@ class Experiment:
     noise_std: float | None = None
     force_noise_std: float | None = None
     source: dict = field(default_factory=dict)
+    shear_step: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    shear_X: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    shear: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Measured shear angles (deg) at points ``shear_X`` (the specimen's frame, mm) of steps
+    ``shear_step`` (none: no shear data; docs/contracts.md, ``shear.csv``)."""
+    shear_noise_deg: float | None = None
     directory: str | None = None
     files: tuple[str, ...] = ()
     """The files read (experiment.toml, the field and force files), as given."""
@@ -54,12 +61,20 @@ class Experiment:
         return len(self.field_step) > 0
 
     @property
+    def has_shear(self) -> bool:
+        return len(self.shear_step) > 0
+
+    @property
     def has_force(self) -> bool:
         return self.force is not None
 
     def step_rows(self, step: int) -> np.ndarray:
         """Indices of the field rows of one step."""
         return np.flatnonzero(self.field_step == step)
+
+    def shear_rows(self, step: int) -> np.ndarray:
+        """Indices of the shear rows of one step."""
+        return np.flatnonzero(self.shear_step == step)
 
 
 def template(length: float, width: float, displacements, points: np.ndarray,

@@ -9,6 +9,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 
@@ -21,6 +22,34 @@ def _toml_value(v) -> str:
     return repr(float(v)) if isinstance(v, float) else repr(v)
 
 
+def _plugin_tables(plugin, options: dict) -> dict[str, dict]:
+    """The plug-in's keys of ``options`` by table. A key whose value the plug-in's parser
+    refuses when written but gives when the key is absent (a default that the key itself may
+    not take, e.g. "no self-weight" as an areal density of 0) is left out."""
+    tables: dict[str, dict] = {}
+    for table, keys in plugin.keys.items():
+        for k in keys:
+            if k in options:
+                tables.setdefault(table, {})[k] = options[k]
+    for table, k in [(t, k) for t, kv in tables.items() for k in kv]:
+        if _parsed(plugin, tables) is not None:
+            break
+        rest = {t: {q: v for q, v in d.items() if (t, q) != (table, k)}
+                for t, d in tables.items()}
+        parsed = _parsed(plugin, rest)
+        if parsed is not None and parsed.get(k) == tables[table][k]:
+            tables = rest
+    return {t: kv for t, kv in tables.items() if kv}
+
+
+def _parsed(plugin, tables: dict) -> dict | None:
+    """The plug-in's options from ``tables``, None if its parser refuses them."""
+    try:
+        return plugin.parse_options(tables, 1.0, "")
+    except DataError:
+        return None
+
+
 def toml_text(exp: Experiment) -> str:
     """experiment.toml of ``exp`` (units mm and N; the plug-in's options in their tables)."""
     plugin = get_test(exp.test)
@@ -29,17 +58,17 @@ def toml_text(exp: Experiment) -> str:
         "specimen": {"length": exp.length, "width": exp.width,
                      "fibre_angles_deg": [float(a) for a in exp.fibre_angles_deg]},
         "loading": {"test": exp.test}, "data": {}}
-    for table, keys in plugin.keys.items():
-        for k in keys:
-            if k in exp.setup.options:
-                tables.setdefault(table, {})[k] = exp.setup.options[k]
+    for table, kv in _plugin_tables(plugin, exp.setup.options).items():
+        tables.setdefault(table, {}).update(kv)
     if not exp.has_force:
         tables["loading"]["path"] = [float(p) for p in exp.path]
     if exp.has_field:
         tables["data"]["field"] = "field.csv"
     if exp.has_force:
         tables["data"]["force"] = "force.csv"
-    for key in ("noise_std", "force_noise_std"):
+    if exp.has_shear:
+        tables["data"]["shear"] = "shear.csv"
+    for key in ("noise_std", "force_noise_std", "shear_noise_deg"):
         if getattr(exp, key) is not None:
             tables["data"][key] = float(getattr(exp, key))
     if exp.source:
@@ -66,6 +95,12 @@ def _write_files(tmp: Path, exp: Experiment) -> None:
             w.writerow(["step", "X", "Y", *comps])
             for s, x, u in zip(exp.field_step, exp.X, exp.u):
                 w.writerow([int(s), *(repr(float(v)) for v in (*x, *u))])
+    if exp.has_shear:
+        with open(tmp / "shear.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["step", "X", "Y", "shear_deg"])
+            for s, x, g in zip(exp.shear_step, exp.shear_X, exp.shear):
+                w.writerow([int(s), *(repr(float(v)) for v in (*x, g))])
 
 
 def write_experiment(directory: str | Path, exp: Experiment, overwrite: bool = False) -> Path:

@@ -53,8 +53,10 @@ from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
 
 
 def visible_effects(exps: list[Experiment]) -> list[str]:
-    """The vocabulary effects these data can see: out-of-plane ones only with 3D data."""
-    three_d = any(get_test(e.test).d == 3 and e.has_field and e.u.shape[1] == 3 for e in exps)
+    """The vocabulary effects these data can see: out-of-plane ones only with 3D data (a 3D
+    field, or the force and shear angles of a test solved in 3D: a formed part)."""
+    three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3)
+                  for e in exps)
     return [n for n in EFFECTS if three_d or n not in IN_PLANE_INVISIBLE]
 
 

@@ -326,7 +326,7 @@ def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
 
 def strip_rows(m: dict) -> dict:
     """A misfit dict without the per-row error arrays (for JSON)."""
-    out = {k: v for k, v in m.items() if k != "row_error"}
+    out = {k: v for k, v in m.items() if k not in ("row_error", "shear_error")}
     if "experiments" in out:
         out["experiments"] = [strip_rows(e) for e in out["experiments"]]
     return out

@@ -6,8 +6,18 @@ displacements at the measured points and the measured reaction. With ``sens`` it
 du/dp = −K⁻¹ ∂R/∂p at each step, using the converged Jacobian's factorisation: Π_h (cell energy,
 C0-IP consistency and penalty terms) is linear in the vector of moduli, so ∂R/∂p is the
 assembled residual with that modulus 1 and all others 0; the reaction R·w then has the
-sensitivity (∂R/∂p + K du/dp)·w. :class:`ForwardSet` runs several experiments with one set of
-moduli (the same term objects, bound to each experiment's mesh): one material, several tests.
+sensitivity (∂R/∂p + K du/dp)·w. A test whose reaction is a functional F(u) of its own
+(``reaction_form``: the hemisphere's punch force through the contact penalty) has the
+sensitivity ∂F/∂p + (∂F/∂u)·du/dp, and measured shear angles at points (``shear.csv``) are the
+test's γ interpolated into DG2 (as the ``shear_deg`` output) with the sensitivity the
+interpolant of (∂γ/∂u)·du/dp: both exact derivatives of what is observed (:class:`Observers`).
+A residual with a part that no modulus multiplies (the tools' contact) is affine in the moduli:
+∂R/∂p_k = R(e_k) − R(0). A test that carries a path history (friction under the holder:
+``solver.reset()`` clears it before each run) gets the per-step sensitivities at the step's
+own start (the friction's r_n held fixed), which leave out how the history moves with p: exact
+without friction, approximate with it (docs/forming.md, "In the loop"). :class:`ForwardSet`
+runs several experiments with one set of moduli (the same term objects, bound to each
+experiment's mesh): one material, several tests.
 Both own the plug-ins they build, and with them every PETSc object: ``close()`` (or ``with``)
 destroys them when a fit or diagnosis ends (discretise/resources.py).
 """
@@ -30,13 +40,15 @@ from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import misfit as mf
 from fabricsurf.inverse.fitting import warm_start
+from fabricsurf.inverse.fitting.observe import Observers
 from fabricsurf.model.terms import EFFECTS, Term
 
 
 @dataclass
 class Prediction:
     """Model values at the data: ``u`` (rows×c, NaN outside the mesh; c compared components),
-    ``force`` (steps, or None); sensitivities ``du`` (rows×c×P), ``dforce`` (steps×P)."""
+    ``force`` (steps, or None), ``shear`` (shear rows, deg, or None); sensitivities ``du``
+    (rows×c×P), ``dforce`` (steps×P), ``dshear`` (shear rows×P)."""
 
     u: np.ndarray
     force: np.ndarray | None
@@ -44,6 +56,8 @@ class Prediction:
     dforce: np.ndarray | None = None
     newton: int = 0
     seconds: float = 0.0
+    shear: np.ndarray | None = None
+    dshear: np.ndarray | None = None
 
 
 class ForwardModel(Owner):
@@ -71,13 +85,16 @@ class ForwardModel(Owner):
         self.names = [f"{t.name}.{p}" for t, p in self.params]
         self._bc_dofs = np.concatenate(
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
+        self.observers = Observers(self.test, exp)
+        self._affine = self.test.problem.extra_energy() is not None
+        """A residual part no modulus multiplies (the tools' contact): ∂R/∂p = R(e_k) − R(0)."""
         self.forward_runs = 0
         self._coarse: ForwardModel | None = None
         self._locators: dict[int, tuple[np.ndarray, np.ndarray, PointLocator]] = {}
 
     def _release(self) -> None:
         self._locators.clear()
-        for owner in (self.test, self._coarse):
+        for owner in (self.observers, self.test, self._coarse):
             if owner is not None:
                 owner.close()
 
@@ -127,25 +144,40 @@ class ForwardModel(Owner):
             self._locators[k] = (rows, pts, PointLocator(self.test.problem.msh, pts))
         return rows, self._locators[k][2]
 
-    def _dR_dp(self, k: int) -> PETSc.Vec:
-        """∂R/∂p_k at the current u (no boundary conditions), in the solver's work vector."""
-        vals = self.values()
-        self.set_values(np.eye(len(vals))[k])
+    def _at_moduli(self, vals: np.ndarray, evaluate):
+        """``evaluate()`` with the moduli set to ``vals`` (restored after)."""
+        old = self.values()
+        self.set_values(vals)
         try:
-            b = self.test.solver.internal_force()
+            return evaluate()
         finally:
-            self.set_values(vals)
-        return b
+            self.set_values(old)
+
+    def _dR_dp(self, k: int) -> PETSc.Vec:
+        """R(e_k) at the current u (no boundary conditions), in the solver's work vector: ∂R/∂p_k
+        when no part of R is free of the moduli (else minus R(0), :meth:`_sensitivities`)."""
+        return self._at_moduli(np.eye(len(self.params))[k], self.test.solver.internal_force)
+
+    def _partial_dF(self, k: int, F0: float) -> float:
+        """∂F/∂p_k of the reaction functional, affine in the moduli: F(e_k) − F(0)."""
+        return self._at_moduli(np.eye(len(self.params))[k], self.observers.force) - F0
 
     def _sensitivities(self, which: list[int], w) -> list[tuple[fem.Function, float]]:
-        """(du/dp_k, dF/dp_k) for k in ``which`` at the converged state."""
-        s = self.test.solver
+        """(du/dp_k, dF/dp_k) for k in ``which`` at the converged state: the reaction R·w
+        (``w``) or the test's reaction functional F (module docstring)."""
+        s, obs = self.test.solver, self.observers
         ksp = s.snes.getKSP()
         A_full = fem_petsc.assemble_matrix(s.a)
         A_full.assemble()
         out, x, Kdu = [], s.x.duplicate(), s.x.duplicate()
+        zero = np.zeros(len(self.params))
+        r0 = self._at_moduli(zero, s.internal_force).copy() if self._affine and which else None
+        dFdu = obs.force_gradient() if obs.reaction is not None and which else None
+        F0 = self._at_moduli(zero, obs.force) if dFdu is not None else 0.0
         for k in which:
             b = self._dR_dp(k)
+            if r0 is not None:
+                b.axpy(-1.0, r0)
             dF = dot_function(b, w) if w is not None else 0.0
             b.scale(-1.0)
             with b.localForm() as loc:
@@ -154,10 +186,12 @@ class ForwardModel(Owner):
             if w is not None:
                 A_full.mult(x, Kdu)
                 dF += dot_function(Kdu, w)
+            if dFdu is not None:
+                dF += self._partial_dF(k, F0) + dFdu.dot(x)
             du = fem.Function(self.test.problem.V)
             copy_to_function(x, du)
             out.append((du, dF))
-        destroy(A_full, x, Kdu)
+        destroy(A_full, x, Kdu, r0, dFdu)
         return out
 
     def run(self, sens: bool | list[int] = False) -> Prediction:
@@ -169,25 +203,36 @@ class ForwardModel(Owner):
         force = np.zeros(len(exp.steps)) if with_force else None
         du = np.zeros((n, c, P)) if which else None
         dF = np.zeros((len(exp.steps), P)) if which and with_force else None
+        obs = self.observers
+        shear = np.full(len(exp.shear_step), np.nan) if exp.has_shear else None
+        dshear = np.zeros((len(exp.shear_step), P)) if which and exp.has_shear else None
         sol = self.test.solver
         sol.u.x.array[:] = 0.0
+        getattr(sol, "reset", lambda: None)()  # a path history (forming: friction, predictor)
         self.test.set_load(0.0)
+        ws = warm_start.of(self)  # each step started from the last run's (warm_start.py)
 
         def converged(k: int, t: float, its: int) -> None:
             rows, at = self._points(k)
             if len(rows):
                 u[rows] = at(sol.u)[:, :c]
+            srows = exp.shear_rows(exp.steps[k]) if shear is not None else []
+            if len(srows):
+                shear[srows] = obs.shear_values()[srows]
             w = self.test.reaction_weight() if with_force else None
             if w is not None:
                 force[k] = sol.virtual_work(w)
-            for j, (duj, dfj) in enumerate(self._sensitivities(which, w)):
+            elif with_force and obs.reaction is not None:
+                force[k] = obs.force()
+            sens = ws.sensitivities(which, self._sensitivities(which, w))
+            for j, (duj, dfj) in enumerate(sens):
                 if len(rows):
                     du[rows, :, j] = at(duj)[:, :c]
+                if len(srows):
+                    dshear[srows, j] = obs.shear_derivative(duj)[srows]
                 if dF is not None:
                     dF[k, j] = dfj
 
-        # warm start of each step from the last run (fabricsurf/inverse/fitting/warm_start.py)
-        ws = warm_start.of(self)
         stepper = LoadStepper(sol, self.test.set_load, ws.recording(converged, len(exp.path)),
                               predictor=ws.predictor())
         try:
@@ -198,10 +243,11 @@ class ForwardModel(Owner):
                 force[done:] = np.nan
             for s in exp.steps[done:]:
                 u[exp.step_rows(s)] = np.nan
-            e.experiment, e.partial = exp.name, Prediction(u, force)
+            e.experiment, e.partial = exp.name, Prediction(u, force, shear=shear)
             raise
         self.forward_runs += 1
-        return Prediction(u, force, du, dF, int(sum(iters)), time.perf_counter() - t0)
+        return Prediction(u, force, du, dF, int(sum(iters)), time.perf_counter() - t0,
+                          shear, dshear)
 
     def residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
         return mf.residuals(self.exp, pred)

@@ -50,7 +50,8 @@ def _preds(fm):
 def common_factor(fm, preds) -> float:
     """Best common factor of all moduli for the reactions (1 if not applicable)."""
     exps = fm.experiments
-    if not all(e.has_force and get_test(e.test).path_unit == "length" for e in exps):
+    if not all(e.has_force and get_test(e.test).path_unit == "length"
+               and get_test(e.test).reaction_scales_with_moduli for e in exps):
         return 1.0
     num = den = 0.0
     for e, p in zip(exps, preds):

@@ -41,7 +41,8 @@ def mesh_difference(fm, preds, comm) -> np.ndarray:
             fine = fm_fine.run()
         u = np.where(np.isfinite(fine.u).all(axis=1)[:, None], fine.u, p.u)
         r_h, _ = mf.residuals(m.exp, p)
-        r_f, _ = mf.residuals(m.exp, Prediction(u, fine.force))
+        g = None if p.shear is None else np.where(np.isfinite(fine.shear), fine.shear, p.shear)
+        r_f, _ = mf.residuals(m.exp, Prediction(u, fine.force, shear=g))
         out.append(r_f - r_h)
     return np.concatenate(out)
 
@@ -62,6 +63,8 @@ def residual_steps(fm, preds) -> np.ndarray:
         parts = [np.repeat(k[inside], c)]
         if exp.has_force:
             parts.append(np.arange(len(exp.steps)))
+        if exp.has_shear:
+            parts.append(np.searchsorted(exp.steps, exp.shear_step)[np.isfinite(p.shear)])
         out.append(e * 10**6 + np.concatenate(parts))
     return np.concatenate(out)
 

@@ -31,20 +31,28 @@ GRID = 4
 def experiment_blocks(exp, pred, grid: int = GRID) -> np.ndarray:
     """Block label of every residual of :func:`~.misfit.residuals` (same order): the field
     residuals by region (grid × grid over the points' bounding box) and step, each step's
-    force residual a block of its own."""
+    force residual a block of its own, the shear angles (a formed part) by region and step as
+    the field."""
     c = pred.u.shape[1]
     inside = np.isfinite(pred.u).all(axis=1)
     parts = []
     if exp.has_field:
-        X = exp.X[:, :2]
-        lo, span = X.min(axis=0), np.maximum(np.ptp(X, axis=0), 1e-300)
-        cell = np.minimum(((X - lo) / span * grid).astype(int), grid - 1)
-        step = np.searchsorted(exp.steps, exp.field_step)
-        lab = (step * grid + cell[:, 0]) * grid + cell[:, 1]
+        lab = _region_steps(exp, exp.X[:, :2], exp.field_step, grid)
         parts.append(np.repeat(lab[inside], c))
     if exp.has_force:
         parts.append(len(exp.steps) * grid * grid + np.arange(len(exp.steps)))
+    if exp.has_shear:
+        lab = _region_steps(exp, exp.shear_X, exp.shear_step, grid)
+        parts.append(len(exp.steps) * (grid * grid + 1) + lab[np.isfinite(pred.shear)])
     return np.concatenate(parts) if parts else np.zeros(0, int)
+
+
+def _region_steps(exp, X: np.ndarray, steps: np.ndarray, grid: int) -> np.ndarray:
+    """(step, region) labels of points X at ``steps``: grid × grid over their bounding box."""
+    lo, span = X.min(axis=0), np.maximum(np.ptp(X, axis=0), 1e-300)
+    cell = np.minimum(((X - lo) / span * grid).astype(int), grid - 1)
+    step = np.searchsorted(exp.steps, steps)
+    return (step * grid + cell[:, 0]) * grid + cell[:, 1]
 
 
 def blocks(fm, preds, grid: int = GRID) -> np.ndarray | None:
@@ -59,7 +67,7 @@ def blocks(fm, preds, grid: int = GRID) -> np.ndarray | None:
     for exp, pred in zip(exps, preds):
         lab = experiment_blocks(exp, pred, grid)
         out.append(lab + offset)
-        offset += (len(exp.steps) + 1) * grid * grid + len(exp.steps)
+        offset += (2 * len(exp.steps) + 1) * grid * grid + len(exp.steps)
     return np.concatenate(out)
 
 

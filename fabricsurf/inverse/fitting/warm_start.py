@@ -45,20 +45,13 @@ comparisons, tests/test_warm_start.py)."""
 
 
 def of(model) -> WarmStart:
-    """The warm start of ``model`` (a :class:`~.forward.ForwardModel`), made on first use. It
-    records the sensitivities the model computes by wrapping the model's ``_sensitivities``
-    (an attribute of the instance, holding the model only weakly: no reference cycle, so the
-    model still goes, and destroys its PETSc objects, by reference counting)."""
+    """The warm start of ``model`` (a :class:`~.forward.ForwardModel`), made on first use and
+    kept on the model; it holds the model only weakly (no reference cycle: the model still
+    goes, and destroys its PETSc objects, by reference counting). The model hands it each
+    step's sensitivities (:meth:`WarmStart.sensitivities`)."""
     ws = model.__dict__.get("_warm_start")
     if ws is None:
-        ws = WarmStart(model, ENABLED)
-        ref = weakref.ref(model)
-
-        def sensitivities(which, w):
-            m = ref()
-            return ws.sensitivities(which, type(m)._sensitivities(m, which, w))
-
-        model._warm_start, model._sensitivities = ws, sensitivities
+        ws = model._warm_start = WarmStart(model, ENABLED)
     return ws
 
 

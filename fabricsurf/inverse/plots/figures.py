@@ -173,22 +173,27 @@ def force_band(band: dict, path: Path, title: str, measured: tuple | None = None
 
 
 def error_vs_step(exp: Experiment, misfits: list[tuple[str, dict]], path: Path) -> None:
-    """Field RMS error (mm) and |force error| (N) per step, with the noise levels."""
+    """Field RMS error (mm), |force error| (N) and shear RMS error (deg) per step, with the
+    noise levels."""
     plt = _plt()
-    panels = [k for k, has in (("field", exp.has_field), ("force", exp.has_force)) if has]
+    panels = [k for k, has in (("field", exp.has_field), ("force", exp.has_force),
+                               ("shear", exp.has_shear)) if has]
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 3.8), squeeze=False)
     for ax, kind in zip(axes[0], panels):
         for label, m in misfits:
-            if kind == "field":
-                y = [s["field_rms"] or np.nan for s in m["per_step"]]
-            else:
+            if kind == "force":
                 y = [abs(s["force_error"]) for s in m["per_step"]]
+            else:
+                y = [s[f"{kind}_rms" + ("_deg" if kind == "shear" else "")] or np.nan
+                     for s in m["per_step"]]
             ax.semilogy(exp.steps, y, "o-", label=label)
-        noise = exp.noise_std if kind == "field" else exp.force_noise_std
+        noise = {"field": exp.noise_std, "force": exp.force_noise_std,
+                 "shear": exp.shear_noise_deg}[kind]
         if noise:
             ax.axhline(noise, color="k", ls="--", label="noise std")
-        ax.set(xlabel="step", ylabel="field RMS error (mm)" if kind == "field"
-               else "|force error| (N)")
+        ax.set(xlabel="step", ylabel={"field": "field RMS error (mm)",
+                                      "force": "|force error| (N)",
+                                      "shear": "shear RMS error (deg)"}[kind])
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -14,7 +14,7 @@ from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.fitting.band import force_band, write_band
 from fabricsurf.inverse.fitting.fit import strip_rows
-from fabricsurf.inverse.plots import figures
+from fabricsurf.inverse.plots import figures, shear
 
 SLUG_CHARS = 60
 
@@ -61,6 +61,9 @@ def _figures(out: Path, exp, preds: list, misfits: list, steps, stem: str) -> No
                           out / f"{stem}error_map.png")
     if exp.has_force:
         figures.force_curves(exp, preds, out / f"{stem}force.png")
+    if exp.has_shear:
+        shear.per_point_csv(out / f"{stem}shear_per_point.csv", exp, pred)
+        shear.shear_figure(exp, preds, out / f"{stem}shear.png")
     figures.error_vs_step(exp, misfits, out / f"{stem}error_vs_step.png")
 
 
