@@ -85,11 +85,12 @@ def test_sensitivities_match_central_differences():
     assert np.abs(p.dshear @ direction - dg).max() <= SENS_TOL * np.abs(dg).max()
 
 
-def _plugin(angles):
-    """The mapping needs the blank and the fibres only (no mesh)."""
+def _plugin(angles, domain="quarter"):
+    """The mapping needs the blank, its domain and the fibres only (no mesh)."""
     e = HemisphereForming.__new__(HemisphereForming)
-    e.setup = type("S", (), {"length": BLANK})()
+    e.setup = type("S", (), {"length": BLANK, "width": BLANK})()
     e.theta = 0.0 if tuple(angles) == (0.0, 90.0) else 45.0
+    e.domain = domain
     return e
 
 
@@ -98,6 +99,9 @@ def test_points_map_onto_the_quarter_by_the_mirrors():
     for angles, signs in (((45.0, -45.0), [1, 1, 1, 1]), ((0.0, 90.0), [1, -1, 1, -1])):
         q, s = _plugin(angles).shear_points(X)
         assert np.allclose(q, [[8.0, 3.0]] * 4) and np.array_equal(s, signs)
+    # the full blank is solved as it is: the points only move to the punch axis's frame
+    q, s = _plugin((0.0, 90.0), "full").shear_points(X)
+    assert np.allclose(q, X - 0.5 * BLANK) and np.array_equal(s, [1, 1, 1, 1])
 
 
 def _write(tmp_path, exp) -> Path:
