@@ -181,6 +181,22 @@ def square_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
     return verts, tri.astype(np.int64)
 
 
+def quarter_divisions(half: float, h: float, theta_deg: float) -> tuple[int, int]:
+    """(P, Q): the divisions of the quarter [0, half]² along x and y at size h
+    (:func:`quarter_blank`)."""
+    if theta_deg == 0.0:
+        return square_divisions(half, h), square_divisions(half, h)
+    return lattice_divisions(half, half, h, theta_deg)
+
+
+def quarter_triangles(P: int, Q: int, theta_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The quarter's lattice (integer vertex coordinates, triangles) with the cut of
+    :func:`quarter_blank`."""
+    if theta_deg == 0.0:
+        return square_triangles(P)
+    return lattice_triangles(P, Q, lambda p, q: p > q)
+
+
 def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
                   ) -> Specimen:
     """The quarter [0, half]² of a square blank meshed along its fibres.
@@ -191,13 +207,9 @@ def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.
     is symmetric to round-off. θ = 0, fibres along the sides (0°/90°): a square grid of cell
     ≈ h cut along the diagonal parallel to x = y, its own mirror image in that diagonal.
     """
-    if theta_deg == 0.0:
-        P = Q = square_divisions(half, h)
-    else:
-        P, Q = lattice_divisions(half, half, h, theta_deg)
+    P, Q = quarter_divisions(half, h, theta_deg)
     if comm.rank == 0:
-        verts, tri = (square_triangles(P) if theta_deg == 0.0 else
-                      lattice_triangles(P, Q, lambda p, q: p > q))
+        verts, tri = quarter_triangles(P, Q, theta_deg)
         x = np.column_stack([verts[:, 0] * half / P, verts[:, 1] * half / Q])
     else:
         x, tri = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)

@@ -36,12 +36,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from geometry.aligned import (
-    lattice_divisions,
-    lattice_triangles,
-    square_divisions,
-    square_triangles,
-)
+from geometry.aligned import quarter_divisions, quarter_triangles
 from geometry.specimen import EDGE_TAGS as RECTANGLE_TAGS
 from geometry.specimen import Specimen, check_positive, distributed_mesh
 
@@ -212,13 +207,9 @@ def mirrored_quarter(half: float, h: float, theta_deg: float, comm: MPI.Comm = M
     """The square [−half, half]² as the four mirror images of
     geometry.aligned.quarter_blank(half, h, θ): the quarter's own mesh, unfolded (to check the
     full blank against the quarter with mirror conditions on the same discretisation)."""
-    if theta_deg == 0.0:
-        P = Q = square_divisions(half, h)
-    else:
-        P, Q = lattice_divisions(half, half, h, theta_deg)
+    P, Q = quarter_divisions(half, h, theta_deg)
     if comm.rank == 0:
-        verts, tri = (square_triangles(P) if theta_deg == 0.0 else
-                      lattice_triangles(P, Q, lambda p, q: p > q))
+        verts, tri = quarter_triangles(P, Q, theta_deg)
         ts, key = [], {}
         for sx in (1, -1):
             for sy in (1, -1):
