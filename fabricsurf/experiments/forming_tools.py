@@ -185,11 +185,15 @@ class Tools:
         return self.k_c * sum(self.penetrations(r).values())
 
 
-LINEAR_SOLVER = {"pc_type": "cholesky"}
-"""The Jacobian is the Hessian of one energy, symmetric: MUMPS factors it as LDLᵀ (indefinite
-allowed) from its upper triangle, with about a third fewer operations than LU. Measured on the
-250 mm blank at h = R/5 with friction on all tools (benchmarks/forming.py): the same 193 Newton
-iterations, the punch force equal to 10⁻¹² relative, 11.7 s of CPU against 13.6 s with LU."""
+LINEAR_SOLVER: dict = {}
+"""Options of the linear solver beyond the SNES defaults (MUMPS LU). The Jacobian is the Hessian
+of one energy, symmetric, and MUMPS's LDLᵀ (``{"pc_type": "cholesky"}``) factors it with about
+a third fewer operations: measured on the 250 mm blank at h = R/5 with friction on all tools
+(benchmarks/forming.py), the same 193 Newton iterations, the punch force equal to 10⁻¹²
+relative, 11.7 s of CPU against 13.6 s with LU. It is not the default: in the forming demo's
+quick run from an installed wheel it failed at the first step (DIVERGED_LINEAR_SOLVE at every
+cut, on the flat blank, where the pivots of an indefinite LDLᵀ are least safe) where LU
+converges; an option for such measurements, ``snes_options={"pc_type": "cholesky"}``."""
 
 
 class ContactProblem(FabricProblem):
