@@ -18,8 +18,9 @@ error (the RMS field difference of the continuum at the lattice's moduli):
   user with two specimen sizes does: the spread of the moduli between the specimens is then
   the model-form part;
 - ``null``: diagnoses of the complete model on its own lattice data (any verdict is a false
-  alarm), the confirmed candidate's statistics recorded so that the Wald rule with and
-  without the quarter-of-the-excess part and the old F-test rule are counted on the same sets;
+  alarm), the confirmed candidate's statistics recorded so that the rule in use (Wald and
+  F-test), the Wald test alone, Wald with the quarter-of-the-excess part and the old F-test rule
+  are counted on the same sets;
 - ``detect``: geodesic bending hidden from a fibre_stretch + shear baseline at bending lengths
   ``--bending-lengths``; the signal √(misfit_base² − misfit_floor²) in noise units as in
   benchmarks/diagnose_calibration.py; a detection is the verdict geodesic_bending.
@@ -203,7 +204,7 @@ def part_coverage(a, comm, say) -> list[dict]:
 
 
 def candidate(d) -> dict:
-    """The confirmed candidate's statistics under the three rules (module docstring)."""
+    """The confirmed candidate's statistics under the four rules (module docstring)."""
     row = next((r for r in d.ranking if r.get("refit_chi2") is not None), None)
     if row is None:
         return {}
@@ -212,6 +213,7 @@ def candidate(d) -> dict:
     wald = row["wald_p"] < 1.0 - sg.LEVEL
     return {"effect": row["effect"], "wald_p": row["wald_p"],
             "share_of_excess": row["share_of_excess"], "f_test_passed": row["f_test_passed"],
+            "rule_wald_and_f": bool(gain and wald and row["f_test_passed"]),
             "rule_wald": bool(gain and wald), "rule_wald_and_share": bool(gain and wald and share),
             "rule_old": bool(gain and row["f_test_passed"] and share)}
 
@@ -252,6 +254,9 @@ def part_detect(a, comm, say) -> list[dict]:
     return rows
 
 
+RULES = ("rule_wald_and_f", "rule_wald", "rule_wald_and_share", "rule_old")
+
+
 def summary(data: dict) -> dict:
     """The rates over every row in OUT (module docstring)."""
     out = {}
@@ -275,12 +280,12 @@ def summary(data: dict) -> dict:
         out[f"covered_{design}"] = float(np.mean(hits)) if hits else None
         out[f"intervals_{design}"] = len(hits)
     null = data.get("null", [])
-    for rule in ("rule_wald", "rule_wald_and_share", "rule_old"):
+    for rule in RULES:
         out["false_alarms_" + rule] = (float(np.mean([bool(r["candidate"].get(rule))
                                                       for r in null])) if null else None)
     out["null_sets"] = len(null)
     strong = [r for r in data.get("detect", []) if r["signal_over_noise"] > 3]
-    for rule in ("rule_wald", "rule_wald_and_share", "rule_old"):
+    for rule in RULES:
         out["detection_" + rule] = (float(np.mean([
             r["candidate"].get("effect") == "geodesic_bending" and bool(r["candidate"].get(rule))
             for r in strong])) if strong else None)

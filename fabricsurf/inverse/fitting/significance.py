@@ -16,10 +16,13 @@ gives a stiff-fibre case where the uncapped rule called a model adequate.)
 *Significant* (nested models, k added moduli ≥ 0): a Wald test on the same residual model as
 the moduli's intervals (:mod:`~.uncertainty`): the added moduli against zero with the refit's
 cluster-robust covariance, one-sided (Student's t with the blocks' degrees of freedom for
-k = 1, F(k, G − P) otherwise) at the 0.999 level, and a decrease of χ². Correlated residuals
-(DIC subsets, model-form error smooth in space) widen the covariance instead of passing as many
-independent data, so the rule needs no allowance for them (docs/uncertainty.md measures that
-the former "quarter of the excess" part adds nothing to it).
+k = 1, F(k, G − P) otherwise) at the 0.999 level, a decrease of χ², and the F-test of part 1
+below at the same level. Correlated residuals (DIC subsets, model-form error smooth in space)
+widen the covariance instead of passing as many independent data, so the rule needs no allowance
+for them (docs/uncertainty.md measures that the former "quarter of the excess" part adds nothing
+to it). The F-test guards the χ² side: a refit whose covariance is nearly singular (a modulus
+that reaches a range where its term does nothing, e.g. a yarn-slip tension no yarn reaches) can
+pass the Wald test by an arbitrarily large F while removing no misfit (docs/diagnosis.md).
 
 Without a refit's covariance (a caller with χ² only) the former two-part rule applies:
 1. an F-test at the 0.999 level against the residual variance actually left,
@@ -94,6 +97,6 @@ def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: i
     if chi2_base - chi2_new <= 0:
         return False
     if wald_p is not None:
-        return wald_p < 1.0 - LEVEL
+        return bool(wald_p < 1.0 - LEVEL) and f_test(chi2_base, p_base, chi2_new, p_new, n)
     return (f_test(chi2_base, p_base, chi2_new, p_new, n)
             and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS)

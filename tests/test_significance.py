@@ -1,0 +1,43 @@
+"""The significance rule of a nested effect (fabricsurf/inverse/fitting/significance.py).
+
+The cases are those met on real data (docs/diagnosis.md, "Significant"): each of the two tests
+alone lets through a case the other stops.
+"""
+
+import pytest
+
+from fabricsurf.inverse.fitting import significance as sg
+
+
+@pytest.mark.parametrize("n", [30, 300, 3000])
+def test_singular_refit_is_not_significant(n):
+    """The real fabric's inert yarn_slip: χ² 72.517 → 72.499 with one added modulus and a Wald
+    p of 10⁻³⁶ (a nearly singular covariance). F = Δχ²/max(1, χ²/ν) ≤ 0.018 lies far below
+    F₀.₉₉₉(1, ν) ≥ 10.8 for any ν: the χ² decrease is nothing; the Wald test alone accepted it."""
+    base, new, p_base = 72.517, 72.499, 2
+    assert sg.f_statistic(base, p_base, new, p_base + 1, n) <= 0.018 * (1 + 1e-9)
+    assert not sg.significant(base, p_base, new, p_base + 1, n, wald_p=1e-36)
+    # the Wald part on its own (the former rule) passes it: the F-test is what stops it
+    assert 1e-36 < 1.0 - sg.LEVEL
+
+
+def test_clear_effect_is_significant():
+    """The same diagnosis's crossover_friction: χ² 532.93 → 72.517, a Wald p far below 10⁻³
+    (F = 460.4/1 against a residual variance of 1 when χ²/ν ≤ 1: far beyond F₀.₉₉₉)."""
+    n, p_base = 90, 2
+    assert sg.significant(532.93, p_base, 72.517, p_base + 1, n, wald_p=1e-9)
+
+
+def test_wald_still_decides_on_correlated_residuals():
+    """A large χ² decrease whose modulus is not distinguishable from zero on the cluster-robust
+    covariance (p = 0.0088, the large-shear shear_locking refit) is not significant, though the
+    F-test on independent residuals passes (Δχ² = 100 with χ²/ν < 1)."""
+    n, p_base = 200, 3
+    assert sg.f_test(300.0, p_base, 200.0, p_base + 1, n)
+    assert not sg.significant(300.0, p_base, 200.0, p_base + 1, n, wald_p=0.0088)
+
+
+def test_no_decrease_is_never_significant():
+    """χ² must decrease whatever the tests say."""
+    assert not sg.significant(50.0, 2, 50.0, 3, 100, wald_p=0.0)
+    assert not sg.significant(50.0, 2, 51.0, 3, 100)
