@@ -173,3 +173,49 @@ def test_slip_softens_the_bias_lattice_once_the_fibres_reach_the_slip_tension():
     assert np.all(np.diff(ratio[1:]) < 0), "the slipping share grows with the angle"
     assert ratio[-1] < 0.9
     assert np.all(np.diff(slip) > 0), "slip caps the force's growth, it does not unload"
+
+
+def test_small_stretch_stiffness_is_the_densitys_second_derivative():
+    """d²W/dλ² at λ = 1 of fibre_stretch + yarn_slip, by central differences of the UFL
+    tension ∂W/∂F₁₁ (0/90 fibres, F = diag(1 ± δ, 1)), is k_l + T_s/ε_s: the sticking yarns'
+    stiffness that the locking ratio must use, 21 times k_l here."""
+    model = [FibreStretch(k_l=K_L, k_m=K_L), YarnSlip(T_s=T_S, eps_s=EPS_S)]
+    delta = 1e-5 * EPS_S
+    t = _densities([np.diag([1 + delta, 1.0]), np.diag([1 - delta, 1.0])], (0.0, 90.0),
+                   model)[:, 2]
+    fd = (t[0] - t[1]) / (2 * delta)
+    assert sum(m.small_stretch_stiffness() for m in model) == pytest.approx(K_L + T_S / EPS_S)
+    assert fd == pytest.approx(K_L + T_S / EPS_S, rel=1e-6)
+
+
+def test_locking_ratio_counts_the_sticking_yarns():
+    """K/k_s with yarn_slip is (k_l + T_s/ε_s)/k_s = 140 here, above the ratio from which a
+    mesh not aligned with the fibres locks (LOCKING_RATIO = 100): the run must warn. Taking the
+    tension T_s for a stiffness gave max(k_l, T_s)/k_s = 6.7 and no warning."""
+    from fabricsurf.experiments import discretisation as disc
+
+    model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), YarnSlip(T_s=T_S, eps_s=EPS_S)]
+    assert disc.stiffness_ratio(model) == pytest.approx((K_L + T_S / EPS_S) / K_S)
+    assert disc.may_lock("gmsh", "full", disc.stiffness_ratio(model))
+    assert not disc.may_lock("gmsh", "full", disc.stiffness_ratio(model[:2]))
+
+
+def test_lattice_data_carries_hidden_slip():
+    """Synthetic bias data (fabricsurf.inverse.synthetic.lattice_data) with a hidden slip
+    tension: the same force as the sticking net (fibre stiffness k_l + T_s/ε_s) at the first
+    displacement, where the fibre tensions stay far below T_s, and below it by more than 10 %
+    once zone C passes 60° (the share test_slip_softens_the_bias_lattice... measures on the
+    lattice directly); the field carries the slip as fibre stretch of the crossings' spacing."""
+    from fabricsurf.inverse.synthetic import generate as sy
+
+    d = [1.0, 18.5]  # zone C at about 2.5° and 75° (H − W = 46 mm)
+
+    def data(k_l, T_s):
+        exp = sy.template(92.0, 46.0, d, np.zeros((0, 2)), name="slip")
+        kw = dict(k4=0.2, tau_f=0.0025, T_s=T_s, eps_s=EPS_S)
+        return sy.lattice_data(exp, 4.6 * np.sqrt(2), k_l=k_l, k_s=0.02, A_g=0.0, **kw)
+
+    slip, stick = data(K_L, 0.1), data(K_L + 0.1 / EPS_S, 0.0)
+    ratio = slip.force / stick.force
+    assert abs(ratio[0] - 1) < 0.01
+    assert ratio[1] < 0.9

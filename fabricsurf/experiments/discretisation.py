@@ -30,15 +30,21 @@ MIN_SEPARATION_DEG = 5.0
 """Least angle between the two fibre families as lines (as the measurement contract's)."""
 
 
+def fibre_stiffness(model: list[Term]) -> float:
+    """K: the fibres' stiffness at small stretch, the sum of the fibre terms' (their energies
+    add): k_l with ``fibre_stretch`` alone, k_l + T_s/ε_s with ``yarn_slip`` (sticking yarns)."""
+    return sum(t.small_stretch_stiffness() for t in model if t.fibre)
+
+
 def stiffness_ratio(model: list[Term]) -> float:
-    """K/k_s: the largest fibre modulus over the sum of the other first-gradient moduli (inf
+    """K/k_s: :func:`fibre_stiffness` over the sum of the other first-gradient moduli (inf
     for inextensible fibres or no other membrane term; 0 without fibre terms)."""
     fibre = [t for t in model if t.fibre]
     if not fibre:
         return 0.0
     if any(getattr(t, "inextensible", False) for t in fibre):
         return math.inf
-    K = max(max(t.values().values(), default=0.0) for t in fibre)
+    K = fibre_stiffness(model)
     rest = sum(sum(t.values().values()) for t in model if t.order == 1 and not t.fibre)
     return K / rest if rest > 0 else math.inf
 

@@ -91,6 +91,11 @@ class YarnSlip(Term):
             raise ValueError(f"term '{self.name}': slip strain eps_s = {e!r} must be a number "
                              "in (0, 0.1] (the friction is mobilised within 10 % of stretch)")
 
+    def small_stretch_stiffness(self) -> float:
+        """T_s/ε_s: the tangent of the tension T_s tanh((λ − 1)/ε_s) at λ = 1. Sticking yarns
+        are that stiff, on top of ``fibre_stretch``, however small T_s is against k_l."""
+        return self.T_s / self.eps_s
+
     def density(self, kin: Kinematics, p: Params):
         es = self.eps_s
         return p["T_s"] * es * (_ln_cosh(_abs(kin.lam - 1) / es)

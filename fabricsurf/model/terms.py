@@ -93,6 +93,12 @@ class Term:
         """The parameters as floats (usable as ``p`` of :meth:`density`: then compiled in)."""
         return {p: float(getattr(self, p)) for p in self.parameters()}
 
+    def small_stretch_stiffness(self) -> float:
+        """d²W/dλ² at λ = μ = 1 of a fibre term, the larger family's (N/mm): the fibres'
+        stiffness against which a mesh may lock (docs/theory.md, "Locking"); 0 for the
+        others. A quadratic term's is its largest modulus."""
+        return max(self.values().values(), default=0.0) if self.fibre else 0.0
+
     def stiffness_scale(self, p: Params):
         """Scale S of the second-gradient moduli, used by the interior penalty (zero if order 1)."""
         return sum(p[q] for q in self.parameters()) if self.order == 2 else 0.0

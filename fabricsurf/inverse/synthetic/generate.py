@@ -14,6 +14,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.inverse.contract.experiment import Experiment, template
+from fabricsurf.model.slip import SLIP_STRAIN
 from fabricsurf.model.terms import Term
 
 __all__ = ["add_noise", "continuum_data", "correlated_field", "grid_points", "lattice_data",
@@ -98,8 +99,8 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
 
 
 def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: float,
-                 every: int = 1, k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0
-                 ) -> Experiment:
+                 every: int = 1, k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0,
+                 T_s: float = 0.0, eps_s: float = SLIP_STRAIN) -> Experiment:
     """Replace ``exp`` by the Hencky lattice's response (Barchiesi et al. 2020 clamps: two held
     layers).
 
@@ -108,14 +109,16 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
     measurement points are the lattice nodes (every ``every``-th, clamp/grip layers excluded);
     continuum moduli map to lattice stiffnesses by ``lattice_from_continuum`` (``k4``, ``k6``:
     the ``shear_locking`` moduli, ``tau_f``: the ``crossover_friction`` modulus, nonlinear
-    shear springs at the crossings).
+    shear springs at the crossings, ``T_s`` and ``eps_s``: the ``yarn_slip`` tension and slip
+    strain, fibre springs that slide past their slip force).
     """
     from fabricsurf.network import hencky
     from fabricsurf.network.solver import solve_steps
 
     angles = tuple(exp.fibre_angles_deg)
     spacing = hencky.spanning_spacing(exp.length, spacing, angles)
-    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6, tau_f=tau_f)
+    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6,
+                                      tau_f=tau_f, T_s=T_s, eps_s=eps_s)
     lat = hencky.hencky_lattice(exp.length, exp.width, spacing, angles, **k)
     X = lat.net.X
     span = (float(X[:, 0].min()), float(X[:, 0].max()))
