@@ -261,6 +261,7 @@ CASES = [
          "file name prefix 'cao_115_' in --out"),
     dict(id="fit-underdetermined", klass="`fit` of more moduli than measured values",
          make=variant("onepoint", edits(replace("experiment.toml", 'field = "field.csv"\n', ""),
+                                        replace("experiment.toml", "\nnoise_std = 0.01\n", "\n"),
                                         replace("force.csv", "\n2,1.6,0.0", ""))),
          argv=["fit", "onepoint", "--terms", TERMS, "--out", "out"],
          pattern=r"--terms fibre_stretch,shear: 3 moduli to fit \(fibre_stretch.k_l, "
@@ -369,6 +370,20 @@ CASES = [
          argv=cmp("good", "--h", "0.01"),
          pattern=r"--h 0.01: about 16,000,000 elements \('synthetic' 40 x 20 mm\), more than "
          r"--max-elements 400,000"),
+    dict(id="params-duplicate-key", klass="`--params` naming one modulus twice in a term",
+         make=params_file("twice.json", '{"shear": {"k_s": 0.5, "k_s": 5.0}}'),
+         argv=cmp("good", "--params", "twice.json"),
+         pattern=r"--params twice.json: key 'k_s' is given twice in one object"),
+    dict(id="params-empty-term", klass="`--params` with a term that gives no modulus",
+         make=params_file("emptyterm.json", {"fibre_stretch": {"k_l": 2.0, "k_m": 2.0},
+                                             "shear": {}}),
+         argv=cmp("good", "--params", "emptyterm.json"),
+         pattern=r"--params emptyterm.json: term 'shear' gives no parameter \(it has k_s\)"),
+    dict(id="shear-noise-90", klass="`[data] shear_noise_deg` of 90° or more",
+         make=variant("shearnoise", replace("experiment.toml", "force_noise_std = 0.01",
+                                            "force_noise_std = 0.01\nshear_noise_deg = 95")),
+         argv=cmp("shearnoise"),
+         pattern=r"experiment.toml: \[data\] shear_noise_deg = 95 must be below 90"),
     dict(id="usage", klass="a missing argument (usage error)", make=nothing,
          argv=["fit", "good", "--out", "out"],
          pattern=r"the following arguments are required: --terms"),
@@ -436,6 +451,22 @@ def test_dialects_and_encodings_accepted(tmp_path):
         for a, b in ((exp.X, ref.X), (exp.u, ref.u), (exp.force, ref.force),
                      (exp.path, ref.path)):
             assert np.array_equal(a, b), name
+
+
+def test_noise_level_without_its_data_is_said(tmp_path, capsys):
+    """A [data] noise key whose data file is absent scales nothing: rank 0 says so (once)."""
+    d = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None)) / "forceonly"
+    if COMM.rank == 0:
+        exp = good_experiment()
+        exp.field_step, exp.X, exp.u = np.zeros(0, int), np.zeros((0, 2)), np.zeros((0, 2))
+        write_experiment(d, exp)
+        toml = d / "experiment.toml"
+        toml.write_text(toml.read_text() + "noise_std = 0.01\n")
+    COMM.barrier()
+    load_experiment(d)
+    out = capsys.readouterr().out
+    said = "[data] noise_std is given but [data] field is not: the noise level is not used"
+    assert (said in out) == (COMM.rank == 0), out
 
 
 def test_loader_messages_name_file_and_line(tmp_path):

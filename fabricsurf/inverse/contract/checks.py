@@ -4,8 +4,10 @@ the file, line or key and what to check (unit mix-ups are the common cause of ab
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
 
 from fabricsurf.errors import DataError
+from fabricsurf.log import rank0_print
 
 MAX_SPECIMEN_MM = 5000.0
 MIN_SPECIMEN_MM = 0.5
@@ -24,6 +26,23 @@ def fibre_angles(angles: tuple[float, float]) -> None:
         raise DataError(f"experiment.toml: [specimen] fibre_angles_deg = {list(angles)}: the "
                         f"two fibre families are {apart:.3g}° apart, nearly parallel; they "
                         f"must cross at {MIN_FIBRE_ANGLE_DEG:g}° or more")
+
+
+NOISE_DATA = {"noise_std": "field", "force_noise_std": "force", "shear_noise_deg": "shear"}
+"""Each [data] noise key and the data file whose misfit it scales."""
+
+
+def noise_keys(noise: dict, files: dict) -> None:
+    """A shear-angle noise of 90° or more is no measurement (angles lie within ±90°); a noise
+    level given for data the directory does not hold is ignored, and said so (rank 0)."""
+    s = noise.get("shear_noise_deg")
+    if s is not None and s >= 90.0:
+        raise DataError(f"experiment.toml: [data] shear_noise_deg = {s:g} must be below 90 "
+                        "(degrees; the measured shear angles themselves lie within ±90°)")
+    for key, kind in NOISE_DATA.items():
+        if noise.get(key) is not None and files.get(kind) is None:
+            rank0_print(MPI.COMM_WORLD, f"warning: experiment.toml: [data] {key} is given but "
+                        f"[data] {kind} is not: the noise level is not used", level=30)
 
 
 def steps(values: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:

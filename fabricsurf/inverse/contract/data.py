@@ -159,6 +159,7 @@ def load_experiment(directory: str | Path) -> Experiment:
                       else "experiment.toml: [loading] path")
     noise = {k: (number_option(t, "data", k, "experiment.toml") * s if k in data else None)
              for k, s in (("noise_std", ls), ("force_noise_std", fs), ("shear_noise_deg", 1.0))}
+    checks.noise_keys(noise, {"field": fname, "force": gname, "shear": sname})
     name = t.get("name", d.name)
     if not isinstance(name, str) or not name.strip():
         raise DataError(f"experiment.toml: name = {name!r} must be a non-empty string")

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
+from fabricsurf.inverse.contract.checks import NOISE_DATA
 from fabricsurf.inverse.contract.experiment import Experiment
 
 
@@ -68,8 +69,8 @@ def toml_text(exp: Experiment) -> str:
         tables["data"]["force"] = "force.csv"
     if exp.has_shear:
         tables["data"]["shear"] = "shear.csv"
-    for key in ("noise_std", "force_noise_std", "shear_noise_deg"):
-        if getattr(exp, key) is not None:
+    for key, kind in NOISE_DATA.items():  # the noise of the data written only
+        if getattr(exp, key) is not None and kind in tables["data"]:
             tables["data"][key] = float(getattr(exp, key))
     if exp.source:
         tables["source"] = dict(exp.source)

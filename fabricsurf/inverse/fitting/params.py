@@ -28,6 +28,20 @@ def _other_kind(data: dict) -> str | None:
     return next((kind for keys, kind in OTHER_KINDS if keys <= set(data)), None)
 
 
+class _DuplicateKeyError(ValueError):
+    pass
+
+
+def _no_duplicates(pairs: list[tuple[str, object]]) -> dict:
+    """A JSON object whose keys are unique (json keeps the last of a repeated key silently)."""
+    seen = {}
+    for k, v in pairs:
+        if k in seen:
+            raise _DuplicateKeyError(k)
+        seen[k] = v
+    return seen
+
+
 def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict:
     """{term: {param: value}} from a JSON file, every name and value checked. ``terms``: the
     model's terms (a term in the file but not in the model is an error, not ignored)."""
@@ -35,9 +49,13 @@ def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict
         return {}
     name = str(path)
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+        data = json.loads(Path(path).read_text(encoding="utf-8-sig"),
+                          object_pairs_hook=_no_duplicates)
     except OSError as e:
         raise InputError(f"--params {name}: cannot read ({e.strerror})") from None
+    except _DuplicateKeyError as e:
+        raise InputError(f"--params {name}: key '{e}' is given twice in one object (JSON "
+                         "keeps only the last; remove one)") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise InputError(f"--params {name}: not valid JSON ({e})") from None
     if isinstance(data, dict) and isinstance(data.get("params"), dict):
@@ -59,6 +77,10 @@ def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict
         if not isinstance(vals, dict):
             raise InputError(f'--params {name}: "{term}" must map parameters to values, e.g. '
                              f'{{"{term}": {{"{EFFECTS[term].parameters()[0]}": 1.0}}}}')
+        if not vals:
+            raise InputError(f"--params {name}: term '{term}' gives no parameter (it has "
+                             f"{', '.join(EFFECTS[term].parameters())}); give its moduli, or "
+                             "leave it out and name it in --terms to start from the defaults")
         for p, v in vals.items():
             if p not in EFFECTS[term].parameters():
                 raise InputError(f"--params {name}: term '{term}' has no parameter '{p}' (it "
