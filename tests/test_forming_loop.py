@@ -136,6 +136,13 @@ def test_shear_file_contract(tmp_path):
     csv.write_text("\n".join(lines) + "\n")
     with pytest.raises(DataError, match=r"shear.csv line 4: step 7 does not appear"):
         load_experiment(d)
+    circle = experiment()
+    circle.setup.options["blank"] = "circle"
+    circle.shear_X[0] = (2.0, 2.0)  # in the circle's square, 9.6 mm beyond its edge
+    write_experiment(tmp_path / f"c{COMM.rank}", circle)
+    with pytest.raises(DataError, match=r"shear.csv line 2: point \(X, Y\) = \(2, 2\) mm lies "
+                                        r"9.6 mm outside the circular blank"):
+        load_experiment(tmp_path / f"c{COMM.rank}")
     with pytest.raises(DataError, match=r"\[data\] shear = \"shear.csv\": the "
                                         r"'bias_extension' test takes no measured shear"):
         read_shear(back, csv, 1.0, get_test("bias_extension"))

@@ -384,6 +384,10 @@ CASES = [
                                             "force_noise_std = 0.01\nshear_noise_deg = 95")),
          argv=cmp("shearnoise"),
          pattern=r"experiment.toml: \[data\] shear_noise_deg = 95 must be below 90"),
+    dict(id="bias-3d-term", klass="`bias --terms` with an out-of-plane effect", make=nothing,
+         argv=["bias", "--terms", "fibre_stretch,shear,twist", "--out", "out"],
+         pattern=r"--terms fibre_stretch,shear,twist: twist is an out-of-plane effect, and the "
+         r"bias test is planar"),
     dict(id="usage", klass="a missing argument (usage error)", make=nothing,
          argv=["fit", "good", "--out", "out"],
          pattern=r"the following arguments are required: --terms"),

@@ -34,7 +34,7 @@ from fabricsurf.errors import InputError
 from fabricsurf.experiments.bias_extension import BiasExtension, BiasResult, default_model
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.log import rank0_print
-from fabricsurf.model.terms import EFFECTS
+from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE
 
 OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
            "force.png", "force_band.csv", "force_band.png", "summary.json", "failure.json")
@@ -95,9 +95,15 @@ def _model(args) -> list:
     whole model: no default term is added silently); else the default model."""
     check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
-    if args.terms or params:
-        return parse_model(args.terms, params)
-    return default_model()
+    if not (args.terms or params):
+        return default_model()
+    model = parse_model(args.terms, params)
+    out_of_plane = [t.name for t in model if t.name in IN_PLANE_INVISIBLE]
+    if out_of_plane:
+        spec = args.terms or f"(the terms of --params {args.params})"
+        raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane effect, "
+                         "and the bias test is planar (no out-of-plane placement); remove it")
+    return model
 
 
 def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dict:

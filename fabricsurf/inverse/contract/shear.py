@@ -29,6 +29,7 @@ def read_shear(exp, path: Path, ls: float, plugin) -> None:
     f["X"], f["Y"] = f["X"] * ls, f["Y"] * ls
     checks.field_rows(f, exp.steps, exp.length, exp.width, name,
                       "the force file" if exp.has_force else "[loading] path")
+    _inside_circle(exp, f, name)
     big = np.flatnonzero(np.abs(f["shear_deg"]) >= MAX_SHEAR_DEG)
     if len(big):
         i = big[0]
@@ -38,6 +39,20 @@ def read_shear(exp, path: Path, ls: float, plugin) -> None:
     exp.shear_step = f["step"]
     exp.shear_X = np.column_stack([f["X"], f["Y"]])
     exp.shear = f["shear_deg"].astype(float)
+
+
+def _inside_circle(exp, f: dict, name: str) -> None:
+    """On a circular blank the points must lie in the circle, not only in its square."""
+    if exp.setup.options.get("blank", "square") != "circle":
+        return
+    r = 0.5 * exp.length
+    beyond = np.hypot(f["X"] - r, f["Y"] - 0.5 * exp.width) - r
+    out = np.flatnonzero(beyond > 1e-9 * r)
+    if len(out):
+        i = out[0]
+        raise DataError(f"{name} line {f['_line'][i]}: point (X, Y) = ({f['X'][i]:g}, "
+                        f"{f['Y'][i]:g}) mm lies {beyond[i]:.3g} mm outside the circular blank "
+                        f"(diameter {exp.length:g} mm, centre ({r:g}, {0.5 * exp.width:g}) mm)")
 
 
 def zero_shear(exp, name: str | None) -> None:
