@@ -29,7 +29,8 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.cli import main
-from fabricsurf.cli.data_checks import check_in_loop
+from fabricsurf.cli.data_checks import check_in_loop, check_terms_fit_data
+from fabricsurf.cli.options import enough_data
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments import get_test
 from fabricsurf.experiments.hemisphere import HemisphereForming
@@ -122,6 +123,15 @@ def test_shear_file_contract(tmp_path):
     assert np.allclose(back.shear, exp.shear) and np.allclose(back.shear_X, exp.shear_X)
     assert back.shear_noise_deg == 0.5 and np.array_equal(back.shear_step, exp.shear_step)
     check_in_loop([back], [d])
+    assert len(back.force) < 5 <= len(back.force) + len(back.shear)
+    enough_data([back], model())  # 5 moduli: the shear angles count as data
+    with pytest.raises(InputError, match=r"is a hemisphere forming .* no term has a second "
+                                         r"gradient"):  # its tangent is singular
+        check_terms_fit_data([back], model()[:2], "fibre_stretch,shear")
+    far = experiment(strokes=(2.0, 40.0))  # the 60 mm blank is drawn off the lip by 35 mm
+    with pytest.raises(InputError, match=r"step 2: hemisphere: "
+                                         r"stroke 40 mm is outside 0 < stroke ≤ 34.99 mm"):
+        check_in_loop([far], [d])
     csv = d / "shear.csv"
     lines = csv.read_text().splitlines()
     lines[3] = ",".join(lines[3].split(",")[:3] + ["95"])

@@ -30,12 +30,33 @@ def check_in_loop(exps: list, data: list) -> None:
         if why:
             raise InputError(f"{d}/experiment.toml: [data] field with [loading] test = "
                              f"\"{e.test}\": {why}")
+        if e.test == "hemisphere":
+            _stroke_within_reach(e, d)
+
+
+def _stroke_within_reach(e, d) -> None:
+    """A measured stroke the die and blank cannot allow is refused before the forward model
+    follows it into a Newton failure (forming_blank.check_stroke)."""
+    from fabricsurf.errors import DataError
+    from fabricsurf.experiments import forming_blank
+
+    i = int(max(range(len(e.path)), key=lambda j: e.path[j]))
+    try:
+        forming_blank.check_stroke(e.setup, float(e.path[i]))
+    except DataError as err:
+        raise InputError(f"{d}: step {int(e.steps[i])}: {err}") from None
+
+
+BENDS = {"cantilever": "cantilever", "hemisphere": "hemisphere forming (the sheet bends over "
+                                                  "the punch and the die's lip)"}
+"""Tests whose answer needs a bending stiffness: a second-gradient term."""
 
 
 def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
     """Terms the data cannot carry, refused by name before any computation: an out-of-plane
     effect (normal bending, twist) on a planar test has no meaning there (it needs a placement
-    in 3D), and a cantilever without a second-gradient term has no bending stiffness."""
+    in 3D), and a cantilever or a formed sheet without a second-gradient term has no bending
+    stiffness."""
     from fabricsurf.experiments import get_test
     from fabricsurf.model.terms import IN_PLANE_INVISIBLE
 
@@ -49,10 +70,11 @@ def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
                              "it has no out-of-plane placement, so its data cannot identify "
                              "it; remove it from --terms (or use out-of-plane data alone, "
                              "e.g. a cantilever)")
-        if e.test == "cantilever" and not any(t.order == 2 for t in model):
-            raise InputError(f"--terms {spec}: experiment '{e.name}' is a cantilever, and no "
-                             "term has a second gradient, so the strip would have no bending "
-                             "stiffness at all; add normal_bending (and twist)")
+        if e.test in BENDS and not any(t.order == 2 for t in model):
+            raise InputError(f"--terms {spec}: experiment '{e.name}' is a {BENDS[e.test]}, "
+                             "and no term has a second gradient, so the sheet would have no "
+                             "bending stiffness at all (its tangent is singular); add "
+                             "normal_bending (and twist)")
 
 
 def planar_candidates(exps: list, cands: list[str] | None) -> None:

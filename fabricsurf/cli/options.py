@@ -151,8 +151,8 @@ def input_paths(args, exps: list) -> tuple[tuple[str, str], ...]:
 
 def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None:
     """Refuse a fit of more moduli than there are data (under-determined: its ± would be
-    meaningless). Data: every force value, and every field row times the components the
-    test compares."""
+    meaningless). Data: every force value, every field row times the components the test
+    compares, and every measured shear angle."""
     from fabricsurf.experiments import get_test
 
     free = [f"{t.name}.{p}" for t in model if t.name not in (fixed or []) for p in t.values()]
@@ -161,12 +161,14 @@ def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None
         nf = len(e.force) if e.has_force else 0
         comps = min(get_test(e.test).d, e.u.shape[1])
         nu = len(e.X) * comps if e.has_field else 0
-        n += nf + nu
+        ns = len(e.shear) if e.has_shear else 0
+        n += nf + nu + ns
         rows = len(e.X)
         counts.append(f"'{e.name}': " + ", ".join(
             ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
             + ([f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
-               if e.has_field else [])))
+               if e.has_field else [])
+            + ([f"{ns} shear angle{'s' * (ns != 1)}"] if e.has_shear else [])))
     if n < len(free):
         raise InputError(f"--terms {','.join(t.name for t in model)}: {len(free)} moduli to fit "
                          f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
