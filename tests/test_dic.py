@@ -289,6 +289,29 @@ def test_units_and_frame_keys(small):
 
 
 @SERIAL
+def test_lost_images_binning_and_scale(small):
+    """An image that is all holes, bins no image fills, a pitch of half the specimen and a
+    pixel scale 1000 times too small: each named before anything is written."""
+    spec, f = small
+    text = spec.read_text()
+    lines = f.read_text().splitlines()
+    head = lines.index(next(r for r in lines if r.startswith("COORD"))) + 1
+    rows = [",".join(r.split(",")[:2] + ["nan"] * 3) for r in lines[head:]]
+    original = f.read_text()
+    f.write_text("\n".join(lines[:head] + rows) + "\n")
+    reject(spec, rf"DICe_solution_02.txt: every one of its {len(rows)} rows is a hole")
+    f.write_text(original)
+    spec.write_text(text + "[binning]\npitch = 8.0\nmin_points = 50\n")
+    reject(spec, r"DICe_solution_01.txt: no bin of \[binning\] pitch = 8 mm holds \[binning\] "
+           r"min_points = 50 points")
+    spec.write_text(text + "[binning]\npitch = 45.0\n")
+    reject(spec, r"\[binning\] pitch = 45 mm is more than half the specimen's 80 mm side")
+    spec.write_text(text.replace("mm_per_pixel = 0.05", "mm_per_pixel = 0.00005"))
+    reject(spec, r"DICe_solution_01.txt: the points span 0.11\d* x 0.07\d* mm of the 120 x 80 mm "
+           r"specimen at 5e-05 mm per pixel")
+
+
+@SERIAL
 def test_mixed_units(tmp_path):
     frame = Frame(1.0, False, (0.0, 0.0), "left", 0.0)
     spec, _ = make(tmp_path, "aramis_nodemap", frame, points=grid(spacing=4.0))

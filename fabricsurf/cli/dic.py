@@ -53,6 +53,18 @@ def write_directory(stage: Path, exp, report: dict) -> None:
     write_json(MPI.COMM_SELF, stage / "dic_import.json", report)
 
 
+def _reads_back(stage: Path) -> None:
+    """The written directory must pass the loader's own checks, or nothing is published."""
+    from fabricsurf.errors import DataError
+    from fabricsurf.inverse.contract.data import load_experiment
+
+    try:
+        load_experiment(stage)
+    except DataError as e:
+        raise DataError(f"the imported data fail the measurement contract's checks, so "
+                        f"nothing is written: {e}") from None
+
+
 def _import(spec_path: Path, stage: Path) -> str:
     from fabricsurf.inverse.dic.config import read_spec
     from fabricsurf.inverse.dic.importer import import_dic
@@ -62,6 +74,7 @@ def _import(spec_path: Path, stage: Path) -> str:
     report["provenance"] = {"fabricsurf": __version__, "spec": str(spec_path.resolve()),
                             "export_directory": str(spec.root.resolve())}
     write_directory(stage, exp, report)
+    _reads_back(stage)
     noise = report["noise"]
     return (f"{report['points_read']} points read from {len(report['files'])} images "
             f"({report['layout']}), {report['holes']} holes and {report['outside_dropped']} "

@@ -230,6 +230,11 @@ def read_spec(path: str | Path) -> ImportSpec:
         raise DataError(f"{where}: [steps] force: the '{plugin.name}' test measures no reaction")
     b = t.get("binning", {})
     pitch = number_option(t, "binning", "pitch", where) if "pitch" in b else None
+    setup = _setup(t, where, plugin)
+    if pitch is not None and pitch > 0.5 * min(setup.length, setup.width):
+        raise DataError(f"{where}: [binning] pitch = {pitch:g} mm is more than half the "
+                        f"specimen's {min(setup.length, setup.width):g} mm side: the field would "
+                        "be one or two points across it (the pitch is in mm, like the specimen)")
     min_points = b.get("min_points", 1)
     if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
         raise DataError(f"{where}: [binning] min_points = {min_points!r} must be an integer "
@@ -243,6 +248,6 @@ def read_spec(path: str | Path) -> ImportSpec:
     if not isinstance(source, dict) or any(not isinstance(v, str) for v in source.values()):
         raise DataError(f"{where}: [source] holds free text only (key = \"text\")")
     return ImportSpec(where, name, layout, files, image_number, path.parent, frame, outside,
-                      _setup(t, where, plugin), images, refs, load, force, pitch, min_points,
+                      setup, images, refs, load, force, pitch, min_points,
                       noise["noise_std"], None if noise["force_noise_std"] is None
                       else noise["force_noise_std"] * fscale, dict(source), unit)

@@ -160,18 +160,48 @@ def _collect(spec: ImportSpec, files: dict[int, Path], images: list[int], d: int
         f = read_export(files[image], image, spec.layout)
         X, u, counts = _image(f, spec, d, tilt_first and k == 1)
         del f
+        if k == 1 and len(X):
+            _extent(files[image].name, X, spec)
         s = np.full(len(X), k, dtype=np.int64)
-        if spec.pitch and len(X):
+        _not_empty(files[image].name, counts, spec)
+        if spec.pitch:
             s, X, u, _ = bin_points(s, X, u, spec.pitch, spec.min_points)
             counts["bins"] = len(X)
-        if len(X) == 0:
-            raise DataError(f"{files[image].name}: no point left (holes "
-                            f"{counts['holes']}, outside {counts['outside_dropped']})")
+            if len(X) == 0:
+                raise DataError(f"{files[image].name}: no bin of [binning] pitch = "
+                                f"{spec.pitch:g} mm holds [binning] min_points = "
+                                f"{spec.min_points} points ({counts['points']} points on the "
+                                "specimen): lower min_points or enlarge the pitch")
         report.append({"file": files[image].name, "image": image} | counts)
         steps.append(s)
         Xs.append(X)
         us.append(u)
     return np.concatenate(steps), np.vstack(Xs), np.vstack(us)
+
+
+def _not_empty(name: str, counts: dict, spec: ImportSpec) -> None:
+    """An image with no valid point on the specimen, said with why (holes or outline)."""
+    if counts["points"]:
+        return
+    if counts["holes"] == counts["rows"]:
+        raise DataError(f"{name}: every one of its {counts['rows']} rows is a hole (NaN, empty "
+                        f"or the {spec.layout.name} layout's invalid marker): the correlation "
+                        "lost this image; leave it out of [steps] images")
+    raise DataError(f"{name}: no point left on the specimen ({counts['holes']} holes, "
+                    f"{counts['outside_dropped']} points outside it dropped by [frame] outside "
+                    "= \"drop\"): check [frame] origin, grip, angle_deg and [units]")
+
+
+def _extent(name: str, X: np.ndarray, spec: ImportSpec) -> None:
+    """Points gathered in a patch far smaller than the specimen: a scale off by orders of
+    magnitude (mm_per_pixel, [units]), refused here rather than by the loader later."""
+    L, W = spec.setup.length, spec.setup.width
+    ex, ey = np.ptp(X[:, 0]), np.ptp(X[:, 1])
+    if len(np.unique(X, axis=0)) >= 4 and ex < checks.MIN_FIELD_EXTENT * L and \
+            ey < checks.MIN_FIELD_EXTENT * W:
+        raise DataError(f"{name}: the points span {ex:.3g} x {ey:.3g} mm of the {L:g} x {W:g} mm "
+                        f"specimen at {spec.frame.scale:g} mm per {spec.unit}: is the scale "
+                        "([units] mm_per_pixel, or the coordinates' unit) right?")
 
 
 def _noise(spec: ImportSpec, refs: tuple, step: np.ndarray, X: np.ndarray, u: np.ndarray
