@@ -88,7 +88,8 @@ def main(hs: list[float], names: list[str], bound: float, blank: float = BLANK) 
                                   f"{b['N_cr']['simply supported']:.3f} (s.s.) – "
                                   f"{b['N_cr']['clamped']:.3f} (clamped) N/mm")
                 rank0_print(comm, "  " + line(name, h, r))
-    rank0_print(comm, f"\nreference: |residual| > {bound} mm; indicator: T < "
+    rank0_print(comm, f"\nreference: |residual| > {bound} mm; indicator: the smoothed least "
+                      "membrane force in the unheld strip below -N_cr; curvature flag: T < "
                       f"-{TOOLING['wrinkle_tension']:g} N/mm and |K| > κ_w; points of the "
                       f"81 × 81 sample grid of the quarter")
     rank0_print(comm, HEADER)
@@ -97,14 +98,16 @@ def main(hs: list[float], names: list[str], bound: float, blank: float = BLANK) 
 
 
 HEADER = ("variant           h (mm)  amplitude (mm)  ref. area  ref. points  N_hoop  N_cr(ss)  "
-          "ratio | κ_w·R: indicator area, points, overlap")
+          "ratio | indicator: area, points, overlap | curvature flag, κ_w·R: the same")
 
 
 def line(name: str, h: float, r: dict) -> str:
     """One row of the comparison table (:data:`HEADER`)."""
     b = r["buckling"]
-    marks = "; ".join(f"{i['curvature'] * R:g}: {i['area']:.4f}, {i['points']}, "
-                      f"{i['overlap']}" for i in r["indicator"])
+    m, *flags = r["indicator"]
+    marks = f"{m['area']:.4f}, {m['points']}, {m['overlap']} | " + "; ".join(
+        f"{i['curvature'] * R:g}: {i['area']:.4f}, {i['points']}, {i['overlap']}"
+        for i in flags)
     return (f"{name:16s} {h:7.3g} {r['amplitude']:15.4f} {r['reference_area']:10.4f}"
             f" {r['reference_points']:12d} {b['hoop']:7.3f} "
             f"{b['N_cr']['simply supported']:8.3f} {b['ratio']:6.2f} | {marks}")

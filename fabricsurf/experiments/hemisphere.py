@@ -25,9 +25,10 @@ keeps a step log and reports each step as it converges (forming_log.py); the opt
 plausible ranges are checked before any computation (forming_options.py).
 
 Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
-tensions, the normal curvatures K_L, K_M, the contact pressure, a wrinkling indicator (a fibre in
-compression, T < −T_w, that bends, |K| > κ_w: compression relieved out of plane) and the region
-beyond the locking angle (|γ| > γ_lock).
+tensions, the normal curvatures K_L, K_M, the contact pressure, the wrinkling indicator (the
+unheld flange strip where the smoothed least membrane force exceeds the strip's plate-buckling
+force: wrinkling.Wrinkling, updated after every converged step) with that smoothed force, and
+the region beyond the locking angle (|γ| > γ_lock).
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ from fabricsurf.experiments import forming_blank, forming_options
 from fabricsurf.experiments.base import ExperimentSetup, Setup
 from fabricsurf.experiments.forming_log import StepLog
 from fabricsurf.experiments.forming_tools import ContactProblem, Tools
-from fabricsurf.experiments.wrinkling import Indicators
+from fabricsurf.experiments.wrinkling import Indicators, Wrinkling
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle, lattice_divisions, square_divisions
@@ -136,9 +137,11 @@ class HemisphereForming(ExperimentSetup):
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
         self.indicators = Indicators.from_options(msh, o)
+        self.wrinkling = Wrinkling(msh, self.r, kin, p.energy.tension_fields(), self.tools,
+                                   model, p.dx)
         self._forms = {"force": self.tools.force_density(self.r) * p.dx,
                        "stored": p.energy.internal(), "tools": p.contact_energy(),
-                       "wrinkle": self._wrinkle(kin) * p.dx,
+                       "wrinkle": self.wrinkling.mark * p.dx,
                        "locked": self.indicators.locked(kin) * p.dx}
         self._forms = {k: fem.form(v) for k, v in self._forms.items()}
         self._S = fem.FunctionSpace(msh, ("DG", 2))
@@ -231,17 +234,19 @@ class HemisphereForming(ExperimentSetup):
         cells = np.arange(self.specimen.mesh.topology.index_map(2).size_local, dtype=np.int32)
         return (self._pen_q.eval(cells) > 0.0).ravel()
 
-    # -- fields and profiles ---------------------------------------------------------------
-    def _wrinkle(self, kin):
-        return self.indicators.wrinkle(kin, self.problem.energy.tension_fields())
+    def _release(self) -> None:
+        super()._release()
+        self.wrinkling.close()
 
+    # -- fields and profiles ---------------------------------------------------------------
     def fields(self) -> dict:
         """Forming fields for FieldWriter(extra=...) (module docstring)."""
         kin = self.problem.energy.kin
         fl, fm = l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)
         out = {"shear_deg": kin.gamma * (180.0 / math.pi),
                "contact_pressure": self.tools.pressure(self.r),
-               "wrinkle": self._wrinkle(kin), "beyond_locking": self.indicators.locked(kin)}
+               "wrinkle": self.wrinkling.mark, "least_membrane_force": self.wrinkling.smoothed,
+               "beyond_locking": self.indicators.locked(kin)}
         out.update({f"{n}_{c}": v[i] for n, v in (("l", fl), ("m", fm))
                     for i, c in enumerate("xyz")})
         out.update(self.problem.energy.tension_fields())
@@ -314,6 +319,7 @@ class HemisphereForming(ExperimentSetup):
         def done(k: int, s: float, its: int) -> None:
             self.stroke.append(s)
             self.force.append(self.reaction())
+            self.wrinkling.update()
             book.step(k, s, self.force[-1], its, self.stepper.attempts[-1], steps)
             if on_step is not None:
                 on_step(k, s)

@@ -1,12 +1,15 @@
 """The forming indicators of the hemisphere plug-in (experiments/hemisphere.py): where the sheet
 wrinkles and where it is sheared beyond the locking angle.
 
-Wrinkling: a fibre in compression, T < −T_w, that bends more sharply than κ_w, |K| > κ_w (K
-its normal curvature K_L or K_M): compression relieved out of plane. Beyond locking: |γ| >
-γ_lock. Both are 0/1 fields of the reference blank; their integrals give the area that
-wrinkles and the area beyond locking.
+Wrinkling (:class:`Wrinkling`, the plug-in's ``wrinkle`` output and area): the unheld flange
+strip where the smoothed least membrane force is more compressive than the strip's
+plate-buckling force. The curvature flag of :class:`Indicators` (a fibre in compression,
+T < −T_w, that bends more sharply than κ_w) is kept for comparison only: curvature cannot tell a
+wrinkle (about 0.02/mm) from the bend over the die's lip (0.5/mm), and on finer meshes it marks
+more (docs/forming.md). Beyond locking: |γ| > γ_lock. The indicators are 0/1 fields of the
+reference blank; their integrals give the area that wrinkles and the area beyond locking.
 
-The thresholds T_w, κ_w and γ_lock are ``fem.Constant``s: a form holding them is compiled once
+The thresholds (N_cr and the smoothing length, T_w, κ_w, γ_lock) are ``fem.Constant``s: a form holding them is compiled once
 for all values (before issue 40 they were plain numbers in the form, so that each new punch
 radius, whose 1/R is the default κ_w, compiled the two forms again). What the indicator marks
 is compared with the flange's out-of-plane amplitude and a buckling estimate in
@@ -17,8 +20,14 @@ from __future__ import annotations
 
 import math
 
+import dolfinx.fem.petsc  # noqa: F401 (fem.petsc)
+import numpy as np
 import ufl
 from dolfinx import fem
+from petsc4py import PETSc
+
+from fabricsurf.discretise.resources import Owner, destroy, release_vectors
+from fabricsurf.model.kinematics import l_dir, m_dir
 
 
 class Indicators:
@@ -48,3 +57,86 @@ class Indicators:
     def locked(self, kin):
         """1 where |γ| > γ_lock, else 0 (UFL)."""
         return ufl.conditional(ufl.gt(abs(kin.gamma), self.locking), 1.0, 0.0)
+
+
+PLATE_K_SIMPLY_SUPPORTED = 4.0
+"""Buckling coefficient of a long plate strip compressed along its length with simply
+supported edges, N_cr = k π² D / b² (Timoshenko & Gere 1961, §9.2)."""
+
+
+def bending_stiffness(model: list) -> float:
+    """min over α of D(α) = k_b (cos⁴α + sin⁴α) + k_t cos²α sin²α (N·mm): the least bending
+    stiffness of the fabric model for a cylindrical bend at angle α to a fibre of an orthogonal
+    net (NormalBending, Twist: K_L = κ cos²α, K_M = κ sin²α, T = κ cos α sin α)."""
+    values = {t.name: t.values() for t in model}
+    k_b = values.get("normal_bending", {}).get("k_b", 0.0)
+    k_t = values.get("twist", {}).get("k_t", 0.0)
+    a = np.linspace(0.0, 0.5 * math.pi, 91)
+    c2, s2 = np.cos(a) ** 2, np.sin(a) ** 2
+    return float((k_b * (c2**2 + s2**2) + k_t * c2 * s2).min())
+
+
+def least_membrane_force(kin, tensions: dict):
+    """The lesser principal value of the fibres' membrane force N = T_l l⊗l + T_m m⊗m (N/mm,
+    UFL; the shear term's stress left out): with c = l·m, tr N = T_l + T_m and
+    det N = T_l T_m (1 − c²) in the sheet's tangent plane."""
+    T_l, T_m = tensions["tension_l"], tensions["tension_m"]
+    c = ufl.dot(l_dir(kin.F, kin.L), m_dir(kin.F, kin.M))
+    half = 0.5 * (T_l + T_m)
+    disc = (0.5 * (T_l - T_m)) ** 2 + T_l * T_m * c**2  # = half² − det ≥ 0
+    return half - ufl.sqrt(disc + 1e-30)
+
+
+class Wrinkling(Owner):
+    """Where the unheld flange buckles (docs/forming.md, "Wrinkling"): in the strip between the
+    end of the die's lip and the holder's full pressure, current radius ρ₀ ≤ ρ < ρ₀ + b with
+    ρ₀ = R_o + r_d and b = 2 r_d (forming_tools.Tools.holder_weight), the lesser principal
+    membrane force, smoothed over the length ``length`` (a Helmholtz filter, ν − ℓ²Δν = N_min,
+    of the reference blank: a wrinkle is a wave of the strip's width, not a quadrature point),
+    is below −``threshold``, by default the plate-buckling force N_cr = 4π²D/b² of the strip
+    (Timoshenko & Gere 1961, §9.2) with D the model's least bending stiffness.
+
+    ``threshold`` (N/mm) and ``length`` (mm, default r_d) are fem.Constants; :meth:`update`
+    recomputes the smoothed force at the current state (the plug-in calls it after every
+    converged step); :attr:`mark` is the 0/1 indicator (UFL)."""
+
+    def __init__(self, msh, r, kin, tensions: dict, tools, model: list, dx) -> None:
+        self.comm = msh.comm
+        lip = float(tools.lip.value)
+        b = 2.0 * lip
+        D = bending_stiffness(model)
+        self.threshold = fem.Constant(msh, PLATE_K_SIMPLY_SUPPORTED * math.pi**2 * D / b**2)
+        self.length = fem.Constant(msh, lip)
+        V = fem.FunctionSpace(msh, ("CG", 1))
+        self.smoothed = fem.Function(V, name="least_membrane_force")
+        nu, w = ufl.TrialFunction(V), ufl.TestFunction(V)
+        self._a = fem.form((nu * w + self.length**2 * ufl.inner(ufl.grad(nu), ufl.grad(w))) * dx)
+        self._L = fem.form(least_membrane_force(kin, tensions) * w * dx)
+        self._A = fem.petsc.create_matrix(self._a)
+        self._b = fem.petsc.create_vector(self._L)
+        self._ksp = PETSc.KSP().create(self.comm)
+        self._ksp.setOperators(self._A)
+        self._ksp.setType("cg")
+        self._ksp.getPC().setType("jacobi")
+        self._ksp.setTolerances(rtol=1e-12, atol=1e-14, max_it=1000)
+        rho = ufl.sqrt(r[0] ** 2 + r[1] ** 2)
+        start = tools.opening + tools.lip
+        strip = ufl.And(ufl.ge(rho, start), ufl.lt(rho, start + 2.0 * tools.lip))
+        self.mark = ufl.conditional(ufl.And(strip, ufl.lt(self.smoothed, -self.threshold)),
+                                    1.0, 0.0)
+
+    def update(self) -> None:
+        """Smooth the least membrane force of the current state (collective)."""
+        self._A.zeroEntries()
+        fem.petsc.assemble_matrix(self._A, self._a)
+        self._A.assemble()
+        with self._b.localForm() as loc:
+            loc.set(0.0)
+        fem.petsc.assemble_vector(self._b, self._L)
+        self._b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self._ksp.solve(self._b, self.smoothed.vector)
+        self.smoothed.x.scatter_forward()
+
+    def _release(self) -> None:
+        destroy(self._ksp, self._A, self._b)
+        release_vectors(self.smoothed)

@@ -36,6 +36,7 @@ from dolfinx import fem
 
 from fabricsurf.discretise.energy import placement
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
+from fabricsurf.experiments import forming_blank, wrinkling
 from fabricsurf.model.kinematics import l_dir, m_dir
 
 HARMONICS = (1, 2)
@@ -89,13 +90,9 @@ def amplitude(e, n: int = 81, band: float = 1.0) -> dict:
 
 
 def bending_stiffness(e) -> float:
-    """min over α of D(α) = k_b (cos⁴α + sin⁴α) + k_t cos²α sin²α (N·mm; module docstring)."""
-    values = {t.name: t.values() for t in e.model}
-    k_b = values.get("normal_bending", {}).get("k_b", 0.0)
-    k_t = values.get("twist", {}).get("k_t", 0.0)
-    a = np.linspace(0.0, 0.5 * math.pi, 91)
-    c2, s2 = np.cos(a) ** 2, np.sin(a) ** 2
-    return float((k_b * (c2**2 + s2**2) + k_t * c2 * s2).min())
+    """min over α of D(α) = k_b (cos⁴α + sin⁴α) + k_t cos²α sin²α (N·mm; module docstring,
+    experiments.wrinkling.bending_stiffness)."""
+    return wrinkling.bending_stiffness(e.model)
 
 
 def hoop_tension(e):
@@ -126,38 +123,79 @@ def buckling(e, n: int = 81) -> dict:
             "ratio": -hoop / cr["simply supported"]}
 
 
+def _marked(e, expr, P: np.ndarray) -> np.ndarray:
+    """Which sample points a 0/1 indicator (UFL) marks, by its cell values."""
+    V = fem.FunctionSpace(e.specimen.mesh, ("DG", 0))
+    field = fem.Function(V)
+    field.interpolate(fem.Expression(expr, V.element.interpolation_points()))
+    return eval_points(field, P)[:, 0] > 0.5
+
+
+def membrane_marks(e, P: np.ndarray) -> np.ndarray:
+    """The plug-in indicator at reference points P, point by point: in the unheld strip (by the
+    current radius) and the smoothed least membrane force below −N_cr (experiments.wrinkling)."""
+    rho, _, _ = _polar(e, P)
+    r0, b = lip_end(e), 2.0 * float(e.tools.lip.value)
+    force = eval_points(e.wrinkling.smoothed, P)[:, 0]
+    return (rho >= r0) & (rho < r0 + b) & (force < -float(e.wrinkling.threshold.value))
+
+
+def envelope(P: np.ndarray, wrinkled: np.ndarray, flange: np.ndarray, radius: float
+             ) -> np.ndarray:
+    """The wrinkled region as an envelope: flange points within ``radius`` of a point whose
+    residual exceeds the bound. A wrinkle is a wave, its residual passing through zero between
+    crests, so the points above the bound alone are a set of stripes, not the region."""
+    from scipy.spatial import cKDTree
+
+    if not wrinkled.any():
+        return np.zeros(len(P), bool)
+    d, _ = cKDTree(P[wrinkled]).query(P, k=1)
+    return flange & (d <= radius)
+
+
 def compare(e, bound: float, curvatures: tuple[float, ...] | None = None, n: int = 81) -> dict:
-    """What the indicator marks against the amplitude. The reference's wrinkled region: the
-    sample points where |residual| > ``bound``. For each wrinkling curvature κ_w of
-    ``curvatures`` (default: the experiment's own; set through the indicator's fem.Constant,
-    no recompilation, and restored): the indicator's area fraction of the blank
-    (e.area_fractions), its sample points, and the overlap (points both mark). The same on
-    every rank; ``points``, ``residual`` and ``marked`` (the first κ_w's sample points) are
+    """What the indicators mark against the amplitude. The reference's wrinkled region: the
+    sample points where |residual| > ``bound``, and its :func:`envelope` within r_d (half a
+    strip's width). ``indicator``: the plug-in's (the membrane
+    force in the unheld strip against its buckling force, e.area_fractions()) first, then the
+    curvature flag for each κ_w of ``curvatures`` (default none; set through its fem.Constant,
+    no recompilation, and restored), each with its area fraction of the blank, sample points,
+    those on the flange, the overlap (points both mark) and those in the envelope. The same on
+    every rank;
+    ``points``, ``residual`` and ``marked`` (the plug-in indicator's sample points) are
     :func:`draw_map`'s."""
     amp = amplitude(e, n)
     P = amp["points"]
     flange = ~np.isnan(amp["residual"])
     wrinkled = flange & (np.abs(np.nan_to_num(amp["residual"])) > bound)
-    V = fem.FunctionSpace(e.specimen.mesh, ("DG", 0))
-    field = fem.Function(V)
-    expr = fem.Expression(e.fields()["wrinkle"], V.element.interpolation_points())
-    own = float(e.indicators.curvature.value)
-    rows, first = [], None
+
+    region = envelope(P, wrinkled, flange, float(e.tools.lip.value))
+
+    def row(kind: str, marked: np.ndarray, area: float, **extra) -> dict:
+        return {"kind": kind, **extra, "area": area, "points": int(marked.sum()),
+                "on_flange": int((marked & flange).sum()),
+                "overlap": int((marked & wrinkled).sum()),
+                "in_region": int((marked & region).sum())}
+
+    first = membrane_marks(e, P)
+    rows = [row("membrane force", first, e.area_fractions()["wrinkle"],
+                threshold=float(e.wrinkling.threshold.value))]
+    ind, kin = e.indicators, e.problem.energy.kin
+    flag = ind.wrinkle(kin, e.problem.energy.tension_fields())
+    area = fem.form(flag * e.problem.dx)
+    own = float(ind.curvature.value)
     try:
-        for k in curvatures or (own,):
-            e.indicators.curvature.value = k
-            field.interpolate(expr)
-            marked = eval_points(field, P)[:, 0] > 0.5
-            first = marked if first is None else first
-            rows.append({"curvature": k, "area": e.area_fractions()["wrinkle"],
-                         "points": int(marked.sum()), "on_flange": int((marked & flange).sum()),
-                         "overlap": int((marked & wrinkled).sum())})
+        for k in curvatures or ():
+            ind.curvature.value = k
+            fraction = e.copies * e.comm.allreduce(fem.assemble_scalar(area)) / \
+                forming_blank.area(e.setup)
+            rows.append(row("curvature", _marked(e, flag, P), fraction, curvature=k))
     finally:
-        e.indicators.curvature.value = own
+        ind.curvature.value = own
     return {"amplitude": amp["amplitude"], "bands": amp["bands"], "points": P,
             "residual": amp["residual"], "marked": first,
             "reference_area": float(wrinkled.mean()), "reference_points": int(wrinkled.sum()),
-            "indicator": rows}
+            "region_points": int(region.sum()), "indicator": rows}
 
 
 def draw_map(path, result: dict, blank: float, R: float) -> None:
@@ -177,7 +215,7 @@ def draw_map(path, result: dict, blank: float, R: float) -> None:
     im = ax.imshow(res.reshape(n, n), origin="lower", extent=(0, half, 0, half), cmap="RdBu",
                    vmin=-lim, vmax=lim)
     marked = result["marked"]
-    ax.plot(P[marked, 0], P[marked, 1], "k.", ms=2, label="indicator")
+    ax.plot(P[marked, 0], P[marked, 1], "k.", ms=2, label="indicator (membrane force)")
     ax.add_patch(plt.Circle((0, 0), R, fill=False, color="k", ls="--"))
     fig.colorbar(im, label="wrinkle: deviation from the long-wave field (mm)")
     ax.set(xlabel="x (mm, reference)", ylabel="y (mm, reference)", xlim=(0, half),
