@@ -136,11 +136,12 @@ cases = {"fitted": form("fitted", parts.fitted_values(params, K_BEND))}
 grid = parts.shear_grid(e)
 
 # %% [markdown]
-# Where it wrinkles: the indicator (a compressed fibre bending more sharply than the punch)
-# against the flange's out-of-plane amplitude beyond the die's lip, the deviation from the
-# flange's own long-wave field (fabricsurf/verification/wrinkling.py; docs/forming.md,
-# "Wrinkling": the amplitude converges with the mesh, the indicator does not), and the hoop
-# compression of the strip the tools leave unpressed against its plate buckling load.
+# Where it wrinkles: the indicator (the unheld flange strip, between the die's lip and the
+# holder's full pressure, where the smoothed least membrane force is more compressive than the
+# strip's plate-buckling force 4π²D/b²) against the flange's out-of-plane amplitude beyond the
+# die's lip, the deviation from the flange's own long-wave field
+# (fabricsurf/verification/wrinkling.py; docs/forming.md, "Wrinkling"), and the mean hoop
+# compression of that strip against the same buckling force.
 # `wrinkle_map.png` shows the amplitude with the indicator's points. The die and the holder
 # confine the flange, so the amplitude cannot exceed the holder's gap.
 

@@ -98,13 +98,18 @@ def test_thresholds_are_constants(states):
     e, _ = states
     assert isinstance(e.indicators, Indicators)
     base = e.area_fractions()["wrinkle"]
-    own = float(e.wrinkling.threshold.value)
-    e.wrinkling.threshold.value = 1e6
+    e.wrinkling.factor.value = 1e6
     try:
         assert e.area_fractions()["wrinkle"] == 0.0 < base
     finally:
-        e.wrinkling.threshold.value = own
+        e.wrinkling.factor.value = 1.0
     assert e.area_fractions()["wrinkle"] == base
+    n_cr = float(e.wrinkling.buckling_force.value)
+    for k in (1.0, 0.1):  # N_cr follows the model's moduli: D = 0.75 k_b with k_t = k_b
+        e.model[2].set(k_b=k)
+        e.model[3].set(k_t=k)
+        e.wrinkling.update()
+        assert float(e.wrinkling.buckling_force.value) == pytest.approx(n_cr * k / 0.1)
     e.indicators.locking.value = 0.0
     assert e.area_fractions()["locked"] > 0.5
     e.indicators.locking.value = np.radians(TOOLING["locking_angle_deg"])

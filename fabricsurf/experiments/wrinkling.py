@@ -9,11 +9,12 @@ wrinkle (about 0.02/mm) from the bend over the die's lip (0.5/mm), and on finer 
 more (docs/forming.md). Beyond locking: |γ| > γ_lock. The indicators are 0/1 fields of the
 reference blank; their integrals give the area that wrinkles and the area beyond locking.
 
-The thresholds (N_cr and the smoothing length, T_w, κ_w, γ_lock) are ``fem.Constant``s: a form holding them is compiled once
-for all values (before issue 40 they were plain numbers in the form, so that each new punch
-radius, whose 1/R is the default κ_w, compiled the two forms again). What the indicator marks
-is compared with the flange's out-of-plane amplitude and a buckling estimate in
-fabricsurf/verification/wrinkling.py (docs/forming.md, "Wrinkling").
+The thresholds (N_cr, its factor and the smoothing length; T_w, κ_w, γ_lock) are
+``fem.Constant``s: a form holding them is compiled once for all values (before issue 40 they
+were plain numbers in the form, so that each new punch radius, whose 1/R is the default κ_w,
+compiled the two forms again). What the indicators mark is compared with the flange's
+out-of-plane amplitude and a buckling estimate in fabricsurf/verification/wrinkling.py
+(docs/forming.md, "Wrinkling").
 """
 
 from __future__ import annotations
@@ -93,20 +94,20 @@ class Wrinkling(Owner):
     ρ₀ = R_o + r_d and b = 2 r_d (forming_tools.Tools.holder_weight), the lesser principal
     membrane force, smoothed over the length ``length`` (a Helmholtz filter, ν − ℓ²Δν = N_min,
     of the reference blank: a wrinkle is a wave of the strip's width, not a quadrature point),
-    is below −``threshold``, by default the plate-buckling force N_cr = 4π²D/b² of the strip
-    (Timoshenko & Gere 1961, §9.2) with D the model's least bending stiffness.
+    is below −``factor`` N_cr, N_cr = 4π²D/b² the plate-buckling force of the strip
+    (Timoshenko & Gere 1961, §9.2) with D the model's least bending stiffness (:func:`
+    bending_stiffness`, at the model's current moduli).
 
-    ``threshold`` (N/mm) and ``length`` (mm, default r_d) are fem.Constants; :meth:`update`
-    recomputes the smoothed force at the current state (the plug-in calls it after every
-    converged step); :attr:`mark` is the 0/1 indicator (UFL)."""
+    ``factor`` (default 1), ``buckling_force`` (N_cr, N/mm, set by :meth:`update`) and
+    ``length`` (mm, default r_d) are fem.Constants; :meth:`update` recomputes N_cr and the
+    smoothed force at the current state (the plug-in calls it after every converged step);
+    :attr:`mark` is the 0/1 indicator (UFL)."""
 
     def __init__(self, msh, r, kin, tensions: dict, tools, model: list, dx) -> None:
-        self.comm = msh.comm
-        lip = float(tools.lip.value)
-        b = 2.0 * lip
-        D = bending_stiffness(model)
-        self.threshold = fem.Constant(msh, PLATE_K_SIMPLY_SUPPORTED * math.pi**2 * D / b**2)
-        self.length = fem.Constant(msh, lip)
+        self.comm, self.model, self.tools = msh.comm, model, tools
+        self.factor = fem.Constant(msh, 1.0)
+        self.buckling_force = fem.Constant(msh, self.plate_buckling_force())
+        self.length = fem.Constant(msh, float(tools.lip.value))
         V = fem.FunctionSpace(msh, ("CG", 1))
         self.smoothed = fem.Function(V, name="least_membrane_force")
         nu, w = ufl.TrialFunction(V), ufl.TestFunction(V)
@@ -122,11 +123,22 @@ class Wrinkling(Owner):
         rho = ufl.sqrt(r[0] ** 2 + r[1] ** 2)
         start = tools.opening + tools.lip
         strip = ufl.And(ufl.ge(rho, start), ufl.lt(rho, start + 2.0 * tools.lip))
-        self.mark = ufl.conditional(ufl.And(strip, ufl.lt(self.smoothed, -self.threshold)),
-                                    1.0, 0.0)
+        threshold = self.factor * self.buckling_force
+        self.mark = ufl.conditional(ufl.And(strip, ufl.lt(self.smoothed, -threshold)), 1.0, 0.0)
+
+    def plate_buckling_force(self) -> float:
+        """N_cr = 4π²D/b², b = 2 r_d (N/mm), at the model's current moduli."""
+        b = 2.0 * float(self.tools.lip.value)
+        return PLATE_K_SIMPLY_SUPPORTED * math.pi**2 * bending_stiffness(self.model) / b**2
+
+    def threshold(self) -> float:
+        """The compression that marks (N/mm): ``factor`` × N_cr."""
+        return float(self.factor.value) * float(self.buckling_force.value)
 
     def update(self) -> None:
-        """Smooth the least membrane force of the current state (collective)."""
+        """N_cr at the current moduli, and the smoothed least membrane force of the current
+        state (collective)."""
+        self.buckling_force.value = self.plate_buckling_force()
         self._A.zeroEntries()
         fem.petsc.assemble_matrix(self._A, self._a)
         self._A.assemble()

@@ -137,7 +137,7 @@ def membrane_marks(e, P: np.ndarray) -> np.ndarray:
     rho, _, _ = _polar(e, P)
     r0, b = lip_end(e), 2.0 * float(e.tools.lip.value)
     force = eval_points(e.wrinkling.smoothed, P)[:, 0]
-    return (rho >= r0) & (rho < r0 + b) & (force < -float(e.wrinkling.threshold.value))
+    return (rho >= r0) & (rho < r0 + b) & (force < -e.wrinkling.threshold())
 
 
 def envelope(P: np.ndarray, wrinkled: np.ndarray, flange: np.ndarray, radius: float
@@ -179,7 +179,7 @@ def compare(e, bound: float, curvatures: tuple[float, ...] | None = None, n: int
 
     first = membrane_marks(e, P)
     rows = [row("membrane force", first, e.area_fractions()["wrinkle"],
-                threshold=float(e.wrinkling.threshold.value))]
+                threshold=e.wrinkling.threshold())]
     ind, kin = e.indicators, e.problem.energy.kin
     flag = ind.wrinkle(kin, e.problem.energy.tension_fields())
     area = fem.form(flag * e.problem.dx)
