@@ -98,14 +98,15 @@ def main(hs: list[float], names: list[str], bound: float, blank: float = BLANK) 
 
 
 HEADER = ("variant           h (mm)  amplitude (mm)  ref. area  ref. points  N_hoop  N_cr(ss)  "
-          "ratio | indicator: area, points, overlap | curvature flag, κ_w·R: the same")
+          "ratio | indicator: area, points, overlap, in the envelope | curvature flag, κ_w·R: "
+          "area, points, overlap")
 
 
 def line(name: str, h: float, r: dict) -> str:
     """One row of the comparison table (:data:`HEADER`)."""
     b = r["buckling"]
     m, *flags = r["indicator"]
-    marks = f"{m['area']:.4f}, {m['points']}, {m['overlap']} | " + "; ".join(
+    marks = f"{m['area']:.4f}, {m['points']}, {m['overlap']}, {m['in_region']} | " + "; ".join(
         f"{i['curvature'] * R:g}: {i['area']:.4f}, {i['points']}, {i['overlap']}"
         for i in flags)
     return (f"{name:16s} {h:7.3g} {r['amplitude']:15.4f} {r['reference_area']:10.4f}"

@@ -121,6 +121,8 @@ def test_bad_blanks_refused_before_computing():
     with pytest.raises(DataError, match=r"blank_domain = 'quarter' needs a square"):
         HemisphereForming(setup("square", (30.0, 120.0), blank_domain="quarter"), model(), H,
                           COMM)
+    with pytest.raises(DataError, match=r"h = 12 mm is more than 0.5 of the punch radius"):
+        forming_blank.check_mesh(setup("circle"), 12.0, False)
     narrow = setup("rectangle", (30.0, 120.0), (80.0, 50.0))
     forming_blank.check_stroke(narrow, 25.0)
     with pytest.raises(DataError, match=r"stroke 30 mm is outside 0 < stroke ≤ 25\.96"):

@@ -115,10 +115,20 @@ def check_specimen(setup: Setup, where: str) -> None:
                         f"fibres must be at least {MIN_FIBRE_ANGLE_DEG:g}° apart")
 
 
+MAX_H_PER_R = 0.5
+"""Largest element size in punch radii: the quarter of the cap is then two elements across."""
+
+
 def check_mesh(setup: Setup, h: float, default: bool) -> None:
     """Refuse a mesh of more cells than forming_options.MAX_ELEMENTS: the quarter's estimate
     (forming_options.check_mesh) or, for the full blank, 2 triangles per lattice cell
-    h² sin α."""
+    h² sin α; and an h too coarse to follow the punch's cap (more than :data:`MAX_H_PER_R`
+    of its radius)."""
+    R = setup.options["punch_radius"]
+    if h > MAX_H_PER_R * R:
+        raise DataError(f"hemisphere: h = {h:g} mm is more than {MAX_H_PER_R:g} of the punch "
+                        f"radius ({R:g} mm): the mesh cannot follow the punch's cap; give "
+                        f"h ≤ {MAX_H_PER_R * R:g} mm (default R/6; R/10 resolves the tools)")
     if domain(setup) == "quarter":
         forming_options.check_mesh(setup, h, default)
         return
