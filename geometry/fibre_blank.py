@@ -43,9 +43,10 @@ from geometry.specimen import Specimen, check_positive, distributed_mesh
 EDGE_TAGS = {**RECTANGLE_TAGS, "edge": 5}
 """The outline is ``edge``; the rectangle's names stay declared (with no facets) so that a
 problem may name them, as the hemisphere plug-in does to share the quarter's compiled forms."""
-MIN_AREA_FRACTION = 0.3
-"""A snapped boundary triangle keeps at least this fraction of its lattice triangle's area."""
-SNAP_ROUNDS = 20
+MERGE = 0.2
+"""Where the outline crosses a fibre edge within this fraction of its length from a vertex
+inside the blank, the crossing is moved onto that vertex (along the fibre), so that no cut cell
+is a sliver; the outline moves inward by at most this fraction of h there."""
 
 
 def _box(a: float, b: float) -> tuple[Callable, Callable]:
@@ -94,33 +95,21 @@ def _lattice(L: np.ndarray, M: np.ndarray, d: float, reach: float):
     return X, quads
 
 
-def _cut(X: np.ndarray, quads: np.ndarray, phi: Callable) -> np.ndarray:
-    """Two triangles per parallelogram (module docstring's rules)."""
-    f = phi(X)
+def _cut(X: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Two triangles per parallelogram inside the outline, along its shorter diagonal
+    (orthogonal fibres: the one more nearly along the ray from the pole)."""
     q = quads
     d1 = np.linalg.norm(X[q[:, 2]] - X[q[:, 0]], axis=1)
     d2 = np.linalg.norm(X[q[:, 3]] - X[q[:, 1]], axis=1)
     c = X[q].mean(axis=1)
     radial = np.abs(c @ (X[q[0, 2]] - X[q[0, 0]])) > np.abs(c @ (X[q[0, 3]] - X[q[0, 1]]))
     tie = np.abs(d1 - d2) <= 1e-9 * d2
-    along_11 = np.where(tie, radial, d1 < d2)
-    crossed = (f[q].min(axis=1) < 0) & (f[q].max(axis=1) > 0)
-    e1, e2 = np.abs(f[q[:, 2]] - f[q[:, 0]]), np.abs(f[q[:, 3]] - f[q[:, 1]])
-    along_11 = np.where(crossed & (np.abs(e1 - e2) > 1e-9 * (e1 + e2 + 1e-300)), e1 < e2,
-                        along_11)
+    w = np.where(tie, radial, d1 < d2)[:, None]
     a = np.column_stack([q[:, 0], q[:, 1], q[:, 2]])
     b = np.column_stack([q[:, 0], q[:, 2], q[:, 3]])
     c = np.column_stack([q[:, 0], q[:, 1], q[:, 3]])
     e = np.column_stack([q[:, 1], q[:, 2], q[:, 3]])
-    w = along_11[:, None]
     return np.concatenate([np.where(w, a, c), np.where(w, b, e)])
-
-
-def _boundary_vertices(tri: np.ndarray) -> np.ndarray:
-    """Vertices on edges that belong to one triangle only."""
-    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
-    uniq, count = np.unique(edges, axis=0, return_counts=True)
-    return np.unique(uniq[count == 1])
 
 
 def _area(X: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -128,55 +117,127 @@ def _area(X: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return 0.5 * np.cross(q - p, r - p)
 
 
-def _snap(X0: np.ndarray, tri: np.ndarray, project: Callable, corners: np.ndarray
-          ) -> np.ndarray:
-    """The lattice with the boundary vertices of ``tri`` on the outline, each corner taken by
-    the nearest boundary vertex (ties broken symmetrically under X → −X)."""
-    X = X0.copy()
-    bv = _boundary_vertices(tri)
-    X[bv] = project(X0[bv])
+def _segment_inside(shape: str, a: float, b: float, p: np.ndarray, q: np.ndarray
+                    ) -> tuple[float, float] | None:
+    """The parameter interval [t0, t1] ⊂ [0, 1] of p + t (q − p) inside the outline, or None
+    (a box: Liang–Barsky clipping; a circle: the roots of |p + t v|² = a²)."""
+    v = q - p
+    if shape == "circle":
+        A, B, C = v @ v, 2.0 * (p @ v), p @ p - a * a
+        disc = B * B - 4.0 * A * C
+        if disc <= 0.0:
+            return None
+        s = math.sqrt(disc)
+        t0, t1 = max(0.0, (-B - s) / (2 * A)), min(1.0, (-B + s) / (2 * A))
+    else:
+        t0, t1 = 0.0, 1.0
+        for k, half in ((0, a), (1, b)):
+            if abs(v[k]) < 1e-300:
+                if abs(p[k]) > half:
+                    return None
+                continue
+            lo, hi = sorted(((-half - p[k]) / v[k], (half - p[k]) / v[k]))
+            t0, t1 = max(t0, lo), min(t1, hi)
+    return (t0, t1) if t1 - t0 > 1e-12 else None
+
+
+def _piece(shape: str, a: float, b: float, P: np.ndarray, corners: np.ndarray,
+           inside: np.ndarray, merge: float) -> np.ndarray:
+    """The points of the parallelogram P (4 × 2, in order) ∩ the blank: its corners inside,
+    where its sides cross the outline, and the outline's corners inside P; all lie on the
+    piece's boundary, which is convex. No sliver is made: a crossing within ``merge`` of a
+    side's length of the side's end is moved onto that end (along the fibre; an end outside
+    the outline becomes a vertex, at most ``merge``·h outside), and an outline corner within
+    ``merge``·h of a crossing is left out (the corner is cut off)."""
+    pts = [P[k] for k in range(4) if inside[k]]
+    cross = []
+    for k in range(4):
+        p, q = P[k], P[(k + 1) % 4]
+        span = _segment_inside(shape, a, b, p, q)
+        if span is None:
+            continue
+        for t in span:
+            if 0.0 < t < 1.0:
+                cross.append(p if t < merge else q if t > 1.0 - merge else p + t * (q - p))
+    pts += cross
+    T = np.linalg.inv(np.column_stack([P[1] - P[0], P[3] - P[0]]))
+    side = min(np.linalg.norm(P[1] - P[0]), np.linalg.norm(P[3] - P[0]))
     for c in corners:
-        dist = np.round(np.linalg.norm(X0[bv] - c, axis=1), 9)
-        tie = np.cross(X0[bv] - c, c)
-        X[bv[np.lexsort((tie, dist))[0]]] = c
-    return X
+        st = T @ (c - P[0])
+        near = any(np.linalg.norm(c - x) < merge * side for x in cross)
+        if (st > 1e-12).all() and (st < 1.0 - 1e-12).all() and not near:
+            pts.append(c)
+    pts = np.array(pts).reshape(-1, 2)
+    key = np.round(pts / (1e-9 * side))
+    return pts[np.sort(np.unique(key, axis=0, return_index=True)[1])]
+
+
+def _fan(pts: np.ndarray) -> list[tuple[int, int, int]]:
+    """Triangles of the convex polygon ``pts`` (unordered, all on its boundary): a fan from
+    the vertex that maximises the smallest angle, ties broken by a rule symmetric under
+    X → −X; [] if the polygon has no area."""
+    c = pts.mean(axis=0)
+    order = np.argsort(np.arctan2(*(pts - c).T[::-1]))
+    pts = pts[order]
+    n, best = len(pts), None
+    for k in range(n):
+        tris = [(k, (k + i) % n, (k + i + 1) % n) for i in range(1, n - 1)]
+        score = min(_min_angle(pts[list(t)]) for t in tris)
+        key = (round(score, 9), round(math.atan2(*(pts[k] - c)[::-1]) % math.pi, 9))
+        if score > 1e-9 and (best is None or key > best[0]):
+            best = (key, tris)
+    return [] if best is None else [tuple(order[list(t)]) for t in best[1]]
+
+
+def _min_angle(T: np.ndarray) -> float:
+    e = [T[(k + 1) % 3] - T[k] for k in range(3)]
+    ang = [abs(math.atan2(np.cross(-e[k - 1], e[k]), -e[k - 1] @ e[k])) for k in range(3)]
+    return min(ang)
 
 
 def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float], d: float
                  ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Vertices and triangles of the fibre lattice clipped to the outline (module docstring),
-    and its quality: the smallest area fraction of a boundary triangle and how many lattice
-    triangles were dropped by the snap."""
+    and its quality: the smallest triangle's area over a lattice triangle's, the smallest
+    angle (deg), and the meshed area over the blank's."""
     L, M = (np.array([math.cos(math.radians(t)), math.sin(math.radians(t))]) for t in angles_deg)
-    phi, project = outline(shape, a, b)
+    phi, _ = outline(shape, a, b)
     corners = (np.array([[a, b], [-a, b], [-a, -b], [a, -b]]) if shape != "circle"
                else np.zeros((0, 2)))
     X0, quads = _lattice(L, M, d, math.hypot(a, b) + 2 * d)
-    tri = _cut(X0, quads, phi)
-    keep = phi(X0[tri].mean(axis=1)) < 0
-    ref = abs(_area(X0, tri[:1]))[0]
-    sign = np.sign(_area(X0, tri))
-    dropped = 0
-    for _ in range(SNAP_ROUNDS):
-        X = _snap(X0, tri[keep], project, corners)
-        frac = _area(X, tri) * sign / ref
-        bad = keep & (frac < MIN_AREA_FRACTION)
-        if not bad.any():
-            break
-        keep &= ~bad
-        dropped += int(bad.sum())
-    else:
-        raise ValueError(f"geometry: the fibre lattice (d = {d:g}) could not be snapped to "
-                         f"the {shape} outline in {SNAP_ROUNDS} rounds")
-    used, tri = np.unique(tri[keep], return_inverse=True)
-    tri = tri.reshape(-1, 3)
-    return X[used], tri, {"min_area_fraction": float(frac[keep].min()), "dropped": dropped}
+    inside = phi(X0) <= 1e-12 * max(a, b)
+    full = inside[quads].all(axis=1)
+    tri = [_cut(X0, quads[full])]
+    pts = [X0]
+    count = len(X0)
+    for q in quads[~full]:
+        piece = _piece(shape, a, b, X0[q], corners, inside[q], MERGE)
+        if len(piece) < 3:
+            continue
+        for t in _fan(piece):
+            tri.append(np.array([t]) + count)
+        pts.append(piece)
+        count += len(piece)
+    X = np.concatenate(pts)
+    tri = np.concatenate(tri)
+    key = np.round(X / (1e-9 * d)).astype(np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    tri = inverse.reshape(-1)[tri]
+    used, tri = np.unique(tri, return_inverse=True)
+    X, tri = X[first[used]], tri.reshape(-1, 3)
+    area = np.abs(_area(X, tri))
+    ref = 0.5 * d * d * abs(float(np.cross(L, M)))
+    exact = math.pi * a * a if shape == "circle" else 4.0 * a * b
+    return X, tri, {"min_area_fraction": float(area.min() / ref),
+                    "min_angle_deg": math.degrees(min(_min_angle(X[t]) for t in tri)),
+                    "area_fraction": float(area.sum() / exact)}
 
 
-def _tag_outline(msh, shape: str, a: float, b: float):
-    phi, _ = outline(shape, a, b)
-    facets = dmesh.locate_entities_boundary(
-        msh, 1, lambda x: np.abs(phi(x[:2].T)) < 1e-8 * max(a, b))
+def _tag_outline(msh):
+    """Every exterior facet is the outline's (a crossing moved onto a lattice vertex lies up to
+    MERGE·h inside the exact outline)."""
+    msh.topology.create_connectivity(1, 2)
+    facets = dmesh.exterior_facet_indices(msh.topology)
     return dmesh.meshtags(msh, 1, facets, np.full(len(facets), EDGE_TAGS["edge"], dtype=np.int32))
 
 
@@ -193,13 +254,13 @@ def fibre_blank(shape: str, a: float, b: float, angles_deg: tuple[float, float],
         x, tri, quality = np.zeros((0, 2)), np.zeros((0, 3), np.int64), None
     quality = comm.bcast(quality, root=0)
     msh = distributed_mesh(comm, x, tri)
-    ft = _tag_outline(msh, shape, a, b)
-    msh.topology.create_connectivity(1, 2)
+    ft = _tag_outline(msh)
     return Specimen(msh, ft, 2.0 * a, 2.0 * b, edge_tags=dict(EDGE_TAGS), points={"pole": (0, 0)},
                     kind="aligned", h=float(h),
-                    note=(f"fibre lattice clipped to the {shape}: smallest boundary triangle "
-                          f"{quality['min_area_fraction']:.2f} of a lattice triangle, "
-                          f"{quality['dropped']} dropped by the snap"))
+                    note=(f"fibre lattice cut by the {shape}: smallest cut triangle "
+                          f"{quality['min_area_fraction']:.2f} of a lattice triangle, smallest "
+                          f"angle {quality['min_angle_deg']:.1f}°, meshed area "
+                          f"{quality['area_fraction']:.4f} of the blank's"))
 
 
 def mirrored_quarter(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
@@ -224,8 +285,7 @@ def mirrored_quarter(half: float, h: float, theta_deg: float, comm: MPI.Comm = M
     else:
         x, tri = np.zeros((0, 2)), np.zeros((0, 3), np.int64)
     msh = distributed_mesh(comm, x, tri)
-    ft = _tag_outline(msh, "rectangle", half, half)
-    msh.topology.create_connectivity(1, 2)
+    ft = _tag_outline(msh)
     return Specimen(msh, ft, 2.0 * half, 2.0 * half, edge_tags=dict(EDGE_TAGS),
                     points={"pole": (0, 0)}, kind="aligned",
                     h=math.hypot(half / P, half / Q) if theta_deg else half / P,
