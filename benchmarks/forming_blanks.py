@@ -5,10 +5,14 @@ kinematic limit (stiff fibres, soft shear and bending, the holder with friction)
 finer mesh and against stiffer fibres), with --lattice for a square on the clipped lattice.
 
     mpirun -n 2 python benchmarks/forming_blanks.py [--cases circle:30,120 rectangle:40,-50 ...]
-        [--h 4] [--k 1e3] [--stroke 12] [--steps 12] [--domain auto|full] [--lattice]
+        [--h 4] [--k 1e3] [--stroke 12] [--steps 12] [--domain auto|full] [--lattice] [--log]
 
 Prints one row per case: blank, fibre pair, domain, cells, punch force (N), drape max / RMS over
-the contact (deg), within 0.75 R max (deg), seconds.
+the contact (deg), within 0.75 R max (deg), seconds, the mesh's note; or where a run stopped
+(the last stroke followed and the force there). Against the quarter at the same K: run the
+square with --domain auto (the quarter, h used 4.24 at --h 4), --domain full (its mesh unfolded)
+and --domain full --lattice (the clipped lattice; at --h 4.2426 it is the unfolded quarter's
+mesh, the outline then passing through lattice vertices).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import forming_blank
 from fabricsurf.experiments.base import Setup
 from fabricsurf.experiments.hemisphere import HemisphereForming
@@ -38,14 +43,26 @@ def soft(k: float = 1e3) -> list:
             Twist(k_t=0.05)]
 
 
+def say(line: str) -> None:
+    if MPI.COMM_WORLD.rank == 0:
+        print("   ", line, flush=True)
+
+
 def case(blank: str, angles: tuple[float, float], h: float, k: float, stroke: float,
-         steps: int, domain: str = "auto", tools: float = 2.0, size=None) -> dict:
+         steps: int, domain: str = "auto", tools: float = 2.0, size=None, log: bool = False
+         ) -> dict:
     L, W = size or SIZES[blank]
     setup = Setup("hemisphere", L, W, angles, dict(TOOLING, blank=blank, blank_domain=domain,
                                                    clearance=tools, die_lip=tools))
     t = time.perf_counter()
     with HemisphereForming(setup, soft(k), h) as e:
-        e.run(stroke, steps)
+        try:
+            e.run(stroke, steps, log=say if log else None)
+        except LoadStepError as err:
+            return {"blank": blank, "fibres": angles, "domain": e.domain,
+                    "cells": e.discretisation["cells"], "stopped": err.last_load,
+                    "force": e.force[-1], "note": e.discretisation["mesh_note"],
+                    "s": time.perf_counter() - t}
         m = compare_with_drapes(e, a=R / 40.0)
         inner = np.hypot(*m["points"].T) < 0.75 * R
         d = np.abs(m["continuum_deg"] - m["fishnet_deg"])
@@ -56,7 +73,8 @@ def case(blank: str, angles: tuple[float, float], h: float, k: float, stroke: fl
                 "goursat_rms": m["continuum_vs_goursat"]["rms_deg"],
                 "inner_max": float(d[inner].max()), "points": len(m["points"]),
                 "largest": float(np.abs(m["fishnet_deg"]).max()),
-                "pins": e.pin_reactions(), "s": time.perf_counter() - t}
+                "pins": e.pin_reactions(), "note": e.discretisation["mesh_note"],
+                "s": time.perf_counter() - t}
 
 
 def main() -> None:
@@ -73,6 +91,7 @@ def main() -> None:
                     help="die clearance and lip (mm; 2 = R/10, the tests'; 4 = R/5, where the "
                          "force converges with h ≤ 4)")
     ap.add_argument("--size", type=float, nargs=2, help="blank length, width (mm)")
+    ap.add_argument("--log", action="store_true", help="print each load step as it converges")
     ap.add_argument("--lattice", action="store_true",
                     help="the full blank of a symmetric square on the clipped fibre lattice "
                          "(geometry/fibre_blank.py) instead of the quarter's mesh unfolded")
@@ -83,14 +102,19 @@ def main() -> None:
     for c in a.cases:
         blank, pair = c.split(":")
         angles = tuple(float(v) for v in pair.split(","))
-        r = case(blank, angles, a.h, a.k, a.stroke, a.steps, a.domain, a.tools, a.size)
-        if MPI.COMM_WORLD.rank == 0:
+        r = case(blank, angles, a.h, a.k, a.stroke, a.steps, a.domain, a.tools, a.size, a.log)
+        if MPI.COMM_WORLD.rank == 0 and "stopped" in r:
+            print(f"{r['blank']:9s} {a.size or SIZES[blank]} tools {a.tools:g} "
+                  f"{r['fibres']!s:14s} {r['domain']:7s} h={a.h:g} K={a.k:g} "
+                  f"cells={r['cells']:5d} STOPPED at {r['stopped']:.3f} mm of {a.stroke:g} "
+                  f"(F={r['force']:.4f} N there)  {r['s']:.0f} s  [{r['note']}]", flush=True)
+        elif MPI.COMM_WORLD.rank == 0:
             print(f"{r['blank']:9s} {a.size or SIZES[blank]} tools {a.tools:g} "
                   f"{r['fibres']!s:14s} {r['domain']:7s} h={a.h:g} "
                   f"K={a.k:g} cells={r['cells']:5d} F={r['force']:.4f} N  points={r['points']} "
                   f"largest={r['largest']:.1f}  max={r['max']:.2f} rms={r['rms']:.3f} "
                   f"(goursat rms {r['goursat_rms']:.3f}) inner max={r['inner_max']:.2f} deg  "
-                  f"{r['s']:.0f} s", flush=True)
+                  f"{r['s']:.0f} s  [{r['note']}]", flush=True)
 
 
 if __name__ == "__main__":
