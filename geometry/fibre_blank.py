@@ -1,30 +1,34 @@
 """A whole forming blank (circle or rectangle, centred at the origin) meshed along its fibres,
-for any pair of fibre directions: a lattice of parallelograms clipped to the outline.
+for any pair of fibre directions: a lattice of parallelograms cut by the outline.
 
 The vertices are the fibre crossings X_ij = d (i L + j M), L and M the unit fibre directions at
-the two fibre angles to x, d ≈ h the length of a fibre edge, (0, 0) a vertex (the pole). Each
-parallelogram is cut into two triangles along one diagonal: the shorter one inside the blank
+the two fibre angles to x, d ≈ h the length of a fibre edge, (0, 0) a vertex (the pole). A
+parallelogram inside the blank is cut into two triangles along its shorter diagonal
 (orthogonal fibres, whose diagonals are equal: the one more nearly along the ray from the pole
 to the cell, so that the mesh is its own mirror image in both bisectors and in both fibre lines
 through the pole and, at ±45° on a square, its interior is geometry.aligned.quarter_blank's
-unfolded), and, for a parallelogram the outline
-crosses, the diagonal whose ends lie at the most nearly equal distance from the outline (the one
-most nearly parallel to it). A triangle is kept if its centroid lies inside the outline; the
-vertices on the boundary of the kept triangles are then moved onto the outline (their closest
-point, a rectangle's corners first to the nearest boundary vertex), and a triangle that this
-leaves with less than :data:`MIN_AREA_FRACTION` of its lattice area is dropped and the snap
-redone. Every interior edge lies along a fibre or a diagonal of a fibre parallelogram, as in
-geometry/aligned.py, so stiff fibres do not lock; only the boundary triangles are distorted
-(what that costs: docs/forming.md, "Blanks").
+unfolded). A parallelogram the outline crosses keeps its part inside the blank (cut cells):
+the convex polygon of its corners inside, the points where its fibre edges cross the outline
+and the outline's corners inside it, triangulated by the fan that maximises the smallest
+angle. No vertex is moved off its lattice parallelogram, so every triangle lies in one: every
+piecewise-affine Chebyshev net of the lattice (x = a(s) + b(t), kinked at the lattice lines) is
+a P1 deformation of the mesh that stretches no fibre, and stiff fibres lock nowhere, the
+boundary row included. The mesh builder before snapped the boundary vertices onto the outline;
+those triangles left their parallelograms, forbade the kinks of every fibre line through them,
+and at K = 10⁵ N/mm the blank locked (docs/forming.md, "Blanks"). Slivers are avoided by moving
+a crossing within :data:`MERGE` of an edge's length of the edge's end onto that end (along the
+fibre: the outline moves by at most MERGE·h) and by cutting off an outline corner that close to
+a crossing; a circle's arcs are chords.
 
-The construction is symmetric under X → −X (the lattice, the cut rules and the closest point
-all are, and ties between corner candidates are broken by a rule that is too), so the mesh of a
-centrally symmetric outline is centrally symmetric: experiments/hemisphere.py relies on it to pin
-the pole. :func:`mirrored_quarter` gives instead the four mirror images of
-geometry.aligned.quarter_blank: the full square on the quarter's own mesh.
+The construction is symmetric under X → −X (the lattice, the cut rules and the crossings all
+are, and the fan's ties are broken by a rule that is too), so the mesh of a centrally symmetric
+outline is centrally symmetric: experiments/hemisphere.py relies on it to pin the pole.
+:func:`mirrored_quarter` gives instead the four mirror images of
+geometry.aligned.quarter_blank: the full square on the quarter's own mesh (the same mesh as the
+clipped lattice whose outline passes through lattice vertices).
 
-Built in memory on rank 0 and distributed with shared-facet ghosts; the outline's facets are
-tagged ``edge``.
+Built in memory on rank 0 and distributed with shared-facet ghosts; the outline's facets (every
+exterior facet) are tagged ``edge``.
 """
 
 from __future__ import annotations
