@@ -48,9 +48,9 @@ EDGE_TAGS = {**RECTANGLE_TAGS, "edge": 5}
 """The outline is ``edge``; the rectangle's names stay declared (with no facets) so that a
 problem may name them, as the hemisphere plug-in does to share the quarter's compiled forms."""
 MERGE = 0.2
-"""Where the outline crosses a fibre edge within this fraction of its length from a vertex
-inside the blank, the crossing is moved onto that vertex (along the fibre), so that no cut cell
-is a sliver; the outline moves inward by at most this fraction of h there."""
+"""Where the outline crosses a lattice triangle's edge within MERGE·h of its end, the crossing
+is moved onto that end (along the edge), so that no cut cell is a sliver; the outline moves by
+at most MERGE·h there."""
 
 
 def _box(a: float, b: float) -> tuple[Callable, Callable]:
@@ -99,16 +99,25 @@ def _lattice(L: np.ndarray, M: np.ndarray, d: float, reach: float):
     return X, quads
 
 
-def _cut(X: np.ndarray, quads: np.ndarray) -> np.ndarray:
-    """Two triangles per parallelogram inside the outline, along its shorter diagonal
-    (orthogonal fibres: the one more nearly along the ray from the pole)."""
+def _cut(X: np.ndarray, quads: np.ndarray, phi: Callable) -> np.ndarray:
+    """Two triangles per parallelogram: along its shorter diagonal (orthogonal fibres: the one
+    more nearly along the ray from the pole), and, where the outline crosses it, along the
+    diagonal whose ends lie at the most nearly equal distance from the outline (the one most
+    nearly parallel to it: a square's outline through lattice vertices is then a union of
+    diagonals, as on the aligned quarter)."""
+    f = phi(X)
     q = quads
     d1 = np.linalg.norm(X[q[:, 2]] - X[q[:, 0]], axis=1)
     d2 = np.linalg.norm(X[q[:, 3]] - X[q[:, 1]], axis=1)
     c = X[q].mean(axis=1)
     radial = np.abs(c @ (X[q[0, 2]] - X[q[0, 0]])) > np.abs(c @ (X[q[0, 3]] - X[q[0, 1]]))
     tie = np.abs(d1 - d2) <= 1e-9 * d2
-    w = np.where(tie, radial, d1 < d2)[:, None]
+    along_11 = np.where(tie, radial, d1 < d2)
+    crossed = (f[q].min(axis=1) < 0) & (f[q].max(axis=1) > 0)
+    e1, e2 = np.abs(f[q[:, 2]] - f[q[:, 0]]), np.abs(f[q[:, 3]] - f[q[:, 1]])
+    along_11 = np.where(crossed & (np.abs(e1 - e2) > 1e-9 * (e1 + e2 + 1e-300)), e1 < e2,
+                        along_11)
+    w = along_11[:, None]
     a = np.column_stack([q[:, 0], q[:, 1], q[:, 2]])
     b = np.column_stack([q[:, 0], q[:, 2], q[:, 3]])
     c = np.column_stack([q[:, 0], q[:, 1], q[:, 3]])
@@ -147,29 +156,30 @@ def _segment_inside(shape: str, a: float, b: float, p: np.ndarray, q: np.ndarray
 
 def _piece(shape: str, a: float, b: float, P: np.ndarray, corners: np.ndarray,
            inside: np.ndarray, merge: float) -> np.ndarray:
-    """The points of the parallelogram P (4 × 2, in order) ∩ the blank: its corners inside,
+    """The points of the lattice triangle P (3 × 2) ∩ the blank: its corners inside,
     where its sides cross the outline, and the outline's corners inside P; all lie on the
-    piece's boundary, which is convex. No sliver is made: a crossing within ``merge`` of a
-    side's length of the side's end is moved onto that end (along the fibre; an end outside
-    the outline becomes a vertex, at most ``merge``·h outside), and an outline corner within
-    ``merge``·h of a crossing is left out (the corner is cut off)."""
-    pts = [P[k] for k in range(4) if inside[k]]
+    piece's boundary, which is convex. No sliver is made: a crossing within ``merge`` (mm) of
+    the side's end is moved onto that end (along the side; an end outside the outline becomes
+    a vertex, at most ``merge`` outside), and an outline corner within ``merge`` of a crossing
+    is left out (the corner is cut off)."""
+    pts = [P[k] for k in range(3) if inside[k]]
     cross = []
-    for k in range(4):
-        p, q = P[k], P[(k + 1) % 4]
+    for k in range(3):
+        p, q = P[k], P[(k + 1) % 3]
         span = _segment_inside(shape, a, b, p, q)
         if span is None:
             continue
         for t in span:
             if 0.0 < t < 1.0:
-                cross.append(p if t < merge else q if t > 1.0 - merge else p + t * (q - p))
+                m = merge / np.linalg.norm(q - p)
+                cross.append(p if t < m else q if t > 1.0 - m else p + t * (q - p))
     pts += cross
-    T = np.linalg.inv(np.column_stack([P[1] - P[0], P[3] - P[0]]))
-    side = min(np.linalg.norm(P[1] - P[0]), np.linalg.norm(P[3] - P[0]))
+    T = np.linalg.inv(np.column_stack([P[1] - P[0], P[2] - P[0]]))
+    side = min(np.linalg.norm(P[k] - P[k - 1]) for k in range(3))
     for c in corners:
         st = T @ (c - P[0])
-        near = any(np.linalg.norm(c - x) < merge * side for x in cross)
-        if (st > 1e-12).all() and (st < 1.0 - 1e-12).all() and not near:
+        near = any(np.linalg.norm(c - x) < merge for x in cross)
+        if (st > 1e-12).all() and st.sum() < 1.0 - 1e-12 and not near:
             pts.append(c)
     pts = np.array(pts).reshape(-1, 2)
     key = np.round(pts / (1e-9 * side))
@@ -199,23 +209,34 @@ def _min_angle(T: np.ndarray) -> float:
     return min(ang)
 
 
+def lattice_triangulation(shape: str, a: float, b: float, angles_deg: tuple[float, float],
+                          d: float) -> tuple[np.ndarray, np.ndarray]:
+    """The fibre lattice of edge d at ``angles_deg`` over the blank and its triangles (each
+    parallelogram cut by :func:`_cut`): the triangulation whose P1
+    deformations include every discrete Chebyshev net of the lattice, in the plane and in 3D
+    (each triangle has one edge along each fibre), and in which every triangle of
+    :func:`clip_lattice` lies."""
+    L, M = (np.array([math.cos(math.radians(t)), math.sin(math.radians(t))]) for t in angles_deg)
+    X0, quads = _lattice(L, M, d, math.hypot(a, b) + 2 * d)
+    return X0, _cut(X0, quads, outline(shape, a, b)[0])
+
+
 def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float], d: float
                  ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Vertices and triangles of the fibre lattice clipped to the outline (module docstring),
     and its quality: the smallest triangle's area over a lattice triangle's, the smallest
     angle (deg), and the meshed area over the blank's."""
-    L, M = (np.array([math.cos(math.radians(t)), math.sin(math.radians(t))]) for t in angles_deg)
     phi, _ = outline(shape, a, b)
     corners = (np.array([[a, b], [-a, b], [-a, -b], [a, -b]]) if shape != "circle"
                else np.zeros((0, 2)))
-    X0, quads = _lattice(L, M, d, math.hypot(a, b) + 2 * d)
-    inside = phi(X0) <= 1e-12 * max(a, b)
-    full = inside[quads].all(axis=1)
-    tri = [_cut(X0, quads[full])]
-    pts = [X0]
-    count = len(X0)
-    for q in quads[~full]:
-        piece = _piece(shape, a, b, X0[q], corners, inside[q], MERGE)
+    X0, tri0 = lattice_triangulation(shape, a, b, angles_deg, d)
+    f = phi(X0)
+    inside = f <= 1e-12 * max(a, b)
+    full = inside[tri0].all(axis=1)
+    near = ~full & (f[tri0].min(axis=1) < d)
+    tri, pts, count = [tri0[full]], [X0], len(X0)
+    for t0 in tri0[near]:
+        piece = _piece(shape, a, b, X0[t0], corners, inside[t0], MERGE * d)
         if len(piece) < 3:
             continue
         for t in _fan(piece):
@@ -230,7 +251,7 @@ def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float]
     used, tri = np.unique(tri, return_inverse=True)
     X, tri = X[first[used]], tri.reshape(-1, 3)
     area = np.abs(_area(X, tri))
-    ref = 0.5 * d * d * abs(float(np.cross(L, M)))
+    ref = abs(_area(X0, tri0[:1])[0])
     exact = math.pi * a * a if shape == "circle" else 4.0 * a * b
     return X, tri, {"min_area_fraction": float(area.min() / ref),
                     "min_angle_deg": math.degrees(min(_min_angle(X[t]) for t in tri)),

@@ -7,11 +7,11 @@ motions removed (experiments/forming_blank.py) on a fibre lattice clipped to the
   outline, no sliver, its vertices at most MERGE·h outside the outline, and its interior edges
   along the fibres or the parallelograms' diagonals;
 * the lattice holds every discrete inextensible net: each triangle lies in one lattice
-  parallelogram, so every piecewise-affine Chebyshev net of the lattice (x = a(s) + b(t), a and
-  b unit-speed polylines kinked at the lattice lines) is a P1 deformation of the mesh that
-  stretches no fibre anywhere. The mesh builder that snapped the boundary row onto the outline
-  failed it (fibre stretch 8–16 % in the boundary cells) and its mesh locked: the 72 mm square
-  at K = 10⁵ N/mm stopped at 9.73 mm of a 12 mm stroke (docs/forming.md, "Blanks");
+  triangle, so every discrete Chebyshev net of the lattice in 3D (rhombi folded about their
+  diagonals), interpolated linearly, is a P1 deformation of the mesh that stretches no fibre
+  anywhere. The mesh builder that snapped the boundary row onto the outline failed it and its
+  mesh locked: the 72 mm square at K = 10⁵ N/mm stopped at 9.73 mm of a 12 mm stroke
+  (docs/forming.md, "Blanks");
 * bad input refused before any computation, naming key and value;
 * the full blank of the symmetric square against the quarter with mirror conditions, on the
   quarter's own mesh unfolded (geometry.fibre_blank.mirrored_quarter), frictionless, at the
@@ -46,7 +46,7 @@ from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification.drape_map import summary
 from fabricsurf.verification.forming_map import compare_with_drapes
-from geometry.fibre_blank import MERGE, clip_lattice, outline
+from geometry.fibre_blank import MERGE, clip_lattice, lattice_triangulation, outline
 
 COMM = MPI.COMM_WORLD
 R, BLANK, H = 20.0, 60.0, 4.0
@@ -95,7 +95,7 @@ def test_clipped_lattice(shape, a, b, angles):
     assert abs(area.sum() / exact - 1.0) < 0.01  # measured 0.9988–1.0014
     assert abs(quality["area_fraction"] * exact - area.sum()) < 1e-9 * exact
     assert quality["min_angle_deg"] > 5.0  # no sliver (measured ≥ 10.4°)
-    assert phi(X).max() < MERGE * H + 1e-9 * a  # a crossing moved along a fibre edge
+    assert phi(X).max() < MERGE * H + 1e-9 * a  # a crossing moved along an edge
     L, M = (np.array([math.cos(math.radians(t)), math.sin(math.radians(t))]) for t in angles)
     allowed = [L, M, L + M, L - M]
     edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
@@ -113,15 +113,36 @@ def unit(deg: float) -> np.ndarray:
     return np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
 
 
-def chebyshev_net(st: np.ndarray, base_deg: float, rng) -> np.ndarray:
-    """a(s): the polyline with knots at the integers s (in units of h), segments of length h
-    at random angles within ±0.3 rad of ``base_deg``, a(0) = 0, evaluated at ``st``."""
-    n = int(np.abs(st).max()) + 2
-    ang = math.radians(base_deg) + rng.uniform(-0.3, 0.3, 2 * n)
-    seg = H * np.column_stack([np.cos(ang), np.sin(ang)])
-    knots = np.concatenate([[[0.0, 0.0]], np.cumsum(seg, axis=0)])
-    k = np.clip(np.floor(st).astype(int) + n, 0, 2 * n - 1)
-    return knots[k] + (st + n - k)[:, None] * seg[k]
+def discrete_net(n: int, L: np.ndarray, M: np.ndarray, rng) -> np.ndarray:
+    """A discrete Chebyshev net in 3D on the lattice indices −n..n: x[i, j] with every fibre
+    edge of length H. Its generators (j = 0 and i = 0) are polylines of steps H near L and M,
+    tilted out of the plane at random; every other vertex completes the quad towards the axes
+    as a rhombus folded about its diagonal by a random angle (the rhombus's fourth vertex
+    turned about the line through its two neighbours)."""
+    x = np.zeros((2 * n + 1, 2 * n + 1, 3))
+
+    def step(v):
+        a = rng.uniform(-0.3, 0.3, 2)
+        w = np.array([*(math.cos(a[0]) * v[0] - math.sin(a[0]) * v[1],
+                        math.sin(a[0]) * v[0] + math.cos(a[0]) * v[1]), 0.0])
+        return H * (math.cos(a[1]) * w + [0.0, 0.0, math.sin(a[1])])
+    for k in range(1, n + 1):
+        for s in (1, -1):
+            x[n + s * k, n] = x[n + s * (k - 1), n] + s * step(L)
+            x[n, n + s * k] = x[n, n + s * (k - 1)] + s * step(M)
+    for r in range(2, 2 * n + 1):
+        for i in range(-n, n + 1):
+            j = r - abs(i)
+            for jj in {j, -j}:
+                if i == 0 or not 0 < j <= n:
+                    continue
+                si, sj = int(np.sign(i)), int(np.sign(jj))
+                a, b = x[n + i - si, n + jj], x[n + i, n + jj - sj]
+                p = a + b - x[n + i - si, n + jj - sj]
+                m, ax = 0.5 * (a + b), (a - b) / np.linalg.norm(a - b)
+                t, v = rng.uniform(-0.3, 0.3), p - 0.5 * (a + b)
+                x[n + i, n + jj] = m + math.cos(t) * v + math.sin(t) * np.cross(ax, v)
+    return x
 
 
 @pytest.mark.serial("numpy only: the lattice is built on one process")
@@ -129,23 +150,33 @@ def chebyshev_net(st: np.ndarray, base_deg: float, rng) -> np.ndarray:
     ("rectangle", 36.0, 36.0, (45.0, -45.0)), ("circle", 42.0, 42.0, (30.0, 120.0)),
     ("rectangle", 36.0, 30.0, (40.0, -50.0)), ("circle", 30.0, 30.0, (20.0, -50.0))])
 def test_clipped_lattice_holds_every_fibre_net(shape, a, b, angles):
-    """Stiff fibres do not lock on the clipped lattice: the in-plane inextensible deformations
-    of the continuum are x = a(s) + b(t) (s, t the fibre coordinates; Chebyshev nets), and
-    those with a, b kinked at the lattice lines are P1 deformations of the mesh that keep every
-    fibre's length in every cell (|F L| = |F M| = 1), as on the aligned quarter. A cell that
-    leaves its lattice parallelogram (a vertex snapped onto the outline) forbids the kinks of
-    every fibre line through it; its fibres stretch under such a net, and at large K the
-    whole blank stiffens."""
+    """Stiff fibres do not lock on the clipped lattice: a discrete Chebyshev net of the lattice
+    (fibre edges of length h, each parallelogram a rhombus folded about the diagonal the
+    lattice's triangles share), interpolated linearly over the lattice's triangles, keeps
+    every fibre's length in every cell of the mesh (|F L| = |F M| = 1), in 3D, as on the aligned
+    quarter: each cell lies in one lattice triangle. A cell that leaves it (a vertex snapped
+    onto the outline) spans a fold or a kink, stretches its fibres under such a net, and at
+    large K stiffens the whole blank."""
     X, tri, _ = clip_lattice(shape, a, b, angles, H)
+    X0, tri0 = lattice_triangulation(shape, a, b, angles, H)
     L, M = unit(angles[0]), unit(angles[1])
-    st = np.linalg.solve(np.column_stack([L, M]), X.T).T / H
-    rng = np.random.default_rng(7)
-    x = chebyshev_net(st[:, 0], angles[0], rng) + chebyshev_net(st[:, 1], angles[1], rng)
+    ij = np.rint(np.linalg.solve(np.column_stack([L, M]), X0.T).T / H).astype(int)
+    n = int(np.abs(ij).max())
+    x = discrete_net(n, L, M, np.random.default_rng(7))[ij[:, 0] + n, ij[:, 1] + n]
+    # each mesh vertex's value: the net's linear interpolant on a lattice triangle holding it
+    P = X0[tri0]
+    T = np.linalg.inv(np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2))
+    st = np.einsum("tij,vtj->vti", T, X[:, None, :] - P[None, :, 0])
+    bary = np.concatenate([1.0 - st.sum(axis=2, keepdims=True), st], axis=2)
+    k = bary.min(axis=2).argmax(axis=1)
+    assert bary.min(axis=2).max(axis=1).min() > -1e-9  # every vertex on the lattice
+    w = bary[np.arange(len(X)), k]
+    y = np.einsum("vk,vkd->vd", w, x[tri0[k]])
     A = np.stack([X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]], axis=2)
-    B = np.stack([x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]]], axis=2)
+    B = np.stack([y[tri[:, 1]] - y[tri[:, 0]], y[tri[:, 2]] - y[tri[:, 0]]], axis=2)
     F = B @ np.linalg.inv(A)
     stretch = np.concatenate([np.linalg.norm(F @ L, axis=1), np.linalg.norm(F @ M, axis=1)])
-    assert np.abs(stretch - 1.0).max() < 1e-10
+    assert np.abs(stretch - 1.0).max() < 1e-9
 
 
 def test_bad_blanks_refused_before_computing():
