@@ -166,6 +166,8 @@ def _piece(shape: str, a: float, b: float, P: np.ndarray, corners: np.ndarray,
     cross = []
     for k in range(3):
         p, q = P[k], P[(k + 1) % 3]
+        if tuple(q) < tuple(p):  # each edge the same way round from both its triangles
+            p, q = q, p
         span = _segment_inside(shape, a, b, p, q)
         if span is None:
             continue

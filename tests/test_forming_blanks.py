@@ -101,6 +101,9 @@ def test_clipped_lattice(shape, a, b, angles):
     edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     e = np.sort(edges, axis=1)
     _, count = np.unique(e, axis=0, return_counts=True)
+    assert count.max() == 2  # conforming: no edge shared by three cells
+    outer = np.unique(e, axis=0)[count == 1]
+    assert np.abs(phi(X[outer])).max() < MERGE * H + 1e-9 * a  # no hanging vertex inside
     inner = np.unique(e, axis=0)[count == 2]
     inner = inner[(np.abs(phi(X[inner[:, 0]])) > 1e-9) & (np.abs(phi(X[inner[:, 1]])) > 1e-9)]
     v = X[inner[:, 1]] - X[inner[:, 0]]
