@@ -92,9 +92,9 @@ def test_clipped_lattice(shape, a, b, angles):
     p, q, r = (X[tri[:, k]] for k in range(3))
     area = 0.5 * np.abs(np.cross(q - p, r - p))
     exact = math.pi * a * a if shape == "circle" else 4 * a * b
-    assert abs(area.sum() / exact - 1.0) < 0.01  # measured 0.9988–1.0014
+    assert abs(area.sum() / exact - 1.0) < 0.01  # measured 0.9989–1.0003
     assert abs(quality["area_fraction"] * exact - area.sum()) < 1e-9 * exact
-    assert quality["min_angle_deg"] > 5.0  # no sliver (measured ≥ 10.4°)
+    assert quality["min_angle_deg"] > 5.0  # no sliver (measured 7.5–16.1°)
     assert phi(X).max() < MERGE * H + 1e-9 * a  # a crossing moved along an edge
     L, M = (np.array([math.cos(math.radians(t)), math.sin(math.radians(t))]) for t in angles)
     allowed = [L, M, L + M, L - M]
@@ -103,7 +103,7 @@ def test_clipped_lattice(shape, a, b, angles):
     _, count = np.unique(e, axis=0, return_counts=True)
     assert count.max() == 2  # conforming: no edge shared by three cells
     outer = np.unique(e, axis=0)[count == 1]
-    assert np.abs(phi(X[outer])).max() < MERGE * H + 1e-9 * a  # no hanging vertex inside
+    assert np.abs(phi(X[outer.ravel()])).max() < MERGE * H + 1e-9 * a  # no hanging vertex
     inner = np.unique(e, axis=0)[count == 2]
     inner = inner[(np.abs(phi(X[inner[:, 0]])) > 1e-9) & (np.abs(phi(X[inner[:, 1]])) > 1e-9)]
     v = X[inner[:, 1]] - X[inner[:, 0]]
