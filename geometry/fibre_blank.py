@@ -53,37 +53,16 @@ is moved onto that end (along the edge), so that no cut cell is a sliver; the ou
 at most MERGE·h there."""
 
 
-def _box(a: float, b: float) -> tuple[Callable, Callable]:
-    """Signed distance (negative inside) and closest outline point of [−a, a] × [−b, b]."""
+def outline(shape: str, a: float, b: float) -> Callable:
+    """The signed distance (negative inside) to the outline: ``circle`` of radius a or
+    ``rectangle`` (a square too) [−a, a] × [−b, b]; X is (n, 2)."""
+    if shape == "circle":
+        return lambda X: np.linalg.norm(X, axis=1) - a
+
     def phi(X):
         q = np.abs(X) - [a, b]
         return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
-
-    def project(X):
-        half = np.array([a, b])
-        P = np.clip(X, -half, half)
-        inside = (np.abs(X) < half).all(axis=1)
-        k = (half - np.abs(X[inside])).argmin(axis=1)
-        rows = np.flatnonzero(inside)
-        P[rows, k] = np.where(X[rows, k] < 0, -1.0, 1.0) * half[k]
-        return P
-    return phi, project
-
-
-def _circle(r: float) -> tuple[Callable, Callable]:
-    def phi(X):
-        return np.linalg.norm(X, axis=1) - r
-
-    def project(X):
-        n = np.linalg.norm(X, axis=1, keepdims=True)
-        return r * X / np.where(n > 0, n, 1.0)
-    return phi, project
-
-
-def outline(shape: str, a: float, b: float) -> tuple[Callable, Callable]:
-    """(signed distance, closest point) of the outline: ``circle`` of radius a or
-    ``rectangle`` (a square too) of half-sides a, b."""
-    return _circle(a) if shape == "circle" else _box(a, b)
+    return phi
 
 
 def _lattice(L: np.ndarray, M: np.ndarray, d: float, reach: float):
@@ -220,7 +199,7 @@ def lattice_triangulation(shape: str, a: float, b: float, angles_deg: tuple[floa
     :func:`clip_lattice` lies."""
     L, M = (np.array([math.cos(math.radians(t)), math.sin(math.radians(t))]) for t in angles_deg)
     X0, quads = _lattice(L, M, d, math.hypot(a, b) + 2 * d)
-    return X0, _cut(X0, quads, outline(shape, a, b)[0])
+    return X0, _cut(X0, quads, outline(shape, a, b))
 
 
 def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float], d: float
@@ -228,7 +207,7 @@ def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float]
     """Vertices and triangles of the fibre lattice clipped to the outline (module docstring),
     and its quality: the smallest triangle's area over a lattice triangle's, the smallest
     angle (deg), and the meshed area over the blank's."""
-    phi, _ = outline(shape, a, b)
+    phi = outline(shape, a, b)
     corners = (np.array([[a, b], [-a, b], [-a, -b], [a, -b]]) if shape != "circle"
                else np.zeros((0, 2)))
     X0, tri0 = lattice_triangulation(shape, a, b, angles_deg, d)
