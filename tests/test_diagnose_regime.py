@@ -50,7 +50,7 @@ def test_complete_model_no_false_alarm_in_the_stiff_regime():
     if not d.adequate:  # the best lead is the refit that came closest, and it failed the rule
         lead = d.unexplained["best_lead"]
         assert lead["effect"] == d.ranking[0]["effect"]
-        assert lead["wald_p"] >= lead["wald_p_needed"]
+        assert lead["wald_p"] >= lead["wald_p_needed"] or not lead["f_test_passed"]
 
 
 @SERIAL

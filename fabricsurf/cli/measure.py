@@ -265,9 +265,11 @@ def cmd_diagnose(args) -> int:
         rank0_print(COMM, line)
     lead = (d.unexplained or {}).get("best_lead")
     if lead:
+        wald = "no Wald test" if lead["wald_p"] is None else \
+            f"Wald p = {lead['wald_p']:.3g} (must be below {lead['wald_p_needed']:.3g})"
         rank0_print(COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
-                    f"the excess misfit; its Wald p = {lead['wald_p']:.3g} (below "
-                    f"{lead['wald_p_needed']:.3g} needed)")
+                    f"the excess misfit; {wald}; F-test "
+                    f"{'passed' if lead['f_test_passed'] else 'failed'} (both are needed)")
     return 0
 
 
