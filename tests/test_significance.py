@@ -41,3 +41,17 @@ def test_no_decrease_is_never_significant():
     """χ² must decrease whatever the tests say."""
     assert not sg.significant(50.0, 2, 50.0, 3, 100, wald_p=0.0)
     assert not sg.significant(50.0, 2, 51.0, 3, 100)
+
+
+def test_woven_full_run_second_round():
+    """The woven demo's full run as stored in its diagnosis.json (35 points, 2 moduli after
+    crossover_friction): the refits of the second round, sorted by χ², are shear_locking
+    (k = 2, χ² 48.667, Wald p 0.0088) and yarn_slip (k = 1, χ² 72.499, Wald p 0). shear_locking
+    fails both tests: F = 11.93/(48.667/31) = 7.6 < F₀.₉₉₉(2, 31) = 8.7; yarn_slip has
+    F = 0.008 < F₀.₉₉₉(1, 32) = 13.1. Nothing is added; the former rule added yarn_slip."""
+    n, p, base = 35, 2, 72.51748
+    assert 7.5 < sg.f_statistic(base, p, 48.66674, p + 2, n) < 7.7
+    assert not sg.f_test(base, p, 48.66674, p + 2, n)
+    assert not sg.significant(base, p, 48.66674, p + 2, n, wald_p=0.0088420)
+    assert sg.f_statistic(base, p, 72.49899, p + 1, n) < 0.01
+    assert not sg.significant(base, p, 72.49899, p + 1, n, wald_p=0.0)
