@@ -30,7 +30,7 @@ def test_clear_effect_is_significant():
 
 def test_wald_still_decides_on_correlated_residuals():
     """A large χ² decrease whose modulus is not distinguishable from zero on the cluster-robust
-    covariance (p = 0.0088, the large-shear shear_locking refit) is not significant, though the
+    covariance (p = 0.0088, the second round's shear_locking refit) is not significant, though the
     F-test on independent residuals passes (Δχ² = 100 with χ²/ν < 1)."""
     n, p_base = 200, 3
     assert sg.f_test(300.0, p_base, 200.0, p_base + 1, n)
