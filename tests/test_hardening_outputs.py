@@ -40,7 +40,8 @@ def toml_edits(*pairs):
 
 
 def force_only(d: Path) -> None:
-    toml_edits(('field = "field.csv"\n', ""))(d)
+    """The force alone: the field, its file and its noise level removed."""
+    toml_edits(('field = "field.csv"\n', ""), ("\nnoise_std = 0.01\n", "\n"))(d)
     (d / "field.csv").unlink()
 
 
