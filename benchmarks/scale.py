@@ -67,7 +67,7 @@ STAGES = ("reading", "forward solves", "sensitivities", "evaluation at points", 
 HOOKS = {  # stage: (module, name), name "Class.method" for a method; missing ones are skipped
     "reading": [("fabricsurf.inverse.contract.data", "load_experiment")],
     "forward solves": [("fabricsurf.inverse.fitting.forward", "ForwardModel.run")],
-    "sensitivities": [("fabricsurf.inverse.fitting.forward", "ForwardModel._sensitivities")],
+    "sensitivities": [("fabricsurf.inverse.fitting.tangent", "sensitivities")],
     "evaluation at points": [("fabricsurf.discretise.evaluation", "eval_points"),
                              ("fabricsurf.discretise.evaluation", "PointLocator.__init__"),
                              ("fabricsurf.discretise.evaluation", "PointLocator.__call__")],

@@ -1,0 +1,178 @@
+"""Rank-local forward solves: small meshes solved whole on every rank (docs/dic.md, "Speed").
+
+A fit or a diagnosis runs the forward model tens to hundreds of times on meshes of a few
+hundred to a few thousand cells. Distributed over the ranks, each Newton iteration of such a
+mesh is a handful of collective operations (assembly's ghost exchange, MUMPS's distributed
+factorisation, the norms) on a problem that a single core factors in milliseconds: the ranks
+wait for each other more than they compute, and on a shared machine far more. The inverse
+layer already holds every data point on every rank, so nothing is lost by solving such a mesh
+on ``MPI.COMM_SELF`` on every rank: the same computation, the same answer, no communication.
+
+Two rules keep the ranks one program:
+
+* **Agreement** (:func:`agree`): every rank computes the run, then the ranks compare digests of
+  what they computed; where they differ (they should not: the same serial code on the same
+  input), rank 0's values are sent to all. A run that fails on rank 0 raises rank 0's error
+  on every rank; one that fails elsewhere only takes rank 0's values. So whatever follows —
+  the fit's steps, its tests, what it writes — is decided on identical numbers.
+* **One voice** (:func:`one_voice`): the plug-ins report progress on rank 0 of their own
+  communicator, which every rank is on ``COMM_SELF``; the other ranks' reports are muted.
+
+Meshes above :data:`LOCAL_CELLS` (estimated before meshing) stay distributed: there the work
+per iteration outweighs the communication and the memory of a whole mesh per rank counts.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import math
+import pickle
+from collections.abc import Callable, Iterator
+from typing import TypeVar
+
+import numpy as np
+from mpi4py import MPI
+
+from fabricsurf.inverse.fitting import warm_start
+from fabricsurf.log import logger
+
+LOCAL_CELLS = 6000
+"""Meshes of at most this many triangles (estimated: 2 per h × h square of the specimen's
+length × width) are solved whole on every rank when a run has several (module docstring)."""
+
+T = TypeVar("T")
+
+differed = 0
+"""How many rank-local runs of this process ended with values that differed between the ranks
+(rank 0's taken); 0 when the ranks compute bit for bit alike, as they should."""
+
+
+def estimated_cells(length: float, width: float, h: float) -> float:
+    """2 triangles per h × h square of a length × width specimen (a blank's quarter or a
+    lattice mesh has fewer: the estimate errs towards distributing)."""
+    return 2.0 * math.ceil(length / h) * math.ceil(width / h)
+
+
+def solve_comm(comm: MPI.Comm, cells: float, local: bool | None = None) -> MPI.Comm:
+    """The communicator a forward model solves on: ``COMM_SELF`` when ``comm`` has several
+    ranks and the mesh is small (``cells`` ≤ :data:`LOCAL_CELLS`, or ``local`` True),
+    ``comm`` otherwise (one rank, a large mesh, or ``local`` False). The same on every rank."""
+    if comm.size == 1:
+        return comm
+    use = cells <= LOCAL_CELLS if local is None else bool(local)
+    return MPI.COMM_SELF if comm.bcast(use, root=0) else comm
+
+
+@contextlib.contextmanager
+def one_voice(comm: MPI.Comm, local: bool) -> Iterator[None]:
+    """Mute the ``fabricsurf`` logger on the ranks of ``comm`` other than 0 while a rank-local
+    model builds or runs (each rank is rank 0 of its own ``COMM_SELF``)."""
+    if not local or comm.rank == 0:
+        yield
+        return
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def _digest(value) -> bytes:
+    """A digest of every array (and scalar) in ``value``, a dataclass or a list of them."""
+    h = hashlib.blake2b(digest_size=16)
+    items = value if isinstance(value, list) else [value]
+    for item in items:
+        for v in vars(item).values() if hasattr(item, "__dict__") else [item]:
+            if isinstance(v, np.ndarray):
+                h.update(np.ascontiguousarray(v).view(np.uint8))
+            else:
+                h.update(repr(v).encode())
+    return h.digest()
+
+
+def _portable(err: BaseException) -> BaseException:
+    """``err`` if it pickles, else a RuntimeError with its message (sent to the other ranks)."""
+    try:
+        pickle.dumps(err)
+        return err
+    except Exception:
+        return RuntimeError(f"{type(err).__name__}: {err}")
+
+
+def agree(comm: MPI.Comm, local: bool, run: Callable[[], T], *, ignore=("seconds",)) -> T:
+    """``run()`` on every rank; with ``local`` (redundant solves), rank 0's outcome on all
+    (module docstring). Fields named in ``ignore`` (wall times) are not compared."""
+    if not local or comm.size == 1:
+        return run()
+    try:
+        out, err = run(), None
+    except Exception as e:  # rank 0's error is raised everywhere below
+        out, err = None, e
+    failed = comm.bcast(err is not None, root=0)
+    if failed:
+        err = comm.bcast(_portable(err) if comm.rank == 0 else None, root=0)
+        raise err
+    mine = b"" if err is not None else _digest(_without(out, ignore))
+    if len(set(comm.allgather(mine))) > 1:
+        global differed
+        differed += 1
+        logger.debug("rank-local solves differ between ranks: rank 0's values taken")
+        out = comm.bcast(out if comm.rank == 0 else None, root=0)
+    return out
+
+
+def _without(value, ignore):
+    """``value`` with the ``ignore`` fields blanked (a shallow copy; lists element-wise)."""
+    if isinstance(value, list):
+        return [_without(v, ignore) for v in value]
+    if not hasattr(value, "__dict__"):
+        return value
+    clone = object.__new__(type(value))
+    clone.__dict__.update({k: (None if k in ignore else v) for k, v in vars(value).items()})
+    return clone
+
+
+@contextlib.contextmanager
+def independent(fm) -> Iterator[None]:
+    """Let the ranks run ``fm`` on different moduli (no agreement after each run: the ranks'
+    runs are not the same run); its moduli are restored after, and the warm starts its runs
+    stored are forgotten (they differ between the ranks: the next run starts cold everywhere
+    and the ranks compute alike again)."""
+    models = list(getattr(fm, "models", [fm]))
+    vals = fm.values()
+    for m in models:
+        m.agreeing = False
+    try:
+        yield
+    finally:
+        for m in models:
+            m.agreeing = True
+            warm_start.forget(m)
+        fm.set_values(vals)
+
+
+def spread(fm, items: list, evaluate: Callable[[object], T]) -> list[T]:
+    """``[evaluate(x) for x in items]``, the items shared among the ranks when every model of
+    ``fm`` solves rank-local (rank r evaluates items r, r + size, …; the values are then
+    gathered on every rank, in order). An error in any evaluation is raised on every rank
+    (the first item's that failed)."""
+    comm = fm.comm
+    models = list(getattr(fm, "models", [fm]))
+    if comm.size == 1 or not all(m.local for m in models):
+        return [evaluate(x) for x in items]
+    mine: dict[int, tuple] = {}
+    with independent(fm):
+        for i in range(comm.rank, len(items), comm.size):
+            try:
+                mine[i] = (evaluate(items[i]), None)
+            except Exception as e:  # raised on every rank below
+                mine[i] = (None, _portable(e))
+                break
+    done = {i: v for part in comm.allgather(mine) for i, v in part.items()}
+    failed = sorted(i for i, (_, e) in done.items() if e is not None)
+    if failed:
+        raise done[failed[0]][1]
+    return [done[i][0] for i in range(len(items))]

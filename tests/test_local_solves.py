@@ -1,0 +1,122 @@
+"""Rank-local forward solves (fabricsurf/inverse/fitting/local.py): a small mesh solved whole on
+every rank gives the distributed solve's fit (the same problem: equal to Newton's tolerance,
+asserted at 1e-7 relative; the fit's own steps are taken on numbers the ranks agree on bit for
+bit), the ranks compute alike (no run needed rank 0's values), an error on one rank is the same
+error on all, and the candidate's trials shared among the ranks give the serial choice.
+Serially the models solve on the one rank (nothing to test but that)."""
+
+import io
+from contextlib import redirect_stdout
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fabricsurf.discretise.stepping import LoadStepError
+from fabricsurf.inverse.fitting import local
+from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.fitting.start import candidate_start
+from fabricsurf.inverse.synthetic import generate as sy
+
+COMM = MPI.COMM_WORLD
+TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
+         "geodesic_bending": {"A_g": 12.0}}
+START = {"fibre_stretch": {"k_l": 10.0, "k_m": 10.0}, "shear": {"k_s": 1.0}}
+parallel = pytest.mark.skipif(COMM.size == 1, reason="needs several ranks")
+
+
+def data():
+    exp = sy.template(48.0, 24.0, [1.0, 2.0], sy.grid_points(48.0, 24.0, 8, 4))
+    sy.continuum_data(exp, full_model(list(TRUTH), TRUTH), h=4.0)
+    return sy.add_noise(exp, 0.005, 0.005, 33)
+
+
+def free_of(fm, terms) -> list[int]:
+    return [i for i, (t, _) in enumerate(fm.params) if t.name in terms]
+
+
+def same_on_all_ranks(a: np.ndarray) -> bool:
+    return all(np.array_equal(a, b) for b in COMM.allgather(a))
+
+
+def test_small_meshes_are_solved_whole_on_every_rank():
+    exp = data()
+    with ForwardModel(exp, full_model(["fibre_stretch", "shear"], START), h=4.0) as fm:
+        assert fm.local == (COMM.size > 1)
+        assert fm.test.problem.msh.comm.size == 1
+    with ForwardModel(exp, full_model(["fibre_stretch", "shear"], START), h=4.0,
+                      local=False) as fm:
+        assert not fm.local and fm.test.problem.msh.comm.size == COMM.size
+    cells = local.estimated_cells(exp.setup.length, exp.setup.width, 0.5)
+    assert cells > local.LOCAL_CELLS  # the default decides by the estimate
+    assert local.solve_comm(COMM, cells) is COMM
+
+
+@parallel
+def test_rank_local_fit_equals_the_distributed_fit():
+    exp = data()
+    out = {}
+    for mode in (False, True):
+        with ForwardModel(exp, full_model(list(TRUTH), START | {"geodesic_bending":
+                                                                {"A_g": 3.0}}),
+                          h=4.0, local=mode) as fm:
+            before = local.differed
+            res = fit(fm, free_of(fm, TRUTH), verbose=False)
+            out[mode] = (res.values, res.misfit["chi2"], local.differed - before)
+    values, chi2, differed = out[True]
+    assert np.allclose(values, out[False][0], rtol=1e-7, atol=0)
+    assert chi2 == pytest.approx(out[False][1], rel=1e-7)
+    assert same_on_all_ranks(values) and differed == 0
+
+
+@parallel
+def test_an_error_on_rank_0_is_raised_on_every_rank():
+    def run():
+        if COMM.rank == 0:
+            raise LoadStepError("step 2 failed on rank 0", step=2)
+        return 1.0
+
+    with pytest.raises(LoadStepError, match="failed on rank 0") as e:
+        local.agree(COMM, True, run)
+    assert e.value.step == 2
+
+
+@parallel
+def test_a_value_computed_differently_is_rank_0s_everywhere():
+    before = local.differed
+    value = local.agree(COMM, True, lambda: np.array([float(COMM.rank)]))
+    assert value[0] == 0.0 and local.differed == before + 1
+
+
+@parallel
+def test_spread_trials_choose_the_start_the_serial_loop_chooses():
+    exp = data()
+    with ForwardModel(exp, full_model(list(TRUTH), START | {"geodesic_bending":
+                                                            {"A_g": 1e-9}}), h=4.0) as fm:
+        cur = fm.values()
+        idx = free_of(fm, ["geodesic_bending"])
+        free = free_of(fm, START)
+        spread = candidate_start(fm, cur, free, idx, 0.0, np.inf)
+        serial_calls = []
+        orig = local.spread
+        try:
+            local.spread = lambda f, items, ev: serial_calls.append(1) or [ev(x) for x in items]
+            alone = candidate_start(fm, cur, free, idx, 0.0, np.inf)
+        finally:
+            local.spread = orig
+        assert serial_calls and np.array_equal(spread, alone) and same_on_all_ranks(spread)
+
+
+@parallel
+def test_other_ranks_say_nothing_while_a_rank_local_model_builds():
+    exp = sy.template(48.0, 24.0, [1.0], sy.grid_points(48.0, 24.0, 4, 2), angles=(45.0, 135.0))
+    buf = io.StringIO()
+    with redirect_stdout(buf), ForwardModel(exp, full_model(["fibre_stretch", "shear"], START),
+                                            h=4.0) as fm:
+        assert fm.local
+        fm.run()
+    said = COMM.allgather(buf.getvalue())
+    assert "are the fibre lines" in said[0], said[0]
+    assert said[1:] == [""] * (COMM.size - 1)
