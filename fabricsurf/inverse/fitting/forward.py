@@ -82,8 +82,6 @@ class ForwardModel(Owner):
         self.solve_comm = ranks.solve_comm(comm, cells, local)
         self.local = self.solve_comm is not comm
         """Whether this model solves its mesh whole on every rank (local.py)."""
-        self.agreeing = True
-        """Whether a rank-local run ends with rank 0's outcome on all (local.independent)."""
         with ranks.one_voice(comm, self.local):
             self.test = plugin(exp.setup, model, self.h, self.solve_comm)
         self.components = min(exp.u.shape[1], plugin.d)
@@ -157,7 +155,7 @@ class ForwardModel(Owner):
         """Follow the recorded load path; sensitivities for ``sens`` (True: all moduli). On a
         rank-local model every rank runs it and all return rank 0's outcome (local.py)."""
         with ranks.one_voice(self.comm, self.local):
-            return ranks.agree(self.comm, self.local and self.agreeing, lambda: self._run(sens))
+            return ranks.agree(self.comm, self.local, lambda: self._run(sens))
 
     def _run(self, sens: bool | list[int]) -> Prediction:
         exp, t0, c = self.exp, time.perf_counter(), self.components

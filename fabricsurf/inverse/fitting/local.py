@@ -42,6 +42,11 @@ LOCAL_CELLS = 6000
 """Meshes of at most this many triangles (estimated: 2 per h × h square of the specimen's
 length × width) are solved whole on every rank when a run has several (module docstring)."""
 
+SPREAD_RESIDUALS = 200_000
+"""A diagnosis shares its candidates' refits among the ranks up to this many residuals; each
+refit's result (its Jacobian, N × p) is then gathered on every rank, which at DIC size would
+cost more memory than the time it saves."""
+
 T = TypeVar("T")
 
 differed = 0
@@ -105,7 +110,7 @@ def _portable(err: BaseException) -> BaseException:
 def agree(comm: MPI.Comm, local: bool, run: Callable[[], T], *, ignore=("seconds",)) -> T:
     """``run()`` on every rank; with ``local`` (redundant solves), rank 0's outcome on all
     (module docstring). Fields named in ``ignore`` (wall times) are not compared."""
-    if not local or comm.size == 1:
+    if not local or comm.size == 1 or _alone:
         return run()
     try:
         out, err = run(), None
@@ -135,34 +140,49 @@ def _without(value, ignore):
     return clone
 
 
+_alone = False
+"""Inside :func:`independent`: the ranks run different things, nothing is agreed or spread."""
+
+
 @contextlib.contextmanager
 def independent(fm) -> Iterator[None]:
-    """Let the ranks run ``fm`` on different moduli (no agreement after each run: the ranks'
-    runs are not the same run); its moduli are restored after, and the warm starts its runs
-    stored are forgotten (they differ between the ranks: the next run starts cold everywhere
-    and the ranks compute alike again)."""
-    models = list(getattr(fm, "models", [fm]))
-    vals = fm.values()
-    for m in models:
-        m.agreeing = False
+    """Let the ranks run different things (no agreement after a run, no nested spread: the
+    ranks' runs are not the same run); ``fm``'s moduli are restored after, and the warm starts
+    its runs and its scouts' stored are forgotten (they differ between the ranks: the next run
+    starts cold everywhere and the ranks compute alike again)."""
+    global _alone
+    vals, _alone = fm.values(), True
     try:
         yield
     finally:
-        for m in models:
-            m.agreeing = True
+        _alone = False
+        for m in _with_scouts(fm):
             warm_start.forget(m)
         fm.set_values(vals)
+
+
+def _with_scouts(fm) -> list:
+    """Every ForwardModel of ``fm`` and of its coarse copies."""
+    out, todo = [], [fm]
+    while todo:
+        f = todo.pop()
+        if f is None:
+            continue
+        out += list(getattr(f, "models", [f]))
+        todo += [f._coarse] + [m._coarse for m in getattr(f, "models", [])]
+    return out
 
 
 def spread(fm, items: list, evaluate: Callable[[object], T]) -> list[T]:
     """``[evaluate(x) for x in items]``, the items shared among the ranks when every model of
     ``fm`` solves rank-local (rank r evaluates items r, r + size, …; the values are then
-    gathered on every rank, in order). An error in any evaluation is raised on every rank
-    (the first item's that failed)."""
+    gathered on every rank, in order; inside another spread, one rank's share, they run in
+    turn). An error in any evaluation is raised on every rank (the first item's that
+    failed)."""
     comm = fm.comm
     models = list(getattr(fm, "models", [fm]))
-    if comm.size == 1 or not all(m.local for m in models):
-        return [evaluate(x) for x in items]
+    if comm.size == 1 or _alone or not all(m.local for m in models):
+        return [evaluate(x) for x in items]  # one rank, distributed, or already spread
     mine: dict[int, tuple] = {}
     with independent(fm):
         for i in range(comm.rank, len(items), comm.size):
