@@ -26,8 +26,8 @@ element size (with or without sensitivities), their Newton iterations and second
 ``--profile`` writes rank 0's cProfile of each command; ``--cold`` turns the warm start of the
 forward runs off (inverse/fitting/warm_start.py: every load step from the last converged one,
 as before), for comparison; ``--distributed`` solves every mesh distributed over the ranks
-(before the rank-local solves of inverse/fitting/local.py); ``--diagnose-args`` passes options to diagnose (e.g.
-``--max-dofs 1``: the default mesh only, no mesh selection).
+(before the rank-local solves of inverse/fitting/local.py); ``--diagnose-args`` passes
+options to diagnose (e.g. ``--max-dofs 1``: the default mesh only, no mesh selection).
 Aims (issue 36): at 10⁶ points ≤ 2 GB per rank, a one-effect diagnosis ≤ 2 min on 2 ranks.
 ``--limit-gb`` sets an address-space limit per process (RLIMIT_AS) to show what fails under it.
 
