@@ -1,9 +1,10 @@
 """Rank-local forward solves (fabricsurf/inverse/fitting/local.py): a small mesh solved whole on
 every rank gives the distributed solve's fit (the same problem: equal to Newton's tolerance,
 asserted at 1e-7 relative; the fit's own steps are taken on numbers the ranks agree on bit for
-bit), the ranks compute alike (no run needed rank 0's values), an error on one rank is the same
-error on all, and the candidate's trials shared among the ranks give the serial choice.
-Serially the models solve on the one rank (nothing to test but that)."""
+bit, and a repeated fit repeats them bit for bit), the ranks compute alike (no run needed rank
+0's values), an error on one rank is the same error on all, and the candidate's trials shared
+among the ranks give the serial choice. Serially the models solve on the one rank (nothing to
+test but that)."""
 
 import io
 from contextlib import redirect_stdout
@@ -55,20 +56,23 @@ def test_small_meshes_are_solved_whole_on_every_rank():
 
 
 @parallel
-def test_rank_local_fit_equals_the_distributed_fit():
+def test_rank_local_fit_equals_the_distributed_fit_and_repeats_bit_for_bit():
     exp = data()
-    out = {}
-    for mode in (False, True):
+    out = []
+    for mode in (False, True, True):
         with ForwardModel(exp, full_model(list(TRUTH), START | {"geodesic_bending":
                                                                 {"A_g": 3.0}}),
                           h=4.0, local=mode) as fm:
             before = local.differed
             res = fit(fm, free_of(fm, TRUTH), verbose=False)
-            out[mode] = (res.values, res.misfit["chi2"], local.differed - before)
-    values, chi2, differed = out[True]
-    assert np.allclose(values, out[False][0], rtol=1e-7, atol=0)
-    assert chi2 == pytest.approx(out[False][1], rel=1e-7)
+            out.append((res.values, res.misfit["chi2"], res.iterations, local.differed - before))
+    (v_dist, chi2_dist, _, _), (values, chi2, its, differed), again = out
+    assert np.allclose(values, v_dist, rtol=1e-7, atol=0)
+    assert chi2 == pytest.approx(chi2_dist, rel=1e-7)
     assert same_on_all_ranks(values) and differed == 0
+    # the same fit again: the same iterations and the same bits (serial solves, no
+    # reduction whose order could vary between runs)
+    assert its == again[2] and np.array_equal(values, again[0]) and chi2 == again[1]
 
 
 @parallel
