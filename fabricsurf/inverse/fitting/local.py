@@ -38,7 +38,7 @@ from mpi4py import MPI
 from fabricsurf.inverse.fitting import warm_start
 from fabricsurf.log import logger
 
-LOCAL_CELLS = 6000
+LOCAL_CELLS = 2000
 """Meshes of at most this many triangles (estimated: 2 per h × h square of the specimen's
 length × width) are solved whole on every rank when a run has several (module docstring)."""
 
