@@ -179,9 +179,9 @@ def spread(fm, items: list, evaluate: Callable[[object], T]) -> list[T]:
     gathered on every rank, in order; inside another spread, one rank's share, they run in
     turn). An error in any evaluation is raised on every rank (the first item's that
     failed)."""
-    comm = fm.comm
+    comm = getattr(fm, "comm", MPI.COMM_SELF)
     models = list(getattr(fm, "models", [fm]))
-    if comm.size == 1 or _alone or not all(m.local for m in models):
+    if comm.size == 1 or _alone or not all(getattr(m, "local", False) for m in models):
         return [evaluate(x) for x in items]  # one rank, distributed, or already spread
     mine: dict[int, tuple] = {}
     with independent(fm):
