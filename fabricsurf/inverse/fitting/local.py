@@ -177,12 +177,15 @@ def spread(fm, items: list, evaluate: Callable[[object], T]) -> list[T]:
     """``[evaluate(x) for x in items]``, the items shared among the ranks when every model of
     ``fm`` solves rank-local (rank r evaluates items r, r + size, …; the values are then
     gathered on every rank, in order; inside another spread, one rank's share, they run in
-    turn). An error in any evaluation is raised on every rank (the first item's that
-    failed)."""
+    turn; fewer items than ranks are evaluated on every rank). An error in any evaluation is
+    raised on every rank (the first item's that failed)."""
     comm = getattr(fm, "comm", MPI.COMM_SELF)
     models = list(getattr(fm, "models", [fm]))
-    if comm.size == 1 or _alone or not all(getattr(m, "local", False) for m in models):
-        return [evaluate(x) for x in items]  # one rank, distributed, or already spread
+    if comm.size == 1 or _alone or len(items) < comm.size or \
+            not all(getattr(m, "local", False) for m in models):
+        # one rank, distributed, already spread, or too few items to keep every rank busy
+        # (each is then evaluated on every rank, and may share its own inner trials)
+        return [evaluate(x) for x in items]
     mine: dict[int, tuple] = {}
     with independent(fm):
         for i in range(comm.rank, len(items), comm.size):
