@@ -124,3 +124,29 @@ def test_other_ranks_say_nothing_while_a_rank_local_model_builds():
     said = COMM.allgather(buf.getvalue())
     assert "are the fibre lines" in said[0], said[0]
     assert said[1:] == [""] * (COMM.size - 1)
+
+
+class _Local:
+    """A stand-in for a rank-local forward model (spread needs comm, local and values)."""
+
+    comm, local = COMM, True
+
+    def values(self):
+        return np.zeros(1)
+
+    def set_values(self, vals):
+        pass
+
+
+@parallel
+def test_spread_shares_inner_trials_when_the_outer_items_are_fewer_than_the_ranks():
+    fm, inner = _Local(), []
+
+    def outer(x):
+        return sum(local.spread(fm, list(range(6)), lambda k: inner.append(k) or k * x))
+
+    assert local.spread(fm, [2.0], outer) == [30.0]  # one refit, as diagnose --confirm 1
+    assert sorted(inner) == list(range(COMM.rank, 6, COMM.size))  # its trials shared
+    inner.clear()
+    assert local.spread(fm, [1.0, 2.0], outer) == [15.0, 30.0]  # two refits: one per rank
+    assert inner == list(range(6))  # each rank's refit runs its trials alone

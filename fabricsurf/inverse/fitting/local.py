@@ -169,7 +169,7 @@ def _with_scouts(fm) -> list:
         if f is None:
             continue
         out += list(getattr(f, "models", [f]))
-        todo += [f._coarse] + [m._coarse for m in getattr(f, "models", [])]
+        todo += [getattr(m, "_coarse", None) for m in [f, *getattr(f, "models", [])]]
     return out
 
 
