@@ -150,3 +150,25 @@ def test_spread_shares_inner_trials_when_the_outer_items_are_fewer_than_the_rank
     inner.clear()
     assert local.spread(fm, [1.0, 2.0], outer) == [15.0, 30.0]  # two refits: one per rank
     assert inner == list(range(6))  # each rank's refit runs its trials alone
+
+
+@parallel
+def test_rank_0_builds_first_and_its_error_is_everyones(tmp_path):
+    mark = COMM.bcast(str(tmp_path / "rank0-built") if COMM.rank == 0 else None)
+
+    def build():  # rank 0 leaves a mark; the others must find it (rank 0 compiled first)
+        if COMM.rank == 0:
+            open(mark, "w").close()
+            return "built"
+        with open(mark):
+            return "found"
+
+    assert local.rank0_first(COMM, True, build) == ("built" if COMM.rank == 0 else "found")
+
+    def fails_on_rank_0():
+        if COMM.rank == 0:
+            raise ValueError("no such form")
+        return "never reached on rank 0's failure"
+
+    with pytest.raises(ValueError, match="no such form"):
+        local.rank0_first(COMM, True, fails_on_rank_0)

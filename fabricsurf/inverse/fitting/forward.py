@@ -82,8 +82,16 @@ class ForwardModel(Owner):
         self.solve_comm = ranks.solve_comm(comm, cells, local)
         self.local = self.solve_comm is not comm
         """Whether this model solves its mesh whole on every rank (local.py)."""
+        def build():  # the plug-in and its observers: every form compiled here
+            test = plugin(exp.setup, model, self.h, self.solve_comm)
+            try:
+                return test, Observers(test, exp)
+            except Exception:
+                test.close()
+                raise
+
         with ranks.one_voice(comm, self.local):
-            self.test = plugin(exp.setup, model, self.h, self.solve_comm)
+            self.test, self.observers = ranks.rank0_first(comm, self.local, build)
         self.components = min(exp.u.shape[1], plugin.d)
         self.ignored = (["uz (the planar test cannot predict it)"]
                         if exp.u.shape[1] > plugin.d and exp.has_field else [])
@@ -91,7 +99,6 @@ class ForwardModel(Owner):
         self.names = [f"{t.name}.{p}" for t, p in self.params]
         self.bc_dofs = np.concatenate(
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
-        self.observers = Observers(self.test, exp)
         self.affine = self.test.problem.extra_energy() is not None
         """A residual part no modulus multiplies (the tools' contact): ∂R/∂p = R(e_k) − R(0)."""
         self.forward_runs = 0

@@ -85,6 +85,26 @@ def one_voice(comm: MPI.Comm, local: bool) -> Iterator[None]:
         logger.setLevel(level)
 
 
+def rank0_first(comm: MPI.Comm, local: bool, build: Callable[[], T]) -> T:
+    """``build()`` on rank 0 first, then on the other ranks, when ``local`` (each rank builds
+    the same rank-local model): rank 0 compiles the forms into the JIT cache and the others
+    load them, instead of every rank compiling the same form at once (dolfinx then makes all
+    but one wait for the cache, and gives up after its timeout on a loaded machine). An error
+    on rank 0 is raised on every rank; the others' errors are their own, as when distributed."""
+    if not local or comm.size == 1:
+        return build()
+    out, err = None, None
+    if comm.rank == 0:
+        try:
+            out = build()
+        except Exception as e:  # raised on every rank below
+            err = e
+    failed = comm.bcast(_portable(err) if err is not None else None, root=0)
+    if failed is not None:
+        raise err if comm.rank == 0 else failed
+    return out if comm.rank == 0 else build()
+
+
 def _digest(value) -> bytes:
     """A digest of every array (and scalar) in ``value``, a dataclass or a list of them."""
     h = hashlib.blake2b(digest_size=16)
