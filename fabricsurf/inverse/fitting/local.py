@@ -38,9 +38,12 @@ from mpi4py import MPI
 from fabricsurf.inverse.fitting import warm_start
 from fabricsurf.log import logger
 
-LOCAL_CELLS = 2000
+LOCAL_CELLS = 1000
 """Meshes of at most this many triangles (estimated: 2 per h × h square of the specimen's
-length × width) are solved whole on every rank when a run has several (module docstring)."""
+length × width) are solved whole on every rank when a run has several (module docstring).
+Where the CPU time of a run on 2 ranks crosses that of one rank alone (benchmarks/
+local_solves.py): at 308 cells the distributed run costs 1.5 times the serial one, at 1 232
+cells 0.8 times (docs/dic.md, "Rank-local solves")."""
 
 SPREAD_RESIDUALS = 200_000
 """A diagnosis shares its candidates' refits among the ranks up to this many residuals; each
