@@ -6,6 +6,7 @@ bit, and a repeated fit repeats them bit for bit), the ranks compute alike (no r
 among the ranks give the serial choice. Serially the models solve on the one rank (nothing to
 test but that)."""
 
+import contextlib
 import io
 from contextlib import redirect_stdout
 
@@ -53,6 +54,18 @@ def test_small_meshes_are_solved_whole_on_every_rank():
     cells = local.estimated_cells(exp.setup.length, exp.setup.width, 0.5)
     assert cells > local.LOCAL_CELLS  # the default decides by the estimate
     assert local.solve_comm(COMM, cells) is COMM
+
+
+def test_the_threshold_can_be_set_in_the_environment(monkeypatch):
+    small = local.estimated_cells(48.0, 24.0, 4.0)
+    monkeypatch.setenv(local.ENVIRONMENT, "0")
+    assert local.solve_comm(COMM, small) is COMM
+    monkeypatch.setenv(local.ENVIRONMENT, "1e9")
+    assert local.solve_comm(COMM, 1e6) is (MPI.COMM_SELF if COMM.size > 1 else COMM)
+    monkeypatch.setenv(local.ENVIRONMENT, "many")
+    with pytest.raises(ValueError, match="FABRICSURF_LOCAL_CELLS='many'") if COMM.size > 1 \
+            else contextlib.nullcontext():
+        local.solve_comm(COMM, small)
 
 
 @parallel

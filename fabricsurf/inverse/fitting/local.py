@@ -28,6 +28,7 @@ import contextlib
 import hashlib
 import logging
 import math
+import os
 import pickle
 from collections.abc import Callable, Iterator
 from typing import TypeVar
@@ -63,14 +64,42 @@ def estimated_cells(length: float, width: float, h: float) -> float:
     return 2.0 * math.ceil(length / h) * math.ceil(width / h)
 
 
+ENVIRONMENT = "FABRICSURF_LOCAL_CELLS"
+"""An environment variable that replaces :data:`LOCAL_CELLS` (0: every mesh distributed)."""
+
+
+def local_cells() -> float:
+    """The threshold in force: :data:`ENVIRONMENT` when set, else :data:`LOCAL_CELLS`."""
+    text = os.environ.get(ENVIRONMENT, "").strip()
+    if not text:
+        return LOCAL_CELLS
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not value >= 0:
+        raise ValueError(f"{ENVIRONMENT}={text!r}: give a number of cells >= 0 (0: solve every "
+                         "mesh distributed over the ranks)")
+    return value
+
+
 def solve_comm(comm: MPI.Comm, cells: float, local: bool | None = None) -> MPI.Comm:
     """The communicator a forward model solves on: ``COMM_SELF`` when ``comm`` has several
-    ranks and the mesh is small (``cells`` ≤ :data:`LOCAL_CELLS`, or ``local`` True),
-    ``comm`` otherwise (one rank, a large mesh, or ``local`` False). The same on every rank."""
+    ranks and the mesh is small (``cells`` ≤ :func:`local_cells`, or ``local`` True),
+    ``comm`` otherwise (one rank, a large mesh, or ``local`` False). The same on every rank
+    (rank 0 decides)."""
     if comm.size == 1:
         return comm
-    use = cells <= LOCAL_CELLS if local is None else bool(local)
-    return MPI.COMM_SELF if comm.bcast(use, root=0) else comm
+    use = None
+    if comm.rank == 0:
+        try:
+            use = (0 < cells <= local_cells()) if local is None else bool(local)
+        except ValueError as e:
+            use = e
+    use = comm.bcast(use, root=0)
+    if isinstance(use, ValueError):
+        raise use
+    return MPI.COMM_SELF if use else comm
 
 
 @contextlib.contextmanager
