@@ -25,8 +25,9 @@ time is mostly waiting; MPI's busy waiting counts as CPU), and per command the f
 element size (with or without sensitivities), their Newton iterations and seconds.
 ``--profile`` writes rank 0's cProfile of each command; ``--cold`` turns the warm start of the
 forward runs off (inverse/fitting/warm_start.py: every load step from the last converged one,
-as before), for comparison; ``--diagnose-args`` passes options to diagnose (e.g.
-``--max-dofs 1``: the default mesh only, no mesh selection).
+as before), for comparison; ``--distributed`` solves every mesh distributed over the ranks
+(before the rank-local solves of inverse/fitting/local.py); ``--diagnose-args`` passes
+options to diagnose (e.g. ``--max-dofs 1``: the default mesh only, no mesh selection).
 Aims (issue 36): at 10⁶ points ≤ 2 GB per rank, a one-effect diagnosis ≤ 2 min on 2 ranks.
 ``--limit-gb`` sets an address-space limit per process (RLIMIT_AS) to show what fails under it.
 
@@ -67,7 +68,7 @@ STAGES = ("reading", "forward solves", "sensitivities", "evaluation at points", 
 HOOKS = {  # stage: (module, name), name "Class.method" for a method; missing ones are skipped
     "reading": [("fabricsurf.inverse.contract.data", "load_experiment")],
     "forward solves": [("fabricsurf.inverse.fitting.forward", "ForwardModel.run")],
-    "sensitivities": [("fabricsurf.inverse.fitting.forward", "ForwardModel._sensitivities")],
+    "sensitivities": [("fabricsurf.inverse.fitting.tangent", "sensitivities")],
     "evaluation at points": [("fabricsurf.discretise.evaluation", "eval_points"),
                              ("fabricsurf.discretise.evaluation", "PointLocator.__init__"),
                              ("fabricsurf.discretise.evaluation", "PointLocator.__call__")],
@@ -308,6 +309,9 @@ def main_benchmark() -> None:
     ap.add_argument("--cold", action="store_true",
                     help="no warm start of the forward runs (every load step from the last "
                     "converged one, as before; inverse/fitting/warm_start.py)")
+    ap.add_argument("--distributed", action="store_true",
+                    help="solve every mesh distributed over the ranks (as before the rank-local "
+                    "solves of inverse/fitting/local.py)")
     ap.add_argument("--profile", action="store_true",
                     help="cProfile on rank 0: OUT/out_N/COMMAND.prof and COMMAND.prof.txt")
     args = ap.parse_args()
@@ -315,6 +319,8 @@ def main_benchmark() -> None:
     root = Path(args.out)
     if args.cold:
         importlib.import_module("fabricsurf.inverse.fitting.warm_start").ENABLED = False
+    if args.distributed:
+        importlib.import_module("fabricsurf.inverse.fitting.local").LOCAL_CELLS = 0
     results: dict = {}
     st = Stages()
     st.install()

@@ -34,6 +34,7 @@ from mpi4py import MPI
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import linalg as la
+from fabricsurf.inverse.fitting import local as ranks
 from fabricsurf.inverse.fitting import significance as sg
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.choices import check_choices, library_labels
@@ -132,12 +133,16 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
     r, Jr = fs.residuals(fs.run(sens=True))
     sc = scores(r, Jr, cur.values, free, cand)
     order = sorted(cand, key=lambda c: -sc[c][0])
-    refits, rows = {}, []
-    n = cur.misfit["n"]
+    rows, n = [], cur.misfit["n"]
     again = [] if warm is None else [c for c in order[confirm:] if np.any(warm[cand[c]] > 0)]
-    for c in order[:confirm] + again:  # and every effect a coarser mesh added
+    chosen = order[:confirm] + again  # and every effect a coarser mesh added
+
+    def refit(c: str) -> FitResult:
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        refits[c] = _refit(fs, cur, free, cand[c], sc[c][1], gn, verbose, warm)
+        return _refit(fs, cur, free, cand[c], sc[c][1], gn, verbose, warm)
+
+    small = r.size <= ranks.SPREAD_RESIDUALS  # the refits are gathered on every rank
+    refits = dict(zip(chosen, ranks.spread(fs, chosen, refit) if small else map(refit, chosen)))
     for c in order:
         row = {"effect": c, "score": sc[c][0], "linearised_modulus": sc[c][1],
                "refit_misfit": None, "significant": None}

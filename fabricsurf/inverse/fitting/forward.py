@@ -17,7 +17,8 @@ A residual with a part that no modulus multiplies (the tools' contact) is affine
 own start (the friction's r_n held fixed), which leave out how the history moves with p: exact
 without friction, approximate with it (docs/forming.md, "In the loop"). :class:`ForwardSet`
 runs several experiments with one set of moduli (the same term objects, bound to each
-experiment's mesh): one material, several tests.
+experiment's mesh): one material, several tests. The sensitivities are :mod:`.tangent`'s; on
+several ranks a small mesh is solved whole on every rank (:mod:`.local`).
 Both own the plug-ins they build, and with them every PETSc object: ``close()`` (or ``with``)
 destroys them when a fit or diagnosis ends (discretise/resources.py).
 """
@@ -28,18 +29,16 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from dolfinx import fem
-from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from fabricsurf.discretise.evaluation import PointLocator
-from fabricsurf.discretise.resources import Owner, copy_to_function, destroy, dot_function
+from fabricsurf.discretise.resources import Owner
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.fitting import local as ranks
 from fabricsurf.inverse.fitting import misfit as mf
-from fabricsurf.inverse.fitting import warm_start
+from fabricsurf.inverse.fitting import tangent, warm_start
 from fabricsurf.inverse.fitting.observe import Observers
 from fabricsurf.model.terms import EFFECTS, Term
 
@@ -68,7 +67,8 @@ class ForwardModel(Owner):
     """
 
     def __init__(self, exp: Experiment, model: list[Term], h: float | None = None,
-                 comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False) -> None:
+                 comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False,
+                 local: bool | None = None) -> None:
         foreign = [t.name for t in model if t.name not in EFFECTS]
         if foreign:
             raise ValueError(f"compare/fit: terms {foreign} are not in the vocabulary "
@@ -77,16 +77,29 @@ class ForwardModel(Owner):
         plugin = get_test(exp.test)
         self.exp, self.model, self.verbose, self.comm = exp, model, verbose, comm
         self.h = float(h or plugin.default_h(exp.setup))
-        self.test = plugin(exp.setup, model, self.h, comm)
+        self._local_request = local
+        cells = ranks.estimated_cells(exp.setup.length, exp.setup.width, self.h)
+        self.solve_comm = ranks.solve_comm(comm, cells, local)
+        self.local = self.solve_comm is not comm
+        """Whether this model solves its mesh whole on every rank (local.py)."""
+        def build():  # the plug-in and its observers: every form compiled here
+            test = plugin(exp.setup, model, self.h, self.solve_comm)
+            try:
+                return test, Observers(test, exp)
+            except Exception:
+                test.close()
+                raise
+
+        with ranks.one_voice(comm, self.local):
+            self.test, self.observers = ranks.rank0_first(comm, self.local, build)
         self.components = min(exp.u.shape[1], plugin.d)
         self.ignored = (["uz (the planar test cannot predict it)"]
                         if exp.u.shape[1] > plugin.d and exp.has_field else [])
         self.params = [(t, p) for t in model for p in t.parameters()]
         self.names = [f"{t.name}.{p}" for t, p in self.params]
-        self._bc_dofs = np.concatenate(
+        self.bc_dofs = np.concatenate(
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
-        self.observers = Observers(self.test, exp)
-        self._affine = self.test.problem.extra_energy() is not None
+        self.affine = self.test.problem.extra_energy() is not None
         """A residual part no modulus multiplies (the tools' contact): ∂R/∂p = R(e_k) − R(0)."""
         self.forward_runs = 0
         self._coarse: ForwardModel | None = None
@@ -103,7 +116,8 @@ class ForwardModel(Owner):
         times coarser, built once: a cheap scout for starting values (same forms, so nothing
         is compiled)."""
         if self._coarse is None:
-            self._coarse = ForwardModel(self.exp, self.model, self.h * factor, self.comm)
+            self._coarse = ForwardModel(self.exp, self.model, self.h * factor, self.comm,
+                                        local=self._local_request)
         return self._coarse
 
     def mesh(self) -> dict:
@@ -144,58 +158,13 @@ class ForwardModel(Owner):
             self._locators[k] = (rows, pts, PointLocator(self.test.problem.msh, pts))
         return rows, self._locators[k][2]
 
-    def _at_moduli(self, vals: np.ndarray, evaluate):
-        """``evaluate()`` with the moduli set to ``vals`` (restored after)."""
-        old = self.values()
-        self.set_values(vals)
-        try:
-            return evaluate()
-        finally:
-            self.set_values(old)
-
-    def _dR_dp(self, k: int) -> PETSc.Vec:
-        """R(e_k) at the current u (no boundary conditions), in the solver's work vector: ∂R/∂p_k
-        when no part of R is free of the moduli (else minus R(0), :meth:`_sensitivities`)."""
-        return self._at_moduli(np.eye(len(self.params))[k], self.test.solver.internal_force)
-
-    def _partial_dF(self, k: int, F0: float) -> float:
-        """∂F/∂p_k of the reaction functional, affine in the moduli: F(e_k) − F(0)."""
-        return self._at_moduli(np.eye(len(self.params))[k], self.observers.force) - F0
-
-    def _sensitivities(self, which: list[int], w) -> list[tuple[fem.Function, float]]:
-        """(du/dp_k, dF/dp_k) for k in ``which`` at the converged state: the reaction R·w
-        (``w``) or the test's reaction functional F (module docstring)."""
-        s, obs = self.test.solver, self.observers
-        ksp = s.snes.getKSP()
-        A_full = fem_petsc.assemble_matrix(s.a)
-        A_full.assemble()
-        out, x, Kdu = [], s.x.duplicate(), s.x.duplicate()
-        zero = np.zeros(len(self.params))
-        r0 = self._at_moduli(zero, s.internal_force).copy() if self._affine and which else None
-        dFdu = obs.force_gradient() if obs.reaction is not None and which else None
-        F0 = self._at_moduli(zero, obs.force) if dFdu is not None else 0.0
-        for k in which:
-            b = self._dR_dp(k)
-            if r0 is not None:
-                b.axpy(-1.0, r0)
-            dF = dot_function(b, w) if w is not None else 0.0
-            b.scale(-1.0)
-            with b.localForm() as loc:
-                loc.array[self._bc_dofs] = 0.0
-            ksp.solve(b, x)
-            if w is not None:
-                A_full.mult(x, Kdu)
-                dF += dot_function(Kdu, w)
-            if dFdu is not None:
-                dF += self._partial_dF(k, F0) + dFdu.dot(x)
-            du = fem.Function(self.test.problem.V)
-            copy_to_function(x, du)
-            out.append((du, dF))
-        destroy(A_full, x, Kdu, r0, dFdu)
-        return out
-
     def run(self, sens: bool | list[int] = False) -> Prediction:
-        """Follow the recorded load path; sensitivities for ``sens`` (True: all moduli)."""
+        """Follow the recorded load path; sensitivities for ``sens`` (True: all moduli). On a
+        rank-local model every rank runs it and all return rank 0's outcome (local.py)."""
+        with ranks.one_voice(self.comm, self.local):
+            return ranks.agree(self.comm, self.local, lambda: self._run(sens))
+
+    def _run(self, sens: bool | list[int]) -> Prediction:
         exp, t0, c = self.exp, time.perf_counter(), self.components
         which = list(range(len(self.params))) if sens is True else list(sens or [])
         P, n, with_force = len(which), len(exp.field_step), exp.has_force
@@ -224,7 +193,7 @@ class ForwardModel(Owner):
                 force[k] = sol.virtual_work(w)
             elif with_force and obs.reaction is not None:
                 force[k] = obs.force()
-            sens = ws.sensitivities(which, self._sensitivities(which, w))
+            sens = ws.sensitivities(which, tangent.sensitivities(self, which, w))
             for j, (duj, dfj) in enumerate(sens):
                 if len(rows):
                     du[rows, :, j] = at(duj)[:, :c]
@@ -261,13 +230,15 @@ class ForwardSet(Owner):
     :meth:`close` closes every model and the coarse scouts."""
 
     def __init__(self, exps: list[Experiment], model: list[Term],
-                 h: float | list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+                 h: float | list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
+                 local: bool | None = None) -> None:
         if not exps:
             raise ValueError("no experiments given")
         hs = list(h) if isinstance(h, (list, tuple)) else [h] * len(exps)
-        self.models = [ForwardModel(e, model, hk, comm) for e, hk in zip(exps, hs)]
+        self.models = [ForwardModel(e, model, hk, comm, local=local) for e, hk in zip(exps, hs)]
         first = self.models[0]
         self.model, self.comm, self.params, self.names = model, comm, first.params, first.names
+        self._local_request = local
         self._coarse: ForwardSet | None = None
 
     def _release(self) -> None:
@@ -279,7 +250,8 @@ class ForwardSet(Owner):
         """Every experiment on a mesh ``factor`` times coarser (:meth:`ForwardModel.coarse`)."""
         if self._coarse is None:
             self._coarse = ForwardSet(self.experiments, self.model,
-                                      [m.h * factor for m in self.models], self.comm)
+                                      [m.h * factor for m in self.models], self.comm,
+                                      local=self._local_request)
         return self._coarse
 
     def meshes(self) -> list[dict]:

@@ -32,6 +32,7 @@ import numpy as np
 from scipy import stats
 
 from fabricsurf.discretise.stepping import LoadStepError
+from fabricsurf.inverse.fitting import local as ranks
 from fabricsurf.model.terms import EFFECTS, make_term
 
 SIZE_CANDIDATES = ("geodesic_bending",)
@@ -217,17 +218,20 @@ def moduli_half_width(cands: dict, fm, fitted: list[str]) -> dict:
 def band_half_width(fm, record: dict, force: np.ndarray) -> np.ndarray:
     """max |F(p_ℓ, m_ℓ) − F| over the lengths not excluded, at every point of ``fm``'s load
     path (``force``: its prediction at the fitted moduli, the values of ``fm`` as set); one
-    forward run per length, the values restored."""
+    forward run per length (shared among the ranks), the values restored."""
     base = fm.values()
-    out = np.zeros(len(force))
-    try:
-        for cand, row in allowed(record):
-            vals = base.copy()
-            vals[fm.names.index(cand)] = row["value"]
-            for m, v in row["moduli"].items():
-                vals[fm.names.index(m)] = v
-            fm.set_values(vals)
-            out = np.maximum(out, np.abs(fm.run().force - force))
+
+    def deviation(item: tuple[str, dict]) -> np.ndarray:
+        cand, row = item
+        vals = base.copy()
+        vals[fm.names.index(cand)] = row["value"]
+        for m, v in row["moduli"].items():
+            vals[fm.names.index(m)] = v
+        fm.set_values(vals)
+        return np.abs(fm.run().force - force)
+
+    try:  # the runs shared among the ranks when fm solves rank-local (local.py)
+        devs = ranks.spread(fm, allowed(record), deviation)
     finally:
         fm.set_values(base)
-    return out
+    return np.max([np.zeros(len(force)), *devs], axis=0)

@@ -19,9 +19,10 @@ remedies, forward runs without sensitivities only:
 Both rank their trials on a scout mesh :data:`SCOUT_FACTOR` times coarser than the fit's
 (:meth:`~.forward.ForwardSet.coarse`: same forms, a quarter of the unknowns in
 2D): they choose a start among values decades apart, which a coarse mesh ranks as well, and the
-fit itself then runs on the fine mesh. The candidate's chosen start is checked on the fine mesh
-against the fitted model itself, which keeps the guarantee above (docs/diagnosis.md gives the
-costs of the scout and the fine mesh).
+fit itself then runs on the fine mesh (the candidate's trials shared among the ranks when
+the scout is solved rank-local: :func:`.local.spread`). The candidate's chosen start is
+checked on the fine mesh against the fitted model itself, which keeps the guarantee above
+(docs/diagnosis.md gives the costs of the scout and the fine mesh).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import get_test
+from fabricsurf.inverse.fitting import local as ranks
 from fabricsurf.inverse.fitting.misfit import scales
 
 MAX_DECADES = 4
@@ -141,11 +143,15 @@ def candidate_start(fm, cur: np.ndarray, free: list[int], idx: list[int], estima
         v = cur.copy()
         v[idx] = t
         vectors.append(v)
-    best, start = np.inf, None
+    trials = []
     for v in [*vectors, *extra]:
         v = v.copy()
         v[idx] = np.maximum(v[idx], s * 1e-9)
-        chi2, _ = _chi2(scout(fm), v, False)
+        trials.append(v)
+    coarse = scout(fm)
+    chi2s = ranks.spread(coarse, trials, lambda v: _chi2(coarse, v, False)[0])
+    best, start = np.inf, None
+    for chi2, v in zip(chi2s, trials):
         if chi2 < best:
             best, start = chi2, v
     if start is None or _chi2(fm, start, False)[0] >= chi2_cur:

@@ -55,6 +55,11 @@ def of(model) -> WarmStart:
     return ws
 
 
+def forget(model) -> None:
+    """Drop what ``model``'s runs stored: its next run starts every step cold."""
+    model.__dict__.pop("_warm_start", None)
+
+
 class WarmStart:
     """The last run's converged states (and its last sensitivities) of one
     :class:`~.forward.ForwardModel`, and the predictor built from them (module docstring).
