@@ -106,6 +106,9 @@ class SNESSolver(Owner):
     (:meth:`close`, discretise/resources.py).
     """
 
+    matrix_type: str | None = None
+    """PETSc type of the Jacobian (None: dolfinx's AIJ; a subclass may ask for "baij")."""
+
     def __init__(self, residual: ufl.Form, jacobian: ufl.Form, u: fem.Function,
                  bcs: Sequence[fem.DirichletBCMetaClass] = (),
                  prefix: str | None = None, options: dict | None = None,
@@ -126,7 +129,7 @@ class SNESSolver(Owner):
         self.a = fem.form(jacobian, jit_params=jit)
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
         self.b = fem_petsc.create_vector(self.L)
-        self.A = fem_petsc.create_matrix(self.a)
+        self.A = fem_petsc.create_matrix(self.a, self.matrix_type)
         self.x = self.b.duplicate()
         self.force = self.b.duplicate()
         self.domain_errors = 0
