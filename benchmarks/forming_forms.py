@@ -6,8 +6,8 @@ its type, the explicit quadrature degree and UFL's estimate, the quadrature poin
 time of assembling it alone; beside them the residual and Jacobian as the solver assembles
 them, the mirror conditions' lifting and one MUMPS factorisation and solve.
 
-Run: ``python benchmarks/forming_forms.py [--h 10] [--steps 2] [--repeat 5] [--flags ...]``
-(``--flags``: C compiler flags of the kernels, e.g. ``-O3 -march=native``).
+Run: ``python benchmarks/forming_forms.py [--h 10] [--steps 2] [--repeat 5] [--flags='-O3 ...']``
+(``--flags``: C compiler flags of the kernels in one string).
 """
 
 import argparse
@@ -140,10 +140,11 @@ def main() -> None:
     ap.add_argument("--h", type=float, default=10.0)
     ap.add_argument("--steps", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--flags", nargs="*", default=None)
+    ap.add_argument("--flags", default=None,
+                    help="the kernels' compiler flags in one string, e.g. '-O3 -march=native'")
     ap.add_argument("--mat-type", default=None, help="PETSc matrix type of the pieces (aij, baij)")
     args = ap.parse_args()
-    jit = {} if args.flags is None else {"cffi_extra_compile_args": args.flags}
+    jit = {} if args.flags is None else {"cffi_extra_compile_args": args.flags.split()}
     R = 50.0
     model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
     with parts.experiment(R, 250.0, args.h, 45.0, model, comm, **TOOL_FRICTION) as e:
