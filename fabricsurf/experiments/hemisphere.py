@@ -18,11 +18,10 @@ about the diagonal at ±45° (geometry.aligned.quarter_blank). Other blanks (rec
 ``[tooling] blank``) and fibre pairs without that symmetry are solved on the full blank, meshed by
 a fibre lattice clipped to its outline, with its rigid motions pinned (forming_blank.py; which
 one, on what: :attr:`discretisation`). Each stroke increment starts from
-the path extrapolated through the last two converged states, Newton takes full steps and, if
-that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
-cut; with friction on the punch or the die's lip the order is the other way round after the
-first increment (:data:`TOOL_FRICTION_SOLVE`; forming_tools.ContactSolver, docs/forming.md:
-measured). :meth:`HemisphereForming.run`
+the path extrapolated through the last two converged states, Newton runs with PETSc's ``l2``
+line search and, if that fails, repeats from the same start with full steps before the
+increment is cut; the first increment, from the flat blank, takes full steps and repeats with
+``l2`` (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
 keeps a step log and reports each step as it converges (forming_log.py); the options and their
 plausible ranges are checked before any computation (forming_options.py).
 
@@ -64,20 +63,18 @@ FULL_STEP_ITERATIONS = 40
 """Newton iterations of a first attempt: it converges in 7–24 from the extrapolated start
 and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
 too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
-FULL_STEPS = {"snes_linesearch_type": "basic"}
-"""Newton's first attempt at a stroke increment: full steps."""
-FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
-"""Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
-if it fails too, the load stepper cuts the stroke increment."""
-TOOL_FRICTION_SOLVE = ({"snes_linesearch_type": "l2"}, {**FULL_STEPS, "snes_max_it": 50})
-"""(attempt, repeat) of a stroke increment from the extrapolated start when the punch or the
-die's lip has friction: the ``l2`` line search, which damps the overshoot at the kinks of the
-tools' friction, then full steps. On the 250 mm blank with friction on all tools it took
-27 %, 18 % and 28 % fewer Newton iterations than full steps first at h = R/4, R/5 and R/10,
-the same answers to 10⁻¹¹; without the tools' friction (the quick set-up, the holder's
-friction only) it took 34 % and 36 % more, and full steps stay first there. The first
-increment, from the flat blank, takes full steps first either way (18 and 19 iterations where
-``l2`` took 40, h = R/5 and R/4; docs/forming.md, "Performance")."""
+LINE_SEARCH = {"snes_linesearch_type": "l2"}
+"""The line search of a stroke increment from the extrapolated start: ``l2`` damps the
+overshoot at the kinks of the contact and friction residuals, and it took 27 % and 18 % fewer
+Newton iterations than full steps on the 250 mm blank at h = R/4 and R/5 with friction on all
+tools (docs/forming.md, "Performance")."""
+FALLBACK = {"snes_linesearch_type": "basic", "snes_max_it": 50}
+"""Newton's options for the repeat of a failed attempt from the extrapolated start (the other
+line search, from the same state; forming_tools.ContactSolver); if it fails too, the load
+stepper cuts the stroke increment."""
+START = ({"snes_linesearch_type": "basic"}, {"snes_linesearch_type": "l2", "snes_max_it": 50})
+"""(attempt, repeat) of the first increment, from the flat blank: full Newton steps there took
+18 and 19 iterations where ``l2`` took 40 (h = R/5, R/4), and ``l2`` repeats a failure."""
 
 class HemisphereForming(ExperimentSetup):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
@@ -130,13 +127,10 @@ class HemisphereForming(ExperimentSetup):
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools.from_options(msh, o)
-        tools_friction = self._tools_friction(o, snes_options)
-        attempt, repeat = TOOL_FRICTION_SOLVE if tools_friction else (FULL_STEPS, FALLBACK)
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
-                           prefix="fabricsurf_hemisphere_", fallback=repeat,
-                           start=(FULL_STEPS, FALLBACK) if tools_friction else None,
-                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS, **attempt,
+                           prefix="fabricsurf_hemisphere_", fallback=FALLBACK, start=START,
+                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS, **LINE_SEARCH,
                                          **(snes_options or {})})
         p.mirror("clamp", 0)  # the full blank has no such edges: the same forms, no terms
         p.mirror("bottom", 1)
@@ -163,13 +157,6 @@ class HemisphereForming(ExperimentSetup):
         self.stroke: list[float] = []
         self.force: list[float] = []
         self.steps: list[dict] = []
-
-    @staticmethod
-    def _tools_friction(o: dict, snes_options: dict | None) -> bool:
-        """Whether the punch or the die's lip has friction and no line search is asked for:
-        then :data:`TOOL_FRICTION_SOLVE` follows the stroke."""
-        return (any(o.get(k, 0.0) for k in ("punch_friction", "die_friction"))
-                and "snes_linesearch_type" not in (snes_options or {}))
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
