@@ -1,5 +1,5 @@
 """The Newton solver of the forming problem (forming_tools.ContactProblem): a secant predictor
-along the stroke, a Newton attempt and a repeat with another line search, the friction of
+along the stroke, full Newton steps with the ``l2`` line search as a fallback, the friction of
 the punch and the die's lip added to residual and Jacobian while it is on, and the dissipation
 of each converged step (docs/forming.md)."""
 
@@ -21,8 +21,8 @@ if TYPE_CHECKING:
 
 
 class ContactSolver(SNESSolver):
-    """SNESSolver that follows the stroke: a secant predictor, a Newton attempt and, if it
-    fails, a repeat with other options (another line search).
+    """SNESSolver that follows the stroke: a secant predictor, and full Newton steps with the
+    ``l2`` line search as a fallback.
 
     A solve starts from the last converged state (the load stepper restores it after a failed
     attempt): that state is copied to ``u_n``, the r_n of the friction potential, first, and
@@ -30,14 +30,10 @@ class ContactSolver(SNESSolver):
     extrapolated along the path through the last two converged states (u_n + (s − s_n)/(s_n −
     s_prev)·(u_n − u_prev)): a stroke increment moves the whole sheet (the flange draws in, the
     net shears), and Newton started from the previous state spends most of its iterations
-    finding that motion. Newton runs with the solver's options; if that attempt fails, it is
-    repeated from the same predicted state with ``fallback`` options over them before the load
-    stepper cuts the increment. The solve from a state without path history (the flat blank
-    after :meth:`reset`, where there is nothing to extrapolate) takes ``start`` = (attempt,
-    repeat) options instead (default: none, and ``fallback``): the hemisphere takes full
-    Newton steps from the flat blank and the ``l2`` line search, which damps the overshoot at
-    the kinks of the contact residual, from an extrapolated start (docs/forming.md,
-    measured). :attr:`fallbacks` counts the repeats. A converged
+    finding that motion. Newton takes full steps first; if that attempt fails, it is repeated
+    from the same predicted state with ``fallback`` options (the ``l2`` line search, which
+    damps the overshoot at the kinks of the contact residual) before the load stepper cuts the
+    increment (docs/forming.md, measured). :attr:`fallbacks` counts those repeats. A converged
     solve adds the friction work of its step (``dissipation``, one quarter of the blank) to
     :attr:`dissipated`. ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
     friction potentials are compiled when first needed and added to R and J only while
@@ -52,7 +48,7 @@ class ContactSolver(SNESSolver):
 
     def __init__(self, *args, tools: Tools, u_n: fem.Function, dissipation,
                  tool_friction: tuple | None = None, fallback: dict | None = None,
-                 start: tuple[dict, dict | None] | None = None, **kw) -> None:
+                 **kw) -> None:
         super().__init__(*args, **kw)
         self.tools, self.u_n = tools, u_n
         self._dissipation = fem.form(dissipation)
@@ -61,7 +57,6 @@ class ContactSolver(SNESSolver):
         options = args[5] if len(args) > 5 else kw.get("options")
         self._options = {k: v for k, v in (options or {}).items() if k not in SOLVER_KEYS}
         self._fallback = fallback
-        self._start = start if start is not None else ({}, fallback)
         self.reset()
 
     def reset(self) -> None:
@@ -115,22 +110,18 @@ class ContactSolver(SNESSolver):
         self.tools.stroke_n.value = self.s_n
         s = float(self.tools.stroke.value)
         self.tools.eps.value = self.tools.slip_rate * max(abs(s - self.s_n), 1e-6 * self.tools.R)
-        attempt, fallback = self._start if self.u_prev is None else ({}, self._fallback)
         self._predict(s)
         predicted = self.u.x.array.copy()
-        try:
-            if attempt:
-                self.set_options({**self._options, **attempt})
-            reason, its = super().solve()
-            if reason <= 0 and fallback:
-                self.fallbacks += 1
-                self.u.x.array[:] = predicted
-                self.set_options({**self._options, **fallback})
+        reason, its = super().solve()
+        if reason <= 0 and self._fallback:
+            self.fallbacks += 1
+            self.u.x.array[:] = predicted
+            self.set_options({**self._options, **self._fallback})
+            try:
                 reason, more = super().solve()
-                its += more
-        finally:
-            if attempt or fallback:
+            finally:
                 self.set_options(self._options)
+            its += more
         if reason > 0:
             self.u_prev, self.s_prev, self.s_n = self.u_n.x.array.copy(), self.s_n, s
             self.dissipated += self.comm.allreduce(fem.assemble_scalar(self._dissipation),

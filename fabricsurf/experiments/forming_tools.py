@@ -202,10 +202,10 @@ class ContactProblem(FabricProblem):
     :data:`LINEAR_SOLVER` unless ``snes_options`` say otherwise."""
 
     def __init__(self, specimen, model: list[Term], tools: Tools,
-                 fallback: dict | None = None, start: tuple | None = None, **kw) -> None:
+                 fallback: dict | None = None, **kw) -> None:
         kw["snes_options"] = {**LINEAR_SOLVER, **(kw.get("snes_options") or {})}
         super().__init__(specimen, model, **kw)
-        self.tools, self.fallback, self.start = tools, fallback, start
+        self.tools, self.fallback = tools, fallback
         self.u_n = fem.Function(self.V, name="u_n")
         self.dx = ufl.Measure("dx", domain=self.msh,
                               metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
@@ -249,5 +249,5 @@ class ContactProblem(FabricProblem):
                        + forming_friction.dissipation_density(self.tools, r, r_n)) * self.dx
         return ContactSolver(F, J, self.u, self.bcs, self.prefix, self.snes_options,
                              nodal_forces, self.energy.multipliers, tools=self.tools,
-                             fallback=self.fallback, start=self.start, u_n=self.u_n,
-                             dissipation=dissipation, tool_friction=self.tool_friction())
+                             fallback=self.fallback, u_n=self.u_n, dissipation=dissipation,
+                             tool_friction=self.tool_friction())

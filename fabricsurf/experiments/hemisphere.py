@@ -18,10 +18,9 @@ about the diagonal at ±45° (geometry.aligned.quarter_blank). Other blanks (rec
 ``[tooling] blank``) and fibre pairs without that symmetry are solved on the full blank, meshed by
 a fibre lattice clipped to its outline, with its rigid motions pinned (forming_blank.py; which
 one, on what: :attr:`discretisation`). Each stroke increment starts from
-the path extrapolated through the last two converged states, Newton runs with PETSc's ``l2``
-line search and, if that fails, repeats from the same start with full steps before the
-increment is cut; the first increment, from the flat blank, takes full steps and repeats with
-``l2`` (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
+the path extrapolated through the last two converged states, Newton takes full steps and, if
+that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
+cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
 keeps a step log and reports each step as it converges (forming_log.py); the options and their
 plausible ranges are checked before any computation (forming_options.py).
 
@@ -60,21 +59,12 @@ from fabricsurf.model.terms import Term
 from geometry.aligned import blank_angle
 
 FULL_STEP_ITERATIONS = 40
-"""Newton iterations of a first attempt: it converges in 7–24 from the extrapolated start
+"""Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
 and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
 too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
-LINE_SEARCH = {"snes_linesearch_type": "l2"}
-"""The line search of a stroke increment from the extrapolated start: ``l2`` damps the
-overshoot at the kinks of the contact and friction residuals, and it took 27 % and 18 % fewer
-Newton iterations than full steps on the 250 mm blank at h = R/4 and R/5 with friction on all
-tools (docs/forming.md, "Performance")."""
-FALLBACK = {"snes_linesearch_type": "basic", "snes_max_it": 50}
-"""Newton's options for the repeat of a failed attempt from the extrapolated start (the other
-line search, from the same state; forming_tools.ContactSolver); if it fails too, the load
-stepper cuts the stroke increment."""
-START = ({"snes_linesearch_type": "basic"}, {"snes_linesearch_type": "l2", "snes_max_it": 50})
-"""(attempt, repeat) of the first increment, from the flat blank: full Newton steps there took
-18 and 19 iterations where ``l2`` took 40 (h = R/5, R/4), and ``l2`` repeats a failure."""
+FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
+"""Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
+if it fails too, the load stepper cuts the stroke increment."""
 
 class HemisphereForming(ExperimentSetup):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
@@ -129,8 +119,9 @@ class HemisphereForming(ExperimentSetup):
         self.tools = Tools.from_options(msh, o)
         p = ContactProblem(self.specimen, model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
-                           prefix="fabricsurf_hemisphere_", fallback=FALLBACK, start=START,
-                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS, **LINE_SEARCH,
+                           prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
+                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
+                                         "snes_linesearch_type": "basic",
                                          **(snes_options or {})})
         p.mirror("clamp", 0)  # the full blank has no such edges: the same forms, no terms
         p.mirror("bottom", 1)
