@@ -201,15 +201,17 @@ def convergence() -> None:
                       f"; gaps to the punch {np.round([k['gap'] for k in kin], 4).tolist()} mm")
 
 
-def performance(tools: bool = False) -> None:
-    """The 250 mm blank on four meshes; with ``tools`` friction on the punch and the die's lip
-    too (:data:`TOOL_FRICTION`), else under the holder only."""
+def performance(tools: bool = False, divisions: tuple = (4.0, 5.0, 5.0 * math.sqrt(2.0), 10.0),
+                ) -> None:
+    """The 250 mm blank on meshes h = R/d for d in ``divisions`` (default four); with ``tools``
+    friction on the punch and the die's lip too (:data:`TOOL_FRICTION`), else under the holder
+    only."""
     R, blank = 50.0, 250.0
     which = "friction on all tools" if tools else "friction under the holder"
     rank0_print(comm, f"== performance: R = {R:g} mm, {blank:g} mm blank, {which}, {comm.size} "
                       f"ranks, load {_load()} ==")
     rows = []
-    for h in (R / 4.0, R / 5.0, R / 5.0 / math.sqrt(2.0), R / 10.0):
+    for h in (R / d for d in divisions):
         r = form(R, blank, h, count_changes=True, tooling=TOOL_FRICTION if tools else None)
         rows.append(r)
         rank0_print(comm, f"h = {h:.3f} mm: {r['dofs']} DOFs, {r['cells']} cells, "
@@ -224,8 +226,10 @@ def performance(tools: bool = False) -> None:
         rank0_print(comm, f"{r['h']:6.3f} {r['cells']:6d} {r['dofs']:6d} {r['seconds']:7.1f} "
                           f"{r['cpu']:6.1f} {n:10d}  {r['cpu'] / n:.3f}")
     first, last = rows[0], rows[-1]
-    grow = math.log(last["cpu"] / first["cpu"]) / math.log(last["cells"] / first["cells"])
-    rank0_print(comm, f"CPU time grows as cells^{grow:.2f}; h = R/10 takes {last['seconds']:.1f} s "
+    if len(rows) > 1:
+        grow = math.log(last["cpu"] / first["cpu"]) / math.log(last["cells"] / first["cells"])
+        rank0_print(comm, f"CPU time grows as cells^{grow:.2f}")
+    rank0_print(comm, f"h = R/{R / last['h']:.3g} takes {last['seconds']:.1f} s "
                       f"wall, {last['cpu']:.1f} s CPU on the busiest rank (issue 40: at most a "
                       f"minute on 2 ranks); load now {_load()}")
 
@@ -242,6 +246,9 @@ if __name__ == "__main__":
     ap.add_argument("--case", choices=("kinematic", "fitted"), default="kinematic")
     ap.add_argument("--tool-friction", action="store_true",
                     help="performance study: friction on the punch and the die's lip too")
+    ap.add_argument("--divisions", default="4,5,7.0711,10",
+                    help="performance study: meshes h = R/d, comma-separated d (default "
+                         "4,5,7.0711,10; 10 is issue 40's size)")
     args = ap.parse_args()
     if args.study == "steps":
         steps(args.size, args.case)
@@ -250,4 +257,5 @@ if __name__ == "__main__":
     if args.study in ("convergence", "both"):
         convergence()
     if args.study in ("performance", "both"):
-        performance(args.tool_friction)
+        performance(args.tool_friction,
+                    tuple(float(d) for d in args.divisions.split(",")))
