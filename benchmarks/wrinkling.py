@@ -88,8 +88,9 @@ def main(hs: list[float], names: list[str], bound: float, blank: float = BLANK) 
                                   f"{b['N_cr']['simply supported']:.3f} (s.s.) – "
                                   f"{b['N_cr']['clamped']:.3f} (clamped) N/mm")
                 rank0_print(comm, "  " + line(name, h, r))
-    rank0_print(comm, f"\nreference: |residual| > {bound} mm; indicator: the smoothed least "
-                      "membrane force in the unheld strip below -N_cr; curvature flag: T < "
+    rank0_print(comm, f"\nreference: |residual| > {bound} mm; indicator: the least principal "
+                      "value of the smoothed membrane force in the unheld strip below -N_cr; "
+                      "curvature flag: T < "
                       f"-{TOOLING['wrinkle_tension']:g} N/mm and |K| > κ_w; points of the "
                       f"81 × 81 sample grid of the quarter")
     rank0_print(comm, HEADER)

@@ -137,9 +137,9 @@ grid = parts.shear_grid(e)
 
 # %% [markdown]
 # Where it wrinkles: the indicator (the unheld flange strip, between the die's lip and the
-# holder's full pressure, where the smoothed least membrane force is more compressive than the
-# strip's plate-buckling force 4π²D/b²) against the flange's out-of-plane amplitude beyond the
-# die's lip, the deviation from the flange's own long-wave field
+# holder's full pressure, where the least principal value of the smoothed membrane force is
+# more compressive than the strip's plate-buckling force 4π²D/b²) against the flange's
+# out-of-plane amplitude beyond the die's lip, the deviation from the flange's own long-wave field
 # (fabricsurf/verification/wrinkling.py; docs/forming.md, "Wrinkling"), and the mean hoop
 # compression of that strip against the same buckling force.
 # `wrinkle_map.png` shows the amplitude with the indicator's points. The die and the holder
@@ -233,7 +233,12 @@ write_json(comm, out / "summary.json", summary)
 # within 1° inside three quarters of the contact radius (the rim of the contact, where the
 # sheet leaves the punch, holds the largest differences: 1.9° in quick and full mode, a
 # difference that does not fall with h), and the two drapes agree within 0.05° of each other.
-# The flange's wrinkle amplitude lies within the holder's gap, which confines it.
+# The flange's wrinkle amplitude lies within the holder's gap, which confines it. The strip's
+# mean hoop force is tensile in both modes (buckling ratio −0.5 quick, −2.6 full), and the
+# amplitude marks at most a few per cent of the quarter (1.6 % quick, 0 full), so the
+# indicator marks at most 2 % of the blank: smoothing the least membrane force itself, as
+# before, marked the whole strip here (31 % of the blank), biased by the fibre tensions'
+# point-to-point oscillation.
 
 # %%
 CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, None),
@@ -245,8 +250,8 @@ CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, No
           "contact_map/fishnet_vs_goursat/max_deg": (0.0, 0.05),
           "fibre_axis_max_shear_deg": (0.0, 1e-6),
           "punch_force_N/*": (0.0, None), "max_shear_deg": (1.0, 60.0),
-          "wrinkle_area_fraction": (0.0, 1.0), "seconds": (0.0, None), "stroke_mm": ...,
-          "wrinkling/amplitude_per_gap": (0.0, 1.0),
+          "wrinkle_area_fraction": (0.0, 0.02), "seconds": (0.0, None), "stroke_mm": ...,
+          "wrinkling/amplitude_per_gap": (0.0, 1.0), "wrinkling/buckling_ratio": (None, 0.0),
           "effects_failed": {}}
 verify(summary, CHECKS)
 rank0_print(comm, f"done in {summary['seconds']:.1f} s; outputs in {out}")

@@ -45,14 +45,15 @@ def model():
 
 @pytest.fixture(scope="module")
 def states():
-    """The comparison (wrinkling.compare, with the curvature flag at κ_w = 1/R) at every step,
-    by stroke, and the buckling estimate at STROKE; the experiment, formed to STROKE."""
+    """The comparison (wrinkling.compare, with the curvature flag at κ_w = 1/R) and the
+    buckling estimate at every step, by stroke, and the estimate at STROKE again; the
+    experiment, formed to STROKE."""
     setup = Setup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING))
     out = {}
     e = HemisphereForming(setup, model(), H, COMM)
 
     def look(k: int, s: float) -> None:
-        out[s] = wrinkling.compare(e, BOUND, (1.0 / R,))
+        out[s] = {**wrinkling.compare(e, BOUND, (1.0 / R,)), "buckling": wrinkling.buckling(e)}
 
     e.run(STROKE, STEPS, on_step=look)
     out["buckling"] = wrinkling.buckling(e)
@@ -72,20 +73,29 @@ def test_amplitude_separates_the_states(states):
 
 @SERIAL
 def test_indicator_against_amplitude(states):
-    """The indicator (the smoothed least membrane force in the unheld strip against the strip's
-    plate-buckling force) starts marking at the step where the flange's amplitude first
-    exceeds BOUND (6 mm of stroke; measured: amplitude 0.038 mm at 5 mm, 0.066 at 6 mm), and
-    marks nothing before. The former curvature flag (κ_w = 1/R) is printed beside it: it
-    starts marking at another step (and, on finer meshes, marks more: docs/forming.md)."""
+    """The indicator (the least principal value of the smoothed membrane force in the unheld
+    strip against the strip's plate-buckling force N_cr) marks nothing while the strip's mean
+    hoop compression is below 0.4 N_cr (the buckling estimate's ratio; benchmarks/wrinkling.py
+    on the 72 mm blank: onsets at ratios 0.47–0.61 on three meshes), starts before the ratio
+    reaches 1 (1.10 at 12 mm: the local compression exceeds the strip's mean),
+    and at 12 mm at least 90 % of its points lie in the region the amplitude marks (measured:
+    onset at 10 mm, ratio 0.78; 1153 of 1163 points). The amplitude exceeds BOUND from 6 mm
+    (ratio 0.15), well below any buckling load: its early rise is the flange's waviness, not a
+    buckle. Smoothing N_min itself (before) started at 6 mm: N_min is concave in the tensions,
+    and their point-to-point oscillation biased it towards compression. The former curvature
+    flag (κ_w = 1/R) is printed beside it (docs/forming.md)."""
     _, out = states
     strokes = sorted(s for s in out if isinstance(s, float))
     amp = [out[s]["amplitude"] for s in strokes]
     marks = [out[s]["indicator"][0]["area"] for s in strokes]
     flags = [out[s]["indicator"][1]["area"] for s in strokes]
-    for s, a, m, f in zip(strokes, amp, marks, flags):
-        print(f"stroke {s:4.1f}: amplitude {a:.4f} mm, indicator {m:.4f}, curvature flag {f:.4f}")
-    onset = next(s for s, a in zip(strokes, amp) if a > BOUND)
-    assert next(s for s, m in zip(strokes, marks) if m > 0) == onset
+    ratios = [out[s]["buckling"]["ratio"] for s in strokes]
+    for s, a, q, m, f in zip(strokes, amp, ratios, marks, flags):
+        print(f"stroke {s:4.1f}: amplitude {a:.4f} mm, buckling ratio {q:.3f}, indicator "
+              f"{m:.4f}, curvature flag {f:.4f}")
+    onset = next(s for s, m in zip(strokes, marks) if m > 0)
+    assert all(m == 0 for q, m in zip(ratios, marks) if q < 0.4)
+    assert ratios[strokes.index(onset)] < 1.0 <= ratios[-1]
     deep = out[STROKE]["indicator"][0]
     assert deep["kind"] == "membrane force" and deep["points"] > 0
     assert deep["in_region"] >= 0.9 * deep["points"]

@@ -26,8 +26,9 @@ plausible ranges are checked before any computation (forming_options.py).
 
 Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
 tensions, the normal curvatures K_L, K_M, the contact pressure, the wrinkling indicator (the
-unheld flange strip where the smoothed least membrane force exceeds the strip's plate-buckling
-force: wrinkling.Wrinkling, updated after every converged step) with that smoothed force, and
+unheld flange strip where the least principal value of the smoothed membrane force exceeds the
+strip's plate-buckling force: wrinkling.Wrinkling, updated after every converged step) with that
+value, and
 the region beyond the locking angle (|γ| > γ_lock).
 """
 

@@ -2,8 +2,8 @@
 wrinkles and where it is sheared beyond the locking angle.
 
 Wrinkling (:class:`Wrinkling`, the plug-in's ``wrinkle`` output and area): the unheld flange
-strip where the smoothed least membrane force is more compressive than the strip's
-plate-buckling force. The curvature flag of :class:`Indicators` (a fibre in compression,
+strip where the least principal value of the smoothed membrane force is more compressive than
+the strip's plate-buckling force. The curvature flag of :class:`Indicators` (a fibre in compression,
 T < −T_w, that bends more sharply than κ_w) is kept for comparison only: curvature cannot tell a
 wrinkle (about 0.02/mm) from the bend over the die's lip (0.5/mm), and on finer meshes it marks
 more (docs/forming.md). Beyond locking: |γ| > γ_lock. The indicators are 0/1 fields of the
@@ -77,26 +77,39 @@ def bending_stiffness(model: list) -> float:
     return float((k_b * (c2**2 + s2**2) + k_t * c2 * s2).min())
 
 
-def least_membrane_force(kin, tensions: dict):
-    """The lesser principal value of the fibres' membrane force N = T_l l⊗l + T_m m⊗m (N/mm,
-    UFL; the shear term's stress left out): with c = l·m, tr N = T_l + T_m and
-    det N = T_l T_m (1 − c²) in the sheet's tangent plane."""
-    T_l, T_m = tensions["tension_l"], tensions["tension_m"]
-    c = ufl.dot(l_dir(kin.F, kin.L), m_dir(kin.F, kin.M))
-    half = 0.5 * (T_l + T_m)
-    disc = (0.5 * (T_l - T_m)) ** 2 + T_l * T_m * c**2  # = half² − det ≥ 0
-    return half - ufl.sqrt(disc + 1e-30)
+def membrane_parts(kin, tensions: dict) -> tuple:
+    """(T_l, T_m, l·m): the fibre tensions (N/mm, UFL) and the cosine of the fibres' angle,
+    which define the fibres' membrane force N = T_l l⊗l + T_m m⊗m (the shear term's stress
+    left out)."""
+    return (tensions["tension_l"], tensions["tension_m"],
+            ufl.dot(l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)))
+
+
+def least_principal(T_l, T_m, c):
+    """The lesser principal value of N = T_l l⊗l + T_m m⊗m in the sheet's tangent plane (N/mm;
+    numpy arrays): with c = l·m, tr N = T_l + T_m and det N = T_l T_m (1 − c²), so
+    N_min = ½ tr N − √(¼ (T_l − T_m)² + T_l T_m c²); c is clipped to [−1, 1]."""
+    c = np.clip(c, -1.0, 1.0)
+    disc = 0.25 * (T_l - T_m) ** 2 + T_l * T_m * c**2  # = (½ tr N)² − det N ≥ 0
+    return 0.5 * (T_l + T_m) - np.sqrt(np.maximum(disc, 0.0))
 
 
 class Wrinkling(Owner):
     """Where the unheld flange buckles (docs/forming.md, "Wrinkling"): in the strip between the
     end of the die's lip and the holder's full pressure, current radius ρ₀ ≤ ρ < ρ₀ + b with
     ρ₀ = R_o + r_d and b = 2 r_d (forming_tools.Tools.holder_weight), the lesser principal
-    membrane force, smoothed over the length ``length`` (a Helmholtz filter, ν − ℓ²Δν = N_min,
-    of the reference blank: a wrinkle is a wave of the strip's width, not a quadrature point),
-    is below −``factor`` N_cr, N_cr = 4π²D/b² the plate-buckling force of the strip
+    value of the smoothed membrane force is below −``factor`` N_cr, N_cr = 4π²D/b² the
+    plate-buckling force of the strip
     (Timoshenko & Gere 1961, §9.2) with D the model's least bending stiffness (:func:`
     bending_stiffness`, at the model's current moduli).
+
+    The force is smoothed over the length ``length`` (a Helmholtz filter ν − ℓ²Δν = f on the
+    reference blank, P1: a wrinkle is a wave of the strip's width, not a quadrature point)
+    before its least principal value is taken: T_l, T_m and l·m each, then N_min at every node
+    (:func:`least_principal`). A plate buckles under its mean membrane force, and N_min is
+    concave in the tensions: smoothing N_min itself biased it towards compression wherever the
+    tensions oscillate from point to point (stiff fibres: ±8 N/mm about a mean near zero in the
+    forming demo's strip), and marked the whole strip where the mean force was tensile.
 
     ``factor`` (default 1), ``buckling_force`` (N_cr, N/mm, set by :meth:`update`) and
     ``length`` (mm, default r_d) are fem.Constants; :meth:`update` recomputes N_cr and the
@@ -110,11 +123,12 @@ class Wrinkling(Owner):
         self.length = fem.Constant(msh, float(tools.lip.value))
         V = fem.FunctionSpace(msh, ("CG", 1))
         self.smoothed = fem.Function(V, name="least_membrane_force")
+        self._parts = [fem.Function(V) for _ in range(3)]
         nu, w = ufl.TrialFunction(V), ufl.TestFunction(V)
         self._a = fem.form((nu * w + self.length**2 * ufl.inner(ufl.grad(nu), ufl.grad(w))) * dx)
-        self._L = fem.form(least_membrane_force(kin, tensions) * w * dx)
+        self._L = [fem.form(f * w * dx) for f in membrane_parts(kin, tensions)]
         self._A = fem.petsc.create_matrix(self._a)
-        self._b = fem.petsc.create_vector(self._L)
+        self._b = fem.petsc.create_vector(self._L[0])
         self._ksp = PETSc.KSP().create(self.comm)
         self._ksp.setOperators(self._A)
         self._ksp.setType("cg")
@@ -136,19 +150,21 @@ class Wrinkling(Owner):
         return float(self.factor.value) * float(self.buckling_force.value)
 
     def update(self) -> None:
-        """N_cr at the current moduli, and the smoothed least membrane force of the current
-        state (collective)."""
+        """N_cr at the current moduli, and the least principal value of the smoothed membrane
+        force at the current state (collective)."""
         self.buckling_force.value = self.plate_buckling_force()
         self._A.zeroEntries()
         fem.petsc.assemble_matrix(self._A, self._a)
         self._A.assemble()
-        with self._b.localForm() as loc:
-            loc.set(0.0)
-        fem.petsc.assemble_vector(self._b, self._L)
-        self._b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self._ksp.solve(self._b, self.smoothed.vector)
-        self.smoothed.x.scatter_forward()
+        for L, part in zip(self._L, self._parts):
+            with self._b.localForm() as loc:
+                loc.set(0.0)
+            fem.petsc.assemble_vector(self._b, L)
+            self._b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            self._ksp.solve(self._b, part.vector)
+            part.x.scatter_forward()
+        self.smoothed.x.array[:] = least_principal(*(p.x.array for p in self._parts))
 
     def _release(self) -> None:
         destroy(self._ksp, self._A, self._b)
-        release_vectors(self.smoothed)
+        release_vectors(self.smoothed, *self._parts)

@@ -133,7 +133,8 @@ def _marked(e, expr, P: np.ndarray) -> np.ndarray:
 
 def membrane_marks(e, P: np.ndarray) -> np.ndarray:
     """The plug-in indicator at reference points P, point by point: in the unheld strip (by the
-    current radius) and the smoothed least membrane force below −N_cr (experiments.wrinkling)."""
+    current radius) and the least principal value of the smoothed membrane force below −N_cr
+    (experiments.wrinkling)."""
     rho, _, _ = _polar(e, P)
     r0, b = lip_end(e), 2.0 * float(e.tools.lip.value)
     force = eval_points(e.wrinkling.smoothed, P)[:, 0]
