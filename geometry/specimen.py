@@ -34,7 +34,9 @@ class Specimen:
     ``kind`` names the mesh ("unstructured": gmsh's; "structured": the crossed grid;
     "aligned": edges along the fibres, geometry/aligned.py) and ``h`` the size its builder
     actually used (mm; for an aligned mesh the length of its fibre edges), so that runs can
-    record what they computed on; ``note`` says why a builder of another kind was used."""
+    record what they computed on; ``note`` says why a builder of another kind was used;
+    ``angle_mismatch_deg`` is how far an aligned lattice's angle is from the fibres' (it fits
+    the rectangle within geometry.aligned.ANGLE_TOLERANCE_DEG, not exactly)."""
 
     mesh: object
     facet_tags: object
@@ -45,6 +47,7 @@ class Specimen:
     kind: str = "unstructured"
     h: float = float("nan")
     note: str = ""
+    angle_mismatch_deg: float = 0.0
 
 
 def check_positive(**kw: float) -> None:

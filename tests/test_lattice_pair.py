@@ -180,3 +180,20 @@ def test_short_specimen_gets_the_corner_lines_and_does_not_lock():
     (kind_a, f_a), (kind_z, f_z) = force(15.0), force(17.0)
     assert (kind_a, kind_z) == ("aligned", "zones")
     assert abs(f_z / f_a - 1.0) < 1e-3, (f_z, f_a)
+
+
+@pytest.mark.parametrize("ratio, warned", [(1e4, False), (1e9, True), (math.inf, True)])
+def test_aligned_lattice_off_the_fibre_angle_is_announced(ratio, warned):
+    """At h = W/20 the 250 × 115 specimen gets a corner-to-corner lattice at 45.034°, within the
+    0.05° the builder accepts, not at the fibres' 45°: the fibres then cross its edges and the
+    force grows with K (measured: 0.3 % above the limit at K/k_s = 10⁶, 57 % at 10⁹; silent
+    before). K/k_s · δ² above 1 is warned as may-lock, with the mismatch in the record."""
+    fibres = (FibreStretch(inextensible=True) if math.isinf(ratio)
+              else FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S))
+    b = BiasExtension([fibres, Shear(k_s=K_S)], length=250.0, width=115.0, h=5.75,
+                      clamp="position", quiet=True)
+    d = b.discretisation
+    assert d["mesh_kind"] == "aligned"
+    assert d["angle_mismatch_deg"] == pytest.approx(0.0337, abs=1e-4)
+    assert d["may_lock"] is warned
+    assert ("LOCKED" in d["notice"] and "45.0337" in d["notice"]) is warned

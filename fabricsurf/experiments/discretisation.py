@@ -26,6 +26,13 @@ LOCKING_RATIO = 1e2
 """K/k_s from which fully integrated fibre terms on a mesh not aligned with the fibres give a
 grip force visibly above the locking-free one (benchmarks/locking.py): a warning is printed."""
 
+MISMATCH_LIMIT = 1.0
+"""Largest K/k_s · δ² (δ in radians: an aligned lattice's angle against the fibres') without a
+warning: the fibres then cross the lattice's edges and stretch under the net's shear, so the
+force grows with K. Measured on 250 × 115 (benchmarks/locking.py's sizes) at ±45°: δ = 0.020°
+and 0.034° give 0.3 % and 1.4 % above the limit at K/k_s·δ² = 1.2 and 3.5, and 14.5 % and 57 %
+at K/k_s = 10⁹ (docs/theory.md)."""
+
 MIN_SEPARATION_DEG = 5.0
 """Least angle between the two fibre families as lines (as the measurement contract's)."""
 
@@ -55,11 +62,15 @@ pin-jointed-net solution lies in the discrete space (geometry/aligned.py,
 geometry/lattice_pair.py, geometry/zone_mesh.py)."""
 
 
-def may_lock(kind: str, treatment: str, ratio: float) -> bool:
+def may_lock(kind: str, treatment: str, ratio: float, mismatch_deg: float = 0.0) -> bool:
     """Whether the answer may be locked (or, reduced, too soft): stiff fibres (K/k_s ≥
     :data:`LOCKING_RATIO`) on a mesh not in :data:`LOCKING_FREE_MESHES` or with reduced fibre
-    terms; exact inextensibility anywhere but on the corner-to-corner lattice (on the lattice
-    pair the band's cells hold the multiplier iteration: it does not converge)."""
+    terms; an aligned lattice whose angle is ``mismatch_deg`` off the fibres' with K/k_s · δ²
+    above :data:`MISMATCH_LIMIT`; exact inextensibility anywhere but on an exact
+    corner-to-corner lattice (on the lattice pair the band's cells hold the multiplier
+    iteration: it does not converge)."""
+    if kind == "aligned" and ratio * math.radians(mismatch_deg) ** 2 > MISMATCH_LIMIT:
+        return True
     if math.isinf(ratio):
         return kind != "aligned" or treatment == "reduced"
     return ratio >= LOCKING_RATIO and (treatment == "reduced" or kind not in LOCKING_FREE_MESHES)
@@ -79,7 +90,9 @@ def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float
     record = {"mesh_kind": kind, "h_requested": float(h), "h_used": float(specimen.h),
               "fibre_treatment": treatment, "fibre_angles_given": list(given),
               "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
-              "may_lock": may_lock(kind, treatment, ratio)}
+              "angle_mismatch_deg": float(getattr(specimen, "angle_mismatch_deg", 0.0)),
+              "may_lock": may_lock(kind, treatment, ratio,
+                                   getattr(specimen, "angle_mismatch_deg", 0.0))}
     record["notice"] = _notice(record, getattr(specimen, "note", ""))
     return record
 
@@ -98,15 +111,20 @@ def _notice(r: dict, why: str) -> str:
                      "that grows with K/k_s (intra-ply shear locking, docs/theory.md 'Locking'"
                      + ("; the reduced treatment is too soft instead" if
                         r["fibre_treatment"] == "reduced" else "")
-                     + "). Remedy: " + ("elastic fibres with K/k_s = 1e9 (within 1e-4 of "
-                                        "the limit on fibre-aligned meshes), or "
-                                        if math.isinf(r["fibre_stiffness_ratio"]) else "")
-                     + "fibres at +-theta to the load on a specimen longer than "
-                     "2 W / tan(theta), which get a fibre-aligned mesh, or check the force "
-                     "against a run at h/2")
+                     + "). Remedy: " + _remedy(r))
     elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full":
         lines.append(head)
     return "\n".join(lines)
+
+
+def _remedy(r: dict) -> str:
+    if r["mesh_kind"] == "aligned" and r["angle_mismatch_deg"] > 0.0:
+        return ("an h whose lattice has the fibres' angle exactly, or mesh = 'lattice_pair' "
+                "(the angle exact by construction), or check the force against a run at h/2")
+    return (("elastic fibres with K/k_s = 1e9 (within 1e-4 of the limit on fibre-aligned "
+             "meshes), or " if math.isinf(r["fibre_stiffness_ratio"]) else "")
+            + "fibres at +-theta to the load on a specimen longer than 2 W / tan(theta), which "
+            "get a fibre-aligned mesh, or check the force against a run at h/2")
 
 
 def announce(comm: MPI.Comm, record: dict) -> None:
