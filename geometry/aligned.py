@@ -123,12 +123,13 @@ def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_d
     msh = distributed_mesh(comm, x, cells)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    mismatch = abs(math.degrees(math.atan(dy / dx)) - fibre_angle_deg)
+    angle = math.degrees(math.atan(dy / dx))
+    mismatch = abs(angle - fibre_angle_deg)
     return Specimen(msh, ft, float(length), float(width),
                     points={**corner_points(length, width), **dict(extra_points or {})},
                     kind="aligned", h=math.hypot(dx, dy), angle_mismatch_deg=mismatch,
-                    note=f"lattice at ±{math.degrees(math.atan(dy / dx)):.4f} deg for fibres at "
-                         f"±{fibre_angle_deg:g} deg" if mismatch > 1e-9 else "")
+                    note=f"lattice at ±{angle:.4f} deg for fibres at ±{fibre_angle_deg:g} deg"
+                    if mismatch > 1e-9 else "")
 
 
 def fibre_line_angle(angle_deg: float) -> float:

@@ -87,12 +87,12 @@ def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float
     kind = specimen.kind
     treatment = "full" if requested == "auto" else requested
     ratio = stiffness_ratio(model)
+    mismatch = float(getattr(specimen, "angle_mismatch_deg", 0.0))
     record = {"mesh_kind": kind, "h_requested": float(h), "h_used": float(specimen.h),
               "fibre_treatment": treatment, "fibre_angles_given": list(given),
               "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
-              "angle_mismatch_deg": float(getattr(specimen, "angle_mismatch_deg", 0.0)),
-              "may_lock": may_lock(kind, treatment, ratio,
-                                   getattr(specimen, "angle_mismatch_deg", 0.0))}
+              "angle_mismatch_deg": mismatch,
+              "may_lock": may_lock(kind, treatment, ratio, mismatch)}
     record["notice"] = _notice(record, getattr(specimen, "note", ""))
     return record
 
