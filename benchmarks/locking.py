@@ -14,11 +14,15 @@ the 187 × 119 specimen at h = 17 and 25 against the aligned mesh at h = 15, and
 30°/−60° on 250 × 115 at W/10 against W/20, with gmsh's plain mesh for comparison (ū = 20 mm in
 4 steps).
 
+``--exact``: exact inextensibility (``FibreStretch(inextensible=True)``) on the table's sizes and
+on sizes with an exact corner-to-corner lattice (aligned): the force ratio, or NaN where a step
+failed (the multiplier iteration stalled), with the record's ``exact_may_stall``.
+
 ``--cost``: the 250 × 115 specimen (no corner-to-corner lattice) at K = ``--cost-k``: h halved
 from W/10, the coarsest h of the default mesh and of gmsh's within 1 % of the converged force
 (the finest default result), DOFs and seconds.
 
-    .venv/bin/python benchmarks/locking.py --out out/locking [--compare] [--cost]
+    .venv/bin/python benchmarks/locking.py --out out/locking [--compare|--exact|--cost|--zones]
 """
 
 from __future__ import annotations
@@ -41,8 +45,11 @@ SIZES = ((250, 115), (320, 100), (350, 120), (245, 110), (270, 95), (300, 130), 
          (380, 110), (290, 85), (260, 75), (400, 105), (230, 103))
 """Length × width (mm): no corner-to-corner ±45° lattice within 0.05° near h = W/10."""
 RATIOS = (1e2, 1e3, 1e4, 1e6, 1e9)
-"""K/k_s. Exact inextensibility is left out: off the corner-to-corner lattice its multiplier
-iteration does not converge (docs/theory.md), and a failing run takes minutes."""
+"""K/k_s. Exact inextensibility has its own study (``--exact``): on specimens with a centre zone
+its multiplier iteration stalls on most sizes, whatever the mesh (docs/theory.md)."""
+EXACT_SIZES = SIZES + ((230, 115), (253, 115), (270, 115), (345, 115), (460, 115))
+"""The table's sizes and five with a corner-to-corner lattice at W/10 or a centre zone of
+other lengths."""
 VARIANTS = {"default": ("auto", "auto"), "gmsh full": ("unstructured", "full"),
             "gmsh reduced": ("unstructured", "reduced")}
 """name: (mesh, fibre_treatment)."""
@@ -66,6 +73,7 @@ def run(length: float, width: float, h: float, ratio: float | None, mesh: str, t
     dofs = b.problem.V.dofmap.index_map.size_global * b.problem.V.dofmap.index_map_bs
     return {"length": length, "width": width, "h": h, "ratio_K": ratio, "mesh": mesh,
             "treatment": treatment, "kind": b.discretisation["mesh_kind"], "force": force,
+            "exact_may_stall": b.discretisation["exact_may_stall"],
             "force_ratio": force / ideal, "dofs": dofs, "seconds": time.perf_counter() - t0}
 
 
@@ -80,6 +88,18 @@ def table(variants: list[str], sizes: int, comm) -> list[dict]:
                 rank0_print(comm, f"{length:4g} x {width:4g}  {name:13s} {r['kind']:13s} "
                             f"K/k_s = {ratio:6.0e}  force/three-zone "
                             f"{r['force_ratio']:10.4f}  {r['seconds']:5.1f} s")
+    return rows
+
+
+def exact(comm) -> list[dict]:
+    """Exact inextensibility on :data:`EXACT_SIZES` at h = W/10 (module docstring)."""
+    rows = []
+    for length, width in EXACT_SIZES:
+        r = run(length, width, width / 10, None, "auto", "auto", comm)
+        rows.append(r)
+        rank0_print(comm, f"{length:4g} x {width:4g}  exact  {r['kind']:13s} force/three-zone "
+                    f"{r['force_ratio']:12.8f}  stall warned {r['exact_may_stall']}  "
+                    f"{r['seconds']:5.1f} s")
     return rows
 
 
@@ -137,6 +157,7 @@ def main() -> None:
                     help="also gmsh's mesh with full and with reduced fibre terms")
     ap.add_argument("--cost", action="store_true", help="the cost table instead")
     ap.add_argument("--zones", action="store_true", help="the corner-line meshes instead")
+    ap.add_argument("--exact", action="store_true", help="exact inextensibility instead")
     ap.add_argument("--cost-k", type=float, default=1e4, help="K of the cost table (N/mm)")
     ap.add_argument("--sizes", type=int, default=len(SIZES), help="the first N sizes only")
     ap.add_argument("--levels", type=int, default=3, help="h = W/10 · 2^-i, i < levels")
@@ -144,11 +165,14 @@ def main() -> None:
     comm = MPI.COMM_WORLD
     if a.zones:
         result = {"zones": zones(comm)}
+    elif a.exact:
+        result = {"exact": exact(comm)}
     elif a.cost:
         result = {"cost": cost(a.cost_k, a.levels, comm)}
     else:
         result = {"rows": table(list(VARIANTS) if a.compare else ["default"], a.sizes, comm)}
-    name = "locking_zones.json" if a.zones else "locking_cost.json" if a.cost else "locking.json"
+    name = ("locking_zones.json" if a.zones else "locking_exact.json" if a.exact
+            else "locking_cost.json" if a.cost else "locking.json")
     write_json(comm, Path(a.out) / name, result)
 
 

@@ -106,14 +106,16 @@ def lattice_triangles(P: int, Q: int, split_horizontal: bool | Callable[[int, in
 
 def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_deg: float = 45.0,
                             comm: MPI.Comm = MPI.COMM_WORLD,
-                            extra_points: dict | None = None) -> Specimen:
+                            extra_points: dict | None = None,
+                            tol_deg: float = ANGLE_TOLERANCE_DEG) -> Specimen:
     """The rectangle [0, length] × [0, width] meshed along fibres at ±``fibre_angle_deg`` to x,
-    with fibre edges of length ≈ ``h`` (see :func:`lattice_divisions`).
+    with fibre edges of length ≈ ``h`` and the lattice's angle within ``tol_deg`` of the
+    fibres' (see :func:`lattice_divisions`).
 
     ``extra_points`` (name → (x, y)) are recorded in ``points`` for evaluation; they need not
     be vertices.
     """
-    P, Q = lattice_divisions(length, width, h, fibre_angle_deg)
+    P, Q = lattice_divisions(length, width, h, fibre_angle_deg, tol_deg)
     dx, dy = length / P, width / Q
     if comm.rank == 0:
         verts, cells = lattice_triangles(P, Q, split_horizontal=dx <= dy)

@@ -34,6 +34,7 @@ from fabricsurf.discretise.compat import set_domain_error
 from fabricsurf.discretise.constraints import (
     CONSTRAINT_TOLERANCE,
     MAX_MULTIPLIER_UPDATES,
+    SLOW_CONTRACTION,
     Multiplier,
 )
 from fabricsurf.discretise.resources import Owner, destroy, dot_function, weak_method
@@ -224,17 +225,26 @@ class SNESSolver(Owner):
 
         With exact constraints (``multipliers``), Newton runs at fixed multipliers, which are
         then updated until every constraint holds to :data:`CONSTRAINT_TOLERANCE`
-        (discretise/constraints.py); the iterations of all solves are summed. If they do not
-        within :data:`MAX_MULTIPLIER_UPDATES`, the reason is SNES's DIVERGED_MAX_IT.
+        (discretise/constraints.py), stiffening the augmentation after an update that cut the
+        largest violation by less than :data:`SLOW_CONTRACTION`; the iterations of all solves
+        are summed. If they do not within :data:`MAX_MULTIPLIER_UPDATES`, the reason is SNES's
+        DIVERGED_MAX_IT.
         """
+        for m in self.multipliers:
+            m.relax()
         reason, its = self._newton()
+        before = np.inf
         for _ in range(MAX_MULTIPLIER_UPDATES if self.multipliers else 0):
             if reason <= 0:
                 break
-            if max(m.violation() for m in self.multipliers) <= CONSTRAINT_TOLERANCE:
+            violation = max(m.violation() for m in self.multipliers)
+            if violation <= CONSTRAINT_TOLERANCE:
                 return reason, its
             for m in self.multipliers:
                 m.update()
+                if violation > SLOW_CONTRACTION * before:
+                    m.stiffen()
+            before = violation
             reason, more = self._newton()
             its += more
         else:

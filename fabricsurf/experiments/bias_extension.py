@@ -36,6 +36,7 @@ from fabricsurf.experiments.discretisation import (
     announce,
     check_bias_angles,
     choose_fibre_treatment,
+    tolerated_mismatch_deg,
 )
 from fabricsurf.experiments.followers import step_followers
 from fabricsurf.log import rank0_print
@@ -54,16 +55,19 @@ def default_model() -> list[Term]:
 
 
 def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
-                  comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto") -> Specimen:
+                  comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto",
+                  model: list[Term] | None = None) -> Specimen:
     """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
     :data:`geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
-    :func:`~geometry.specimen.bias_points`."""
+    :func:`~geometry.specimen.bias_points`; for ``model``'s fibres, ``auto`` takes no
+    corner-to-corner lattice so far off their angle that they would lock it."""
     check_positive(length=length, width=width, h=h)
     if width > length:
         raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
                          "has its long side along the load")
     return bias_mesh(length, width, h, fibre_angles, comm, mesh,
-                     extra_points=bias_points(length, width))
+                     extra_points=bias_points(length, width),
+                     max_mismatch_deg=tolerated_mismatch_deg(model or []))
 
 
 @dataclass
@@ -119,10 +123,11 @@ class BiasExtension:
         if specimen is None:
             check_bias_angles(fibre_angles, length, width, h)
         self.specimen = (specimen if specimen is not None
-                         else specimen_mesh(length, width, h, fibre_angles, comm, mesh))
+                         else specimen_mesh(length, width, h, fibre_angles, comm, mesh,
+                                            self.model))
         self.discretisation = choose_fibre_treatment(
             fibre_treatment, self.specimen, self.model, h, given, fibre_angles)
-        if not quiet or self.discretisation["may_lock"]:
+        if not quiet or self.discretisation["may_lock"] or self.discretisation["exact_may_stall"]:
             announce(comm, self.discretisation)
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_",
@@ -247,7 +252,8 @@ class BiasExtensionTest(ExperimentSetup):
         depth = float(setup.options.get("grip_depth", 0.0))
         angles = canonical_angles(tuple(setup.fibre_angles_deg))
         check_bias_angles(angles, setup.length - 2 * depth, setup.width, h)
-        specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h, angles, comm)
+        specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h, angles, comm,
+                                 model=model)
         if depth:
             shift_x(specimen, depth)
         self.bias = BiasExtension(model, setup.length, setup.width, h,

@@ -18,6 +18,7 @@ from mpi4py import MPI
 
 from fabricsurf.log import PROGRESS, rank0_print
 from fabricsurf.model.terms import Term
+from geometry.aligned import symmetric_angle
 
 TREATMENTS = ("auto", "full", "reduced")
 """``auto`` (= ``full``) and the two of :data:`fabricsurf.discretise.energy.FIBRE_TREATMENTS`."""
@@ -56,23 +57,35 @@ def stiffness_ratio(model: list[Term]) -> float:
     return K / rest if rest > 0 else math.inf
 
 
+def tolerated_mismatch_deg(model: list[Term]) -> float:
+    """The largest angle (deg) between an aligned lattice and the fibres at which the model's
+    K/k_s stays within :data:`MISMATCH_LIMIT` (0 for inextensible fibres, inf without fibre
+    terms): ``mesh = "auto"`` takes no corner-to-corner lattice further off."""
+    ratio = stiffness_ratio(model)
+    return math.degrees(math.sqrt(MISMATCH_LIMIT / ratio)) if ratio > 0 else math.inf
+
+
 LOCKING_FREE_MESHES = ("aligned", "lattice_pair", "zones")
 """Mesh kinds on which fully integrated fibre terms do not lock in the bias test: the
 pin-jointed-net solution lies in the discrete space (geometry/aligned.py,
 geometry/lattice_pair.py, geometry/zone_mesh.py)."""
 
 
+EXACT_MESHES = ("aligned", "lattice_pair")
+"""Mesh kinds that hold the inextensible net of the bias test exactly (the corner-line mesh
+``zones`` holds only its piecewise affine idealisation)."""
+
+
 def may_lock(kind: str, treatment: str, ratio: float, mismatch_deg: float = 0.0) -> bool:
     """Whether the answer may be locked (or, reduced, too soft): stiff fibres (K/k_s ≥
     :data:`LOCKING_RATIO`) on a mesh not in :data:`LOCKING_FREE_MESHES` or with reduced fibre
     terms; an aligned lattice whose angle is ``mismatch_deg`` off the fibres' with K/k_s · δ²
-    above :data:`MISMATCH_LIMIT`; exact inextensibility anywhere but on an exact
-    corner-to-corner lattice (on the lattice pair the band's cells hold the multiplier
-    iteration: it does not converge)."""
+    above :data:`MISMATCH_LIMIT`; exact inextensibility on a mesh not in
+    :data:`EXACT_MESHES`."""
     if kind == "aligned" and ratio * math.radians(mismatch_deg) ** 2 > MISMATCH_LIMIT:
         return True
     if math.isinf(ratio):
-        return kind != "aligned" or treatment == "reduced"
+        return kind not in EXACT_MESHES or treatment == "reduced"
     return ratio >= LOCKING_RATIO and (treatment == "reduced" or kind not in LOCKING_FREE_MESHES)
 
 
@@ -92,9 +105,18 @@ def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float
               "fibre_treatment": treatment, "fibre_angles_given": list(given),
               "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
               "angle_mismatch_deg": mismatch,
-              "may_lock": may_lock(kind, treatment, ratio, mismatch)}
+              "may_lock": may_lock(kind, treatment, ratio, mismatch),
+              "exact_may_stall": math.isinf(ratio) and centre_zone(specimen, used)}
     record["notice"] = _notice(record, getattr(specimen, "note", ""))
     return record
+
+
+def centre_zone(specimen, angles: tuple[float, float]) -> bool:
+    """Whether the bias specimen has a centre zone (fibres at ±θ, L > 2W/tan θ: fibres that end
+    on both free edges), where the exact constraint's multiplier iteration may stall."""
+    theta = symmetric_angle(angles)
+    return theta is not None and specimen.length > 2.0 * specimen.width / math.tan(
+        math.radians(theta))
 
 
 def _notice(r: dict, why: str) -> str:
@@ -114,6 +136,12 @@ def _notice(r: dict, why: str) -> str:
                      + "). Remedy: " + _remedy(r))
     elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full":
         lines.append(head)
+    if r["exact_may_stall"]:
+        lines.append("WARNING exact inextensibility on a specimen with a centre zone (longer "
+                     "than 2 W / tan(theta)): the multiplier iteration stalls above |lambda - 1| "
+                     "= 1e-9 on most such specimens, on every mesh kind, and the step then fails "
+                     "with an error (docs/theory.md 'Locking'). Remedy: elastic fibres with "
+                     "K/k_s = 1e9 (within 0.7 % of the inextensible limit there)")
     return "\n".join(lines)
 
 
@@ -132,7 +160,8 @@ def announce(comm: MPI.Comm, record: dict) -> None:
     when the answer may be locked, else progress."""
     if record["notice"]:
         rank0_print(comm, "\n".join("note: " + line for line in record["notice"].split("\n")),
-                    level=logging.WARNING if record["may_lock"] else PROGRESS)
+                    level=logging.WARNING if record["may_lock"] or record["exact_may_stall"]
+                    else PROGRESS)
 
 
 def check_bias_angles(angles: tuple[float, float], length: float, width: float,
