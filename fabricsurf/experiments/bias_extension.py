@@ -127,7 +127,7 @@ class BiasExtension:
                                             self.model))
         self.discretisation = choose_fibre_treatment(
             fibre_treatment, self.specimen, self.model, h, given, fibre_angles)
-        if not quiet or self.discretisation["may_lock"] or self.discretisation["exact_may_stall"]:
+        if not quiet or self.discretisation["may_lock"]:
             announce(comm, self.discretisation)
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_",

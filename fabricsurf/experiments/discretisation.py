@@ -18,7 +18,6 @@ from mpi4py import MPI
 
 from fabricsurf.log import PROGRESS, rank0_print
 from fabricsurf.model.terms import Term
-from geometry.aligned import symmetric_angle
 
 TREATMENTS = ("auto", "full", "reduced")
 """``auto`` (= ``full``) and the two of :data:`fabricsurf.discretise.energy.FIBRE_TREATMENTS`."""
@@ -105,18 +104,9 @@ def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float
               "fibre_treatment": treatment, "fibre_angles_given": list(given),
               "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
               "angle_mismatch_deg": mismatch,
-              "may_lock": may_lock(kind, treatment, ratio, mismatch),
-              "exact_may_stall": math.isinf(ratio) and centre_zone(specimen, used)}
+              "may_lock": may_lock(kind, treatment, ratio, mismatch)}
     record["notice"] = _notice(record, getattr(specimen, "note", ""))
     return record
-
-
-def centre_zone(specimen, angles: tuple[float, float]) -> bool:
-    """Whether the bias specimen has a centre zone (fibres at ±θ, L > 2W/tan θ: fibres that end
-    on both free edges), where the exact constraint's multiplier iteration may stall."""
-    theta = symmetric_angle(angles)
-    return theta is not None and specimen.length > 2.0 * specimen.width / math.tan(
-        math.radians(theta))
 
 
 def _notice(r: dict, why: str) -> str:
@@ -136,12 +126,6 @@ def _notice(r: dict, why: str) -> str:
                      + "). Remedy: " + _remedy(r))
     elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full":
         lines.append(head)
-    if r["exact_may_stall"]:
-        lines.append("WARNING exact inextensibility on a specimen with a centre zone (longer "
-                     "than 2 W / tan(theta)): the multiplier iteration stalls above |lambda - 1| "
-                     "= 1e-9 on most such specimens, on every mesh kind, and the step then fails "
-                     "with an error (docs/theory.md 'Locking'). Remedy: elastic fibres with "
-                     "K/k_s = 1e9 (within 0.7 % of the inextensible limit there)")
     return "\n".join(lines)
 
 
@@ -160,8 +144,7 @@ def announce(comm: MPI.Comm, record: dict) -> None:
     when the answer may be locked, else progress."""
     if record["notice"]:
         rank0_print(comm, "\n".join("note: " + line for line in record["notice"].split("\n")),
-                    level=logging.WARNING if record["may_lock"] or record["exact_may_stall"]
-                    else PROGRESS)
+                    level=logging.WARNING if record["may_lock"] else PROGRESS)
 
 
 def check_bias_angles(angles: tuple[float, float], length: float, width: float,
