@@ -34,9 +34,17 @@ from geometry.specimen import (
 ANGLE_TOLERANCE_DEG = 0.05
 """Largest difference between the mesh's lattice angle and the requested fibre angle."""
 
+EXACT_DEG = 1e-9
+"""A lattice this close to the fibres' angle is exact (rounding only)."""
+
 SIZE_WINDOW = 1.4
 """The lattice's number of rows may differ from the one ``h`` asks for by this factor either
 way (about 2× in cell count); beyond it the specimen gets no aligned mesh at this h."""
+
+
+def lattice_angle_deg(length: float, width: float, P: int, Q: int) -> float:
+    """The fibre angle of the lattice of P × Q steps on a length × width rectangle."""
+    return math.degrees(math.atan((width / Q) / (length / P)))
 
 
 def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
@@ -58,7 +66,7 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
     best, nearest = None, None
     for q in range(lo + lo % 2, hi + 1, 2):
         p = max(2, 2 * round(length * math.tan(t) * q / (2 * width)))
-        err = abs(math.degrees(math.atan((width / q) / (length / p))) - theta_deg)
+        err = abs(lattice_angle_deg(length, width, p, q) - theta_deg)
         if nearest is None or err < nearest[0]:
             nearest = (err, p, q)
         if err <= tol_deg and (best is None or abs(q - q0) < abs(best[1] - q0)):
@@ -68,7 +76,7 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
             raise ValueError(f"geometry: no even number of lattice rows of a {width:g} mm "
                              f"width lies within {SIZE_WINDOW:g}× of {q0:.1f} (h = {h:g})")
         _, p, q = nearest
-        ang = math.degrees(math.atan((width / q) / (length / p)))
+        ang = lattice_angle_deg(length, width, p, q)
         raise ValueError(f"geometry: no fibre-aligned lattice of a {length:g} × {width:g} "
                          f"rectangle at ±{theta_deg:g}° within {tol_deg:g}° near h = {h:g} "
                          f"(nearest: ±{ang:.3f}° with {p} × {q} steps)")
@@ -125,13 +133,13 @@ def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_d
     msh = distributed_mesh(comm, x, cells)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    angle = math.degrees(math.atan(dy / dx))
+    angle = lattice_angle_deg(length, width, P, Q)
     mismatch = abs(angle - fibre_angle_deg)
     return Specimen(msh, ft, float(length), float(width),
                     points={**corner_points(length, width), **dict(extra_points or {})},
                     kind="aligned", h=math.hypot(dx, dy), angle_mismatch_deg=mismatch,
                     note=f"lattice at ±{angle:.4f} deg for fibres at ±{fibre_angle_deg:g} deg"
-                    if mismatch > 1e-9 else "")
+                    if mismatch > EXACT_DEG else "")
 
 
 def fibre_line_angle(angle_deg: float) -> float:

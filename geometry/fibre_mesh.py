@@ -3,14 +3,14 @@ through the corners as edges, and which one was built recorded (docs/theory.md, 
 
 from __future__ import annotations
 
-import math
-
 from mpi4py import MPI
 
 from geometry.aligned import (
     ANGLE_TOLERANCE_DEG,
+    EXACT_DEG,
     canonical_angles,
     fibre_aligned_rectangle,
+    lattice_angle_deg,
     lattice_divisions,
     symmetric_angle,
 )
@@ -26,9 +26,6 @@ from each grip and a band between); ``zones``: :func:`~geometry.zone_mesh.zone_r
 ``auto``: aligned where a corner-to-corner lattice fits (its angle within the caller's
 ``max_mismatch_deg`` of the fibres'), else the lattice pair where its band lies in the centre
 zone (fibres at ±θ, a specimen longer than about 2W/tan θ), else zones."""
-
-EXACT_DEG = 1e-9
-"""An aligned lattice this close to the fibres' angle is exact (rounding only)."""
 
 
 def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
@@ -72,7 +69,7 @@ def _skipped(length: float, width: float, h: float, theta: float, tol: float) ->
     """Why the corner-to-corner lattice that fits within the builder's tolerance was not
     taken: its angle is more than ``tol`` off the fibres'."""
     P, Q = lattice_divisions(length, width, h, theta)
-    off = abs(math.degrees(math.atan((width / Q) / (length / P))) - theta)
+    off = abs(lattice_angle_deg(length, width, P, Q) - theta)
     allowed = ("inextensible fibres allow none" if tol <= EXACT_DEG
                else f"these fibres allow {tol:.2g} deg")
     return (f"; the corner-to-corner lattice at this h is {off:.3g} deg off the fibres "
