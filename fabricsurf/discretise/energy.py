@@ -47,7 +47,7 @@ FACET_QUADRATURE_DEGREE = 4
 AUGMENTATION = 1e5
 """An exact constraint's augmentation stiffness is its term's own plus this many times the sum
 of the other first-gradient moduli: Uzawa's iteration then contracts by about 1e-5 a step."""
-BOW_PENALTY = 1e3
+BOW_PENALTY = 1e4
 """β of :meth:`EnergyForm.bow_penalty`, relative to the other first-gradient moduli times h²."""
 FIBRE_TREATMENTS = ("full", "reduced")
 """How the fibre terms (:attr:`Term.fibre`) are integrated over a cell: ``full`` at the
