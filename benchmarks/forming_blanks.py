@@ -8,7 +8,9 @@ finer mesh and against stiffer fibres), with --lattice for a square on the clipp
         [--h 4] [--k 1e3] [--stroke 12] [--steps 12] [--domain auto|full] [--lattice] [--log]
 
 Prints one row per case: blank, fibre pair, domain, cells, punch force (N), drape max / RMS over
-the contact (deg), within 0.75 R max (deg), seconds, the mesh's note; or where a run stopped
+the contact (deg), within 0.75 R max (deg), the same against the drape closed from the
+continuum's own fibres through the pole (verification/generator_drape.py), seconds, the mesh's
+note; or where a run stopped
 (the last stroke followed and the force there). Against the quarter at the same K: run the
 square with --domain auto (the quarter, h used 4.24 at --h 4), --domain full (its mesh unfolded)
 and --domain full --lattice (the clipped lattice; at --h 4.2426 it is the unfolded quarter's
@@ -28,7 +30,10 @@ from fabricsurf.experiments import forming_blank
 from fabricsurf.experiments.base import Setup
 from fabricsurf.experiments.hemisphere import HemisphereForming
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
-from fabricsurf.verification.forming_map import compare_with_drapes
+from fabricsurf.verification.forming_map import (
+    compare_with_drapes,
+    compare_with_generator_drape,
+)
 from geometry.fibre_blank import fibre_blank
 
 R = 20.0
@@ -66,12 +71,23 @@ def case(blank: str, angles: tuple[float, float], h: float, k: float, stroke: fl
         m = compare_with_drapes(e, a=R / 40.0)
         inner = np.hypot(*m["points"].T) < 0.75 * R
         d = np.abs(m["continuum_deg"] - m["fishnet_deg"])
+        if e.domain == "full":
+            g = compare_with_generator_drape(e)
+            own = g["continuum_vs_generator_drape"]
+            g_d = np.abs(g["continuum_deg"] - g["drape_deg"])
+            g_d = g_d[np.hypot(*g["points"].T) < 0.75 * R]
+        else:  # the quarter's generators are mirror lines: the geodesic drape is theirs
+            g = {"points": m["points"], "left_out": 0}
+            own, g_d = m["continuum_vs_fishnet"], d[inner]
         return {"blank": blank, "fibres": angles, "domain": e.domain,
                 "cells": e.discretisation["cells"], "force": e.force[-1],
                 "max": m["continuum_vs_fishnet"]["max_deg"],
                 "rms": m["continuum_vs_fishnet"]["rms_deg"],
                 "goursat_rms": m["continuum_vs_goursat"]["rms_deg"],
                 "inner_max": float(d[inner].max()), "points": len(m["points"]),
+                "gen_max": own["max_deg"], "gen_rms": own["rms_deg"],
+                "gen_inner_max": float(g_d.max()), "gen_points": len(g["points"]),
+                "gen_left_out": g["left_out"],
                 "largest": float(np.abs(m["fishnet_deg"]).max()),
                 "pins": e.pin_reactions(), "note": e.discretisation["mesh_note"],
                 "s": time.perf_counter() - t}
@@ -113,7 +129,10 @@ def main() -> None:
                   f"{r['fibres']!s:14s} {r['domain']:7s} h={a.h:g} "
                   f"K={a.k:g} cells={r['cells']:5d} F={r['force']:.4f} N  points={r['points']} "
                   f"largest={r['largest']:.1f}  max={r['max']:.2f} rms={r['rms']:.3f} "
-                  f"(goursat rms {r['goursat_rms']:.3f}) inner max={r['inner_max']:.2f} deg  "
+                  f"(goursat rms {r['goursat_rms']:.3f}) inner max={r['inner_max']:.2f} deg; "
+                  f"own generators: points={r['gen_points']} (left out {r['gen_left_out']}) "
+                  f"max={r['gen_max']:.2f} rms={r['gen_rms']:.3f} "
+                  f"inner max={r['gen_inner_max']:.2f} deg  "
                   f"{r['s']:.0f} s  [{r['note']}]", flush=True)
 
 

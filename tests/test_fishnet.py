@@ -8,9 +8,14 @@ Checks that can fail independently of each other:
   (the fibres' bisector) is the 0/90° diagonal profile, its diagonal (a fibre) carries no shear;
 * the diagonal shear converges at rate 2 to the Chebyshev net of Hazzidakis' equation, solved
   on its own grid without the sphere's embedding (the limit a → 0 of the fishnet), and near
-  the pole it is γ ≈ K u v (the equation linearised, K = 1/R²).
+  the pole it is γ ≈ K u v (the equation linearised, K = 1/R²);
+* a net is fixed by any two of its fibres through a node (Hazzidakis 1879): the fishnet's
+  fibres through a node off the pole, not geodesics, sampled densely off the sphere and read
+  as the generator drape reads a continuum's (generator_drape.chord_nodes), close back to the
+  fishnet's own nodes.
 """
 
+import itertools
 import math
 
 import numpy as np
@@ -18,11 +23,13 @@ import pytest
 
 from fabricsurf.verification.fishnet import (
     chebyshev_shear,
+    close_net,
     drape,
     edge_lengths,
     line_profile,
     node_shear,
 )
+from fabricsurf.verification.generator_drape import chord_nodes
 
 R = 100.0
 
@@ -80,3 +87,22 @@ def test_chebyshev_solver():
     assert math.log2(abs(g[0] - g[1]) / abs(g[1] - g[2])) > 1.9
     small = chebyshev_shear(R, 2.0, 2.0, 20)
     assert abs(small - 4.0 / R**2) < 1e-3 * small
+
+
+def test_a_net_is_closed_from_any_two_of_its_fibres():
+    a, n, m, angles = 5.0, 20, 12, (30.0, 120.0)
+    big = drape(R, a, n, angles)
+    c = (n + 3, n - 2)  # the node (3, −2): its fibres are not great circles
+
+    def fibre(f: int, s: int) -> np.ndarray:
+        k = c[f] + s * np.arange(m + 1)
+        nodes = big.x[k, c[1]] if f == 0 else big.x[c[0], k]
+        t = np.linspace(0.0, 1.0, 9)[:-1, None]
+        dense = np.concatenate([(1 - t) * p + t * q for p, q in itertools.pairwise(nodes)]
+                               + [nodes[-1:]])
+        return chord_nodes(0.999 * dense, R, a, m)  # below the sphere: projected back
+
+    net = close_net(R, a, angles, {(f, s): fibre(f, s) for f in (0, 1) for s in (1, -1)})
+    window = big.x[c[0] - m:c[0] + m + 1, c[1] - m:c[1] + m + 1]
+    assert np.abs(net.x - window).max() < 1e-9 * R
+    assert np.abs(node_shear(net)[m - 1]).max() > 0.02  # sheared along a generator

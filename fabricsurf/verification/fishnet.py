@@ -85,10 +85,23 @@ def drape(R: float, a: float, n: int, angles_deg: tuple[float, float] = (0.0, 90
     if not 0 < a < 2 * R or n < 1:
         raise ValueError(f"fishnet: need 0 < a < 2R and n ≥ 1 (a = {a}, R = {R}, n = {n})")
     L, M = unit(angles_deg[0]), unit(angles_deg[1])
+    return close_net(R, a, angles_deg, {(0, s): generator(R, a, s * L, n) for s in (1, -1)}
+                     | {(1, s): generator(R, a, s * M, n) for s in (1, -1)})
+
+
+def close_net(R: float, a: float, angles_deg: tuple[float, float],
+              generators: dict[tuple[int, int], np.ndarray]) -> Net:
+    """The net of nodes |i|, |j| ≤ n closed cell by cell from its four generator halves,
+    ``generators[(f, s)]`` the n + 1 nodes from the pole along family f (0: L, 1: M) in the
+    sense s = ±1, on the sphere of radius R centred at the origin, consecutive chords a (the
+    great circles of :func:`drape`, or any other curves: a Chebyshev net is fixed by its two
+    generators, Hazzidakis 1879)."""
+    n = len(generators[(0, 1)]) - 1
+    L, M = unit(angles_deg[0]), unit(angles_deg[1])
     x = np.full((2 * n + 1, 2 * n + 1, 3), np.nan)
     for s in (1, -1):
-        x[n + s * np.arange(n + 1), n] = generator(R, a, s * L, n)
-        x[n, n + s * np.arange(n + 1)] = generator(R, a, s * M, n)
+        x[n + s * np.arange(n + 1), n] = generators[(0, s)]
+        x[n, n + s * np.arange(n + 1)] = generators[(1, s)]
     for si in (1, -1):
         for sj in (1, -1):
             for i in range(1, n + 1):

@@ -1,7 +1,8 @@
 """The continuum forming result over the whole contact area, against both kinematic drapes
 (drape_map.py): the recovered shear angle and the gap to the punch at a grid of reference points
 of the solved quarter or full blank, the points on the punch compared with the fishnet and the
-Goursat net drawn with the experiment's fibre directions from the pole."""
+Goursat net drawn with the experiment's fibre directions from the pole, or with the
+continuum's own generators (generator_drape.py) where those are not geodesics."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, nodal_average
 from fabricsurf.experiments import forming_blank
 from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.verification import generator_drape
 from fabricsurf.verification.drape_map import shear_difference_map
 
 TOUCH_FRACTION = 0.01
@@ -62,3 +64,18 @@ def compare_with_drapes(e: HemisphereForming, n: int = 41, a: float | None = Non
     out = shear_difference_map(e.R, m["points"], m["shear_deg"], tuple(e.setup.fibre_angles_deg),
                                m["on"] & ~m["mirror_band"], a)
     return {**out, "excluded": int((m["on"] & m["mirror_band"]).sum())}
+
+
+def compare_with_generator_drape(e: HemisphereForming, n: int = 41, a: float | None = None
+                                 ) -> dict:
+    """:func:`contact_map` against the drape closed from the continuum's own fibres through
+    the pole (generator_drape.compare), cell ``a`` (default R/40), over the points on the punch
+    outside the mirror band that the generators' contact covers."""
+    if e.domain == "quarter":
+        raise ValueError("generator drape: the quarter's fibres through the pole are mirror "
+                         "lines of the set-up, so geodesics: compare_with_drapes is the check")
+    m = contact_map(e, n)
+    a = e.R / 40.0 if a is None else a
+    return generator_drape.compare(m["points"], m["shear_deg"], m["on"] & ~m["mirror_band"],
+                                   e.problem.u, float(e.tools.stroke.value), e.R,
+                                   tuple(e.setup.fibre_angles_deg), a, TOUCH_FRACTION * e.R)
