@@ -214,6 +214,8 @@ class BiasExtension:
             stepper.run(np.linspace(ubar_max / steps, ubar_max, steps))
         except LoadStepError as e:
             e.partial = res  # the converged steps
+            if energy.multipliers:
+                e.args = (f"{e}. {EXACT_FIBRES_HINT}",)
             raise
         finally:
             res.seconds = time.perf_counter() - t0
@@ -222,6 +224,18 @@ class BiasExtension:
             if out:
                 write_json(comm, Path(out) / "bias_curve.json", res.as_dict())
         return res
+
+
+EXACT_FIBRES_HINT = (
+    "With inextensible fibres a step also fails where no inextensible deformation of the net "
+    "reaches the grip displacement: past the net's kinematic limit (300 x 130 mm at +-30 deg "
+    "stops at ubar = 0.0386 L; the force of elastic fibres at K/k_s = 1e9 is 13 N at 0.035 L "
+    "and 1e5 N at 0.04 L, on h = W/10 and W/20 alike), or on a mesh that locks (see the mesh "
+    "notice). To tell which, "
+    "run elastic fibres at two K/k_s (1e6, 1e9) and h and h/2: a force that grows with K on "
+    "both meshes is the kinematic limit")
+"""Appended to a failed load step's message when the fibres are exactly inextensible
+(docs/theory.md, "Exact inextensibility")."""
 
 
 def _writer_degree(energy) -> int:
