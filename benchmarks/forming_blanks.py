@@ -6,6 +6,7 @@ finer mesh and against stiffer fibres), with --lattice for a square on the clipp
 
     mpirun -n 2 python benchmarks/forming_blanks.py [--cases circle:30,120 rectangle:40,-50 ...]
         [--h 4] [--k 1e3] [--stroke 12] [--steps 12] [--domain auto|full] [--lattice] [--log]
+        [--figures DIR]
 
 Prints one row per case: blank, fibre pair, domain, cells, punch force (N), drape max / RMS over
 the contact (deg), within 0.75 R max (deg), the same against the drape closed from the
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
@@ -34,6 +36,7 @@ from fabricsurf.verification.forming_map import (
     compare_with_drapes,
     compare_with_generator_drape,
 )
+from fabricsurf.verification.generator_drape import draw_map
 from geometry.fibre_blank import fibre_blank
 
 R = 20.0
@@ -54,8 +57,8 @@ def say(line: str) -> None:
 
 
 def case(blank: str, angles: tuple[float, float], h: float, k: float, stroke: float,
-         steps: int, domain: str = "auto", tools: float = 2.0, size=None, log: bool = False
-         ) -> dict:
+         steps: int, domain: str = "auto", tools: float = 2.0, size=None, log: bool = False,
+         figures: Path | None = None) -> dict:
     L, W = size or SIZES[blank]
     setup = Setup("hemisphere", L, W, angles, dict(TOOLING, blank=blank, blank_domain=domain,
                                                    clearance=tools, die_lip=tools))
@@ -74,6 +77,11 @@ def case(blank: str, angles: tuple[float, float], h: float, k: float, stroke: fl
         if e.domain == "full":
             g = compare_with_generator_drape(e)
             own = g["continuum_vs_generator_drape"]
+            if figures is not None and MPI.COMM_WORLD.rank == 0:
+                name = f"{blank}_{L:g}x{W:g}_{angles[0]:g}_{angles[1]:g}_h{h:g}_K{k:g}.png"
+                figures.mkdir(parents=True, exist_ok=True)
+                draw_map(figures / name, g, R, f"{blank} {L:g} × {W:g} mm, fibres "
+                         f"{angles[0]:g}/{angles[1]:g}°, h = {h:g} mm, K = {k:g} N/mm")
             g_d = np.abs(g["continuum_deg"] - g["drape_deg"])
             g_d = g_d[np.hypot(*g["points"].T) < 0.75 * R]
         else:  # the quarter's generators are mirror lines: the geodesic drape is theirs
@@ -108,6 +116,8 @@ def main() -> None:
                          "force converges with h ≤ 4)")
     ap.add_argument("--size", type=float, nargs=2, help="blank length, width (mm)")
     ap.add_argument("--log", action="store_true", help="print each load step as it converges")
+    ap.add_argument("--figures", type=Path,
+                    help="write each full blank's map against its own generators' drape here")
     ap.add_argument("--lattice", action="store_true",
                     help="the full blank of a symmetric square on the clipped fibre lattice "
                          "(geometry/fibre_blank.py) instead of the quarter's mesh unfolded")
@@ -118,7 +128,8 @@ def main() -> None:
     for c in a.cases:
         blank, pair = c.split(":")
         angles = tuple(float(v) for v in pair.split(","))
-        r = case(blank, angles, a.h, a.k, a.stroke, a.steps, a.domain, a.tools, a.size, a.log)
+        r = case(blank, angles, a.h, a.k, a.stroke, a.steps, a.domain, a.tools, a.size, a.log,
+                 a.figures)
         if MPI.COMM_WORLD.rank == 0 and "stopped" in r:
             print(f"{r['blank']:9s} {a.size or SIZES[blank]} tools {a.tools:g} "
                   f"{r['fibres']!s:14s} {r['domain']:7s} h={a.h:g} K={a.k:g} "

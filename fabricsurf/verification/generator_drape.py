@@ -45,17 +45,20 @@ def fibre_line(u, stroke: float, R: float, direction: np.ndarray, reach: float, 
     return t[:stop], r[:stop]
 
 
-def chord_nodes(r: np.ndarray, R: float, a: float, n: int) -> np.ndarray:
-    """n + 1 nodes on the sphere of radius R along the sampled curve r (rows) projected
-    radially onto it, the first at r[0], consecutive chords a (each node interpolated between
-    the two samples that straddle the chord, then projected). Raises if the curve ends first."""
+def chord_nodes(r: np.ndarray, R: float, a: float, n: int | None = None) -> np.ndarray:
+    """Nodes on the sphere of radius R along the sampled curve r (rows) projected radially onto
+    it, the first at r[0], consecutive chords a (each node interpolated between the two samples
+    that straddle the chord, then projected; a sample at a chord of a to rounding is the node):
+    n + 1 of them, or as many as the curve holds (n None). Raises if it holds fewer than n + 1."""
     p = R * r / np.linalg.norm(r, axis=1)[:, None]
     nodes, j = [p[0]], 1
-    for _ in range(n):
+    while n is None or len(nodes) <= n:
         last = nodes[-1]
         while j < len(p) and np.linalg.norm(p[j] - last) < a * (1 - 1e-12):
             j += 1
         if j == len(p):
+            if n is None:
+                break
             raise ValueError(f"generator drape: the fibre line ends after {len(nodes) - 1} of "
                              f"{n} chords")
         d0, d1 = np.linalg.norm(p[j - 1] - last), np.linalg.norm(p[j] - last)
@@ -74,17 +77,21 @@ def on_cap(r: np.ndarray, R: float, touch: float) -> int:
 
 def continuum_net(u, stroke: float, R: float, angles_deg: tuple[float, float], a: float,
                   reach: float, touch: float) -> tuple[fishnet.Net, dict[tuple[int, int], float]]:
-    """The net closed from the continuum's four generator halves (module docstring), n chords
-    each (as far as every fibre line reaches), and the reference length of each half that lies
-    on the cap (keys (family, sense) as in fishnet.close_net)."""
+    """The net closed from the continuum's four generator halves (module docstring), as many
+    chords each as the shortest holds, and the reference length of each half that lies on the
+    cap (keys (family, sense) as in fishnet.close_net)."""
     lines, on = {}, {}
     for f, deg in enumerate(angles_deg):
         for s in (1, -1):
             t, r = fibre_line(u, stroke, R, s * fishnet.unit(deg), reach, a)
             lines[(f, s)] = r
             on[(f, s)] = float(t[on_cap(r, R, touch) - 1])
-    n = min(int(np.linalg.norm(np.diff(r, axis=0), axis=1).sum() / a) for r in lines.values())
-    gens = {k: chord_nodes(r, R, a, n) for k, r in lines.items()}
+    gens = {k: chord_nodes(r, R, a) for k, r in lines.items()}
+    n = min(len(g) for g in gens.values()) - 1
+    if n < 2:
+        raise ValueError(f"generator drape: a fibre line through the pole holds {n} chords of "
+                         f"{a:g} mm")
+    gens = {k: g[:n + 1] for k, g in gens.items()}
     return fishnet.close_net(R, a, tuple(angles_deg), gens), on
 
 
@@ -108,3 +115,30 @@ def compare(points: np.ndarray, shear_deg: np.ndarray, on_punch: np.ndarray, u, 
     return {"points": points[keep], "continuum_deg": shear_deg[keep], "drape_deg": drape,
             "continuum_vs_generator_drape": differences(shear_deg[keep], drape),
             "left_out": int((on_punch & ~covered).sum()), "generators_on_cap_mm": on}
+
+
+def draw_map(path, result: dict, R: float, title: str = "") -> None:
+    """Two panels over the compared points (reference blank): the continuum's shear and its
+    difference from the drape with its own generators (deg). Call on one rank."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    p, fe = result["points"], result["continuum_deg"]
+    diff = fe - result["drape_deg"]
+    lim = float(np.abs(diff).max())
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4))
+    panels = [(fe, "continuum shear (deg)", {"cmap": "viridis"}),
+              (diff, "continuum − drape, own generators (deg)",
+               {"cmap": "coolwarm", "vmin": -lim, "vmax": lim})]
+    for ax, (v, label, kw) in zip(axes, panels):
+        im = ax.tricontourf(p[:, 0], p[:, 1], v, levels=21, **kw)
+        ax.add_patch(plt.Circle((0, 0), R, fill=False, color="k", ls="--", lw=0.8))
+        ax.set(aspect="equal", xlabel="x (mm, reference)", title=label)
+        fig.colorbar(im, ax=ax, shrink=0.8)
+    axes[0].set_ylabel("y (mm, reference)")
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
