@@ -85,7 +85,8 @@ def continuum_net(u, stroke: float, R: float, angles_deg: tuple[float, float], a
         for s in (1, -1):
             t, r = fibre_line(u, stroke, R, s * fishnet.unit(deg), reach, a)
             lines[(f, s)] = r
-            on[(f, s)] = float(t[on_cap(r, R, touch) - 1])
+            k = on_cap(r, R, touch)
+            on[(f, s)] = float(t[k - 1]) if k else -np.inf  # -inf: the pole is off the cap
     gens = {k: chord_nodes(r, R, a) for k, r in lines.items()}
     n = min(len(g) for g in gens.values()) - 1
     if n < 2:
