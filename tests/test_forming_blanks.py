@@ -304,9 +304,13 @@ def test_rectangle_unbalanced_pair_against_its_own_generators():
         inner.append(d[np.hypot(*g["points"].T) < 0.75 * R].max())
         print(f"h = {h:.2f}: {out['record']['cells']} cells, {len(g['points'])} points "
               f"({g['left_out']} left out), own generators {g['continuum_vs_generator_drape']}, "
-              f"within 0.75 R max {inner[-1]:.3f} deg; geodesic drapes {geodesic}")
+              f"within 0.75 R max {inner[-1]:.3f} deg; geodesic drapes {geodesic}; generators "
+              f"up to {g['generators_largest_gap_mm']:.3f} mm off the cap")
         assert out["record"]["domain"] == "full" and len(g["points"]) > 1000
         assert g["left_out"] < 0.05 * len(g["points"])
+        # generator samples lifted off the cap between contact points (0.30, 0.20 mm measured):
+        # their projection onto it errs by that, below 2 % of R
+        assert g["generators_largest_gap_mm"] < 0.02 * R
         assert np.abs(g["drape_deg"]).max() > 15.0 and geodesic["rms_deg"] > 5.0
     assert rms[1] < rms[0] / math.sqrt(2.0) and inner[1] < inner[0] / math.sqrt(2.0)
     assert rms[1] < 1.5 and inner[1] < 3.0
