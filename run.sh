@@ -20,16 +20,21 @@ FAST_BLAS=libopenblas0-serial
 
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "ok installed"; }
 
+APT_UPDATED=""
+apt_update() {  # the package lists once per run, however many installs follow
+  [ -n "$APT_UPDATED" ] || { apt-get update -qq && APT_UPDATED=1; }
+}
+
 ensure_debs() {
   if ! /usr/bin/python3 -c "import dolfinx, gmsh, scipy, matplotlib, h5py, pytest" 2>/dev/null \
      || ! [ -x /usr/bin/mpirun ]; then
     echo "[run.sh] installing Debian packages"
-    apt-get update -qq
+    apt_update
     DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $DEBS
   fi
   if ! installed "$FAST_BLAS"; then
     echo "[run.sh] installing $FAST_BLAS (optimised BLAS for MUMPS and numpy)"
-    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$FAST_BLAS"; } \
+    { apt_update && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$FAST_BLAS"; } \
       || echo "[run.sh] warning: $FAST_BLAS could not be installed; running on the reference" \
               "BLAS (same answers, forming about twice as slow)" >&2
   fi
