@@ -121,6 +121,18 @@ def test_thresholds_are_constants(states):
     e.indicators.locking.value = 0.0
     assert e.area_fractions()["locked"] > 0.5
     e.indicators.locking.value = np.radians(TOOLING["locking_angle_deg"])
+    # the smoothing length: the filter's matrix is assembled once and again when it changes
+    lip = float(e.wrinkling.length.value)
+    e.wrinkling.update()
+    before = e.wrinkling.smoothed.x.array.copy()
+    e.wrinkling.length.value = 4.0 * lip
+    e.wrinkling.update()
+    wider = e.wrinkling.smoothed.x.array.copy()
+    e.wrinkling.length.value = lip
+    e.wrinkling.update()
+    scale = np.abs(before).max()
+    assert np.abs(wider - before).max() > 1e-2 * scale
+    assert np.abs(e.wrinkling.smoothed.x.array - before).max() < 1e-9 * scale
 
 
 @SERIAL

@@ -134,6 +134,7 @@ class Wrinkling(Owner):
         self._ksp.setType("cg")
         self._ksp.getPC().setType("jacobi")
         self._ksp.setTolerances(rtol=1e-12, atol=1e-14, max_it=1000)
+        self._filter_length = None  # the length the filter matrix was assembled with
         rho = ufl.sqrt(r[0] ** 2 + r[1] ** 2)
         start = tools.opening + tools.lip
         strip = ufl.And(ufl.ge(rho, start), ufl.lt(rho, start + 2.0 * tools.lip))
@@ -151,11 +152,14 @@ class Wrinkling(Owner):
 
     def update(self) -> None:
         """N_cr at the current moduli, and the least principal value of the smoothed membrane
-        force at the current state (collective)."""
+        force at the current state (collective). The filter's matrix lives on the reference
+        blank: it is assembled again only when ``length`` has changed."""
         self.buckling_force.value = self.plate_buckling_force()
-        self._A.zeroEntries()
-        fem.petsc.assemble_matrix(self._A, self._a)
-        self._A.assemble()
+        if self._filter_length != float(self.length.value):  # on the reference blank: once
+            self._A.zeroEntries()
+            fem.petsc.assemble_matrix(self._A, self._a)
+            self._A.assemble()
+            self._filter_length = float(self.length.value)
         for L, part in zip(self._L, self._parts):
             with self._b.localForm() as loc:
                 loc.set(0.0)
