@@ -30,8 +30,7 @@ point of the hemisphere has |u|, |v| below it, the generators being the longest 
 def fishnet_shear_at(net: fishnet.Net, points: np.ndarray) -> np.ndarray:
     """γ (rad) of the fishnet's interior nodes (central differences, fishnet.node_shear) at
     reference points, bilinear in the fibre coordinates (u, v) = a (i, j)."""
-    L, M = (fishnet.unit(t) for t in net.angles_deg)
-    uv = np.linalg.solve(np.column_stack([L, M]), np.asarray(points, float).T).T
+    uv = fishnet.fibre_coordinates(points, net.angles_deg)
     k = np.arange(-(net.n - 1), net.n) * net.a
     if np.abs(uv).max() > k[-1] * (1 + 1e-12):
         raise ValueError(f"drape map: a point lies beyond the fishnet (|u|, |v| ≤ {k[-1]:g})")
@@ -45,8 +44,7 @@ def drapes_at(R: float, points: np.ndarray, angles_deg: tuple[float, float],
     punch below 90°). The nets reach as far along the fibres as the farthest point."""
     a = R / 100.0 if a is None else a
     points = np.asarray(points, float)
-    L, M = (fishnet.unit(t) for t in angles_deg)
-    reach = np.abs(np.linalg.solve(np.column_stack([L, M]), points.T)).max()
+    reach = np.abs(fishnet.fibre_coordinates(points, angles_deg)).max()
     fish = fishnet.drape(R, a, math.ceil(reach / a) + 2, tuple(angles_deg))
     net = goursat_drape.hemisphere(R, tuple(angles_deg), a, reach + a)
     x = net.position_at(points)
@@ -117,24 +115,33 @@ def summary(result: dict) -> dict:
 def draw_difference_map(path: Path, result: dict, R: float) -> None:
     """Three panels over the compared points (reference blank): the continuum's shear, its
     difference from the fishnet and from the Goursat net (deg). Call on one rank."""
+    fe = result["continuum_deg"]
+    draw_panels(path, result["points"], R, fe, "continuum shear (deg)",
+                [(fe - result["fishnet_deg"], "continuum − fishnet (deg)"),
+                 (fe - result["goursat_deg"], "continuum − Goursat net (deg)")])
+
+
+def draw_panels(path: Path, points: np.ndarray, R: float, shear: np.ndarray, label: str,
+                diffs: list[tuple[np.ndarray, str]], title: str = "") -> None:
+    """A shear map and difference maps side by side over reference ``points``, the punch's
+    outline dashed; the differences on one symmetric colour scale. Call on one rank."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    p = result["points"]
-    fe = result["continuum_deg"]
-    panels = [(fe, "continuum shear (deg)", "viridis"),
-              (fe - result["fishnet_deg"], "continuum − fishnet (deg)", "coolwarm"),
-              (fe - result["goursat_deg"], "continuum − Goursat net (deg)", "coolwarm")]
-    lim = max(np.abs(panels[1][0]).max(), np.abs(panels[2][0]).max())
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
-    for ax, (v, title, cmap) in zip(axes, panels):
-        kw = {} if cmap == "viridis" else {"vmin": -lim, "vmax": lim}
-        im = ax.tricontourf(p[:, 0], p[:, 1], v, levels=21, cmap=cmap, **kw)
+    p = points
+    lim = max(float(np.abs(v).max()) for v, _ in diffs)
+    panels = [(shear, label, {"cmap": "viridis"})] + [
+        (v, t, {"cmap": "coolwarm", "vmin": -lim, "vmax": lim}) for v, t in diffs]
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.4 * len(panels), 4))
+    for ax, (v, text, kw) in zip(axes, panels):
+        im = ax.tricontourf(p[:, 0], p[:, 1], v, levels=21, **kw)
         ax.add_patch(plt.Circle((0, 0), R, fill=False, color="k", ls="--", lw=0.8))
-        ax.set(aspect="equal", xlabel="x (mm, reference)", title=title)
+        ax.set(aspect="equal", xlabel="x (mm, reference)", title=text)
         fig.colorbar(im, ax=ax, shrink=0.8)
     axes[0].set_ylabel("y (mm, reference)")
+    if title:
+        fig.suptitle(title)
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)

@@ -65,6 +65,13 @@ def unit(deg: float) -> np.ndarray:
     return np.array([math.cos(t), math.sin(t)])
 
 
+def fibre_coordinates(points: np.ndarray, angles_deg: tuple[float, float]) -> np.ndarray:
+    """(u, v) of reference points (rows of the blank plane): X = u L + v M, the fibres at
+    ``angles_deg``."""
+    L, M = unit(angles_deg[0]), unit(angles_deg[1])
+    return np.linalg.solve(np.column_stack([L, M]), np.asarray(points, float).T).T
+
+
 def generator(R: float, a: float, direction: np.ndarray, n: int) -> np.ndarray:
     """Nodes 0..n of the great circle from the pole along the blank-plane unit ``direction``,
     consecutive chords a."""

@@ -25,7 +25,7 @@ import numpy as np
 
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.verification import fishnet
-from fabricsurf.verification.drape_map import differences, fishnet_shear_at
+from fabricsurf.verification.drape_map import differences, draw_panels, fishnet_shear_at
 
 SAMPLES_PER_CHORD = 8
 """Points at which the continuum's fibre line is evaluated per chord of the net."""
@@ -112,8 +112,7 @@ def compare(points: np.ndarray, shear_deg: np.ndarray, on_punch: np.ndarray, u, 
     parts on the cap: the compared points, both shears, max and RMS of the difference (deg),
     how many points on the punch were left out (beyond the generators' contact), and the
     generators' largest distance from the sphere where they are used."""
-    L, M = (fishnet.unit(t) for t in angles_deg)
-    uv = np.linalg.solve(np.column_stack([L, M]), np.asarray(points, float).T).T
+    uv = fishnet.fibre_coordinates(points, angles_deg)
     reach = float(np.abs(uv[on_punch]).max()) + 4 * a
     net, on, gap = continuum_net(u, stroke, R, angles_deg, a, reach, touch)
     covered = ((uv[:, 0] <= on[(0, 1)]) & (uv[:, 0] >= -on[(0, -1)])
@@ -132,25 +131,6 @@ def compare(points: np.ndarray, shear_deg: np.ndarray, on_punch: np.ndarray, u, 
 def draw_map(path, result: dict, R: float, title: str = "") -> None:
     """Two panels over the compared points (reference blank): the continuum's shear and its
     difference from the drape with its own generators (deg). Call on one rank."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    p, fe = result["points"], result["continuum_deg"]
-    diff = fe - result["drape_deg"]
-    lim = float(np.abs(diff).max())
-    fig, axes = plt.subplots(1, 2, figsize=(9, 4))
-    panels = [(fe, "continuum shear (deg)", {"cmap": "viridis"}),
-              (diff, "continuum − drape, own generators (deg)",
-               {"cmap": "coolwarm", "vmin": -lim, "vmax": lim})]
-    for ax, (v, label, kw) in zip(axes, panels):
-        im = ax.tricontourf(p[:, 0], p[:, 1], v, levels=21, **kw)
-        ax.add_patch(plt.Circle((0, 0), R, fill=False, color="k", ls="--", lw=0.8))
-        ax.set(aspect="equal", xlabel="x (mm, reference)", title=label)
-        fig.colorbar(im, ax=ax, shrink=0.8)
-    axes[0].set_ylabel("y (mm, reference)")
-    if title:
-        fig.suptitle(title)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    fe = result["continuum_deg"]
+    draw_panels(path, result["points"], R, fe, "continuum shear (deg)",
+                [(fe - result["drape_deg"], "continuum − drape, own generators (deg)")], title)
