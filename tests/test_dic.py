@@ -97,8 +97,9 @@ def lost(path, layout):
     """Holes of one written file, counted independently of the importer."""
     text = path.read_text().splitlines()
     rows = [r for r in text if r.strip() and r.lstrip()[0] in "0123456789-+"]
+    delim = ";" if layout.name in ("davis", "aramis_nodemap") else ","
     if layout.valid:
-        return sum(r.split(",")[-1].strip() == "-1" for r in rows)
+        return sum(float(r.split(delim)[-1]) == layout.invalid for r in rows)
     return sum("nan" in r for r in rows)
 
 

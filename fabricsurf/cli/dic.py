@@ -76,22 +76,31 @@ def _import(spec_path: Path, stage: Path) -> str:
     write_directory(stage, exp, report)
     _reads_back(stage)
     noise = report["noise"]
+    notes = [f"note: {role} column dropped ({why})"
+             for role, why in report["dropped_columns"].items()]
+    if report["coordinates"]["converted"]:
+        notes.append("note: the export's coordinates are deformed positions; reference = "
+                     "deformed − displacement")
     return (f"{report['points_read']} points read from {len(report['files'])} images "
-            f"({report['layout']}), {report['holes']} holes and {report['outside_dropped']} "
-            f"points off the specimen dropped; {report['rows_written']} field rows written"
+            f"({report['layout']}, {', '.join(report['encoding'])}), {report['holes']} holes "
+            f"and {report['outside_dropped']} points off the specimen dropped; "
+            f"{report['rows_written']} field rows written"
             + (f" (binned to {spec.pitch:g} mm)" if spec.pitch else "")
             + "; noise_std " + ("" if noise["noise_std"] is None else
-                                f"{noise['noise_std']:.3g} mm ") + f"({noise['method']})")
+                                f"{noise['noise_std']:.3g} mm ") + f"({noise['method']})"
+            + "".join("\n" + n for n in notes))
 
 
 def _inputs(spec_path: Path) -> tuple[tuple[str, Path], ...]:
     """The spec and the export files it matches (--out must keep apart from them)."""
     import tomllib
 
+    from fabricsurf.inverse.dic.files import matching
+
     found: list[tuple[str, Path]] = [(f"import description {spec_path}", spec_path)]
     try:
         pattern = tomllib.loads(spec_path.read_text())["export"]["files"]
-        found += [(f"export file {p}", p) for p in spec_path.parent.glob(str(pattern))]
+        found += [(f"export file {p}", p) for p in matching(spec_path.parent, str(pattern))]
     except (OSError, KeyError, TypeError, ValueError):
         pass  # read_spec names the problem
     return tuple(found)

@@ -176,3 +176,28 @@ def unloading_warning(exp, model) -> str | None:
     return (f"{exp.name}: the load path turns back at step {int(exp.steps[k])} (from "
             f"{exp.path[k - 1]:g} to {exp.path[k]:g}); {', '.join(terms)} is an elastic "
             "equivalent for monotonic loading and does not describe unloading")
+
+
+def tensile_forces(plugin: type, images: list, force: list[float] | np.ndarray, where: str,
+                   force_noise_std: float | None = None, label: str = "step") -> None:
+    """A test that pulls the specimen (a load path of displacements ≥ 0, ``path_unit`` "length"
+    with a reaction: the bias-extension test) measures a tensile reaction, positive by the
+    contract's sign convention: a negative force beyond the force noise (3 σ given, else 3 % of
+    the largest |force|, three times the contract's default σ) is a reversed sign convention
+    or a load cell read in compression. ``images``: a label per step (the image numbers, or the
+    step numbers of a force file)."""
+    if getattr(plugin, "path_unit", None) != "length" or not plugin.has_reaction:
+        return
+    f = np.asarray(force, float)
+    if not len(f):
+        return
+    tol = 3.0 * (force_noise_std if force_noise_std is not None
+                 else 0.01 * float(np.abs(f).max()))
+    bad = np.flatnonzero(f < -tol)
+    if len(bad):
+        k = int(bad[0])
+        raise DataError(f"{where}: step {k + 1} ({label} {images[k]}): force {f[k]:.4g} N is "
+                        f"negative ({len(bad)} of {len(f)} steps are); the '{plugin.name}' test "
+                        "pulls the specimen and its reaction is tensile, positive by the "
+                        "contract's sign convention: flip the sign of the force column (the "
+                        "load cell's compression-positive convention) or check the channel")

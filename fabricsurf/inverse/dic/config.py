@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fabricsurf.errors import DataError
@@ -14,13 +14,14 @@ from fabricsurf.experiments.base import Setup, choice_option, number_option
 from fabricsurf.inverse.contract import checks
 from fabricsurf.inverse.contract.data import FORCE_UNITS
 from fabricsurf.inverse.contract.tables import read_toml
+from fabricsurf.inverse.dic.encoding import normalise
 from fabricsurf.inverse.dic.frame import GRIP_ANGLE, Frame
-from fabricsurf.inverse.dic.layouts import LAYOUTS, Layout, custom_layout
+from fabricsurf.inverse.dic.layouts import COORDINATES, LAYOUTS, Layout, custom_layout
 
 KEYS = {
     "": {"name", "export", "columns", "units", "frame", "specimen", "loading", "steps",
          "binning", "data", "source", "material"},
-    "export": {"layout", "files", "image_number"},
+    "export": {"layout", "files", "image_number", "encoding", "coordinates"},
     "units": {"coordinates", "mm_per_pixel", "force"},
     "frame": {"origin", "grip", "angle_deg", "y_down", "outside"},
     "steps": {"images", "reference_images", "path", "force"},
@@ -53,6 +54,8 @@ class ImportSpec:
     force_noise_std: float | None
     source: dict
     unit: str
+    encoding: str | None = None
+    coordinates_key: str = "[export] coordinates"
 
 
 def _check_keys(t: dict, where: str, plugin) -> None:
@@ -166,16 +169,29 @@ def _setup(t: dict, where: str, plugin) -> Setup:
     return setup
 
 
-def _layout(t: dict, where: str) -> Layout:
-    name = t.get("export", {}).get("layout")
+def _layout(t: dict, where: str) -> tuple[Layout, str]:
+    """(the layout, the key that states its coordinates: [columns] or [export] coordinates,
+    which overrides a named layout's)."""
+    export = t.get("export", {})
+    name = export.get("layout")
     if name == "columns":
-        return custom_layout(t.get("columns", {}), where)
+        if "coordinates" in export:
+            raise DataError(f"{where}: with layout = \"columns\" the coordinates are stated by "
+                            "[columns] coordinates, not [export] coordinates")
+        return custom_layout(t.get("columns", {}), where), "[columns] coordinates"
     if name not in LAYOUTS:
         raise DataError(f"{where}: [export] layout = {name!r} is not one of "
                         f"{sorted(LAYOUTS) + ['columns']}")
     if "columns" in t:
         raise DataError(f"{where}: a [columns] table goes with [export] layout = \"columns\"")
-    return LAYOUTS[name]
+    layout = LAYOUTS[name]
+    if "coordinates" in export:
+        coords = export["coordinates"]
+        if coords not in COORDINATES:
+            raise DataError(f"{where}: [export] coordinates = {coords!r} is not one of "
+                            f"{list(COORDINATES)}")
+        layout = replace(layout, coordinates=coords)
+    return layout, "[export] coordinates"
 
 
 IMAGE_NUMBER = {"last": r".*(?<!\d)(\d+)", "first": r"\D*(\d+)"}
@@ -210,11 +226,13 @@ def read_spec(path: str | Path) -> ImportSpec:
     except DataError as e:
         raise DataError(str(e).replace("experiment.toml", where)) from None
     _check_keys(t, where, plugin)
-    layout = _layout(t, where)
+    layout, coordinates_key = _layout(t, where)
     files = t.get("export", {}).get("files")
-    if not isinstance(files, str) or not files.strip() or Path(files).is_absolute():
-        raise DataError(f"{where}: [export] files = {files!r} must be a file pattern relative "
-                        "to the directory of this file, e.g. \"DICe_solution_*.txt\"")
+    if not isinstance(files, str) or not files.strip():
+        raise DataError(f"{where}: [export] files = {files!r} must be a file pattern, relative "
+                        "to the directory of this file or absolute, e.g. "
+                        "\"DICe_solution_*.txt\"")
+    encoding = normalise(t.get("export", {}).get("encoding"), where)
     image_number = _image_number(t.get("export", {}).get("image_number", "last"), where)
     unit, scale, fscale = _units(t, where, layout)
     frame, outside = _frame(t, where, layout, scale)
@@ -228,6 +246,11 @@ def read_spec(path: str | Path) -> ImportSpec:
              [f * fscale for f in _float_list(s["force"], "[steps] force", where, len(images))])
     if force is not None and not plugin.has_reaction:
         raise DataError(f"{where}: [steps] force: the '{plugin.name}' test measures no reaction")
+    if force is not None:
+        fnoise = t.get("data", {}).get("force_noise_std")
+        checks.tensile_forces(plugin, images, force, f"{where}: [steps] force",
+                              None if not isinstance(fnoise, (int, float)) else fnoise * fscale,
+                              "image")
     b = t.get("binning", {})
     pitch = number_option(t, "binning", "pitch", where) if "pitch" in b else None
     setup = _setup(t, where, plugin)
@@ -250,4 +273,5 @@ def read_spec(path: str | Path) -> ImportSpec:
     return ImportSpec(where, name, layout, files, image_number, path.parent, frame, outside,
                       setup, images, refs, load, force, pitch, min_points,
                       noise["noise_std"], None if noise["force_noise_std"] is None
-                      else noise["force_noise_std"] * fscale, dict(source), unit)
+                      else noise["force_noise_std"] * fscale, dict(source), unit, encoding,
+                      coordinates_key)

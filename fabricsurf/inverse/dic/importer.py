@@ -1,15 +1,15 @@
 """DIC exports → an :class:`~fabricsurf.inverse.contract.experiment.Experiment` (docs/dic.md).
 
 One file per image; the image number is an integer of the file's name (the last by default,
-``[export] image_number``). Each image is
-read, its holes (NaN or empty cells, or the layout's invalid flag) dropped and counted, its
-points moved to the specimen's frame, checked (duplicates, outline) and, with a pitch, binned
-before the next is read: the memory is that of one image plus the binned result.
+``[export] image_number``). Each image is read, its holes (NaN or empty cells, the layout's
+lost-point flags) dropped and counted, its coordinates checked against the first image read
+(reference or deformed, :mod:`~fabricsurf.inverse.dic.coordinates`) and made reference ones,
+its points moved to the specimen's frame, checked (duplicates, outline) and, with a pitch,
+binned before the next is read: the memory is that of one image, the first image's points and
+the binned result.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 
@@ -17,9 +17,12 @@ from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract import checks
 from fabricsurf.inverse.contract.experiment import Experiment
-from fabricsurf.inverse.dic.binning import bin_points, noise_estimate
+from fabricsurf.inverse.dic import coordinates
+from fabricsurf.inverse.dic.binning import bin_points
 from fabricsurf.inverse.dic.config import ImportSpec
+from fabricsurf.inverse.dic.files import image_files
 from fabricsurf.inverse.dic.layouts import UNITS
+from fabricsurf.inverse.dic.noise import noise
 from fabricsurf.inverse.dic.reader import ExportFile, read_export
 
 OUTLINE_TOL = 1e-6
@@ -27,51 +30,10 @@ OUTLINE_TOL = 1e-6
 MAX_DISPLACEMENT = 10.0
 """Displacements beyond this many specimen sizes are a unit mix-up (the contract's limit,
 checks.field_displacements, here with the export's file and line)."""
-NO_SCATTER = 1e-9
-"""An estimated noise level below this fraction of the specimen size is no scatter at all
-(noise-free data): no estimate is recorded (the contract's default applies)."""
-
-
-def image_files(spec: ImportSpec) -> dict[int, Path]:
-    """{image number: file} of the files matching the pattern; every file must be a listed
-    step or reference image, and every listed image must have its file."""
-    found: dict[int, Path] = {}
-    for p in sorted(spec.root.glob(spec.files)):
-        if not p.is_file():
-            continue
-        m = spec.image_number.search(p.stem)
-        if not m or not m.group(1).isdigit():
-            raise DataError(f"{p.name}: no image number in the file name by [export] "
-                            f"image_number = {spec.image_number.pattern!r} (files matched by "
-                            f"[export] files = {spec.files!r})")
-        k = int(m.group(1))
-        if k in found:
-            raise DataError(f"{p.name} and {found[k].name} both give image {k} (by [export] "
-                            f"image_number = {spec.image_number.pattern!r}: set it to pick "
-                            "the image number, e.g. \"first\" or \"-(\\d+)_\")")
-        found[k] = p
-    if not found:
-        raise DataError(f"{spec.where}: [export] files = {spec.files!r} matches no file in "
-                        f"{spec.root}")
-    known = set(spec.images) | set(spec.reference_images)
-    for k, p in sorted(found.items()):
-        if k not in known:
-            raise DataError(f"{p.name}: image {k} has no matching load step: it is in neither "
-                            f"[steps] images = {spec.images} nor reference_images = "
-                            f"{spec.reference_images} of {spec.where} (add it, or narrow "
-                            "[export] files)")
-    missing = [k for k in spec.images + spec.reference_images if k not in found]
-    if missing:
-        raise DataError(f"{spec.where}: image {missing[0]} of [steps] has no file among those "
-                        f"matching [export] files = {spec.files!r} (images found: "
-                        f"{sorted(found)[:10]}{' …' if len(found) > 10 else ''})")
-    return found
-
-
 def _check_units(f: ExportFile, unit: str) -> None:
     """The unit tags of the header (``u [mm]``) must agree with each other and [units]."""
     tagged = {r: UNITS[t.lower()] for r, t in f.units.items()
-              if t is not None and t.lower() in UNITS}
+              if t is not None and t.lower() in UNITS and r not in ("px", "py")}
     if len(set(tagged.values())) > 1:
         pairs = ", ".join(f"{r} in {t}" for r, t in tagged.items())
         raise DataError(f"{f.path.name} line {f.header_line}: mixed units in the header "
@@ -82,13 +44,25 @@ def _check_units(f: ExportFile, unit: str) -> None:
                         f"[units] coordinates is \"{unit}\" (the layout's default or as given)")
 
 
-def _valid(f: ExportFile, invalid: float | None) -> np.ndarray:
+def _valid(f: ExportFile, spec: ImportSpec, d: int) -> np.ndarray:
+    """Valid rows: finite coordinates and displacements (w only where used), no lost-point
+    flag, and, for layouts that write zeros for lost points, not all-zero (unless every row
+    is: an image of zero displacements)."""
     ok = np.ones(f.n, dtype=bool)
-    for role, a in f.data.items():
-        if role != "valid":
-            ok &= np.isfinite(a)
-    if "valid" in f.data and invalid is not None:
-        ok &= f.data["valid"] != invalid
+    used = ("x", "y", "u", "v") + (("w",) if d == 3 else ())
+    for role in used:
+        if role in f.data:
+            ok &= np.isfinite(f.data[role])
+    for role, value in spec.layout.lost_flags():
+        if role in f.data:
+            ok &= f.data[role] != value
+    if spec.layout.zero_lost:
+        zero = np.ones(f.n, dtype=bool)
+        for role in ("u", "v", "w"):
+            if role in f.data:
+                zero &= f.data[role] == 0.0
+        if not zero[ok].all():
+            ok &= ~zero
     return ok
 
 
@@ -130,10 +104,10 @@ def _magnitudes(f: ExportFile, rows: np.ndarray, u: np.ndarray, spec: ImportSpec
                         "mm): check [units] (coordinates, mm_per_pixel) and the columns")
 
 
-def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool) -> tuple[np.ndarray, ...]:
-    """(X, u, counts) of one image's valid points in the specimen's frame."""
-    _check_units(f, spec.unit)
-    rows = np.flatnonzero(_valid(f, spec.layout.invalid))
+def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool, ok: np.ndarray
+           ) -> tuple[np.ndarray, ...]:
+    """(X, u, counts) of one image's valid points (``ok``) in the specimen's frame."""
+    rows = np.flatnonzero(ok)
     _duplicates(f, rows)
     data = {r: a[rows] for r, a in f.data.items()}
     X = np.column_stack(spec.frame.points(data["x"], data["y"]))
@@ -147,23 +121,71 @@ def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool) -> tuple[np.nda
     u = np.column_stack(comps)[on]
     _magnitudes(f, rows[on], u, spec)
     counts = {"rows": f.n, "holes": int(f.n - len(rows)), "outside_dropped": int((~on).sum()),
-              "points": int(on.sum())}
+              "points": int(on.sum()),
+              "max_abs_u_mm": float(np.abs(u).max()) if len(u) else 0.0}
     return X[on], u, counts
 
 
-def _collect(spec: ImportSpec, files: dict[int, Path], images: list[int], d: int,
-             tilt_first: bool, report: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class _Reading:
+    """What persists from image to image: the first image read (the coordinates check's
+    anchor) and the evidence of the others."""
+
+    def __init__(self) -> None:
+        self.anchor: coordinates.Anchor | None = None
+        self.evidence: list[dict] = []
+        self.dropped: dict[str, str] = {}
+        self.read = 0
+        self.total = 0
+        self.pending: DataError | None = None
+        """An error of the first image (off the specimen, a tilt, …), raised after the second
+        image has shown whether the coordinates were read as what they are: a wrong reading
+        misplaces the points, and its evidence is the message that helps."""
+
+
+def _read(spec: ImportSpec, path, image: int, d: int, state: _Reading
+          ) -> tuple[ExportFile, np.ndarray, dict]:
+    """One image read, its valid rows, and its coordinates checked and made reference."""
+    f = read_export(path, image, spec.layout, spec.encoding)
+    state.read += 1
+    _check_units(f, spec.unit)
+    ok = _valid(f, spec, d)
+    extra = {"encoding": f.encoding.label}
+    if state.anchor is None:
+        state.anchor = coordinates.anchor(image, path.name, f.data, ok)
+    else:
+        state.evidence.append(coordinates.compare(state.anchor, image, path.name, f.data, ok,
+                                                  spec.layout.coordinates,
+                                                  spec.coordinates_key))
+    if spec.layout.coordinates == "deformed":
+        coordinates.to_reference(f.data)
+    if d == 2 and "w" in f.data:
+        state.dropped["w"] = ("planar test: the out-of-plane displacement column "
+                              f"{f.names['w']!r} is not used")
+    return f, ok, extra
+
+
+def _collect(spec: ImportSpec, files: dict, images: list[int], d: int, tilt_first: bool,
+             report: list, state: _Reading) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(step, X, u) of ``images`` (steps numbered from 1 in their order), binned when a
     pitch is given; one entry per image appended to ``report``."""
     steps, Xs, us = [], [], []
     for k, image in enumerate(images, start=1):
-        f = read_export(files[image], image, spec.layout)
-        X, u, counts = _image(f, spec, d, tilt_first and k == 1)
-        del f
-        if k == 1 and len(X):
-            _extent(files[image].name, X, spec)
+        f, ok, extra = _read(spec, files[image], image, d, state)
+        if state.pending is not None:
+            raise state.pending
+        try:
+            X, u, counts = _image(f, spec, d, tilt_first and k == 1, ok)
+            if k == 1 and len(X):
+                _extent(files[image].name, X, spec)
+            _not_empty(files[image].name, counts, spec)
+        except DataError as e:
+            if state.read == 1 and state.total > 1:  # the first image: its coordinates
+                state.pending = e                     # are checked with the next one first
+                continue
+            raise
+        counts |= extra
+        del f, ok
         s = np.full(len(X), k, dtype=np.int64)
-        _not_empty(files[image].name, counts, spec)
         if spec.pitch:
             s, X, u, _ = bin_points(s, X, u, spec.pitch, spec.min_points)
             counts["bins"] = len(X)
@@ -204,26 +226,6 @@ def _extent(name: str, X: np.ndarray, spec: ImportSpec) -> None:
                         "([units] mm_per_pixel, or the coordinates' unit) right?")
 
 
-def _noise(spec: ImportSpec, refs: tuple, step: np.ndarray, X: np.ndarray, u: np.ndarray
-           ) -> dict:
-    if spec.noise_std is not None:
-        return {"noise_std": spec.noise_std, "method": "given in [data] noise_std"}
-    if refs is not None and np.any(refs[2]):
-        est = noise_estimate(*refs)
-        method = ("estimated: local plane residuals of the reference images' "
-                  "displacements" + (" (binned as the data)" if spec.pitch else ""))
-    else:
-        est = noise_estimate(step, X, u)
-        method = "estimated: local plane residuals of the written field, all steps"
-    size = max(spec.setup.length, spec.setup.width)
-    if est["noise_std"] is None or est["noise_std"] < NO_SCATTER * size:
-        why = "too few points" if est["noise_std"] is None else "the data show no scatter"
-        return {"noise_std": None, "estimate": est,
-                "method": f"not estimated: {why}; give [data] noise_std (the contract's "
-                          "default applies: 1 % of the largest displacement)"}
-    return {"noise_std": est["noise_std"], "method": method, "estimate": est}
-
-
 def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
     """The experiment (mm, N) of the exports ``spec`` describes, and the import report."""
     plugin = get_test(spec.setup.test)
@@ -232,16 +234,19 @@ def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
     plugin.check_path(steps_n, spec.path, f"{spec.where}: [steps] path")
     files = image_files(spec)
     report: dict = {"files": [], "reference": []}
+    state = _Reading()
+    state.total = len(spec.images) + len(spec.reference_images)
     refs = None
     if spec.reference_images:
-        refs = _collect(spec, files, spec.reference_images, d, True, report["reference"])
-    step, X, u = _collect(spec, files, spec.images, d, refs is None, report["files"])
+        refs = _collect(spec, files, spec.reference_images, d, True, report["reference"],
+                        state)
+    step, X, u = _collect(spec, files, spec.images, d, refs is None, report["files"], state)
     for e, i in zip(report["files"], steps_n):
         e["step"] = int(i)
-    noise = _noise(spec, refs, step, X, u)
+    level = noise(spec, refs, report["reference"], step, X, u)
     exp = Experiment(spec.name, spec.setup, steps_n, np.array(spec.path, float),
                      None if spec.force is None else np.array(spec.force, float),
-                     step, X, u, noise_std=noise["noise_std"],
+                     step, X, u, noise_std=level["noise_std"],
                      force_noise_std=spec.force_noise_std,
                      source=spec.source | {"import": "fabricsurf import-dic from "
                                            f"{spec.layout.source}; see dic_import.json"})
@@ -254,7 +259,12 @@ def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
                                             "angle_deg": spec.frame.tilt_deg,
                                             "outside": spec.outside},
                "binning": {"pitch_mm": spec.pitch, "min_points": spec.min_points},
-               "noise": noise, "rows_written": len(X),
+               "coordinates": {"read_as": spec.layout.coordinates,
+                               "converted": spec.layout.coordinates == "deformed",
+                               "evidence": state.evidence},
+               "dropped_columns": state.dropped,
+               "encoding": sorted({e["encoding"] for e in report["files"] + report["reference"]}),
+               "noise": level, "rows_written": len(X),
                "points_read": int(sum(e["rows"] for e in report["files"])),
                "holes": int(sum(e["holes"] for e in report["files"])),
                "outside_dropped": int(sum(e["outside_dropped"] for e in report["files"]))}
