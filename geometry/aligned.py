@@ -83,6 +83,27 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
     return best
 
 
+def lattice_sizes(length: float, width: float, h: float, theta_deg: float,
+                  tol_deg: float = ANGLE_TOLERANCE_DEG) -> tuple[float | None, float | None]:
+    """The fibre-edge lengths (the h an aligned mesh reports) of the corner-to-corner lattices
+    of the rectangle whose angle is within ``tol_deg`` of θ nearest to ``h``: (the largest not
+    above h, the smallest not below h), None where there is none with 2 to 4·q0 rows (q0 of
+    :func:`lattice_divisions`)."""
+    t = math.radians(theta_deg)
+    q0 = width / (h * math.sin(t))
+    finer, coarser = None, None
+    for q in range(2, max(4, math.ceil(4 * q0)) + 1, 2):
+        p = max(2, 2 * round(length * math.tan(t) * q / (2 * width)))
+        if abs(lattice_angle_deg(length, width, p, q) - theta_deg) > tol_deg:
+            continue
+        size = math.hypot(length / p, width / q)
+        if size <= h and (finer is None or size > finer):
+            finer = size
+        if size >= h and (coarser is None or size < coarser):
+            coarser = size
+    return finer, coarser
+
+
 def lattice_triangles(P: int, Q: int, split_horizontal: bool | Callable[[int, int], bool]
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (p, q) (p + q even, 0 ≤ p ≤ P, 0 ≤ q ≤ Q) and the triangles of the rhombi

@@ -1,5 +1,7 @@
 """Graded structured meshes (geometry.specimen.structured_rectangle with grading)."""
 
+import math
+
 import numpy as np
 import pytest
 import ufl
@@ -61,3 +63,37 @@ def test_gmsh_failure_on_rank0_raises_everywhere(monkeypatch):
     monkeypatch.setattr(spec, "_build_rectangle", fail)
     with pytest.raises(RuntimeError, match="rank 0: ValueError: synthetic gmsh failure"):
         spec.rectangle(2.0, 1.0, 0.5, COMM)
+
+
+def test_aligned_sizes_near_the_one_asked():
+    """187 × 119 mm is 11 : 7, so its ±45° corner-to-corner lattices have 14 k rows: fibre
+    edges of 12.02, 6.01, 4.007 mm. Near h = 10 those are 6.01 (finer) and 12.02 (coarser)."""
+    from geometry.aligned import lattice_sizes
+
+    finer, coarser = lattice_sizes(187.0, 119.0, 10.0, 45.0)
+    assert finer == pytest.approx(math.hypot(187 / 44, 119 / 28), rel=1e-12)
+    assert coarser == pytest.approx(math.hypot(187 / 22, 119 / 14), rel=1e-12)
+    assert lattice_sizes(187.0, 119.0, 12.020815280171307, 45.0)[1] == pytest.approx(12.0208153)
+
+
+def test_mesh_coarser_than_asked_is_announced():
+    """bias --h 10 on 187 × 119: the aligned mesh has h = 12.02 mm; the notice (printed on
+    rank 0 before computing) says so, why, and which h gives a mesh no coarser than asked.
+    Within 5 % nothing is said."""
+    from types import SimpleNamespace
+
+    from fabricsurf.experiments.bias_extension import default_model
+    from fabricsurf.experiments.discretisation import choose_fibre_treatment
+
+    def notice(asked, used):
+        sp = SimpleNamespace(kind="aligned", h=used, length=187.0, width=119.0, note="")
+        return choose_fibre_treatment("auto", sp, default_model(), asked, (45.0, -45.0),
+                                      (45.0, -45.0))["notice"]
+
+    text = notice(10.0, 12.020815280171307)
+    assert "h = 12.02 mm (asked 10)" in text and "+20 % from the 10 mm asked" in text
+    assert "whole number of cells between fibre lines" in text
+    assert "no coarser than asked: h = 6.01 mm" in text
+    assert "coarser than asked" not in notice(8.0, 6.010407640085654)
+    assert "-25 % from the 8 mm asked" in notice(8.0, 6.010407640085654)
+    assert notice(12.0, 12.020815280171307) == ""

@@ -139,3 +139,18 @@ def test_options_removed_from_the_global_database():
     opts.delValue("fabricsurf_opt_test_snes_max_it")
     with pytest.raises(ValueError, match="jacobian"):
         sqrt_problem({"jacobian": "approximate"})
+
+
+def test_relative_test_alone_does_not_end_a_solve():
+    """A solve that meets only ``snes_rtol`` (here a loose 1e-2 of the first residual, as
+    1e-10 of the Dirichlet lifting K·Δū of stiff fibres was: docs/theory.md, "Converged load
+    steps") goes on until Newton's correction is below ``step_rtol`` of the state: u = 3/4 to
+    1e-12. With ``step_rtol = 0`` (the old acceptance) it stops where the residual first fell
+    below 1e-2 of the start's: u off by 4.1e-4 (measured)."""
+    s, u = sqrt_problem({**DOMAIN_AWARE, "snes_rtol": 1e-2})
+    reason, _ = s.solve()
+    assert reason > 0 and s.polished == 1
+    assert np.allclose(u.x.array, 0.75, atol=1e-12)
+    s0, u0 = sqrt_problem({**DOMAIN_AWARE, "snes_rtol": 1e-2, "step_rtol": 0.0})
+    assert s0.solve()[0] == PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
+    assert s0.polished == 0 and np.all(np.abs(u0.x.array - 0.75) > 4e-4)

@@ -28,13 +28,14 @@ from fabricsurf.cli.options import (
     saved_fit,
 )
 from fabricsurf.cli.outdir import OutputDir
+from fabricsurf.discretise.energy import has_second_gradient
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.bias_extension import BiasExtension, BiasResult, default_model
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.log import rank0_print
-from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE
+from fabricsurf.model.terms import EFFECTS
 
 OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
            "force.png", "force_band.csv", "force_band.png", "summary.json", "failure.json")
@@ -90,6 +91,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_max_elements(p)
 
 
+ANGLE_A_NOTE = (
+    "note: gamma_A is read at A of Barchiesi et al. 2020 Fig. 4, where the fibre lines from the "
+    "clamp's corners cross and the unsheared, half-sheared and centre zones meet; a model "
+    "without an in-plane second-gradient term (geodesic_bending, stretch_gradient, "
+    "shear_gradient) has sharp zone boundaries, so the value there depends on the mesh "
+    "(gamma_B and the force do not): add geodesic bending to read it")
+"""Said when γ_A has no mesh-independent value (docs/theory.md, "Shear angles at A and B")."""
+
+
 def _model(args) -> list:
     """--terms (with --params moduli); else the terms of the --params file (a saved fit is the
     whole model: no default term is added silently); else the default model."""
@@ -98,7 +108,7 @@ def _model(args) -> list:
     if not (args.terms or params):
         return default_model()
     model = parse_model(args.terms, params)
-    out_of_plane = [t.name for t in model if t.name in IN_PLANE_INVISIBLE]
+    out_of_plane = [t.name for t in model if not t.in_plane]
     if out_of_plane:
         spec = args.terms or f"(the terms of --params {args.params})"
         raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane effect, "
@@ -175,7 +185,10 @@ def run(args: argparse.Namespace) -> int:
     with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
         summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp,
-                   "discretisation": test.discretisation}
+                   "discretisation": test.discretisation,
+                   "angle_A_mesh_dependent": not has_second_gradient(model)}
+        if summary["angle_A_mesh_dependent"]:
+            rank0_print(comm, ANGLE_A_NOTE)
         done: list[int] = []
 
         od.on_interrupt = lambda stage_dir: interrupted_report(  # no MPI call in there

@@ -28,6 +28,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from fabricsurf.discretise.evaluation import quadrature_expression
 
@@ -99,3 +100,25 @@ class Multiplier:
 
     def restore(self, state: np.ndarray) -> None:
         self.T.x.array[:] = state
+
+
+def uzawa(solver, reason: int, its: int) -> tuple[int, int]:
+    """The multiplier updates of ``solver.solve`` (discretise/solver.py) after its first Newton
+    solve (``reason``, ``its``): update, stiffening after a slow update, and solve again until
+    every constraint holds to :data:`CONSTRAINT_TOLERANCE`; (reason, iterations summed),
+    DIVERGED_MAX_IT after :data:`MAX_MULTIPLIER_UPDATES` updates."""
+    before = np.inf
+    for _ in range(MAX_MULTIPLIER_UPDATES):
+        if reason <= 0:
+            return reason, its
+        violation = max(m.violation() for m in solver.multipliers)
+        if violation <= CONSTRAINT_TOLERANCE:
+            return reason, its
+        for m in solver.multipliers:
+            m.update()
+            if violation > SLOW_CONTRACTION * before:
+                m.stiffen()
+        before = violation
+        reason, more = solver._newton()
+        its += more
+    return (int(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT) if reason > 0 else reason), its

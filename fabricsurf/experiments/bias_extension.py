@@ -1,11 +1,10 @@
 """The planar bias-extension test with the continuum model (Barchiesi et al. 2020 §2, eq. 7;
-docs/theory.md).
-
-Specimen [0, length] × [0, width] (mm), fibres at ±45° to the load (x). Clamps of Barchiesi et al.
-2020
-eq. (7): u = 0 at x = 0 and u = ū e_x at x = length, with zero normal derivative on both
-(weakly, by Nitsche) when the model has second-gradient terms. The reaction is the virtual work
-of the residual at the grip; shear angles are evaluated at A and B of Barchiesi et al. 2020 Fig. 4.
+docs/theory.md). Specimen [0, length] × [0, width] (mm), fibres at ±45° to the load (x).
+Clamps of Barchiesi et al. 2020 eq. (7): u = 0 at x = 0 and u = ū e_x at x = length, with zero
+normal derivative on both (weakly, by Nitsche) when the model has second-gradient terms. The
+reaction is the virtual work of the residual at the grip; shear angles are evaluated at A and B
+of Barchiesi et al. 2020 Fig. 4 (A: where the fibre lines from the clamp's corners cross, at
+±45°; B: the centre).
 """
 
 from __future__ import annotations
@@ -121,7 +120,7 @@ class BiasExtension:
         given = tuple(float(a) for a in fibre_angles)
         fibre_angles = canonical_angles(given)
         if specimen is None:
-            check_bias_angles(fibre_angles, length, width, h)
+            check_bias_angles(fibre_angles, length, width)
         self.specimen = (specimen if specimen is not None
                          else specimen_mesh(length, width, h, fibre_angles, comm, mesh,
                                             self.model))
@@ -159,7 +158,7 @@ class BiasExtension:
         return max(max_over_cells(e, self.problem.msh) for e in self._tensions)
 
     def angles_deg(self) -> np.ndarray:
-        """Shear angles γ at A and B in degrees."""
+        """Shear angles γ at A and B (:attr:`points`) in degrees."""
         return np.degrees(self.fibre_fields_at(self.points)[:, 2])
 
     def displacement_at(self, points: np.ndarray) -> np.ndarray:
@@ -265,7 +264,7 @@ class BiasExtensionTest(ExperimentSetup):
         super().__init__(setup, model, h, comm)
         depth = float(setup.options.get("grip_depth", 0.0))
         angles = canonical_angles(tuple(setup.fibre_angles_deg))
-        check_bias_angles(angles, setup.length - 2 * depth, setup.width, h)
+        check_bias_angles(angles, setup.length - 2 * depth, setup.width)
         specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h, angles, comm,
                                  model=model)
         if depth:

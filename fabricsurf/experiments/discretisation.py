@@ -5,8 +5,8 @@ A mesh whose edges do not follow the fibres locks (the grip force grows with the
 stiffness K); the bias plug-in therefore meshes along the fibres whenever they are at ±θ to the
 load (geometry/fibre_mesh.py). Whatever is chosen is recorded (mesh kind, the size actually
 used, the fibre treatment, the fibre angles as given and as used) and, when the mesh is not
-the corner-to-corner lattice, the fibre pair was respelled or the set-up may lock, printed on
-rank 0 before anything is computed.
+the corner-to-corner lattice, its size is more than 5 % from the one asked (with why), the
+fibre pair was respelled or the set-up may lock, printed on rank 0 before anything is computed.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from mpi4py import MPI
 
 from fabricsurf.log import PROGRESS, rank0_print
 from fabricsurf.model.terms import Term
+from geometry.aligned import ANGLE_TOLERANCE_DEG, EXACT_DEG, lattice_sizes, symmetric_angle
 
 TREATMENTS = ("auto", "full", "reduced")
 """``auto`` (= ``full``) and the two of :data:`fabricsurf.discretise.energy.FIBRE_TREATMENTS`."""
@@ -105,11 +106,42 @@ def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float
               "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
               "angle_mismatch_deg": mismatch,
               "may_lock": may_lock(kind, treatment, ratio, mismatch)}
-    record["notice"] = _notice(record, getattr(specimen, "note", ""))
+    record["notice"] = _notice(record, getattr(specimen, "note", ""),
+                               _size_reason(record, specimen, model, used))
     return record
 
 
-def _notice(r: dict, why: str) -> str:
+LATTICES = ("aligned", "lattice_pair", "lattice_pair_short")
+"""Mesh kinds built as fibre lattices, whose h is the lattice's, not the one asked."""
+
+SIZE_NOTE = 0.05
+"""A mesh whose size differs from the one asked by more than this fraction is announced, with
+why (docs/usage.md, "The bias test's mesh, shear angles and load steps")."""
+
+
+def _size_reason(r: dict, specimen, model: list[Term], used: tuple[float, float]) -> str:
+    """Why the mesh's h differs from the one asked by more than :data:`SIZE_NOTE` ("" when it
+    does not): a fibre-aligned lattice has a whole number of cells between fibre lines, so only
+    some sizes fit the rectangle; for the corner-to-corner lattice, the fitting sizes on either
+    side of the one asked."""
+    asked, got = r["h_requested"], r["h_used"]
+    if r["mesh_kind"] not in LATTICES or not abs(got - asked) > SIZE_NOTE * asked:
+        return ""
+    why = (f"h = {got:.4g} mm, {100 * (got / asked - 1):+.0f} % from the {asked:g} mm asked: "
+           "a fibre-aligned mesh needs a whole number of cells between fibre lines along both "
+           "sides of the specimen at the fibres' angle, so only some sizes fit it")
+    theta = symmetric_angle(used)
+    if r["mesh_kind"] != "aligned" or theta is None:
+        return why + "; the nearest that fits was taken"
+    tol = max(min(tolerated_mismatch_deg(model), ANGLE_TOLERANCE_DEG), EXACT_DEG)
+    finer, coarser = lattice_sizes(specimen.length, specimen.width, asked, theta, tol)
+    sizes = " and ".join(f"{v:.4g} mm" for v in (finer, coarser) if v is not None)
+    return (why + f"; near {asked:g} mm these are h = {sizes}, and the nearest in cell count "
+            f"was taken" + (f" (for a mesh no coarser than asked: h = {finer:.4g} mm)"
+                            if finer is not None and got > asked else ""))
+
+
+def _notice(r: dict, why: str, size: str = "") -> str:
     lines = []
     if [float(a) for a in r["fibre_angles_given"]] != r["fibre_angles_used"]:
         lines.append(f"fibre angles {r['fibre_angles_given']} deg are the fibre lines "
@@ -124,8 +156,10 @@ def _notice(r: dict, why: str) -> str:
                      + ("; the reduced treatment is too soft instead" if
                         r["fibre_treatment"] == "reduced" else "")
                      + "). Remedy: " + _remedy(r))
-    elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full":
+    elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full" or size:
         lines.append(head)
+    if size:
+        lines.append(size)
     return "\n".join(lines)
 
 
@@ -147,13 +181,13 @@ def announce(comm: MPI.Comm, record: dict) -> None:
                     level=logging.WARNING if record["may_lock"] else PROGRESS)
 
 
-def check_bias_angles(angles: tuple[float, float], length: float, width: float,
-                      h: float | None = None) -> None:
+def check_bias_angles(angles: tuple[float, float], length: float, width: float) -> None:
     """Refuse (ValueError naming the value) fibre pairs the bias test cannot have, before
     anything is computed: families closer than :data:`MIN_SEPARATION_DEG`; a family so close
     to the load axis (0°) that its fibres run from clamp to grip (φ ≤ atan(W/L): the test is
-    then a tensile test of the yarns); a family steeper than 45° so close to 90° that the
-    unsheared zone at each grip, (W/2)·cot φ long, is shorter than the mesh size ``h``."""
+    then a tensile test of the yarns). Steep fibres, whose unsheared grip zones ((W/2)·cot φ
+    long) are shorter than the mesh size, are computed: the fibre-aligned meshes resolve those
+    zones whatever h (docs/theory.md, "Steep fibres")."""
     a, b = angles
     apart = abs(a - b) % 180.0
     apart = min(apart, 180.0 - apart)
@@ -169,11 +203,3 @@ def check_bias_angles(angles: tuple[float, float], length: float, width: float,
                 f"{length:g} x {width:g} mm specimen (they must make more than "
                 f"atan(W/L) = {steepest:.3g} deg with it): the test degenerates into a tensile "
                 "test of the yarns; cut the specimen on the bias (e.g. +-45 deg) or longer")
-        # only fibres steeper than the bias cut (45°) shorten the grip zones below W/2: a mesh
-        # coarser than that at ±45° (e.g. a fit's coarse scout) is coarse, not a bad angle
-        if h is not None and phi > 45.0 and 0.5 * width / math.tan(math.radians(phi)) < h:
-            raise ValueError(
-                f"bias test: fibres at {phi:g} deg to the load leave unsheared zones "
-                f"{0.5 * width / math.tan(math.radians(phi)):.3g} mm long at the grips, "
-                f"shorter than the mesh size h = {h:g} mm, which cannot resolve them; use "
-                f"h <= {0.5 * width / math.tan(math.radians(phi)):.3g} mm")
