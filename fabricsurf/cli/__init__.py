@@ -10,7 +10,10 @@ mpirun's own: Open MPI 4.1 returns 1 when it is itself interrupted, whatever its
 (a job whose ranks exit with 130 by themselves gives 130), so 130 holds for serial runs only;
 an unexpected failure on one rank aborts all ranks instead of leaving the
 others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
-through the root logger) are hidden unless ``--verbose``.
+through the root logger) are hidden unless ``--verbose``; the package's own warnings print as
+one line ``warning: …`` (:func:`fabricsurf.log.package_warnings`). The environment (the JIT
+compiler's directories under HOME, FABRICSURF_LOCAL_CELLS) is checked before any computation
+(:mod:`fabricsurf.cli.environment`).
 
 The commands' modules are imported when the parser is built, so that importing
 :mod:`fabricsurf.cli` (and :mod:`fabricsurf.cli.demo`, what every demo shares) loads no
@@ -24,14 +27,16 @@ import contextlib
 import io
 import logging
 import os
+import re
 import signal
 import sys
 from collections.abc import Iterator
 
 from mpi4py import MPI
 
+from fabricsurf.cli.environment import check_environment
 from fabricsurf.errors import InputError
-from fabricsurf.log import progress, rank0_print
+from fabricsurf.log import package_warnings, progress, rank0_print
 
 COMM = MPI.COMM_WORLD
 JIT_LOGGERS = ("ffcx", "UFL", "UFL_LEGACY", "dolfinx")
@@ -119,7 +124,13 @@ def interruptible(command: str) -> Iterator[None]:
     """SIGINT and SIGTERM end this process at once (status 130), after
     :func:`~fabricsurf.cli.outdir.interrupted` cleaned up: no exception unwinds through code
     that may call MPI, which could wait forever for a rank that has already stopped. The
-    previous handlers are restored on exit."""
+    previous handlers are restored on exit.
+
+    gmsh's Python module sets SIGINT to its default action when imported and, in every
+    ``gmsh.finalize()``, back to the handler it found then (``gmsh.oldsig``): after the first
+    gmsh mesh, a Ctrl-C of a serial run (mpirun sends SIGTERM instead) raised
+    KeyboardInterrupt with a traceback. It is imported first here and told to restore this
+    handler."""
     import threading
 
     from fabricsurf.cli import outdir
@@ -129,26 +140,74 @@ def interruptible(command: str) -> Iterator[None]:
         return
     signals = (signal.SIGINT, signal.SIGTERM)
     previous = {s: signal.getsignal(s) for s in signals}
+    try:
+        import gmsh
+    except (ImportError, OSError):  # no gmsh (or no libgmsh): nothing resets the handler
+        gmsh = None
+    saved = getattr(gmsh, "oldsig", None)
+    prefix = "fabricsurf" + (f" {command}" if command else "")
 
     def handler(signum, frame):
         for s in signals:
             signal.signal(s, signal.SIG_IGN)
         msg = outdir.interrupted(signal.Signals(signum).name)
         if msg:  # on stderr: the handler may have cut a write to stdout (a progress line)
-            os.write(2, f"fabricsurf {command}: {msg}\n".encode())
+            os.write(2, f"{prefix}: {msg}\n".encode())
         sys.stderr.flush()
         os._exit(130)
 
     for s in signals:
         signal.signal(s, handler)
+    if gmsh is not None:
+        gmsh.oldsig = handler
     try:
         yield
     finally:
+        if gmsh is not None:
+            gmsh.oldsig = saved
         for s, h in previous.items():
             signal.signal(s, h)
 
 
-def _parse(argv: list[str] | None) -> argparse.Namespace | int:
+NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?|[-+]?(?:inf|infinity|nan)"
+NUMBERS = re.compile(rf"(?:{NUMBER})(?:\s*,\s*(?:{NUMBER}))*", re.IGNORECASE)
+"""A number or a comma-separated list of them (``-1,0``, ``-1e-3``, ``-inf``)."""
+
+
+def numbers_joined(ap: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with every option that takes a value joined to a value that begins with '-' and
+    is a number or a list of them (``--grip-depths -1,0`` → ``--grip-depths=-1,0``).
+
+    argparse reads such a token as an option, unless it is a plain negative number ("-1",
+    "-.5"), and stops with "expected one argument"; joined, the value reaches the option's own
+    check, which names what is wrong with it. Nothing after "--" is touched."""
+    parsers = [ap] + [p for a in ap._actions if isinstance(a, argparse._SubParsersAction)
+                      for p in a.choices.values()]
+    takes_value = {o for p in parsers for a in p._actions if a.nargs is None
+                   for o in a.option_strings}
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token == "--":
+            return out + argv[i:]
+        value = argv[i + 1] if i + 1 < len(argv) else ""
+        if token in takes_value and value.startswith("-") and NUMBERS.fullmatch(value):
+            out.append(f"{token}={value}")
+            i += 2
+        else:
+            out.append(token)
+            i += 1
+    return out
+
+
+def _command(argv: list[str]) -> str:
+    """The command named in ``argv`` (its first word that is not an option), for messages
+    given before the arguments are parsed; "" if none."""
+    return next((a for a in argv if not a.startswith("-")), "")
+
+
+def _parse(argv: list[str]) -> argparse.Namespace | int:
     """The arguments, or the exit status of --help / a usage error (printed by rank 0 only)."""
     quiet = contextlib.ExitStack()
     if COMM.rank > 0:
@@ -156,19 +215,30 @@ def _parse(argv: list[str] | None) -> argparse.Namespace | int:
         quiet.enter_context(contextlib.redirect_stderr(io.StringIO()))
     with quiet:
         try:
-            return build_parser().parse_args(argv)
+            ap = build_parser()
+            return ap.parse_args(numbers_joined(ap, argv))
         except SystemExit as e:
             return e.code if isinstance(e.code, int) else 2
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``fabricsurf`` command; returns the exit status (same on all ranks)."""
-    args = _parse(argv)
-    if isinstance(args, int):
-        return args
+    """Entry point of the ``fabricsurf`` command; returns the exit status (same on all ranks).
+    Interrupts are handled from the start (building the parser imports the libraries, which
+    takes about a second)."""
+    argv = [str(a) for a in (sys.argv[1:] if argv is None else argv)]
+    with interruptible(_command(argv)):
+        args = _parse(argv)
+        if isinstance(args, int):
+            return args
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command, its errors turned into one message and the exit status."""
     try:
-        with interruptible(args.command), compiler_messages(args.verbose), \
-                progress(not args.quiet):
+        with compiler_messages(args.verbose), progress(not args.quiet), \
+                package_warnings(COMM.rank):
+            check_environment(COMM, args.command)
             return args.func(args)
     except (InputError, OSError) as e:
         rank0_print(COMM, f"fabricsurf {args.command}: error: {e}", level=logging.ERROR)

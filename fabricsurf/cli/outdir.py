@@ -15,8 +15,10 @@ result).
 One output directory belongs to one run (:mod:`fabricsurf.cli.ownership`, docs/usage.md
 "Output directories"): a lock beside OUT refuses a concurrent run before it computes; the
 staging directories of a killed run are removed by the next; each publish records its files
-in OUT, and the next one removes those of the earlier run it does not write itself; names
-beside OUT are shortened with a hash when OUT's name is long.
+in OUT, and the next one removes those of the earlier run it does not write itself; a file in
+OUT that no run recorded (the user's) and that the run would write is refused, before any
+computation when the command names it in ``files``, else at the publish, which then moves
+nothing; names beside OUT are shortened with a hash when OUT's name is long.
 """
 
 from __future__ import annotations
@@ -40,6 +42,8 @@ from fabricsurf.cli.ownership import (
     remove_stale_stages,
     short_name,
     take_lock,
+    unrecorded,
+    unrecorded_message,
 )
 from fabricsurf.discretise.output import on_rank0
 from fabricsurf.errors import InputError
@@ -116,6 +120,10 @@ def _check(out: Path, files: tuple[str, ...],
         why = _clash(out / name, will_be_dir=False)
         if why:
             raise InputError(f"--out {out}: {why}")
+    found = unrecorded(out, files)
+    if found:
+        raise InputError(f"--out {out}: {unrecorded_message(out, found)}; move it elsewhere "
+                         "or give another --out")
     # beside the real OUT (a rename cannot cross file systems), named as given when it is there
     parent = out.parent if out.parent.resolve() == real.parent else real.parent
     parent.mkdir(parents=True, exist_ok=True)
@@ -137,17 +145,29 @@ def _check(out: Path, files: tuple[str, ...],
     return stage, lock
 
 
+def _refusal(stage: Path, out: Path, files: list[str]) -> str | None:
+    """Why the staged results cannot be moved into OUT, or None: a directory where a file goes
+    (or the reverse), or a file of OUT that no run recorded (:func:`unrecorded`)."""
+    if not out.exists():
+        return None
+    for src in sorted(stage.rglob("*")):
+        why = _clash(out / src.relative_to(stage), src.is_dir())
+        if why:
+            return why
+    found = unrecorded(out, files)
+    return unrecorded_message(out, found) if found else None
+
+
 def _publish(stage: Path, out: Path) -> None:
     """Move the staged files into OUT with their record (:data:`MANIFEST`), then remove the
     files the previous record names that this run did not write."""
     files = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if not p.is_dir())
-    for src in sorted(stage.rglob("*")) if out.exists() else ():
-        why = _clash(out / src.relative_to(stage), src.is_dir())
-        if why:  # kept under a name the next run's clean-up of stale stages leaves alone
-            kept = stage.with_name(stage.name.replace(".partial-", ".unpublished-", 1))
-            os.rename(stage, kept)
-            raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
-                             f"{kept}")
+    why = _refusal(stage, out, files)
+    if why:  # kept under a name the next run's clean-up of stale stages leaves alone
+        kept = stage.with_name(stage.name.replace(".partial-", ".unpublished-", 1))
+        os.rename(stage, kept)
+        raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
+                         f"{kept}")
     (stage / MANIFEST).write_text(json.dumps({"files": files, "pid": os.getpid(),
                                               "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
     if not out.exists():

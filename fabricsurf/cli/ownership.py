@@ -1,7 +1,8 @@
 """One output directory belongs to one run (:mod:`fabricsurf.cli.outdir`, docs/usage.md
 "Output directories"): the lock beside OUT against a concurrent run, the clean-up of staging
 directories a killed run left, the record of the files a publish wrote (so the next publish
-removes an earlier run's results), and names beside OUT that fit NAME_MAX however long OUT's
+removes an earlier run's results), what is in OUT that no run recorded (the user's files,
+which a run refuses to replace), and names beside OUT that fit NAME_MAX however long OUT's
 name is."""
 
 from __future__ import annotations
@@ -91,3 +92,22 @@ def recorded(out: Path) -> list[Path]:
         if p.is_file() and not p.is_symlink() and p.resolve().is_relative_to(real):
             found.append(p)
     return found
+
+
+def unrecorded(out: Path, names) -> list[str]:
+    """The ``names`` (relative to OUT) that are in OUT, as a file or a symbolic link, although
+    OUT's record does not list them: files a run did not write (the user's own, or results of
+    a version before the record), which a run must not replace (docs/usage.md)."""
+    if not out.is_dir():
+        return []
+    mine = {str(p.relative_to(out)) for p in recorded(out)}
+    return [n for n in names if n not in mine and os.path.lexists(out / n)
+            and not (out / n).is_dir()]
+
+
+def unrecorded_message(out: Path, names: list[str]) -> str:
+    """What :func:`unrecorded` found, for a message that goes on with the remedy."""
+    more = f" (and {len(names) - 1} more: {', '.join(names[1:4])}{'…' if len(names) > 4 else ''})"
+    return (f"{out / names[0]}{more if len(names) > 1 else ''} is not the result of a fabricsurf "
+            f"run (the record {MANIFEST} does not list it) and this run writes a file of that "
+            "name")

@@ -36,6 +36,7 @@ from typing import TypeVar
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.errors import InputError
 from fabricsurf.inverse.fitting import warm_start
 from fabricsurf.log import logger
 
@@ -69,7 +70,9 @@ ENVIRONMENT = "FABRICSURF_LOCAL_CELLS"
 
 
 def local_cells() -> float:
-    """The threshold in force: :data:`ENVIRONMENT` when set, else :data:`LOCAL_CELLS`."""
+    """The threshold in force: :data:`ENVIRONMENT` when set, else :data:`LOCAL_CELLS`. A value
+    that is not a number ≥ 0 is an :class:`~fabricsurf.errors.InputError` naming the variable
+    (the command line checks it on every rank before computing: cli/environment.py)."""
     text = os.environ.get(ENVIRONMENT, "").strip()
     if not text:
         return LOCAL_CELLS
@@ -78,8 +81,9 @@ def local_cells() -> float:
     except ValueError:
         value = math.nan
     if not value >= 0:
-        raise ValueError(f"{ENVIRONMENT}={text!r}: give a number of cells >= 0 (0: solve every "
-                         "mesh distributed over the ranks)")
+        raise InputError(f"environment variable {ENVIRONMENT}={text!r}: give a number of cells "
+                         f">= 0 (0: solve every mesh distributed over the ranks; unset: "
+                         f"{LOCAL_CELLS})")
     return value
 
 
