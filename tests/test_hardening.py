@@ -485,10 +485,11 @@ def test_loader_messages_name_file_and_line(tmp_path):
 
 # -- what is used is recorded; outputs are published whole ---------------------------------------
 def test_misfit_records_what_was_used(in_root, capsys):
-    """A compare run records terms, the exact moduli (from --params, the others at their
-    default 1.0), mesh size, inputs and versions; OUT gets the user's umask, not 0700."""
+    """A compare run records terms, the exact moduli of --params, mesh size, inputs and
+    versions; OUT gets the user's umask, not 0700."""
     if COMM.rank == 0:
-        (in_root / "used.json").write_text(json.dumps({"shear": {"k_s": 0.8}}))
+        (in_root / "used.json").write_text(json.dumps(
+            {"fibre_stretch": {"k_l": 1.0, "k_m": 1.0}, "shear": {"k_s": 0.8}}))
     COMM.barrier()
     rc, msg = run_cli(["compare", "good", "--terms", TERMS, "--params", "used.json", "--h", "10",
                        "--out", "used"], capsys)

@@ -58,12 +58,10 @@ def check_terms_fit_data(exps: list, model: list, spec: str) -> None:
     in 3D), and a cantilever or a formed sheet without a second-gradient term has no bending
     stiffness."""
     from fabricsurf.experiments import get_test
-    from fabricsurf.model.terms import IN_PLANE_INVISIBLE
 
-    names = [t.name for t in model]
     for e in exps:
         planar = get_test(e.test).d == 2
-        out_of_plane = [n for n in names if n in IN_PLANE_INVISIBLE]
+        out_of_plane = [t.name for t in model if not t.in_plane]
         if planar and out_of_plane:
             raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane "
                              f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
@@ -83,11 +81,11 @@ def planar_candidates(exps: list, cands: list[str] | None) -> None:
     meaning; refused, naming the remedy."""
     from fabricsurf.experiments import get_test
     from fabricsurf.inverse.fitting.diagnose import visible_effects
-    from fabricsurf.model.terms import IN_PLANE_INVISIBLE
+    from fabricsurf.model.terms import in_plane_invisible
 
     planar = [e.name for e in exps if get_test(e.test).d == 2]
     pool = cands if cands is not None else visible_effects(exps)
-    out_of_plane = [c for c in pool if c in IN_PLANE_INVISIBLE]
+    out_of_plane = [c for c in pool if c in in_plane_invisible()]
     if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
         option = "--candidates " + ",".join(cands) if cands is not None else (
             "no --candidates given: the default candidates include")

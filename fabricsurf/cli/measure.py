@@ -21,6 +21,7 @@ from fabricsurf.cli.options import (
     check_h,
     check_params_file,
     check_size,
+    compare_moduli,
     diagnose_options,
     enough_data,
     error_map_steps,
@@ -44,7 +45,7 @@ from fabricsurf.inverse.fitting.mesh_choice import (
 )
 from fabricsurf.inverse.fitting.misfit import converged_steps
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
-from fabricsurf.inverse.fitting.report import result_lines, tie_lines
+from fabricsurf.inverse.fitting.report import misfit_summary, result_lines, tie_lines
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS
 
@@ -57,8 +58,9 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
                       " (default: the terms named in --params)"))
     p.add_argument("--params", default=None, help='JSON moduli {"term": {"parameter": value}}, '
                    "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
-                   "terms`), or a saved fit.json; only terms of --terms (default: every modulus "
-                   "1.0)")
+                   "terms`), or a saved fit.json; only terms of --terms; compare needs every "
+                   "modulus of --terms, fit and diagnose start from them (default: every "
+                   "modulus 1.0)")
     p.add_argument("--out", required=True, type=out_path, help="output directory (created if "
                    "missing; must be writable; one run's results: those of an earlier run there "
                    "are replaced, docs/usage.md)")
@@ -125,21 +127,6 @@ def _failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
                            ) from None
 
 
-def _summary(label: str, m: dict) -> str:
-    parts = [f"{label}: combined misfit {m['combined']:.4g} (noise units), chi2 "
-             f"{m['chi2']:.5g} over {m['n']} data"]
-    for e in m["experiments"]:
-        bits = [f"field RMS {e['field_rms']:.4g} mm" if e["field_rms"] is not None else "",
-                f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else "",
-                f"shear RMS {e['shear_rms_deg']:.4g} deg" if e.get("shear_rms_deg") is not None
-                else ""]
-        parts.append(f"  {e['experiment']}: misfit {e['combined']:.4g}; "
-                     + ", ".join(b for b in bits if b)
-                     + (f"; points outside the mesh: {e['points_outside']}"
-                        if e["points_outside"] else ""))
-    return "\n".join(parts)
-
-
 def _prov(model, fs, args) -> dict:
     """The provenance of a compare or fit, with the mesh kind, size and fibre treatment each
     experiment actually got (the plug-in's record, where it keeps one)."""
@@ -153,12 +140,15 @@ def cmd_compare(args) -> int:
     from fabricsurf.inverse.fitting.forward import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_bands, write_comparison
 
-    exps, model, _ = _setup(args)
+    exps, model, params = _setup(args)
     steps = error_map_steps(args.steps, exps)
+    note = compare_moduli(args, model, params)  # refuses moduli a --params file lacks
     saved = saved_fit(args)
     od = OutputDir(args.out, COMM, files=("misfit.json",),
                    inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
+        if note:
+            rank0_print(COMM, note)
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
             preds = fs.run()
             m = fs.misfit(preds)
@@ -170,7 +160,7 @@ def cmd_compare(args) -> int:
                     raise InputError(f"--params {args.params}: {e}") from None
         label = "+".join(t.name for t in model)
         write_comparison(stage, exps, [(label, preds)], [(label, m)], steps, extra=extra)
-    rank0_print(COMM, _summary(label, m))
+    rank0_print(COMM, misfit_summary(label, m))
     return 0
 
 
@@ -194,7 +184,7 @@ def cmd_fit(args) -> int:
         write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
     for line in result_lines(res.as_dict()):
         rank0_print(COMM, line)
-    rank0_print(COMM, _summary(label, res.misfit))
+    rank0_print(COMM, misfit_summary(label, res.misfit))
     return 0
 
 

@@ -246,3 +246,31 @@ def diagnose_options(args, exps: list, model: list, params: dict
                   args.max_effects, labels)
     planar_candidates(exps, cands)
     return cands, fixed
+
+
+def defaulted_moduli(model: list, params: dict) -> list[str]:
+    """The moduli of ``model`` that ``params`` (the --params file's) does not give, each as
+    "term.param = value unit": they take the term's default."""
+    return [f"{t.name}.{p} = {v:g} {t.units.get(p, '')}".rstrip()
+            for t in model for p, v in t.values().items() if p not in params.get(t.name, {})]
+
+
+def compare_moduli(args, model: list, params: dict) -> str | None:
+    """``compare`` compares a model whose every modulus was chosen. With a --params file, a
+    modulus of --terms it does not give is refused (it would be compared at the term's default,
+    1.0, which is nobody's estimate: a wrong answer without a word); without --params every
+    modulus is the default, and the note returned says so (printed once the run starts)."""
+    missing = defaulted_moduli(model, params)
+    if not missing:
+        return None
+    if args.params is None:
+        return ("note: no --params given: every modulus takes its default ("
+                + ", ".join(missing) + "); give a --params file to compare your own moduli")
+    terms = ",".join(t.name for t in model)
+    raise InputError(f"--params {args.params}: gives no value for "
+                     f"{', '.join(m.split(' = ')[0] for m in missing)} of --terms {terms}, so "
+                     f"compare would use the default{'s' * (len(missing) > 1)} "
+                     f"({', '.join(missing)}), nobody's estimate; add "
+                     f"{'them' if len(missing) > 1 else 'it'} to {args.params}, or drop the "
+                     "term from --terms (a saved fit: leave --terms out to compare the fit's "
+                     "own model)")

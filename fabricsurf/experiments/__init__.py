@@ -16,16 +16,32 @@ from fabricsurf.experiments.picture_frame import PictureFrameTest
 TESTS: dict[str, type[ExperimentSetup]] = {
     c.name: c for c in (BiasExtensionTest, PictureFrameTest, CantileverTest, HemisphereForming)
 }
-ALIASES = {"tensile": "bias_extension"}
+ALIASES: dict[str, str] = {}
+"""Other names of a test (none now: ``tensile`` was one of ``bias_extension``, see
+:data:`NOT_MODELLED`)."""
+
+NOT_MODELLED = {
+    "tensile": "a tensile test (the yarns pulled along the load, fibres at 0/90 deg) is not "
+               "modelled: the bias-extension geometry degenerates there (fibres run from clamp "
+               "to grip), so no plug-in takes it; for a bias-extension test (fibres on the bias, "
+               "e.g. fibre_angles_deg = [45.0, -45.0]) write test = \"bias_extension\"; a fibre "
+               "stiffness measured in a tensile test can be held with diagnose --fixed "
+               "fibre_stretch",
+}
+"""Test names that are refused with what they mean and what to do (``tensile`` was once an
+alias of ``bias_extension``: a name promising a test that plug-in refuses)."""
 
 
 def get_test(name: str) -> type[ExperimentSetup]:
-    """The plug-in class of a test name (aliases accepted); unknown names list the valid ones."""
+    """The plug-in class of a test name (aliases accepted); unknown names list the valid ones,
+    a name of :data:`NOT_MODELLED` says why it is not a test here."""
     key = ALIASES.get(name, name) if isinstance(name, str) else name
+    if isinstance(key, str) and key in NOT_MODELLED:
+        raise DataError(f"experiment.toml: [loading] test = {name!r}: {NOT_MODELLED[key]}")
     if key not in TESTS:
         raise DataError(f"experiment.toml: [loading] test = {name!r} is not one of "
                         f"{sorted(TESTS) + sorted(ALIASES)}")
     return TESTS[key]
 
 
-__all__ = ["ALIASES", "TESTS", "ExperimentSetup", "Setup", "get_test"]
+__all__ = ["ALIASES", "NOT_MODELLED", "TESTS", "ExperimentSetup", "Setup", "get_test"]

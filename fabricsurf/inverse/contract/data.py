@@ -175,8 +175,42 @@ def load_experiment(directory: str | Path) -> Experiment:
         read_shear(exp, d / str(sname), ls, plugin)
         zero_shear(exp, str(sname))
     checks.magnitudes(exp, lu)
+    if force is not None:
+        checks.tensile_forces(plugin, [int(k) for k in steps], force, str(gname),
+                              noise["force_noise_std"], label="numbered")
+    check_field_moves(exp, str(fname) if fname is not None else "")  # before: its remedy
     checks.zero_data(exp, fname and str(fname), gname and str(gname))
     return exp
+
+
+STILL = 1e-12
+"""A step's displacements are "zero" when none exceeds this fraction of the specimen size:
+round-off of an exact 0, never a measurement (DIC noise alone is ~1e-3 mm)."""
+
+
+def check_field_moves(exp: Experiment, name: str) -> None:
+    """Refuse a field whose displacements are all zero at a step where the load path is not:
+    the grip (or load) moved and nothing in the data did, the wrong columns (strains, a
+    reference image exported for every step) or the wrong images; a fit would report it as a
+    misfit no effect explains. ``name``: the field file's name, for the message."""
+    if not exp.has_field:
+        return
+    size = max(exp.length, exp.width)
+    still = [k for k, s in enumerate(exp.steps)
+             if exp.path[k] != 0 and len(rows := exp.step_rows(s))
+             and np.abs(exp.u[rows]).max() <= STILL * size]
+    if not still:
+        return
+    label = get_test(exp.test).path_label
+    steps = ", ".join(str(int(exp.steps[k])) for k in still[:8]) + (", …" if len(still) > 8
+                                                                     else "")
+    path = ", ".join(f"{exp.path[k]:g}" for k in still[:8]) + (", …" if len(still) > 8 else "")
+    every = len(still) == len(np.unique(exp.field_step))
+    raise DataError(f"{name or 'the field'}: every displacement of step"
+                    f"{'s' * (len(still) > 1)} {steps}{' (all its steps)' * every} is 0 while "
+                    f"the {label} is {path}: nothing moved in the data though the load did; "
+                    "check the displacement columns (ux, uy: not strains or coordinates) and "
+                    "that each step's images are the loaded ones, not the reference image")
 
 
 def _read_field(exp: Experiment, path: Path, ls: float, d: int) -> None:

@@ -32,6 +32,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.experiments import get_test
+from fabricsurf.inverse.contract.data import check_field_moves
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import local as ranks
@@ -50,7 +51,7 @@ from fabricsurf.inverse.fitting.report import (
 from fabricsurf.inverse.fitting.start import candidate_start
 from fabricsurf.inverse.fitting.ties import find_tie
 from fabricsurf.log import rank0_print
-from fabricsurf.model.terms import EFFECTS, IN_PLANE_INVISIBLE, make_term
+from fabricsurf.model.terms import EFFECTS, make_term
 
 
 def visible_effects(exps: list[Experiment]) -> list[str]:
@@ -58,15 +59,14 @@ def visible_effects(exps: list[Experiment]) -> list[str]:
     field, or the force and shear angles of a test solved in 3D: a formed part)."""
     three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3)
                   for e in exps)
-    return [n for n in EFFECTS if three_d or n not in IN_PLANE_INVISIBLE]
+    return [n for n in EFFECTS if three_d or EFFECTS[n].in_plane]
 
 
 def full_model(baseline: list[str], params: dict | None = None,
                visible: list[str] | None = None) -> list:
     """Baseline + every visible effect, in vocabulary order; the candidates at modulus 0."""
     params = params or {}
-    visible = visible if visible is not None else [
-        n for n in EFFECTS if n not in IN_PLANE_INVISIBLE]
+    visible = visible if visible is not None else [n for n in EFFECTS if EFFECTS[n].in_plane]
     model = []
     for n in EFFECTS:
         if n not in baseline and n not in visible:
@@ -188,6 +188,9 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
     visible = seen = visible_effects(exps)
     check_choices(list(baseline), candidates, fixed, params or {}, visible, confirm,
                   max_effects, library_labels(list(baseline), candidates, fixed))
+    for e in exps:  # a field that did not move is refused here too, not only when loaded
+        check_field_moves(e, e.files[1] if len(e.files) > 1 and e.has_field else
+                          f"the field of experiment '{e.name}'")
     fixed = list(fixed or [])
     if candidates is not None:
         visible = [n for n in visible if n in candidates or n in baseline]

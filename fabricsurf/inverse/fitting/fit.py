@@ -101,9 +101,10 @@ class FitResult:
         lost = self.lost()
         size = None if self.size_effects is None else np.array(
             [self.size_effects["moduli_half_width"].get(self.names[k], 0.0) for k in free])
+        null = None if self.J is None else intervals.null_directions(self.J * self.values[free])
         out = intervals.summarise([self.names[k] for k in free], self.values[free],
                                   self.statistical.cov, self.statistical.t95(),
-                                  self.model_form, self.mesh_shift, lost, size)
+                                  self.model_form, self.mesh_shift, lost, size, null)
         for k, n in enumerate(self.names):
             if k not in free and self.values[k] > 0:  # held at a given modulus
                 out["moduli"][n] = {"value": float(self.values[k]), "fixed": True}
@@ -170,29 +171,23 @@ def _start(fm: Forward, free: list[int], vals: np.ndarray):
     return pred, (r, Jr), float(r @ r)
 
 
-RANK_TOL = 1e-8
+RANK_TOL = intervals.RANK_TOL
 """Singular values of the scaled Jacobian below this fraction of the largest are null
-directions: the data do not determine that combination of log-moduli."""
+directions (:func:`~.intervals.null_directions`)."""
 
 
 def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
     """The null directions of the scaled Jacobian Jt = dr/d(log p) (a rank-deficient Fisher
     matrix JtᵀJt), each as its combination of log-moduli, e.g. "0.71 log a.k - 0.71 log b.k"
-    (the ratio a.k/b.k is not determined). From the SVD of Jt's p × p R factor
-    (:func:`~.linalg.right_singular`): O(N·p) memory for N residuals, never N × N."""
-    P = Jt.shape[1]
-    if P == 0:
-        return []
-    sv, Vt = la.right_singular(Jt, "fit: identifiability (SVD of the scaled Jacobian)")
-    top = sv[0] if sv[0] > 0 else 1.0
+    (the ratio a.k/b.k is not determined); :func:`~.intervals.null_directions`, O(N·p)
+    memory for N residuals, never N × N."""
     out = []
-    for sval, v in zip(sv, Vt):
-        if sval <= RANK_TOL * top:
-            terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
-            if terms[0][0] < 0:  # the first term positive
-                terms = [(-c, n) for c, n in terms]
-            out.append(" ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
-                                for c, n in terms).lstrip("+ "))
+    for v in intervals.null_directions(Jt).T:
+        terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
+        if terms[0][0] < 0:  # the first term positive
+            terms = [(-c, n) for c, n in terms]
+        out.append(" ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
+                            for c, n in terms).lstrip("+ "))
     return out
 
 

@@ -10,7 +10,12 @@ direction of the Fisher matrix and its interval excludes zero. For the moduli th
 eigenvectors of their covariance in log-moduli name the combinations the data do determine, each
 a weighted geometric mean Π p_i^{w_i} (Σ w_i = 1) whose log-interval half-width is below 1 (a
 relative ± below 100 %, the same criterion to first order); the other directions are not
-determined. The weak directions of the whole fit are the eigenvectors of the covariance of the
+determined. A combination is only looked for among the directions the Jacobian determines: those
+orthogonal to its null directions (:func:`null_directions`, the fit's ``undetermined``), so
+that a direction the fit calls undetermined is never reported with an interval (the
+pseudo-inverse gives it a variance of zero, which round-off from the other moduli's entries can
+lift just above any eigenvalue threshold: a "zero-width" interval of an undetermined
+ratio). The weak directions of the whole fit are the eigenvectors of the covariance of the
 log-moduli whose 95 % half-width exceeds WEAK.
 """
 
@@ -32,6 +37,26 @@ Z95 = 1.959963984540054
 NULL_TOL = 1e-12
 """Covariance eigenvalues below this fraction of the largest are the zeros the pseudo-inverse
 puts in the null directions of the Fisher matrix: not determined, not known exactly."""
+
+RANK_TOL = 1e-8
+"""Singular values of the scaled Jacobian below this fraction of the largest are null
+directions: the data do not determine that combination of log-moduli."""
+
+NULL_OVERLAP = 1e-6
+"""The null directions' components on the moduli considered span, above this (a singular value
+of them), the combinations that get no interval: round-off below it touches none."""
+
+
+def null_directions(Jt: np.ndarray) -> np.ndarray:
+    """The null directions of the scaled Jacobian Jt = dr/d(log p) (singular values at most
+    RANK_TOL of the largest), as the orthonormal columns of a p × k array (k = 0: full rank).
+    From the SVD of Jt's p × p R factor (:func:`~.linalg.right_singular`): O(N·p) memory."""
+    P = Jt.shape[1]
+    if P == 0:
+        return np.zeros((0, 0))
+    sv, Vt = la.right_singular(Jt, "fit: identifiability (SVD of the scaled Jacobian)")
+    top = sv[0] if sv[0] > 0 else 1.0
+    return Vt[sv <= RANK_TOL * top].T
 
 
 def half_width(sd: np.ndarray, t: float, tau: np.ndarray | None, shift: np.ndarray | None,
@@ -57,16 +82,36 @@ def _log_cov(values, cov, tau, shift):
     return C, t2, s
 
 
-def combinations(names, values, cov, t, tau, shift, which: list[int]) -> list[dict]:
-    """The determined combinations of the moduli ``which`` (module docstring)."""
+def _determined_basis(null: np.ndarray | None, which: list[int]) -> np.ndarray:
+    """Orthonormal columns spanning the combinations of the moduli ``which`` (weights on them
+    only) that are orthogonal to every null direction: Q with N_whichᵀ Q = 0."""
+    n = len(which)
+    if null is None or null.size == 0:
+        return np.eye(n)
+    Nw = null[which, :]
+    if not np.any(Nw):
+        return np.eye(n)
+    U, sv, _ = np.linalg.svd(Nw, full_matrices=True)
+    rank = int(np.sum(sv > NULL_OVERLAP * max(1.0, sv[0])))
+    return U[:, rank:]
+
+
+def combinations(names, values, cov, t, tau, shift, which: list[int],
+                 null: np.ndarray | None = None) -> list[dict]:
+    """The determined combinations of the moduli ``which`` (module docstring); ``null``: the
+    null directions of all the moduli ``names`` (:func:`null_directions`; None: none known)."""
     if len(which) < 2:
         return []
     C, t2, s = _log_cov(values[which], cov[np.ix_(which, which)],
                         None if tau is None else tau[which],
                         None if shift is None else shift[which])
-    lam, V = la.eigh(C, "intervals: the log-moduli covariance")
+    Q = _determined_basis(null, which)
+    if Q.shape[1] == 0:
+        return []
+    lam, Y = la.eigh(Q.T @ C @ Q, "intervals: the log-moduli covariance")
+    V = Q @ Y
     out = []
-    for k in range(len(which)):
+    for k in range(Q.shape[1]):
         if lam[k] <= NULL_TOL * max(lam[-1], 1e-300):
             continue  # a null direction of the Fisher matrix (zero in its pseudo-inverse)
         v = V[:, k]
@@ -102,11 +147,12 @@ def weak_directions(names, values, cov) -> list[dict]:
 
 def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
               tau: np.ndarray | None, shift: np.ndarray | None, lost: set[str],
-              size: np.ndarray | None = None) -> dict:
+              size: np.ndarray | None = None, null: np.ndarray | None = None) -> dict:
     """{"moduli": {name: {value, ci95, std_statistical, systematic_mesh, systematic_model,
     [systematic_size,] identifiable}}, "identifiable_combinations", "weak_directions"} for the
     fitted moduli; ``lost``: the moduli in a null direction of the Fisher matrix; ``size``: the
-    size part (95 % half-widths) when given."""
+    size part (95 % half-widths) when given; ``null``: the null directions
+    (:func:`null_directions`), which no combination may lie along."""
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     half = half_width(sd, t, tau, shift, size)
     moduli, weak = {}, []
@@ -125,5 +171,6 @@ def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
         if not ok and values[i] > 0:
             weak.append(i)
     return {"moduli": moduli,
-            "identifiable_combinations": combinations(names, values, cov, t, tau, shift, weak),
+            "identifiable_combinations": combinations(names, values, cov, t, tau, shift, weak,
+                                                      null),
             "weak_directions": weak_directions(names, values, cov)}

@@ -11,6 +11,14 @@ from pathlib import Path
 from fabricsurf.errors import InputError
 from fabricsurf.model.terms import EFFECTS, Term
 
+MAX_MODULUS = 1e12
+"""The largest modulus accepted, in its own unit (N/mm, or N·mm for a second gradient; lengths
+in mm). Well beyond any sheet: a 10 mm steel plate has E·t ≈ 2e6 N/mm and E·t³/12 ≈ 2e7 N·mm,
+and the stiffest inextensibility penalty in use, K/k_s = 1e9 at k_s ≲ 1 N/mm, is 1e9 N/mm. Not
+beyond the arithmetic: a tangent matrix whose entries span 1e12 over the soft moduli (≳ 1 N/mm)
+keeps about 4 of double precision's 16 digits for them; beyond it the shear response drowns in
+round-off and the Newton solve fails steps later (k_l = 1e308 overflows the energy)."""
+
 OTHER_KINDS = (
     ({"combined", "chi2"}, "a misfit report (the misfit.json of compare, fit or diagnose)"),
     ({"baseline", "verdict"}, "a diagnosis (diagnosis.json; its final model is saved as "
@@ -89,6 +97,14 @@ def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict
             if not ok or v < 0:
                 raise InputError(f"--params {name}: {term}.{p} = {v!r} must be a finite "
                                  f"number ≥ 0 ({EFFECTS[term].units.get(p, '')})")
+            if v > MAX_MODULUS:
+                unit = EFFECTS[term].units.get(p, "")
+                raise InputError(f"--params {name}: {term}.{p} = {v:.3g} {unit} is beyond any "
+                                 f"sheet (at most {MAX_MODULUS:.0e} {unit}: a 10 mm steel plate "
+                                 "is ~2e6 N/mm, a near-inextensible fibre penalty ~1e9 N/mm; "
+                                 "more leaves the solver no digits for the other moduli); "
+                                 "check the value and its unit (moduli in N/mm and N·mm, "
+                                 "lengths in mm)")
     return data
 
 

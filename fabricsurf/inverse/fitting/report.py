@@ -216,6 +216,23 @@ def result_lines(u: dict) -> list[str]:
     return lines
 
 
+def misfit_summary(label: str, m: dict) -> str:
+    """The combined misfit of a misfit.json ``m`` and each experiment's, as the CLI prints
+    them after compare and fit."""
+    parts = [f"{label}: combined misfit {m['combined']:.4g} (noise units), chi2 "
+             f"{m['chi2']:.5g} over {m['n']} data"]
+    for e in m["experiments"]:
+        bits = [f"field RMS {e['field_rms']:.4g} mm" if e["field_rms"] is not None else "",
+                f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else "",
+                f"shear RMS {e['shear_rms_deg']:.4g} deg" if e.get("shear_rms_deg") is not None
+                else ""]
+        parts.append(f"  {e['experiment']}: misfit {e['combined']:.4g}; "
+                     + ", ".join(b for b in bits if b)
+                     + (f"; points outside the mesh: {e['points_outside']}"
+                        if e["points_outside"] else ""))
+    return "\n".join(parts)
+
+
 def tie_lines(d) -> list[str]:
     """The tie and the separating experiment, as text (docs/diagnosis.md, "Ties")."""
     if not d.tied():
