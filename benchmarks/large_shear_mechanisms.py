@@ -26,13 +26,14 @@ from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.datasets import cao2008_plain_weave
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.inverse.contract.data import load_experiment
+from fabricsurf.model.terms import CrossoverFriction, Shear, ShearLocking, Term
 
 EPS_S = 0.002  # slip strain of yarn_slip's default
 
 
-def shear(ks: float, tf: float, k6: float = 0.0) -> dict:
-    return {"shear": {"k_s": ks}, "crossover_friction": {"tau_f": tf},
-            "shear_locking": {"k6": k6}}
+def shear(ks: float, tf: float, k6: float = 0.0) -> list[Term]:
+    """The net's shear law: shear + crossover friction (default γ_f) + the k6 of locking."""
+    return [Shear(k_s=ks), CrossoverFriction(tau_f=tf), ShearLocking(k4=0.0, k6=k6)]
 
 
 def energy_density(g, ks: float, tf: float, k6: float = 0.0):

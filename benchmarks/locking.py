@@ -68,7 +68,7 @@ def run(length: float, width: float, h: float, ratio: float | None, mesh: str, t
         force = b.run(ubar, STEPS, verbose=False).force[-1]
     except RuntimeError:
         force = float("nan")
-    ideal = float(kinematic_force(np.array([ubar]), length, width, {"shear": {"k_s": K_S}})[0])
+    ideal = float(kinematic_force(np.array([ubar]), length, width, [Shear(k_s=K_S)])[0])
     dofs = b.problem.V.dofmap.index_map.size_global * b.problem.V.dofmap.index_map_bs
     return {"length": length, "width": width, "h": h, "ratio_K": ratio, "mesh": mesh,
             "treatment": treatment, "kind": b.discretisation["mesh_kind"], "force": force,

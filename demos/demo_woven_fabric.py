@@ -137,6 +137,7 @@ seconds = {"diagnosis": time.perf_counter() - t0}
 write_json(comm, out / "diagnosis.json", diag.as_dict())
 base, final = diag.base_fit, diag.final_fit
 final_params = {t: v for t, v in final.params().items() if t in diag.terms}
+final_model = parse_terms(",".join(diag.terms), final_params)  # for the three-zone estimates
 for r in diag.ranking:
     say(f"  {r['effect']:18s} score {r['score']:9.3g}  refit chi2 {r.get('refit_chi2')}  "
         f"significant {r['significant']}")
@@ -184,7 +185,7 @@ diag_large = diagnose(full, wv.LARGE_SHEAR_BASE, h=H_MESH, comm=comm, verbose=Fa
                       params=final_params | {"fibre_stretch": {"k_l": 100.0, "k_m": 100.0}},
                       candidates=wv.LARGE_SHEAR_CANDIDATES, confirm=2,
                       max_effects=1 if args.quick else 2, check_discretisation=False)
-large = wv.large_shear_record(full, scales(full)[1], final_params, diag_large)
+large = wv.large_shear_record(full, scales(full)[1], final_model, diag_large)
 large["h_mm"] = H_MESH
 seconds["large_shear"] = time.perf_counter() - t0
 for k in ("inextensible_net_fitted_to_60_deg", "baseline", "final"):
@@ -275,11 +276,11 @@ d_pred, F_pred = np.array(curve["ubar"]), np.array(curve["force"])
 on_rank0(comm, wv.write_curve, out / "prediction_150x450.csv", d_pred, F_pred)
 bad = [u["zone_c_angle_deg"][0] for u in unexplained["final"]
        if u["kind"] != wv.KNEE]
-lock = tz.locking_angle(final_params)
+lock = tz.locking_angle(final_model)
 valid_deg = min([MAX_ANGLE, *bad] + ([np.degrees(lock)] if lock else []))
 valid_to = float(tz.displacement_at_angle(np.radians(valid_deg), 450.0, 150.0))
 at = {f"{x:g}": float(np.interp(x, d_pred, F_pred)) for x in (20, 40, 60, 76)}
-ideal = {k: float(tz.kinematic_force(float(k), 450.0, 150.0, final_params)) for k in at}
+ideal = {k: float(tz.kinematic_force(float(k), 450.0, 150.0, final_model)) for k in at}
 half = np.array(band["half_width"])
 size_part = np.array(band["parts"]["size_form"])
 on_rank0(comm, write_band, out / "prediction_150x450_band.csv", band)

@@ -13,7 +13,7 @@ from fabricsurf.inverse.fitting.choices import Labels, check_choices, library_la
 
 BASE = ["fibre_stretch", "shear"]
 PARAMS = {"shear": {"k_s": 0.5}}
-PLANAR = [n for n in dg.EFFECTS if n not in dg.IN_PLANE_INVISIBLE]
+PLANAR = [n for n, cls in dg.EFFECTS.items() if cls.in_plane]
 
 CASES = [  # (candidates, fixed, confirm, max_effects, library message, command-line message)
     (None, None, 0, 1, r"^confirm 0: must be at least 1$", r"^--confirm 0: must be"),

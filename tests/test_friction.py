@@ -79,10 +79,9 @@ def test_bias_force_is_the_three_zone_force_with_friction():
     model = [FibreStretch(inextensible=True), Shear(k_s=k_s), CrossoverFriction(tau_f=TAU_F)]
     res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(
         30.0, 3, verbose=False)
-    params = {"shear": {"k_s": k_s}, "crossover_friction": {"tau_f": TAU_F}}
-    ratio = np.array(res.force) / kinematic_force(np.array(res.ubar), H, W, params)
+    ratio = np.array(res.force) / kinematic_force(np.array(res.ubar), H, W, model)
     friction_share = 1.0 - kinematic_force(np.array(res.ubar), H, W,
-                                           {"shear": {"k_s": k_s}}) / np.array(res.force)
+                                           [Shear(k_s=k_s)]) / np.array(res.force)
     print(ratio, friction_share)
     assert np.all(friction_share > 0.1), "friction must carry a sizeable part of the force"
     assert np.all(np.abs(ratio - 1.0) < 1e-3), ratio

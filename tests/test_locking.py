@@ -44,7 +44,7 @@ def bias(ratio, h, mesh="auto"):
 
 def force_ratios(ratio, h) -> np.ndarray:
     res = bias(ratio, h).run(UBAR[-1], len(UBAR), verbose=False)
-    ideal = kinematic_force(np.array(res.ubar), H, W, {"shear": {"k_s": K_S}})
+    ideal = kinematic_force(np.array(res.ubar), H, W, [Shear(k_s=K_S)])
     return np.array(res.force) / ideal
 
 

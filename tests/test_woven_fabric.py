@@ -18,6 +18,7 @@ import numpy as np
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.inverse.fitting.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.model.terms import Shear, ShearLocking
 
 LATTICE = {"k_l": 30.0, "k_s": 0.5, "A_g": 0.0, "k4": 2.0, "k6": 2.0}
 
@@ -25,7 +26,8 @@ LATTICE = {"k_l": 30.0, "k_s": 0.5, "A_g": 0.0, "k4": 2.0, "k6": 2.0}
 def test_eq18_inverts_ideal_kinematics():
     """Eq. 18 of the ideal-kinematics force returns τ/cos γ up to the linear interpolation of
     F_sh(γ/2): second order in the angle step (4× smaller per halving; ≥ 8× over two)."""
-    params = {"shear": {"k_s": 0.02}, "shear_locking": {"k4": 0.01, "k6": 0.005}}
+    lock = ShearLocking(k4=0.01, k6=0.005)
+    params = [Shear(k_s=0.02), lock]
     err = []
     for n in (80, 320):
         g = np.radians(np.linspace(80.0 / n, 80.0, n))
@@ -36,8 +38,7 @@ def test_eq18_inverts_ideal_kinematics():
         err.append(np.max(np.abs(fsh / tz.constitutive_shear_force(g, params) - 1.0)))
     assert err[0] < 2e-4 and err[1] < err[0] / 8.0, err
     gl = tz.locking_angle(params)
-    assert np.isclose(tz.shear_moment(gl, {"shear_locking": params["shear_locking"]}),
-                      0.02 * gl, rtol=1e-12)
+    assert np.isclose(tz.shear_moment(gl, [lock]), 0.02 * gl, rtol=1e-12)
 
 
 def test_hidden_locking_in_lattice_data_is_diagnosed():

@@ -17,14 +17,23 @@ F_sh = τ / cos γ (force per unit frame length, Harrison et al. 2004), is their
     F_sh(γ) = [(H/W − 1) F (cos γ/2 − sin γ/2) − W F_sh(γ/2) cos γ/2] / ((2H − 3W) cos γ).
 
 :func:`normalised_shear_force` evaluates eq. 18 on a measured curve, :func:`kinematic_force`
-is its inverse (the force an elastic shear response τ(γ) gives under the ideal kinematics).
+is its inverse (the force an elastic shear response τ(γ) gives under the ideal kinematics). The
+shear moment τ(γ) is the model's own: each term's density differentiated in the pure shear of
+inextensible fibres (fabricsurf/model/pure_shear.py), so a user's term and a friction term's
+shape angle γ_f count.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from fabricsurf.constants import FRICTION_ANGLE
+from fabricsurf.model import pure_shear
+from fabricsurf.model.terms import Shear, ShearLocking, Term
+
+Model = Sequence[Term]
+"""A list of terms: each gives its own shear moment (:mod:`fabricsurf.model.pure_shear`)."""
 
 
 def lock_displacement(length: float, width: float) -> float:
@@ -73,42 +82,37 @@ def normalised_shear_force(d, force, length: float, width: float
     return g, fs
 
 
-def shear_moment(gamma, params: dict) -> np.ndarray:
-    """τ = dW/dγ (N/mm) of ``shear`` + ``shear_locking`` + ``crossover_friction``:
-    k_s γ + k₄γ³ + k₆γ⁵ + τ_f tanh(γ/γ_f), γ_f the friction term's default shape angle."""
+def shear_moment(gamma, model: Model) -> np.ndarray:
+    """τ = dW/dγ (N/mm) of ``model`` under the ideal kinematics (pure shear of inextensible
+    ±45° fibres), derived from every term's own density (``Term.shear_moment``,
+    fabricsurf/model/pure_shear.py): e.g. k_s γ + k₄γ³ + k₆γ⁵ + τ_f tanh(γ/γ_f) for shear,
+    shear_locking and crossover_friction with the friction term's own shape angle γ_f."""
+    return pure_shear.shear_moment(list(model), gamma)
+
+
+def constitutive_shear_force(gamma, model: Model) -> np.ndarray:
+    """The normalised shear force τ(γ)/cos γ (N/mm) the model implies (picture-frame norm)."""
     g = np.asarray(gamma, float)
-    ks = params.get("shear", {}).get("k_s", 0.0)
-    lk = params.get("shear_locking", {})
-    tau_f = params.get("crossover_friction", {}).get("tau_f", 0.0)
-    return (ks * g + lk.get("k4", 0.0) * g**3 + lk.get("k6", 0.0) * g**5
-            + tau_f * np.tanh(g / FRICTION_ANGLE))
+    return shear_moment(g, model) / np.cos(g)
 
 
-def constitutive_shear_force(gamma, params: dict) -> np.ndarray:
-    """The normalised shear force τ(γ)/cos γ (N/mm) the moduli imply (picture-frame norm)."""
-    g = np.asarray(gamma, float)
-    return shear_moment(g, params) / np.cos(g)
-
-
-def kinematic_force(d, length: float, width: float, params: dict) -> np.ndarray:
+def kinematic_force(d, length: float, width: float, model: Model) -> np.ndarray:
     """Grip force (N) of the ideal three-zone kinematics (inextensible yarns, no slip) for the
-    shear response of ``params``: eq. 18 solved for F."""
+    shear response of ``model``: eq. 18 solved for F."""
     H, W = float(length), float(width)
     g = zone_c_shear_angle(d, H, W)
-    tau = (W * (H - 1.5 * W) * shear_moment(g, params)
-           + 0.5 * W**2 * shear_moment(0.5 * g, params))
+    tau_c, tau_b = shear_moment(np.stack([g, 0.5 * g]), model)  # zones C and B, one assembly
+    tau = W * (H - 1.5 * W) * tau_c + 0.5 * W**2 * tau_b
     return tau / (0.5 * (H - W) * (np.cos(0.5 * g) - np.sin(0.5 * g)))
 
 
-def locking_angle(params: dict) -> float | None:
-    """γ (rad) at which the locking moment k₄γ³ + k₆γ⁵ equals the linear k_s γ (the shear
-    stiffness has doubled); None without locking moduli."""
-    ks = params.get("shear", {}).get("k_s", 0.0)
-    lk = params.get("shear_locking", {})
-    k4, k6 = lk.get("k4", 0.0), lk.get("k6", 0.0)
-    if k4 <= 0 and k6 <= 0:
-        return None
-    if k6 <= 0:
-        return float(np.sqrt(ks / k4))
-    x = (-k4 + np.sqrt(k4**2 + 4 * k6 * ks)) / (2 * k6)  # x = γ²
-    return float(np.sqrt(x))
+def locking_angle(model: Model) -> float | None:
+    """γ (rad) at which the locking moment of the model's ``shear_locking`` equals the linear
+    one of its ``shear`` (:meth:`ShearLocking.locking_angle`); None without locking."""
+    terms = list(model)
+    k_s = sum(t.k_s for t in terms if isinstance(t, Shear))
+    lock = next((t for t in terms if isinstance(t, ShearLocking)), None)
+    return None if lock is None else lock.locking_angle(k_s)
+
+
+

@@ -1,5 +1,4 @@
-"""The model layer. Importing it loads the vocabulary of effects (``terms``), which registers
-the effects of its sibling modules (``yarn_slip`` of ``slip``), so that any module of the layer
+"""The model layer: kinematics, the energy terms (``term.py`` the base class, ``terms.py`` the
+vocabulary of effects, ``slip.py`` yarn slip) and what a term knows about itself (its shear
+moment in pure shear, ``pure_shear.py``). The modules import one way, with no circle: any of them
 may be imported first."""
-
-from fabricsurf.model import terms as _terms  # noqa: F401

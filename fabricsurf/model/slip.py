@@ -29,8 +29,8 @@ from typing import ClassVar
 import ufl
 
 from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.term import Term
 from fabricsurf.model.term_constants import Params
-from fabricsurf.model.terms import Term
 
 SLIP_STRAIN = 0.002
 """Default slip strain ε_s over which the friction of the crossings is mobilised (the Cao et al.

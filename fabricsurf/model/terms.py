@@ -11,110 +11,24 @@ A model is a list of terms::
 Units (lengths in mm, forces in N): first-gradient moduli are energy per area, N/mm;
 second-gradient moduli are energy per area times length², N·mm.
 
-Every form built from a term owns the ``fem.Constant``\\ s of its moduli, on its own mesh
-(fabricsurf/model/term_constants.py); :meth:`Term.set` changes them in every live form without
-recompiling any.
+The base class :class:`Term` is in ``term.py`` (with how a form owns a term's constants and
+:meth:`Term.set`); ``yarn_slip`` is in ``slip.py`` and registered in :data:`EFFECTS` here like
+every other effect.
 """
 
 from __future__ import annotations
 
 import math
-import weakref
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from typing import ClassVar
 
 import ufl
-from dolfinx import fem
 
 from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.model.kinematics import Kinematics
-from fabricsurf.model.term_constants import Params, TermConstants
-
-
-@dataclass
-class Term:
-    """Base class: a named energy density with non-negative, finite moduli."""
-
-    name: ClassVar[str] = ""
-    order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
-    units: ClassVar[dict[str, str]] = {}
-    options: ClassVar[tuple[str, ...]] = ()  # fields that are switches, not moduli
-    monotonic_only: ClassVar[bool] = False  # an elastic stand-in for a dissipative effect
-    fibre: ClassVar[bool] = False  # stretches the fibres (integrated apart when "reduced")
-    _live: weakref.WeakSet = field(default_factory=weakref.WeakSet, init=False, repr=False,
-                                   compare=False)  # the constants of the live forms (set())
-
-    def __post_init__(self) -> None:
-        for p in self.parameters():
-            self._check(p, getattr(self, p))
-
-    @classmethod
-    def parameters(cls) -> list[str]:
-        return [f.name for f in fields(cls)
-                if not f.name.startswith("_") and f.name not in cls.options]
-
-    def _check(self, p: str, value: float) -> None:
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"term '{self.name}': parameter {p} = {value!r} is not a number")
-        if not math.isfinite(v) or v < 0.0:
-            raise ValueError(
-                f"term '{self.name}': parameter {p} = {value!r} must be finite and >= 0"
-                f" ({self.units.get(p, '')})"
-            )
-
-    def constants(self, msh) -> TermConstants:
-        """New UFL objects of the parameters on mesh ``msh``, for one form to own.
-
-        Each form gets its own (one model may serve several experiments, on several meshes);
-        the term keeps a weak reference to them for :meth:`set`."""
-        consts = TermConstants({p: self.parameter_on(msh, p) for p in self.parameters()})
-        self._live.add(consts)
-        return consts
-
-    def parameter_on(self, msh, name: str) -> fem.Constant | fem.Function:
-        """The UFL object of parameter ``name`` on ``msh``: a fem.Constant (a term whose
-        parameter varies from cell to cell returns a field)."""
-        return fem.Constant(msh, float(getattr(self, name)))
-
-    def set(self, **values: float) -> None:
-        """Change moduli, in the constants of every live form too (no recompilation)."""
-        for p, v in values.items():
-            if p not in self.parameters():
-                raise ValueError(f"term '{self.name}' has no parameter '{p}'; "
-                                 f"it has {self.parameters()}")
-            self._check(p, v)
-            setattr(self, p, float(v))
-            for consts in self._live:
-                consts.assign(p, float(v))
-
-    def values(self) -> dict[str, float]:
-        """The parameters as floats (usable as ``p`` of :meth:`density`: then compiled in)."""
-        return {p: float(getattr(self, p)) for p in self.parameters()}
-
-    def small_stretch_stiffness(self) -> float:
-        """d²W/dλ² at λ = μ = 1 of a fibre term, the larger family's (N/mm): the fibres'
-        stiffness against which a mesh may lock (docs/theory.md, "Locking"); 0 for the
-        others. A quadratic term's is its largest modulus."""
-        return max(self.values().values(), default=0.0) if self.fibre else 0.0
-
-    def stiffness_scale(self, p: Params):
-        """Scale S of the second-gradient moduli, used by the interior penalty (zero if order 1)."""
-        return sum(p[q] for q in self.parameters()) if self.order == 2 else 0.0
-
-    def density(self, kin: Kinematics, p: Params):
-        """W per unit reference area (UFL), with ``p[name]`` the value of each parameter."""
-        raise NotImplementedError
-
-    def constraints(self, kin: Kinematics, p: Params) -> list[tuple[str, object, object]]:
-        """Exact constraints (name, g, r) with g(u) = 0 enforced by a multiplier and r the
-        augmentation stiffness (discretise/constraints.py); none by default."""
-        return []
-
-    def tensions(self, kin: Kinematics, p: Params) -> dict:
-        """Named fibre tensions (N/mm, UFL) the term's own energy carries; none by default."""
-        return {}
+from fabricsurf.model.slip import YarnSlip
+from fabricsurf.model.term import Term
+from fabricsurf.model.term_constants import Params
 
 
 @dataclass
@@ -182,6 +96,16 @@ class ShearLocking(Term):
     def density(self, kin: Kinematics, p: Params):
         g2 = kin.gamma**2
         return (0.25 * p["k4"] + p["k6"] / 6.0 * g2) * g2**2
+
+    def locking_angle(self, k_s: float) -> float | None:
+        """γ (rad) at which the locking moment k₄γ³ + k₆γ⁵ equals the linear k_s γ of
+        :class:`Shear` (the shear stiffness has doubled); None without locking moduli."""
+        k4, k6 = self.k4, self.k6
+        if k4 <= 0 and k6 <= 0:
+            return None
+        if k6 <= 0:
+            return math.sqrt(k_s / k4)
+        return math.sqrt((-k4 + math.sqrt(k4**2 + 4 * k6 * k_s)) / (2 * k6))  # γ² of the root
 
 
 @dataclass
@@ -273,6 +197,7 @@ class NormalBending(Term):
     k_b: float = 1.0
     name: ClassVar[str] = "normal_bending"
     order: ClassVar[int] = 2
+    in_plane: ClassVar[bool] = False
     units: ClassVar[dict[str, str]] = {"k_b": "N·mm"}
 
     def density(self, kin: Kinematics, p: Params):
@@ -286,6 +211,7 @@ class Twist(Term):
     k_t: float = 1.0
     name: ClassVar[str] = "twist"
     order: ClassVar[int] = 2
+    in_plane: ClassVar[bool] = False
     units: ClassVar[dict[str, str]] = {"k_t": "N·mm"}
 
     def density(self, kin: Kinematics, p: Params):
@@ -295,15 +221,15 @@ class Twist(Term):
 EFFECTS: dict[str, type[Term]] = {
     cls.name: cls
     for cls in (FibreStretch, Shear, ShearLocking, CrossoverFriction, GeodesicBending,
-                StretchGradient, ShearGradient, NormalBending, Twist)
+                StretchGradient, ShearGradient, NormalBending, Twist, YarnSlip)
 }
 """The vocabulary of effects, by exact name (docs/theory.md)."""
-from fabricsurf.model.slip import YarnSlip  # noqa: E402  (a Term: imported once Term exists)
 
-EFFECTS[YarnSlip.name] = YarnSlip
 
-IN_PLANE_INVISIBLE = ("normal_bending", "twist")
-"""Effects that planar (2D) data cannot see."""
+def in_plane_invisible() -> tuple[str, ...]:
+    """The effects of :data:`EFFECTS` that planar (2D) data cannot see (``Term.in_plane``
+    False: they act on out-of-plane placements only)."""
+    return tuple(n for n, cls in EFFECTS.items() if not cls.in_plane)
 
 
 def make_term(name: str, **params: float) -> Term:

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from fabricsurf.experiments import three_zone as tz
+from fabricsurf.model.terms import Term
 
 KNEE = "initial knee (friction at the crossovers: no elastic term starts with a finite force)"
 BEYOND = ("beyond locking (softer than any shear law on a net of inextensible yarns: the net "
@@ -62,10 +63,10 @@ candidates are :data:`LARGE_SHEAR_CANDIDATES`."""
 LARGE_SHEAR_CANDIDATES = ["yarn_slip", "shear_locking"]
 
 
-def large_shear_record(full, s_F: float, start: dict, diag) -> dict:
+def large_shear_record(full, s_F: float, start: list[Term], diag) -> dict:
     """The whole-curve diagnosis ``diag`` of ``full`` (docs/woven_fabric.md "The large-shear
     range"), past 60 deg of zone-C shear too, beside the net of inextensible yarns with the
-    moduli ``start`` fitted up to 60 deg (its three-zone force: the force of inextensible yarns
+    model ``start`` fitted up to 60 deg (its three-zone force: the force of inextensible yarns
     on the fibre-aligned mesh, with no solve near the net's lock): χ² in the error unit ``s_F``
     and errors over the whole curve, up to and past 60 deg; ranking, verdict, what is not
     identifiable and the final model's unexplained ranges."""
