@@ -1,7 +1,7 @@
 """Rewrite docs/input_errors.md from the real messages of today's code.
 
-Every rejected input of tests/test_hardening.py and tests/test_hardening_outputs.py (their
-``CASES``: a defective data directory, params file or option each) goes through the
+Every rejected input of the hardening tests (the ``CASES`` of the modules named in
+:data:`CASE_MODULES`: a defective data directory, params file or option each) goes through the
 ``fabricsurf`` command line in a scratch directory, and its last line of output becomes a row
 of the table. The test ``test_errors_table_is_up_to_date`` (test_hardening_outputs.py) builds
 the same text with :func:`errors_table` and fails
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import io
 import os
 import sys
@@ -25,6 +26,40 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "input_errors.md"
 COMMAND = "python benchmarks/regenerate_input_errors.py"
+CASE_MODULES = ("test_hardening", "test_hardening_outputs", "test_hardening_process",
+                "test_hardening_inputs", "test_hardening_bias", "test_hardening_dic")
+"""The test modules (in tests/) whose ``CASES`` make the table, in its order."""
+
+
+def all_cases() -> list[dict]:
+    """Every rejected input of :data:`CASE_MODULES`, in order: each module's ``CASES``, then
+    its ``ENV_CASES`` (cases that also set environment variables, their ``env``)."""
+    tests = str(ROOT / "tests")
+    if tests not in sys.path:
+        sys.path.insert(0, tests)
+    modules = [importlib.import_module(name) for name in CASE_MODULES]
+    return [c for m in modules for c in m.CASES + getattr(m, "ENV_CASES", [])]
+
+
+@contextlib.contextmanager
+def case_env(case: dict):
+    """The environment variables of ``case["env"]`` set (a value None: unset) while it runs,
+    then restored."""
+    env = case.get("env", {})
+    saved = {k: os.environ.get(k) for k in env}
+    for k, v in env.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def table_row(case: dict, message: str) -> str:
@@ -38,8 +73,8 @@ def errors_table(rows: list[str]) -> str:
     return "\n".join([
         "# Inputs that are rejected, and the message each gives",
         "",
-        "Generated from the real messages of the cases of `tests/test_hardening.py` and",
-        f"`tests/test_hardening_outputs.py` (regenerate with `{COMMAND}`). Every rejection",
+        "Generated from the real messages of the cases of the hardening tests",
+        f"(`tests/test_hardening*.py`; regenerate with `{COMMAND}`). Every rejection",
         "ends with exit status 2 on every MPI rank, prints one message (rank 0), and happens",
         "before any solve; nothing is written to `--out`. DATA directories hold the",
         "`experiment.toml`, `field.csv` and `force.csv` of measurement contract 2; `good` is a",
@@ -78,11 +113,8 @@ def run_cli(argv: list) -> tuple[int, str]:
 def current_table() -> str:
     """The table of today's messages, made in a scratch directory (the working directory while
     the cases run, so that messages hold relative names only)."""
-    sys.path.insert(0, str(ROOT / "tests"))
-    import test_hardening as th  # the cases and their inputs
-    import test_hardening_outputs as th3
-
-    cases = th.CASES + th3.CASES
+    cases = all_cases()
+    import test_hardening as th  # the valid experiment the cases are copies of
 
     from fabricsurf.inverse.contract.data import write_experiment
 
@@ -95,7 +127,8 @@ def current_table() -> str:
         os.chdir(base)
         try:
             for case in cases:
-                rc, msg = run_cli(case["argv"])
+                with case_env(case):
+                    rc, msg = run_cli(case["argv"])
                 if rc != 2:
                     raise SystemExit(f"case {case['id']}: exit status {rc}, not 2:\n{msg}")
                 rows.append(table_row(case, msg))

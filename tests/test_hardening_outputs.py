@@ -4,8 +4,9 @@ output directory as one run's property: a lock against a concurrent run, no stal
 earlier run beside new ones, no stale staging directory, names of any valid length, no empty
 OUT after a failure, per-point files in the units their columns name.
 
-The rejected inputs here (``CASES``) join those of tests/test_hardening.py in
-docs/input_errors.md; the test that the table is up to date lives here and covers both lists.
+The rejected inputs here (``CASES``) join those of the other hardening tests in
+docs/input_errors.md; the test that the table is up to date lives here and covers every list
+(benchmarks/regenerate_input_errors.py, ``all_cases``).
 No FEniCSx solve: every case is refused before any computation, the rest is file handling.
 """
 
@@ -19,7 +20,7 @@ import numpy as np
 import pytest
 import test_hardening as th
 from mpi4py import MPI
-from regenerate_input_errors import errors_table, table_row
+from regenerate_input_errors import all_cases, case_env, errors_table, table_row
 
 import fabricsurf.cli as cli
 import fabricsurf.cli.measure as measure_cli
@@ -149,7 +150,7 @@ def root(tmp_path_factory):
     base = Path(COMM.bcast(str(tmp_path_factory.mktemp("hard3")) if COMM.rank == 0 else None))
     if COMM.rank == 0:
         write_experiment(base / "good", th.good_experiment())
-        for c in th.CASES + CASES:
+        for c in all_cases():
             c["make"](base)
     COMM.barrier()
     return base
@@ -175,9 +176,10 @@ def test_errors_table_is_up_to_date(in_root, capsys):
     """docs/input_errors.md holds, row by row, the real messages of today's code for the cases
     of both files (``python benchmarks/regenerate_input_errors.py`` rewrites it)."""
     rows = []
-    for c in th.CASES + CASES:
-        rc, msg = th.run_cli(c["argv"], capsys)
-        assert rc == 2
+    for c in all_cases():
+        with case_env(c):
+            rc, msg = th.run_cli(c["argv"], capsys)
+        assert rc == 2, (c["id"], msg)
         rows.append(table_row(c, msg))
     assert DOC.read_text() == errors_table(rows), (
         "docs/input_errors.md is stale: run python benchmarks/regenerate_input_errors.py")

@@ -123,8 +123,8 @@ def unheld_edge(o: dict, blank: float) -> str | None:
     """Why the flange at the middle of the blank's sides is not held, or None: the holder's
     pressure rises from zero at ρ = R + clearance + 2 die_lip to its full value one lip radius
     further (forming_tools.Tools.holder_weight); a blank whose half-side B/2 ends before that
-    leaves the flange there held by the holder's gap alone, free to buckle. On the demo's
-    full size before issue 40 (B/2 = 1.5 R against 1.8 R) it did, and Newton then followed
+    leaves the flange there held by the holder's gap alone, free to buckle. A demo blank of
+    B/2 = 1.5 R (against 1.8 R) did, and Newton then followed
     the stroke only with many cut steps (docs/forming.md)."""
     full = o["punch_radius"] + o["clearance"] + 3.0 * o["die_lip"]
     if 0.5 * blank >= full:

@@ -10,10 +10,10 @@ more (docs/forming.md). Beyond locking: |γ| > γ_lock. The indicators are 0/1 f
 reference blank; their integrals give the area that wrinkles and the area beyond locking.
 
 The thresholds (N_cr, its factor and the smoothing length; T_w, κ_w, γ_lock) are
-``fem.Constant``s: a form holding them is compiled once for all values (before issue 40 they
-were plain numbers in the form, so that each new punch radius, whose 1/R is the default κ_w,
-compiled the two forms again). What the indicators mark is compared with the flange's
-out-of-plane amplitude and a buckling estimate in fabricsurf/verification/wrinkling.py
+``fem.Constant``s: a form holding them is compiled once for all values (plain numbers in the
+form would compile the two forms again for each new punch radius, whose 1/R is the default
+κ_w). What the indicators mark is compared with the flange's out-of-plane amplitude and a
+buckling estimate in fabricsurf/verification/wrinkling.py
 (docs/forming.md, "Wrinkling").
 """
 
