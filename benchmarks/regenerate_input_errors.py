@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "input_errors.md"
 COMMAND = "python benchmarks/regenerate_input_errors.py"
 CASE_MODULES = ("test_hardening", "test_hardening_outputs", "test_hardening_process",
-                "test_hardening_inputs", "test_hardening_bias", "test_hardening_dic")
+                "test_hardening_inputs", "test_hardening_bias", "test_hardening_dic",
+                "test_user_effects")
 """The test modules (in tests/) whose ``CASES`` make the table, in its order."""
 
 

@@ -21,16 +21,18 @@ _SOURCES = {
     "fabricsurf.inverse.fitting.forward": ("ForwardModel", "ForwardSet"),
     "fabricsurf.model.terms": (
         "EFFECTS", "FibreStretch", "GeodesicBending", "NormalBending", "Shear", "ShearGradient",
-        "ShearLocking", "StretchGradient", "Twist", "make_term", "parse_terms",
+        "ShearLocking", "StretchGradient", "Term", "Twist", "make_term", "parse_terms",
     ),
+    "fabricsurf.model.user_effects": ("effects_from", "load_effects", "register_effect"),
 }
 _LAZY = {name: module for module, names in _SOURCES.items() for name in names}
 
 __all__ = [
     "EFFECTS", "TESTS", "BiasExtension", "DataError", "Experiment", "FibreStretch",
     "ForwardModel", "ForwardSet", "GeodesicBending", "InputError", "NormalBending", "Shear",
-    "ShearGradient", "ShearLocking", "StretchGradient", "Twist", "__version__", "diagnose",
-    "fit", "get_test", "load_experiment", "make_term", "parse_terms", "write_experiment",
+    "ShearGradient", "ShearLocking", "StretchGradient", "Term", "Twist", "__version__",
+    "diagnose", "effects_from", "fit", "get_test", "load_effects", "load_experiment",
+    "make_term", "parse_terms", "register_effect", "write_experiment",
 ]
 
 

@@ -34,6 +34,7 @@ from collections.abc import Iterator
 
 from mpi4py import MPI
 
+from fabricsurf.cli.effects import add_effects, user_effects
 from fabricsurf.cli.environment import check_environment
 from fabricsurf.errors import InputError
 from fabricsurf.log import package_warnings, progress, rank0_print
@@ -53,15 +54,20 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 def cmd_terms(args) -> int:
-    """Print the vocabulary: names, moduli with units, and energy densities."""
+    """Print the vocabulary: names, moduli with units, and energy densities; a user's effects
+    (--effects) after the built-ins, each with the file it comes from."""
+    from fabricsurf.model.registry import BUILTIN
     from fabricsurf.model.terms import EFFECTS
 
     rank0_print(COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
                       "docs/vocabulary.md). Use the names in --terms and --params.")
     for name, cls in EFFECTS.items():
-        units = ", ".join(f"{p} ({cls.units.get(p, '?')})" for p in cls.parameters())
-        doc = (cls.__doc__ or "").strip().splitlines()[0]
-        rank0_print(COMM, f"{name:18s} {units}\n{'':18s} {doc}")
+        units = ", ".join(f"{p} ({cls.units.get(p, '?')}{', signed' * (p in cls.signed)})"
+                          for p in cls.parameters())
+        doc = ((cls.__doc__ or "").strip().splitlines() or [""])[0]
+        origin = EFFECTS.origin(name)
+        where = "" if origin == BUILTIN else f"\n{'':18s} (your effect, from {origin})"
+        rank0_print(COMM, f"{name:18s} {units}\n{'':18s} {doc}{where}")
     return 0
 
 
@@ -78,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("terms", formatter_class=HelpFormatter,
                        help="list the effects: names, moduli, units, formulas")
+    add_effects(p)
     p.set_defaults(func=cmd_terms)
     p = sub.add_parser("bias", formatter_class=HelpFormatter,
                        help="continuum bias-extension test: XDMF, force curve, log")
@@ -239,7 +246,8 @@ def _run(args: argparse.Namespace) -> int:
         with compiler_messages(args.verbose), progress(not args.quiet), \
                 package_warnings(COMM.rank):
             check_environment(COMM, args.command)
-            return args.func(args)
+            with user_effects(args):
+                return args.func(args)
     except (InputError, OSError) as e:
         rank0_print(COMM, f"fabricsurf {args.command}: error: {e}", level=logging.ERROR)
         return 2

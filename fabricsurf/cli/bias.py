@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.cli.effects import add_effects
 from fabricsurf.cli.options import (
     add_max_elements,
     check_params_file,
@@ -89,6 +90,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-band", action="store_true",
                    help="no prediction band even when --params is a saved fit")
     add_max_elements(p)
+    add_effects(p)
 
 
 ANGLE_A_NOTE = (

@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from mpi4py import MPI
 
 from fabricsurf.cli.data_checks import check_in_loop, check_terms_fit_data
+from fabricsurf.cli.effects import add_effects
 from fabricsurf.cli.options import (
     add_max_elements,
     check_default_size,
@@ -54,7 +55,7 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
     p.add_argument("data", nargs="+", help="measurement directories (experiment.toml + CSV)")
     p.add_argument("--terms", required=terms_required, default=None,
                    help="comma-separated effects, each once, from: " + ", ".join(EFFECTS)
-                   + (" (required)" if terms_required else
+                   + " and those of --effects" + (" (required)" if terms_required else
                       " (default: the terms named in --params)"))
     p.add_argument("--params", default=None, help='JSON moduli {"term": {"parameter": value}}, '
                    "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
@@ -68,6 +69,7 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
                    help="element size in mm (default: the test's own: min(length, width)/10 "
                    "for bias_extension, length/8 for picture_frame)")
     add_max_elements(p)
+    add_effects(p)
 
 
 def _setup(args, refine: int = 1):
@@ -170,7 +172,7 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.plots.outputs import write_comparison
 
     exps, model, _ = _setup(args, refine=2)
-    positive_start(model, args)
+    positive_start(model, args, "fit")
     enough_data(exps, model)
     od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
                    inputs=input_paths(args, exps))
@@ -210,7 +212,7 @@ def cmd_diagnose(args) -> int:
 
     budget = mesh_budget(args)
     exps, model, params = _setup(args, refine=2)
-    positive_start(model, args)
+    positive_start(model, args, "diagnose")
     depths = grip_depths(args.grip_depths, exps)
     candidates, fixed = diagnose_options(args, exps, model, params)
     enough_data(exps, model, fixed or [])

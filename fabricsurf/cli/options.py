@@ -38,6 +38,17 @@ def check_params_file(path) -> None:
                          "JSON file")
 
 
+def no_signed(model: list, command: str) -> None:
+    """fit and diagnose step in log-moduli (positive): a modulus that may be negative (a
+    term's ``signed``) cannot be fitted there yet; compare and bias take it."""
+    signed = [f"{t.name}.{p}" for t in model for p in getattr(t, "signed", ())]
+    if signed:
+        raise InputError(f"--terms {','.join(t.name for t in model)}: {', '.join(signed)} "
+                         f"may be negative (signed), and {command} fits moduli in log scale, "
+                         "positive only; signed moduli can be compared (compare, bias) but not "
+                         "yet fitted (docs/usage.md, 'Adding your own effect')")
+
+
 def add_max_elements(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
                    help="refuse a --h whose meshes would have more elements than this, "
@@ -179,8 +190,10 @@ def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None
                             " (fewer --terms)"))
 
 
-def positive_start(model, args) -> None:
-    """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move."""
+def positive_start(model, args, command: str = "fit") -> None:
+    """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move (a signed
+    one is refused first, :func:`no_signed`)."""
+    no_signed(model, command)
     for t in model:
         for p, v in t.values().items():
             if v <= 0:
@@ -233,7 +246,7 @@ def diagnose_options(args, exps: list, model: list, params: dict
     baseline (--terms), the data and --params (:mod:`~fabricsurf.inverse.fitting.choices`,
     the library's own checks, worded with the options' names)."""
     from fabricsurf.inverse.fitting.choices import Labels, check_choices
-    from fabricsurf.inverse.fitting.diagnose import visible_effects
+    from fabricsurf.inverse.fitting.diagnose import check_unsigned, visible_effects
 
     baseline = [t.name for t in model]
     cands, fixed = name_list(args.candidates), name_list(args.fixed)
@@ -244,6 +257,10 @@ def diagnose_options(args, exps: list, model: list, params: dict
                     confirm="--confirm", max_effects="--max-effects")
     check_choices(baseline, cands, fixed, params, visible_effects(exps), args.confirm,
                   args.max_effects, labels)
+    try:
+        check_unsigned(cands or [])
+    except ValueError as e:
+        raise InputError(f"--candidates {args.candidates}: {e}") from None
     planar_candidates(exps, cands)
     return cands, fixed
 

@@ -26,7 +26,8 @@ from fabricsurf.model.term_constants import Params, TermConstants
 
 @dataclass
 class Term:
-    """Base class: a named energy density with non-negative, finite moduli."""
+    """Base class: a named energy density with finite moduli, non-negative unless named in
+    ``signed`` (the coefficient of a coupling, which may have either sign)."""
 
     name: ClassVar[str] = ""
     order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
@@ -35,6 +36,7 @@ class Term:
     monotonic_only: ClassVar[bool] = False  # an elastic stand-in for a dissipative effect
     fibre: ClassVar[bool] = False  # stretches the fibres (integrated apart when "reduced")
     in_plane: ClassVar[bool] = True  # acts on planar placements: planar (2D) data can see it
+    signed: ClassVar[tuple[str, ...]] = ()  # moduli that may be negative (a coupling's)
     _live: weakref.WeakSet = field(default_factory=weakref.WeakSet, init=False, repr=False,
                                    compare=False)  # the constants of the live forms (set())
 
@@ -52,10 +54,10 @@ class Term:
             v = float(value)
         except (TypeError, ValueError):
             raise ValueError(f"term '{self.name}': parameter {p} = {value!r} is not a number")
-        if not math.isfinite(v) or v < 0.0:
+        if not math.isfinite(v) or (v < 0.0 and p not in self.signed):
             raise ValueError(
-                f"term '{self.name}': parameter {p} = {value!r} must be finite and >= 0"
-                f" ({self.units.get(p, '')})"
+                f"term '{self.name}': parameter {p} = {value!r} must be finite"
+                f"{'' if p in self.signed else ' and >= 0'} ({self.units.get(p, '')})"
             )
 
     def constants(self, msh) -> TermConstants:

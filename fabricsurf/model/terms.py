@@ -13,7 +13,8 @@ second-gradient moduli are energy per area times length², N·mm.
 
 The base class :class:`Term` is in ``term.py`` (with how a form owns a term's constants and
 :meth:`Term.set`); ``yarn_slip`` is in ``slip.py`` and registered in :data:`EFFECTS` here like
-every other effect.
+every other effect; a user's own effects join them through ``registry.py`` and
+``user_effects.py`` (docs/usage.md, "Adding your own effect").
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import ufl
 
 from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.model.kinematics import Kinematics
+from fabricsurf.model.registry import EffectRegistry
 from fabricsurf.model.slip import YarnSlip
 from fabricsurf.model.term import Term
 from fabricsurf.model.term_constants import Params
@@ -218,12 +220,11 @@ class Twist(Term):
         return 0.5 * p["k_t"] * kin.T**2
 
 
-EFFECTS: dict[str, type[Term]] = {
-    cls.name: cls
-    for cls in (FibreStretch, Shear, ShearLocking, CrossoverFriction, GeodesicBending,
-                StretchGradient, ShearGradient, NormalBending, Twist, YarnSlip)
-}
-"""The vocabulary of effects, by exact name (docs/theory.md)."""
+EFFECTS = EffectRegistry((FibreStretch, Shear, ShearLocking, CrossoverFriction, GeodesicBending,
+                          StretchGradient, ShearGradient, NormalBending, Twist, YarnSlip))
+"""The vocabulary of effects, by exact name (docs/theory.md): a mapping name → Term class, the
+built-ins and then the effects a user registered in this process
+(:func:`fabricsurf.model.user_effects.register_effect`, ``--effects FILE.py``)."""
 
 
 def in_plane_invisible() -> tuple[str, ...]:
@@ -234,9 +235,7 @@ def in_plane_invisible() -> tuple[str, ...]:
 
 def make_term(name: str, **params: float) -> Term:
     """The term called ``name`` with the given moduli; unknown names list the valid ones."""
-    if name not in EFFECTS:
-        raise ValueError(f"unknown term '{name}'; valid terms are: {', '.join(EFFECTS)}")
-    cls = EFFECTS[name]
+    cls = EFFECTS.lookup(name)
     unknown = set(params) - set(cls.parameters())
     if unknown:
         raise ValueError(f"term '{name}' has no parameter(s) {sorted(unknown)}; "

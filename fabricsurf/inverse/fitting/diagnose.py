@@ -56,17 +56,37 @@ from fabricsurf.model.terms import EFFECTS, make_term
 
 def visible_effects(exps: list[Experiment]) -> list[str]:
     """The vocabulary effects these data can see: out-of-plane ones only with 3D data (a 3D
-    field, or the force and shear angles of a test solved in 3D: a formed part)."""
+    field, or the force and shear angles of a test solved in 3D: a formed part). The
+    vocabulary is the registry :data:`EFFECTS`: a user's registered effect is seen (and is a
+    candidate by default) like a built-in, unless it has signed moduli."""
     three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3)
                   for e in exps)
     return [n for n in EFFECTS if three_d or EFFECTS[n].in_plane]
+
+
+SIGNED_REASON = ("a modulus that may be negative (signed): not a candidate, the diagnosis "
+                 "scores and fits moduli ≥ 0")
+"""Why an effect with a signed modulus is not among the candidates."""
+
+
+def check_unsigned(names: list[str]) -> None:
+    """Refuse effects with signed moduli in a diagnosis (baseline or named candidates): its
+    scores, refits and log-scale baseline fit take moduli ≥ 0. They are left out of the
+    default candidates (and reported as not tried, :data:`SIGNED_REASON`)."""
+    bad = [n for n in names if n in EFFECTS and EFFECTS[n].signed]
+    if bad:
+        raise ValueError(f"diagnose: {', '.join(bad)} has moduli that may be negative "
+                         f"({', '.join(f'{n}.{p}' for n in bad for p in EFFECTS[n].signed)}); "
+                         "the diagnosis works with moduli ≥ 0, so signed effects can be "
+                         "compared but not diagnosed yet")
 
 
 def full_model(baseline: list[str], params: dict | None = None,
                visible: list[str] | None = None) -> list:
     """Baseline + every visible effect, in vocabulary order; the candidates at modulus 0."""
     params = params or {}
-    visible = visible if visible is not None else [n for n in EFFECTS if EFFECTS[n].in_plane]
+    visible = visible if visible is not None else [n for n in EFFECTS if EFFECTS[n].in_plane
+                                                   and not EFFECTS[n].signed]
     model = []
     for n in EFFECTS:
         if n not in baseline and n not in visible:
@@ -188,6 +208,8 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
     visible = seen = visible_effects(exps)
     check_choices(list(baseline), candidates, fixed, params or {}, visible, confirm,
                   max_effects, library_labels(list(baseline), candidates, fixed))
+    check_unsigned(list(baseline) + list(candidates or []))
+    visible = [n for n in visible if n in baseline or not EFFECTS[n].signed]
     for e in exps:  # a field that did not move is refused here too, not only when loaded
         check_field_moves(e, e.files[1] if len(e.files) > 1 and e.has_field else
                           f"the field of experiment '{e.name}'")
@@ -237,6 +259,8 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
         ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
         invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
                      for n in EFFECTS if n not in seen and n not in baseline]
+        invisible += [{"effect": n, "reason": SIGNED_REASON}
+                      for n in seen if EFFECTS[n].signed and n not in baseline]
         invisible += look_alikes(terms + [q["effect"] for r in rankings for q in r
                                           if q["significant"]], exps)
         return Diagnosis(

@@ -227,6 +227,12 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     if space not in ("log", "linear"):
         raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
+    signed = [f"{t.name}.{p}" for i, (t, p) in enumerate(fm.params) if i in free
+              and p in getattr(t, "signed", ())]
+    if signed:
+        raise ValueError(f"fit: {', '.join(signed)} may be negative (signed) and the fit steps "
+                         "in moduli > 0 (log scale, or linear steps kept above 0); fix them "
+                         "(leave them out of free) or compare instead")
     vals = fm.values()
     if np.any(vals[free] <= 0):
         raise ValueError("fit: initial moduli must be > 0 (log-parametrisation): "

@@ -52,7 +52,9 @@ def _no_duplicates(pairs: list[tuple[str, object]]) -> dict:
 
 def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict:
     """{term: {param: value}} from a JSON file, every name and value checked. ``terms``: the
-    model's terms (a term in the file but not in the model is an error, not ignored)."""
+    model's terms (a term in the file but not in the model is an error, not ignored). Names
+    are those of the registry :data:`EFFECTS` (the built-ins and the user's registered
+    effects); a modulus is ≥ 0 unless its term declares it ``signed``."""
     if not path:
         return {}
     name = str(path)
@@ -94,10 +96,12 @@ def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict
                 raise InputError(f"--params {name}: term '{term}' has no parameter '{p}' (it "
                                  f"has {', '.join(EFFECTS[term].parameters())})")
             ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            if not ok or v < 0:
+            signed = p in EFFECTS[term].signed
+            if not ok or (v < 0 and not signed):
                 raise InputError(f"--params {name}: {term}.{p} = {v!r} must be a finite "
-                                 f"number ≥ 0 ({EFFECTS[term].units.get(p, '')})")
-            if v > MAX_MODULUS:
+                                 f"number{'' if signed else ' ≥ 0'} "
+                                 f"({EFFECTS[term].units.get(p, '')})")
+            if abs(v) > MAX_MODULUS:
                 unit = EFFECTS[term].units.get(p, "")
                 raise InputError(f"--params {name}: {term}.{p} = {v:.3g} {unit} is beyond any "
                                  f"sheet (at most {MAX_MODULUS:.0e} {unit}: a 10 mm steel plate "
