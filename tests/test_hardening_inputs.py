@@ -157,6 +157,20 @@ def test_compare_without_params_says_the_defaults(in_root, capsys):
     assert used == SAVED_FIT["params"]
 
 
+def test_bias_with_a_partial_params_file_names_the_defaults(in_root, capsys):
+    """``bias`` solves the model it is given (the terms' defaults are documented), but a
+    --params file that gives only some moduli says which took their defaults."""
+    if COMM.rank == 0:
+        (in_root / "partial.json").write_text(json.dumps({"shear": {"k_s": 0.8}}))
+    COMM.barrier()
+    rc, msg = th.run_cli(["bias", "--length", "40", "--width", "20", "--h", "10", "--steps", "1",
+                          "--ubar", "1", "--terms", TERMS, "--params", "partial.json", "--out",
+                          "partial"], capsys)
+    assert rc == 0, msg
+    assert ("note: --params partial.json gives no value for fibre_stretch.k_l = 1 N/mm, "
+            "fibre_stretch.k_m = 1 N/mm: the term's default is used") in msg
+
+
 # -- 3. "tensile" ------------------------------------------------------------------------------
 def test_tensile_is_refused_whatever_the_angles():
     """Not an alias any more (with ±45° fibres it was a bias test under another name): the

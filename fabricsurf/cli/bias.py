@@ -25,6 +25,7 @@ from fabricsurf.cli.options import (
     add_max_elements,
     check_params_file,
     check_size,
+    defaulted_moduli,
     out_path,
     saved_fit,
 )
@@ -102,20 +103,21 @@ ANGLE_A_NOTE = (
 """Said when γ_A has no mesh-independent value (docs/theory.md, "Shear angles at A and B")."""
 
 
-def _model(args) -> list:
-    """--terms (with --params moduli); else the terms of the --params file (a saved fit is the
-    whole model: no default term is added silently); else the default model."""
+def _model(args) -> tuple[list, dict]:
+    """(model, --params moduli): --terms (with --params moduli); else the terms of the --params
+    file (a saved fit is the whole model: no default term is added silently); else the default
+    model."""
     check_params_file(args.params)
     params = load_params(args.params, args.terms.split(",") if args.terms else None)
     if not (args.terms or params):
-        return default_model()
+        return default_model(), params
     model = parse_model(args.terms, params)
     out_of_plane = [t.name for t in model if not t.in_plane]
     if out_of_plane:
         spec = args.terms or f"(the terms of --params {args.params})"
         raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane effect, "
                          "and the bias test is planar (no out-of-plane placement); remove it")
-    return model
+    return model, params
 
 
 def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dict:
@@ -177,13 +179,17 @@ def run(args: argparse.Namespace) -> int:
     """The ``bias`` command; a solver failure keeps the converged steps and exits with 2."""
     comm = MPI.COMM_WORLD
     ubar = _check(args)
-    model = _model(args)
+    model, params = _model(args)
     saved = saved_fit(args)
     od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS,
                    inputs=((f"--params {args.params}", args.params),) if args.params else ())
     rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
                       f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
                       f"on {comm.size} rank(s)")
+    defaulted = defaulted_moduli(model, params) if args.params else []
+    if defaulted:  # a partial --params file: the rest are the terms' defaults, said
+        rank0_print(comm, f"note: --params {args.params} gives no value for "
+                          f"{', '.join(defaulted)}: the term's default is used")
     with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
         summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp,
