@@ -49,18 +49,23 @@ def good_experiment():
     return exp
 
 
-@pytest.fixture(scope="module")
-def root(tmp_path_factory):
-    """One directory shared by all ranks (rank 0's), holding ``good`` and the variants; the
-    tests run with it as the working directory so messages hold relative names only."""
-    base = COMM.bcast(str(tmp_path_factory.mktemp("hard")) if COMM.rank == 0 else None)
-    base = Path(base)
+def shared_root(tmp_path_factory, name: str, cases: list[dict], good: bool = True) -> Path:
+    """One directory shared by all ranks (rank 0's), holding ``good`` (unless not ``good``) and
+    the inputs of ``cases``; the tests run with it as the working directory so messages hold
+    relative names only. Every hardening module's ``root`` fixture is one of these."""
+    base = Path(COMM.bcast(str(tmp_path_factory.mktemp(name)) if COMM.rank == 0 else None))
     if COMM.rank == 0:
-        write_experiment(base / "good", good_experiment())
-        for c in CASES:
+        if good:
+            write_experiment(base / "good", good_experiment())
+        for c in cases:
             c["make"](base)
     COMM.barrier()
     return base
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    return shared_root(tmp_path_factory, "hard", CASES)
 
 
 def run_cli(argv, capsys) -> tuple[int, str]:

@@ -106,13 +106,7 @@ CASES = [
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    """This file's cases in one directory shared by all ranks."""
-    base = Path(COMM.bcast(str(tmp_path_factory.mktemp("harddic")) if COMM.rank == 0 else None))
-    if COMM.rank == 0:
-        for c in CASES:
-            c["make"](base)
-    COMM.barrier()
-    return base
+    return th.shared_root(tmp_path_factory, "harddic", CASES, good=False)
 
 
 @pytest.fixture

@@ -101,14 +101,7 @@ CASES = [
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    """``good`` and this file's variants in one directory shared by all ranks."""
-    base = Path(COMM.bcast(str(tmp_path_factory.mktemp("hard4")) if COMM.rank == 0 else None))
-    if COMM.rank == 0:
-        write_experiment(base / "good", th.good_experiment())
-        for c in CASES:
-            c["make"](base)
-    COMM.barrier()
-    return base
+    return th.shared_root(tmp_path_factory, "hard4", CASES)
 
 
 @pytest.fixture

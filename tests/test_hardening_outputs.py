@@ -145,15 +145,9 @@ CASES = [
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    """The inputs of both lists of cases (this file's and tests/test_hardening.py's) in one
-    directory shared by all ranks."""
-    base = Path(COMM.bcast(str(tmp_path_factory.mktemp("hard3")) if COMM.rank == 0 else None))
-    if COMM.rank == 0:
-        write_experiment(base / "good", th.good_experiment())
-        for c in all_cases():
-            c["make"](base)
-    COMM.barrier()
-    return base
+    """The inputs of every hardening module's cases (the table of docs/input_errors.md) in
+    one directory shared by all ranks."""
+    return th.shared_root(tmp_path_factory, "hard3", all_cases())
 
 
 @pytest.fixture

@@ -83,13 +83,7 @@ ENV_CASES = [
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    base = Path(COMM.bcast(str(tmp_path_factory.mktemp("hard4")) if COMM.rank == 0 else None))
-    if COMM.rank == 0:
-        write_experiment(base / "good", th.good_experiment())
-        for c in CASES + ENV_CASES:
-            c["make"](base)
-    COMM.barrier()
-    return base
+    return th.shared_root(tmp_path_factory, "hardproc", CASES + ENV_CASES)
 
 
 @pytest.fixture
