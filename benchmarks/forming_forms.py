@@ -21,12 +21,13 @@ import basix
 import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
+from forming import DOCUMENTED_PARAMS
 from mpi4py import MPI
 from petsc4py import PETSc
 from ufl.algorithms import estimate_total_polynomial_degree, expand_derivatives
 
 from fabricsurf.log import rank0_print
-from fabricsurf.verification import forming as parts
+from fabricsurf.studies import forming as parts
 
 comm = MPI.COMM_WORLD
 TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}
@@ -146,7 +147,7 @@ def main() -> None:
     args = ap.parse_args()
     jit = {} if args.flags is None else {"cffi_extra_compile_args": args.flags.split()}
     R = 50.0
-    model = parts.forming_model(parts.DOCUMENTED_PARAMS["params"], 0.1, 0.1)
+    model = parts.forming_model(DOCUMENTED_PARAMS["params"], 0.1, 0.1)
     with parts.experiment(R, 250.0, args.h, 45.0, model, comm, **TOOL_FRICTION) as e:
         dofs = 3 * e.problem.V.dofmap.index_map.size_global
         cells = e.specimen.mesh.topology.index_map(2).size_global

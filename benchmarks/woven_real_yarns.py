@@ -32,7 +32,7 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import FibreStretch, Shear
-from fabricsurf.verification import woven as wv
+from fabricsurf.studies import woven as wv
 
 
 def model(k_yarn: float, k_s: float = 0.02) -> list:

@@ -53,7 +53,7 @@ from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
 from fabricsurf.inverse.fitting.misfit import scales
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import parse_terms
-from fabricsurf.verification import woven as wv
+from fabricsurf.studies import woven as wv
 
 comm = MPI.COMM_WORLD
 ap = demo_parser("The Cao et al. 2008 curve with real yarns: fit, diagnose, predict",

@@ -15,7 +15,10 @@ HEAVY = ("dolfinx", "petsc4py", "ufl", "ffcx", "basix")
 
 # the layers, bottom first: a module may import its own layer and the layers below it
 LAYERS = ["errors", "constants", "log", "datasets", "model", "discretise", "experiments",
-          "verification", "inverse", "cli", "fabricsurf"]
+          "verification", "studies", "inverse", "cli", "fabricsurf"]
+# what a demo and its benchmark share sits on the reference solutions, but no layer of the
+# library imports it: the physics, the inverse problem and the command line work without it
+STUDIES_USERS = {"studies"}
 # the lattice reference stands beside the layers: it imports only these, and of the layers
 # only the synthetic-data generator (lattice measurements) and the reference solutions (the
 # chain's and lattice's dispersion against the continua) import it
@@ -105,6 +108,8 @@ def violation(source: str, target: str) -> str | None:
     if dst == "network":
         return None if (src, src_sub) in NETWORK_USERS else \
             "the physics layers do not depend on the lattice reference"
+    if dst == "studies" and src not in STUDIES_USERS:
+        return "only the demos and benchmarks import the studies, never the library"
     if LAYERS.index(dst) > LAYERS.index(src):
         return f"layer {src} imports the higher layer {dst}"
     if src == dst == "inverse" and src_sub and dst_sub and dst_sub not in INVERSE[src_sub]:
@@ -128,3 +133,16 @@ def test_imports_point_one_way(path):
     bad = [f"{path.relative_to(ROOT)}:{line}: {target}: {why}"
            for line, target in imported(path) if (why := violation(source, target))]
     assert not bad, "\n".join(bad)
+
+
+def test_studies_stand_apart():
+    """The studies may import the reference solutions and the plug-ins; nothing of the
+    library imports them, and no module of theirs imports the inverse problem or the command
+    line (the rule itself, on made-up imports)."""
+    assert violation("fabricsurf.studies.forming", "fabricsurf.verification.fishnet") is None
+    assert violation("fabricsurf.studies.forming", "fabricsurf.experiments.hemisphere") is None
+    for lower in ("fabricsurf.verification.fishnet", "fabricsurf.experiments.hemisphere",
+                  "fabricsurf.inverse.fitting.report", "fabricsurf.cli.demo", "fabricsurf"):
+        assert violation(lower, "fabricsurf.studies.forming"), lower
+    for higher in ("fabricsurf.inverse.fitting.report", "fabricsurf.cli.demo"):
+        assert violation("fabricsurf.studies.woven", higher), higher

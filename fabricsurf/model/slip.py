@@ -69,18 +69,20 @@ class YarnSlip(Term):
         "mechanism": "slip of the specimen in the grips (a crosshead displacement the fabric "
                      "does not take), not in the vocabulary; nor can it tell either from the "
                      "net extending along its yarns that a soft fibre_stretch stands for",
-        "evidence": "Cao et al. 2008, 115 x 230 mm, all 43 points, three-zone kinematics "
-                    "(benchmarks/large_shear_mechanisms.py): yarn slip (threshold + hardening) "
-                    "chi2 33.3 against grip slip (threshold force + compliance) 34.6, both with "
-                    "zone-C angles of 68.4 and 68.5 deg at d = 46.5 mm; grip compliance + "
-                    "shear_locking 17.9 against the finite-element extensible net + "
-                    "shear_locking 18.8 (h = 23 mm)",
+        "evidence": "Cao et al. 2008, 115 x 230 mm, the whole curve, three-zone kinematics: "
+                    "yarn slip (threshold + hardening) and grip slip (threshold force + "
+                    "compliance) fit it about equally well and give the same zone-C angle "
+                    "near the lock, and so do grip compliance + shear_locking and the "
+                    "finite-element extensible net + shear_locking "
+                    "(benchmarks/large_shear_mechanisms.py; the chi2 values and angles in "
+                    "docs/woven_fabric.md, 'The large-shear range')",
         "identified_by": [
             "a full-field measurement: grip slip moves zone A rigidly against the grip, yarn "
             "slip stretches the net along its fibres (the crossings' spacing) in zones B and C",
             "a second specimen size taken past 60 deg of zone-C shear: grip slip starts at one "
-            "force whatever the size, yarn slip at one fibre tension per unit width (150 x 450 "
-            "mm: 18.9 against 21.3 N at d = 118 mm, equal within 0.1 N up to 106 mm)",
+            "force whatever the size, yarn slip at one fibre tension per unit width (the two "
+            "fits' forces for a 150 x 450 mm specimen differ past 60 deg only: "
+            "docs/woven_fabric.md, 'The large-shear range')",
             "a picture-frame test to the same angles: no free edges and no bias-test grip; its "
             "shear force past 60 deg tells a shear law that locks from one that softens"]}
 

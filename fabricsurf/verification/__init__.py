@@ -5,9 +5,12 @@ with Peirce's bending length (``elastica.py``); the dispersion of chains and lat
 gradient continua, Mühlhaus & Oka 1996 (``dispersion.py``); the bias test against the Hencky
 and bi-pantographic lattices (``bias_comparison.py``), its grip force under refinement
 (``bias_convergence.py``) and over the whole range (``bipantographic_range.py``); observed
-rates and Richardson extrapolation (``rates.py``); the real plain-weave curve of Cao et al. 2008
-against the model: fitted range, errors and the ranges no elastic term follows (``woven.py``);
-the kinematic (fishnet) drape of a woven net over a sphere (``fishnet.py``) and the forming
-study built on it: set-up, re-forming, shear maps and figures (``forming.py``).
-Imported on use: ``import
-fabricsurf.verification`` loads no FEniCSx module."""
+rates and Richardson extrapolation (``rates.py``); the kinematic (fishnet) drape of a woven
+net over a sphere (``fishnet.py``), a second drape sharing no code with it, the Chebyshev net
+as a Goursat problem (``goursat_drape.py``), both against a continuum result
+(``drape_map.py``, the forming plug-in's contact area ``forming_map.py``), the fishnet closed
+from a continuum result's own generators (``generator_drape.py``); the flange's wrinkle
+amplitude and a buckling estimate for the wrinkling indicator (``wrinkling.py``). What a demo
+and its benchmark share on top of these is in :mod:`fabricsurf.studies`; no fitted or measured
+numbers are held here. Imported on use: ``import fabricsurf.verification`` loads no FEniCSx
+module."""

@@ -9,9 +9,8 @@ What makes the homogenised energy (Barchiesi et al. 2020, eq. 2) followable to �
   :meth:`BiasExtension.run` calls after every converged step by default; no recompilation) —
   with the scale frozen at ρ = 1 the discrete energy loses coercivity near the grip corners
   and Newton stalls, whatever the line search or Jacobian. The scale must keep following up
-  to the limit: with a fixed ceiling ρ_p cos γ ≤ 0.97 it stopped once the corner stretch passed
-  0.97 and the finest position-clamp run stalled; the ceiling is now halfway from ρ to the
-  limit;
+  to the limit (a fixed ceiling below it stalls the finest position-clamp run once the corner
+  stretch passes it): the ceiling is halfway from ρ to the limit;
 * the domain-aware solver options (:data:`~fabricsurf.discretise.solver.DOMAIN_AWARE`):
   a backtracking line search that shrinks steps leaving ρ cos γ < 1.
 

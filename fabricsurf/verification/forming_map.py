@@ -19,7 +19,7 @@ from fabricsurf.verification.drape_map import shear_difference_map
 
 TOUCH_FRACTION = 0.01
 """Points within this fraction of R of the punch's cap count as on it (as along the diagonal,
-verification/forming.py)."""
+fabricsurf/studies/forming.py)."""
 
 
 def contact_map(e: HemisphereForming, n: int = 41) -> dict[str, np.ndarray]:

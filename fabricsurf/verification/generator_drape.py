@@ -72,8 +72,8 @@ def on_cap(r: np.ndarray, R: float, touch: float) -> int:
     """How many leading samples of r reach to the last sample on the punch's cap (above its
     centre, less than ``touch`` outside the sphere, as the contact map counts them), where the
     fibre leaves the punch for the free span; 0 if none is on it. A coarse sheet touches the
-    cap at its quadrature points and lifts off it between them (by 0.30 mm at h = 5.66 mm over
-    R = 20 mm, the pole among such points, against 0.2 mm counted as contact): samples before
+    cap at its quadrature points and lifts off it between them by more than ``touch``, the
+    pole among such points (measured in docs/forming.md, "Blanks"): samples before
     the last are kept whatever their gap, and their projection onto the cap errs by it, which
     :func:`compare` reports."""
     on = (r[:, 2] > 0) & (np.linalg.norm(r, axis=1) - R < touch)

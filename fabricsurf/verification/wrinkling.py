@@ -7,12 +7,13 @@ variation the fibres at ±θ give every forming field (with the mirror lines and
 z(φ) = Σ_k a_k cos 4kφ). The flange's points, sampled on an n × n grid of the quarter's
 reference blank, are put in bands of current ρ (``band`` mm wide); in each band z is fitted by
 least squares with a quadratic in ρ and the harmonics cos 4φ and cos 8φ, each linear in ρ
-(waves 2πρ/4 and 2πρ/8 long: 41 and 20 mm at ρ = 26 mm, the flange's own long-wave field),
-and the residual is the out-of-plane deviation in shorter waves: the wrinkles. The amplitude is its
-largest magnitude. It is a reference only where it converges under mesh refinement
-(benchmarks/wrinkling.py). The quarter blank with mirror conditions on its mid-lines admits
-only wrinkles symmetric about them (z even in φ about 0° and 90°), so modes without that
-symmetry are not seen by either the indicator or this amplitude.
+(waves 2πρ/4 and 2πρ/8 long, the flange's own long-wave field, several times the wrinkles'
+wavelength measured in docs/forming.md, "Wrinkling"), and the residual is the out-of-plane
+deviation in shorter waves: the wrinkles. The amplitude is its largest magnitude. It is a
+reference only where it converges under mesh refinement (benchmarks/wrinkling.py). The quarter
+blank with mirror conditions on its mid-lines admits only wrinkles symmetric about them (z even
+in φ about 0° and 90°), so modes without that symmetry are not seen by either the indicator or
+this amplitude.
 
 **Buckling estimate.** Between the end of the die's lip, ρ₀ = R_o + r_d, and the radius where
 the holder's pressure is full, ρ₀ + 2 r_d (forming_tools.Tools.holder_weight), the flange is

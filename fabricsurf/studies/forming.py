@@ -1,6 +1,7 @@
-"""What demos/demo_forming.py and benchmarks/forming.py share: the forming model built from a
-params file, one experiment reformed with other moduli (no recompilation), profiles against the
-fishnet drape, and the figures."""
+"""What demos/demo_forming.py and benchmarks/forming.py share: the forming model built from
+fitted in-plane moduli the caller passes in (a params file of demo_woven_fabric.py, or the
+documented fit a demo or benchmark holds with its source), one experiment reformed with other
+moduli (no recompilation), profiles against the fishnet drape, and the figures."""
 
 from __future__ import annotations
 
@@ -25,31 +26,28 @@ from fabricsurf.model.terms import (
 )
 from fabricsurf.verification.fishnet import bisector_shear
 
-DOCUMENTED_PARAMS = {"terms": ["fibre_stretch", "shear", "crossover_friction"],
-                     "params": {"fibre_stretch": {"k_l": 6000.0, "k_m": 6000.0},
-                                "shear": {"k_s": 0.01863},
-                                "crossover_friction": {"tau_f": 0.00241}},
-                     "source": "docs/woven_fabric.md (Findings: with friction)"}
-"""The fit of demo_woven_fabric.py to the Cao et al. 2008 curve as docs/woven_fabric.md
-records it, for when its params file is not at hand."""
 KINEMATIC = {"shear": {"k_s": 1e-2}, "crossover_friction": {"tau_f": 0.0},
              "shear_locking": {"k4": 0.0, "k6": 0.0},
              "normal_bending": {"k_b": 0.05}, "twist": {"k_t": 0.05}}
 """The inextensible, shear-free limit (stiff fibres kept): shear and bending a hundredth and
 less of the fibres' moduli times the punch radius."""
 TOUCH_FRACTION = 0.01
-"""Points within this fraction of R of the punch's cap count as on it (tests/test_hemisphere)."""
+"""Points within this fraction of R of the punch's cap count as on it, as over the contact area
+(verification/forming_map.py). Defined here, not imported: importing forming_map from here
+changes the order the demo loads its modules in, and with it the demo's results by round-off."""
 
 
-def read_params(path: Path | None, out: Path) -> tuple[dict, str]:
-    """The params file of demo_woven_fabric.py, or the documented values written to
-    ``out/woven_params_documented.json``; returns (params, where they came from)."""
+def read_params(path: Path | None, out: Path, documented: dict) -> tuple[dict, str]:
+    """The params file of demo_woven_fabric.py, or else the caller's ``documented`` fit (a
+    params file's content, ``{"terms", "params", "source"}``, its source the document that
+    records it) written to ``out/woven_params_documented.json``; returns (params, where they
+    came from)."""
     if path is not None and Path(path).is_file():
         return json.loads(Path(path).read_text())["params"], str(path)
     target = Path(out) / "woven_params_documented.json"
     target.parent.mkdir(parents=True, exist_ok=True)
-    target.write_text(json.dumps(DOCUMENTED_PARAMS, indent=1))
-    return DOCUMENTED_PARAMS["params"], f"{target} (the values of docs/woven_fabric.md)"
+    target.write_text(json.dumps(documented, indent=1))
+    return documented["params"], f"{target} (the values of {documented['source']})"
 
 
 def forming_model(params: dict, k_b: float, k_t: float) -> list:

@@ -1,6 +1,9 @@
-"""Woven fabric in the bias-extension test (Cao et al. 2008): the ranges no elastic term can
-follow and the moduli covariance of the benchmark. The three-zone kinematics and normalisation
-(eqs. 13 and 18) are in :mod:`fabricsurf.experiments.three_zone`.
+"""What demos/demo_woven_fabric.py and benchmarks/woven_real_yarns.py share: the Cao et al.
+2008 bias-extension curve against the model: force errors over the curve and over ranges of
+it, the ranges no elastic term can follow (named), the curve cut at a zone-C angle, the record
+of the large-shear diagnosis, and the demo's figures. The three-zone kinematics and
+normalisation (eqs. 13 and 18) are in :mod:`fabricsurf.experiments.three_zone`; the numbers
+these give for the Cao curve are in docs/woven_fabric.md.
 """
 
 from __future__ import annotations
