@@ -42,7 +42,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.discretise.output import FieldWriter, write_json
 from fabricsurf.experiments.cantilever import CantileverTest, rigidity_uNm, weight_per_area
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
@@ -194,7 +194,7 @@ for name, a in alone.items():
     say(f"baseline on {name} alone: Peirce rigidity {a['peirce_rigidity']:.4g} N·mm; misfit "
         f"{a['misfit']:.3f} (RMS residual / noise), k_b = {a['k_b']:.4g} N·mm, adequate: "
         f"{a['adequate']} ({a['forward_runs']} runs)")
-assert alone["strip_00"]["adequate"] and not alone["strip_45"]["adequate"], alone
+require(alone["strip_00"]["adequate"] and not alone["strip_45"]["adequate"], alone)
 lap("baseline_alone")
 
 # %% [markdown]
@@ -226,12 +226,12 @@ for r in d.ranking:
     say(f"  {r['effect']:15s} score {r['score']:10.1f} refit misfit {r['refit_misfit']}")
 say(f"k_b = {kb[0]:.5f} ± {kb[1]:.5f} N·mm (truth 0.02; {rigidity_uNm(kb[0]):.2f} µN·m), "
     f"k_t = {kt[0]:.5f} ± {kt[1]:.5f} N·mm (truth 0.01)")
-assert d.verdict == "twist" and d.ranking[0]["effect"] == "twist"
-assert d.adequate and final.misfit["combined"] < base.misfit["combined"]
+require(d.verdict == "twist" and d.ranking[0]["effect"] == "twist")
+require(d.adequate and final.misfit["combined"] < base.misfit["combined"])
 for e in final.misfit["experiments"]:  # each strip at the noise level, not only the sum
-    assert e["combined"] ** 2 <= sg.adequacy_bound(e["n"], len(fitted)), e["experiment"]
+    require(e["combined"] ** 2 <= sg.adequacy_bound(e["n"], len(fitted)), e["experiment"])
 for (v, s), truth in ((kb, 0.02), (kt, 0.01)):  # the noise, not a bias, limits the moduli
-    assert abs(v - truth) <= 3.0 * s, (v, s, truth)
+    require(abs(v - truth) <= 3.0 * s, (v, s, truth))
 
 # %% [markdown]
 # ## 5. Figures, XDMF of the fitted model, summary

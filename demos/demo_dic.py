@@ -34,6 +34,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
+from fabricsurf.cli.demo import require
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.dic.export import spec_text, write_images
@@ -111,7 +112,7 @@ comm.barrier()
 # %%
 meas = out / "measured"
 t0 = time.perf_counter()
-assert cli(["import-dic", str(spec), "--out", str(meas)]) == 0
+require(cli(["import-dic", str(spec), "--out", str(meas)]) == 0)
 seconds["import"] = time.perf_counter() - t0
 data = load_experiment(meas)
 report = json.loads((meas / "dic_import.json").read_text()) if comm.rank == 0 else None
@@ -223,13 +224,13 @@ CHECKS = {"verdict": "geodesic_bending", "holes": (1, None), "holes_as_written":
           "bias_in_standard_errors": (0.0, 3.0), "rms_error_vs_expected": (0.85, 1.15),
           "noise_std_vs_expected": (0.85, 1.15), "ratios_vs_truth/*": (0.9, 1.1),
           "seconds": ...}
-assert len(summary["ratios_vs_truth"]) == 2, summary["verdict"]
+require(len(summary["ratios_vs_truth"]) == 2, summary["verdict"])
 for key, want in CHECKS.items():
     values = summary[key.split("/")[0]]
     for v in (values if key.endswith("/*") else [values]):
         ok = (want is ... or (isinstance(want, tuple) and (want[0] is None or v >= want[0])
                               and (want[1] is None or v <= want[1]))
               or (not isinstance(want, tuple) and v == want))
-        assert ok, (key, v, want)
+        require(ok, (key, v, want))
 say(f"verdict {diag['verdict']}; figures in {out} and {out / 'diagnose'}; summary in "
     f"{out / 'summary.json'} ({summary['seconds']:.0f} s)")

@@ -62,7 +62,7 @@ import numpy as np
 from dolfinx import fem, io
 from mpi4py import MPI
 
-from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
 from fabricsurf.verification import dispersion as dp
 
@@ -95,7 +95,7 @@ NEXT = {2: -1.0 / 12.0, 4: 1.0 / 360.0, 6: -1.0 / 20160.0}
 def agreed(comm: MPI.Comm, x: float) -> float:
     """A scalar reduced over the ranks (max); asserts that all ranks computed the same value."""
     hi, lo = comm.allreduce(float(x), op=MPI.MAX), comm.allreduce(float(x), op=MPI.MIN)
-    assert hi == lo or abs(hi - lo) <= 1e-12 * max(1.0, abs(hi)), (hi, lo)
+    require(hi == lo or abs(hi - lo) <= 1e-12 * max(1.0, abs(hi)), (hi, lo))
     return hi
 
 
@@ -114,7 +114,8 @@ def chain_modes(comm: MPI.Comm, N: int, D: float, k: float, m: float) -> tuple[d
     w2_fe, modes = {}, {}
     for p in ORDERS:
         w2_fe[p], overlap, _, modes[p] = cont.modes(*dp.gradient_moduli(p, k, D), m / D, N)
-        assert overlap.min() > 0.999, f"order {p}: a computed mode is not a sine ({overlap.min()})"
+        require(overlap.min() > 0.999,
+                f"order {p}: a computed mode is not a sine ({overlap.min()})")
     low = qd <= 1.5
     res: dict = {"N": N, "chain_engine_max_rel_err_vs_eq12":
                  agreed(comm, np.max(np.abs(w2_chain / dp.omega2_chain(qd, k, m) - 1.0))),
@@ -438,18 +439,18 @@ CHECKS = {
 verify(summary, CHECKS)
 c1, ill = res1["continuum"], res1["ill_posedness"]
 for p in ORDERS:
-    assert abs(c1[str(p)]["error_over_leading_term_at_qD"][1] - 1) < 0.02, p
+    require(abs(c1[str(p)]["error_over_leading_term_at_qD"][1] - 1) < 0.02, p)
     d1 = res1["departure_qD_vp_1pct"][str(p)]
-    assert abs(d1["formula"] - d1["computed"]) < np.pi / (N + 1), p
+    require(abs(d1["formula"] - d1["computed"]) < np.pi / (N + 1), p)
 w2_first = ill["order6_first_mode_formula"]
-assert max(abs(x / w2_first - 1) for x in ill["min_eigenvalue_order6"]) < 1e-3
+require(max(abs(x / w2_first - 1) for x in ill["min_eigenvalue_order6"]) < 1e-3)
 for v in res2["fe_max_rel_err_vs_formula"].values():
     # low modes: limited by round-off, eps·max|λ|/ω_1² (a stiff A_g makes K ill-conditioned)
-    assert v["q_eps_le_1.5"] < max(10 * v["roundoff_floor"], 1e-8), v
+    require(v["q_eps_le_1.5"] < max(10 * v["roundoff_floor"], 1e-8), v)
 dep = res2["departure_qeps_vp_1pct"]
-assert abs(dep["transverse: shear"] - math.sqrt(0.02 / res2["beta"])) < 0.1 * dep[
-    "transverse: shear"]
-assert dep["longitudinal: + stretch_gradient A_s=+k_l eps^2/12"] < dep[
-    "longitudinal: fibre_stretch"]
+require(abs(dep["transverse: shear"] - math.sqrt(0.02 / res2["beta"])) < 0.1 * dep[
+    "transverse: shear"])
+require(dep["longitudinal: + stretch_gradient A_s=+k_l eps^2/12"] < dep[
+    "longitudinal: fibre_stretch"])
 if comm.rank == 0:
     print(f"all checks passed; wrote {out}/summary.json, figures and dispersion_modes.xdmf")

@@ -32,7 +32,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
-from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
@@ -167,9 +167,9 @@ CHECKS = {"verdict": "geodesic_bending", "refit_params/geodesic_bending/A_g": (0
           "final/moduli/fibre_stretch.k_l/identifiable": True,
           "final/moduli/shear.k_s/systematic_mesh": (0.0, None)}
 verify(summary, CHECKS)
-assert a["combined"] < b["misfit"] and len(diag["path"]) == 2
-assert a["combined"] <= form * 1.05, (a["combined"], form)  # the fit is as good as the truth
+require(a["combined"] < b["misfit"] and len(diag["path"]) == 2)
+require(a["combined"] <= form * 1.05, (a["combined"], form))  # the fit is as good as the truth
 if not args.quick:
-    assert diag["adequate"] and a["combined"] <= 1.1, (a["combined"], diag["adequate"])
+    require(diag["adequate"] and a["combined"] <= 1.1, (a["combined"], diag["adequate"]))
 say(f"figures in {out}/compare, {out}/diagnose; summary in {out / 'summary.json'} "
     f"({summary['seconds']:.0f} s)")

@@ -39,7 +39,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli import main as cli
-from fabricsurf.cli.demo import demo_parser, parse, verify
+from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.datasets import cao2008_plain_weave
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.experiments import three_zone as tz
@@ -260,8 +260,8 @@ params_file = out / "woven_params.json"
 write_json(comm, params_file, final.as_dict() | {"terms": list(diag.terms), "h_mm": H_MESH,
                                                  "data": exp.name})  # a saved fit: with bands
 comm.barrier()
-assert cli(["compare", str(out / "data_fitted"), "--params", str(params_file), "--h",
-            str(H_MESH), "--out", str(out / "compare_params")]) == 0
+require(cli(["compare", str(out / "data_fitted"), "--params", str(params_file), "--h",
+             str(H_MESH), "--out", str(out / "compare_params")]) == 0)
 cmp = wv.read_json(comm, out / "compare_params" / "misfit.json")
 steps = 11 if args.quick else 44
 t0 = time.perf_counter()
@@ -341,18 +341,18 @@ CHECKS = {"verdict": "crossover_friction", "terms": ...,
           "prediction_valid_to_mm": (0.0, 110.0), "errors/*/knee/rms_N": (0.0, None)}
 verify(summary, CHECKS)
 knee_before, knee_after = (errors[k]["knee"]["rms_N"] for k in ("baseline", "final"))
-assert knee_after < 0.5 * knee_before, "friction is what the knee needs"
-assert final.chi2 <= base.chi2 * (1 + 1e-9), "the final model nests the baseline"
-assert abs(cmp["chi2"] - final.chi2) <= 1e-6 * final.chi2, "same mesh, same moduli, same χ²"
-assert pred_rc == 0 and d_pred[-1] == 110.0 and np.all(np.diff(F_pred) > 0)
-assert np.allclose(band["force"], F_pred, rtol=1e-6), "the band's centre is the CLI's prediction"
-assert "size_form" in band["parts_included"], "the band holds the size part"
-assert args.quick or max(spread.values()) < 0.02, "moduli of a locking-free mesh: within 2 %"
-assert yarns["penalty_vs_exact_max_N"] < 1e-2 * DIGITISING_ERROR, "the penalty is the limit"
-assert yarns["glass_vs_exact_max_N"] < DIGITISING_ERROR, "glass stretch unresolved at h"
-assert yarns["boundary_layer_mm"] < 0.1 * YARN_SPACING, "its layer is below the yarn scale"
-assert 0 < valid_to <= 110.0
-assert large["final"]["chi2"] <= large["baseline"]["chi2"] * (1 + 1e-9), "nested refit"
-assert large["baseline"]["whole"]["rms_N"] < large["inextensible_net_fitted_to_60_deg"][
-    "whole"]["rms_N"], "yarns that may extend follow the curve past 60 deg"
+require(knee_after < 0.5 * knee_before, "friction is what the knee needs")
+require(final.chi2 <= base.chi2 * (1 + 1e-9), "the final model nests the baseline")
+require(abs(cmp["chi2"] - final.chi2) <= 1e-6 * final.chi2, "same mesh, same moduli, same χ²")
+require(pred_rc == 0 and d_pred[-1] == 110.0 and np.all(np.diff(F_pred) > 0))
+require(np.allclose(band["force"], F_pred, rtol=1e-6), "the band's centre is the CLI's prediction")
+require("size_form" in band["parts_included"], "the band holds the size part")
+require(args.quick or max(spread.values()) < 0.02, "moduli of a locking-free mesh: within 2 %")
+require(yarns["penalty_vs_exact_max_N"] < 1e-2 * DIGITISING_ERROR, "the penalty is the limit")
+require(yarns["glass_vs_exact_max_N"] < DIGITISING_ERROR, "glass stretch unresolved at h")
+require(yarns["boundary_layer_mm"] < 0.1 * YARN_SPACING, "its layer is below the yarn scale")
+require(0 < valid_to <= 110.0)
+require(large["final"]["chi2"] <= large["baseline"]["chi2"] * (1 + 1e-9), "nested refit")
+require(large["baseline"]["whole"]["rms_N"] < large["inextensible_net_fitted_to_60_deg"][
+    "whole"]["rms_N"], "yarns that may extend follow the curve past 60 deg")
 say(f"done in {seconds['total']:.0f} s on {comm.size} rank(s); outputs in {out}")

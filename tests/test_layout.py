@@ -146,3 +146,12 @@ def test_studies_stand_apart():
         assert violation(lower, "fabricsurf.studies.forming"), lower
     for higher in ("fabricsurf.inverse.fitting.report", "fabricsurf.cli.demo"):
         assert violation("fabricsurf.studies.woven", higher), higher
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "demos").glob("demo_*.py")), ids=lambda p: p.name)
+def test_demo_checks_survive_optimised_python(path):
+    """A demo checks itself with ``require`` (fabricsurf/cli/demo.py), not ``assert``, which
+    ``python -O`` strips: a demo run so would pass whatever its numbers."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    lines = [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Assert)]
+    assert not lines, f"{path.name}: assert at lines {lines}; use require(condition, message)"

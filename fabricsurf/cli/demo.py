@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import ast
 import contextlib
+import inspect
 from pathlib import Path
 from typing import Any
 
@@ -99,7 +100,23 @@ def failures(summary: dict, checks: dict) -> list[str]:
     return bad
 
 
+class DemoCheckError(RuntimeError):
+    """A demo's own check failed (raised by :func:`require` and :func:`verify`)."""
+
+
+def require(condition: object, message: object = None) -> None:
+    """A demo's check: raise :class:`DemoCheckError` with ``message`` (default: the file and
+    line of the check) unless ``condition``. Unlike ``assert`` it holds under ``python -O``,
+    which strips asserts."""
+    if not condition:
+        if message is None:
+            caller = inspect.stack()[1]
+            message = f"the check at {Path(caller.filename).name}:{caller.lineno}"
+        raise DemoCheckError(f"failed: {message}")
+
+
 def verify(summary: dict, checks: dict) -> None:
-    """Raise AssertionError naming every declared check that ``summary`` does not meet."""
+    """Raise :class:`DemoCheckError` naming every declared check that ``summary`` does not
+    meet."""
     bad = failures(summary, checks)
-    assert not bad, "summary.json breaks its declared checks:\n  " + "\n  ".join(bad)
+    require(not bad, "summary.json breaks its declared checks:\n  " + "\n  ".join(bad))
