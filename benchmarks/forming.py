@@ -53,14 +53,9 @@ from fabricsurf.verification.fishnet import bisector_shear
 
 comm = MPI.COMM_WORLD
 STROKE_FRACTION, STEPS = 0.6, 12
-DOCUMENTED_PARAMS = {"terms": ["fibre_stretch", "shear", "crossover_friction"],
-                     "params": {"fibre_stretch": {"k_l": 6000.0, "k_m": 6000.0},
-                                "shear": {"k_s": 0.01863},
-                                "crossover_friction": {"tau_f": 0.00241}},
-                     "source": "docs/woven_fabric.md, 'The model, as the fabric is': the fit "
-                               "with the glass stiffness K = 6e3 N/mm at h = 11.5 mm, rounded"}
-"""The fitted woven fabric the benchmark forms: demo_forming.py's documented fit (the same
-values, the same source), so that the benchmark measures what the demo runs."""
+DOCUMENTED_PARAMS = parts.documented_fit()
+"""The fitted woven fabric the benchmark forms: the one demo_forming.py forms without a params
+file (fabricsurf.datasets.woven_fit), so that the benchmark measures what the demo runs."""
 
 
 TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}

@@ -58,15 +58,6 @@ from fabricsurf.studies import forming as parts
 from fabricsurf.verification import drape_map, wrinkling
 from fabricsurf.verification.forming_map import compare_with_drapes
 
-DOCUMENTED_PARAMS = {"terms": ["fibre_stretch", "shear", "crossover_friction"],
-                     "params": {"fibre_stretch": {"k_l": 6000.0, "k_m": 6000.0},
-                                "shear": {"k_s": 0.01863},
-                                "crossover_friction": {"tau_f": 0.00241}},
-                     "source": "docs/woven_fabric.md, 'The model, as the fabric is': the fit "
-                               "with the glass stiffness K = 6e3 N/mm at h = 11.5 mm, rounded"}
-"""The fit of demo_woven_fabric.py to the Cao et al. 2008 curve as docs/woven_fabric.md records
-it, for when its params file is not at hand."""
-
 comm = MPI.COMM_WORLD
 ap = demo_parser("A fitted woven fabric formed over a hemisphere", "out/forming")
 ap.add_argument("--params", type=Path, default=Path("out/woven/woven_params.json"),
@@ -79,8 +70,7 @@ t_start = time.perf_counter()
 R, BLANK, H = (20.0, 72.0, 4.0) if args.quick else (50.0, 180.0, 5.0)
 STROKE, STEPS = 0.6 * R, 12
 K_BEND = 0.1
-params, source = on_rank0(comm, parts.read_params, args.params, out,
-                          DOCUMENTED_PARAMS) or (None, None)
+params, source = on_rank0(comm, parts.read_params, args.params, out) or (None, None)
 params, source = comm.bcast((params, source), root=0)
 rank0_print(comm, f"model from {source}")
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fabricsurf.datasets import woven_fit
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.experiments.base import Setup
 from fabricsurf.experiments.forming_log import StepLog
@@ -37,13 +38,18 @@ TOUCH_FRACTION = 0.01
 changes the order the demo loads its modules in, and with it the demo's results by round-off."""
 
 
-def read_params(path: Path | None, out: Path, documented: dict) -> tuple[dict, str]:
-    """The params file of demo_woven_fabric.py, or else the caller's ``documented`` fit (a
-    params file's content, ``{"terms", "params", "source"}``, its source the document that
-    records it) written to ``out/woven_params_documented.json``; returns (params, where they
-    came from)."""
+def documented_fit() -> dict:
+    """The documented fit of the woven fabric (:func:`fabricsurf.datasets.woven_fit`)."""
+    return json.loads(woven_fit().read_text(encoding="utf-8"))
+
+
+def read_params(path: Path | None, out: Path) -> tuple[dict, str]:
+    """The params file of demo_woven_fabric.py, or else the documented fit shipped with the
+    package (:func:`fabricsurf.datasets.woven_fit`), copied to
+    ``out/woven_params_documented.json``; returns (params, where they came from)."""
     if path is not None and Path(path).is_file():
         return json.loads(Path(path).read_text())["params"], str(path)
+    documented = documented_fit()
     target = Path(out) / "woven_params_documented.json"
     target.parent.mkdir(parents=True, exist_ok=True)
     target.write_text(json.dumps(documented, indent=1))
