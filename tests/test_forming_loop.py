@@ -29,7 +29,6 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.cli import main
-from fabricsurf.cli.data_checks import check_in_loop, check_terms_fit_data
 from fabricsurf.cli.options import enough_data
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments import get_test
@@ -38,6 +37,7 @@ from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.contract.shear import read_shear
 from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.misfit import misfit
+from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
 from fabricsurf.inverse.synthetic import forming as sf
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 

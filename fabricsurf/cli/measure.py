@@ -14,7 +14,6 @@ from collections.abc import Iterator
 
 from mpi4py import MPI
 
-from fabricsurf.cli.data_checks import check_in_loop, check_terms_fit_data
 from fabricsurf.cli.effects import add_effects
 from fabricsurf.cli.options import (
     add_max_elements,
@@ -46,6 +45,7 @@ from fabricsurf.inverse.fitting.mesh_choice import (
 )
 from fabricsurf.inverse.fitting.misfit import converged_steps
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
+from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
 from fabricsurf.inverse.fitting.report import misfit_summary, result_lines, tie_lines
 from fabricsurf.log import rank0_print
 from fabricsurf.model.terms import EFFECTS

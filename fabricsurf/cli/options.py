@@ -8,8 +8,8 @@ import argparse
 import math
 from pathlib import Path
 
-from fabricsurf.cli.data_checks import planar_candidates
 from fabricsurf.errors import InputError
+from fabricsurf.inverse.fitting import preconditions as pre
 
 MAX_ELEMENTS = 400_000
 """Default of ``--max-elements``: about 20 GB at KB_PER_ELEMENT, what a 24 GB machine holds."""
@@ -36,17 +36,6 @@ def check_params_file(path) -> None:
     if kind:
         raise InputError(f"--params {path}: {kind}, not a regular file; give the moduli as a "
                          "JSON file")
-
-
-def no_signed(model: list, command: str) -> None:
-    """fit and diagnose step in log-moduli (positive): a modulus that may be negative (a
-    term's ``signed``) cannot be fitted there yet; compare and bias take it."""
-    signed = [f"{t.name}.{p}" for t in model for p in getattr(t, "signed", ())]
-    if signed:
-        raise InputError(f"--terms {','.join(t.name for t in model)}: {', '.join(signed)} "
-                         f"may be negative (signed), and {command} fits moduli in log scale, "
-                         "positive only; signed moduli can be compared (compare, bias) but not "
-                         "yet fitted (docs/usage.md, 'Adding your own effect')")
 
 
 def add_max_elements(p: argparse.ArgumentParser) -> None:
@@ -160,46 +149,20 @@ def input_paths(args, exps: list) -> tuple[tuple[str, str], ...]:
     return tuple(found + ([(f"--params {args.params}", args.params)] if args.params else []))
 
 
-def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None:
-    """Refuse a fit of more moduli than there are data (under-determined: its ± would be
-    meaningless). Data: every force value, every field row times the components the test
-    compares, and every measured shear angle."""
-    from fabricsurf.experiments import get_test
+def _terms(model: list) -> str:
+    return "--terms " + ",".join(t.name for t in model)
 
-    free = [f"{t.name}.{p}" for t in model if t.name not in (fixed or []) for p in t.values()]
-    counts, n = [], 0
-    for e in exps:
-        nf = len(e.force) if e.has_force else 0
-        comps = min(get_test(e.test).d, e.u.shape[1])
-        nu = len(e.X) * comps if e.has_field else 0
-        ns = len(e.shear) if e.has_shear else 0
-        n += nf + nu + ns
-        rows = len(e.X)
-        counts.append(f"'{e.name}': " + ", ".join(
-            ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
-            + ([f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
-               if e.has_field else [])
-            + ([f"{ns} shear angle{'s' * (ns != 1)}"] if e.has_shear else [])))
-    if n < len(free):
-        raise InputError(f"--terms {','.join(t.name for t in model)}: {len(free)} moduli to fit "
-                         f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
-                         f"({'; '.join(counts)}): fewer data than moduli, the fit is "
-                         "under-determined; give more data (load steps, field points) or fit "
-                         "fewer moduli"
-                         + (" (fewer --terms, or --fixed)" if fixed is not None else
-                            " (fewer --terms)"))
+
+def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None:
+    """:func:`~fabricsurf.inverse.fitting.preconditions.enough_data`, naming the options."""
+    pre.enough_data(exps, model, fixed, _terms(model), " (fewer --terms, or --fixed)"
+                    if fixed is not None else " (fewer --terms)")
 
 
 def positive_start(model, args, command: str = "fit") -> None:
-    """fit and diagnose work in log-moduli: a starting modulus of 0 cannot move (a signed
-    one is refused first, :func:`no_signed`)."""
-    no_signed(model, command)
-    for t in model:
-        for p, v in t.values().items():
-            if v <= 0:
-                raise InputError(f"--params {args.params}: {t.name}.{p} = {v:g}: fit and "
-                                 "diagnose start from these moduli in log scale; give a "
-                                 "positive starting value")
+    """:func:`~fabricsurf.inverse.fitting.preconditions.positive_start` (and ``no_signed``)
+    of every modulus of --terms, naming the options."""
+    pre.positive_start(model, f"--params {args.params}", command, _terms(model))
 
 
 def number_list(spec: str, option: str, cast: type, what: str):
@@ -261,7 +224,7 @@ def diagnose_options(args, exps: list, model: list, params: dict
         check_unsigned(cands or [])
     except ValueError as e:
         raise InputError(f"--candidates {args.candidates}: {e}") from None
-    planar_candidates(exps, cands)
+    pre.planar_candidates(exps, cands, "--candidates")
     return cands, fixed
 
 

@@ -42,6 +42,7 @@ from fabricsurf.inverse.fitting.choices import check_choices, library_labels
 from fabricsurf.inverse.fitting.fit import FitResult, fit
 from fabricsurf.inverse.fitting.forward import ForwardSet
 from fabricsurf.inverse.fitting.nuisance import grip_profile, with_depth
+from fabricsurf.inverse.fitting.preconditions import fit_preconditions, planar_candidates
 from fabricsurf.inverse.fitting.report import (
     Diagnosis,
     best_lead,
@@ -209,6 +210,9 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
     check_choices(list(baseline), candidates, fixed, params or {}, visible, confirm,
                   max_effects, library_labels(list(baseline), candidates, fixed))
     check_unsigned(list(baseline) + list(candidates or []))
+    planar_candidates(exps, candidates)
+    fit_preconditions(exps, [make_term(n, **(params or {}).get(n, {})) for n in baseline],
+                      list(fixed or []), "diagnose")
     visible = [n for n in visible if n in baseline or not EFFECTS[n].signed]
     for e in exps:  # a field that did not move is refused here too, not only when loaded
         check_field_moves(e, e.files[1] if len(e.files) > 1 and e.has_field else

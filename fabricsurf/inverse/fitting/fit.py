@@ -34,6 +34,7 @@ from fabricsurf.inverse.fitting import intervals, systematic
 from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_moduli
 from fabricsurf.inverse.fitting.size_form import OMITS_INTERVALS
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 from fabricsurf.log import rank0_print
@@ -216,6 +217,24 @@ def _steps(space: str, vals: np.ndarray, free: list[int]):
     return np.ones(len(free)), lambda v, s: np.maximum(v + s, v * BOUND_CUT)
 
 
+def _preconditions(fm: Forward, free: list[int]) -> None:
+    """:func:`~.preconditions.fit_preconditions` on the terms that take part: those with a
+    free modulus, and those held at a modulus > 0 (a diagnosis's candidates at 0 are absent);
+    for a forward model that does not tell its data, the free moduli's checks alone."""
+    exps = getattr(fm, "experiments", None)
+    if exps:
+        names = {fm.params[k][0].name for k in free}
+        model = list({id(t): t for t, _ in fm.params}.values())
+        active = [t for t in model if t.name in names or any(v > 0 for v in t.values().values())]
+        held = [t.name for t in active if t.name not in names]
+        fit_preconditions(exps, active, held or None,  # a held signed modulus is fine
+                          start=[t for t in active if t.name in names])
+    signed = [f"{t.name}.{p}" for t, p in (fm.params[k] for k in free)
+              if p in getattr(t, "signed", ())]
+    positive_moduli([], [], signed)
+    positive_moduli([fm.names[k] for k in free], fm.values()[free], [])
+
+
 def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True,
         scale_start: bool = True, space: str = "log") -> FitResult:
@@ -223,20 +242,13 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
     free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
-    docstring)."""
+    docstring). The inputs are checked first, before any solve (the command line's refusals,
+    :func:`~.preconditions.fit_preconditions`)."""
     if space not in ("log", "linear"):
         raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
-    signed = [f"{t.name}.{p}" for i, (t, p) in enumerate(fm.params) if i in free
-              and p in getattr(t, "signed", ())]
-    if signed:
-        raise ValueError(f"fit: {', '.join(signed)} may be negative (signed) and the fit steps "
-                         "in moduli > 0 (log scale, or linear steps kept above 0); fix them "
-                         "(leave them out of free) or compare instead")
+    _preconditions(fm, free)  # signed or zero starting moduli among them too
     vals = fm.values()
-    if np.any(vals[free] <= 0):
-        raise ValueError("fit: initial moduli must be > 0 (log-parametrisation): "
-                         f"{dict(zip(fm.names, vals))}")
     runs0, given = fm.forward_runs, vals.copy()
     if scale_start:
         vals = scan_terms(fm, free, vals)

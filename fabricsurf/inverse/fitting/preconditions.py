@@ -1,0 +1,188 @@
+"""What a fit or a diagnosis refuses before any computation, checked in one place for the
+library (:func:`~fabricsurf.inverse.fitting.fit.fit`,
+:func:`~fabricsurf.inverse.fitting.diagnose.diagnose`) and the command line: signed or zero
+starting moduli (the fit steps in log-moduli), more moduli than data (under-determined), tests
+or kinds of data not yet in the comparison loop, and terms the data cannot carry (out-of-plane
+effects on planar data, a bending test without bending stiffness).
+
+The messages name each input as the caller spells it: ``terms`` (``--terms a,b`` on the command
+line, ``terms ['a', 'b']`` in the library), ``params`` (``--params FILE`` or ``params``) and
+the remedy's names (``remedy``); every error is an :class:`~fabricsurf.errors.InputError`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fabricsurf.errors import InputError
+
+NOT_IN_LOOP: dict[str, str] = {}
+"""Tests that have a plug-in but are not yet compared with measurements, and why (none now:
+the hemisphere's punch force and shear angles are in the loop, docs/forming.md)."""
+
+FIELD_NOT_IN_LOOP = {"hemisphere": "a displacement field of a formed part is not yet compared "
+                                   "(its points would need mapping onto the solved quarter with "
+                                   "the mirrored components); compare the punch force "
+                                   "(force.csv) and the shear angles at points (shear.csv, "
+                                   "docs/contracts.md)"}
+"""Tests whose forward model takes their force (and shear) data but not a displacement field."""
+
+BENDS = {"cantilever": "cantilever", "hemisphere": "hemisphere forming (the sheet bends over "
+                                                  "the punch and the die's lip)"}
+"""Tests whose answer needs a bending stiffness: a second-gradient term."""
+
+
+def terms_label(model: list) -> str:
+    """How the library names a model's terms in a message."""
+    return f"terms {[t.name for t in model]}"
+
+
+def positive_moduli(names: list[str], values, signed: list[str], params: str = "params",
+                    command: str = "fit", terms: str = "terms") -> None:
+    """fit and diagnose step in log-moduli (positive): a modulus that may be negative
+    (``signed``, a term's ``signed``) cannot be fitted there yet (compare and bias take it),
+    and a starting modulus ``values`` ≤ 0 cannot move. ``params``: where the moduli came
+    from; ``terms``: the terms as the caller names them."""
+    if signed:
+        raise InputError(f"{terms}: {', '.join(signed)} "
+                         f"may be negative (signed), and {command} fits moduli in log scale, "
+                         "positive only; signed moduli can be compared (compare, bias) but not "
+                         "yet fitted (docs/usage.md, 'Adding your own effect')")
+    for n, v in zip(names, values):
+        if v <= 0:
+            raise InputError(f"{params}: {n} = {v:g}: fit and "
+                             "diagnose start from these moduli in log scale; give a "
+                             "positive starting value")
+
+
+def positive_start(model: list, params: str = "params", command: str = "fit",
+                   terms: str | None = None) -> None:
+    """:func:`positive_moduli` of every modulus of ``model``."""
+    pairs = [(t, p, v) for t in model for p, v in t.values().items()]
+    positive_moduli([f"{t.name}.{p}" for t, p, _ in pairs], [v for *_, v in pairs],
+                    [f"{t.name}.{p}" for t in model for p in getattr(t, "signed", ())],
+                    params, command, terms or terms_label(model))
+
+
+def enough_data(exps: list, model: list, fixed: list[str] | None = None,
+                terms: str | None = None, remedy: str | None = None) -> None:
+    """Refuse a fit of more moduli than there are data (under-determined: its ± would be
+    meaningless). Data: every force value, every field row times the components the test
+    compares, and every measured shear angle. The moduli fitted: those of the terms of
+    ``model`` not in ``fixed``; ``remedy``: how to fit fewer (default: the library's names)."""
+    from fabricsurf.experiments import get_test
+
+    free = [f"{t.name}.{p}" for t in model if t.name not in (fixed or []) for p in t.values()]
+    counts, n = [], 0
+    for e in exps:
+        nf = len(e.force) if e.has_force else 0
+        comps = min(get_test(e.test).d, e.u.shape[1])
+        nu = len(e.X) * comps if e.has_field else 0
+        ns = len(e.shear) if e.has_shear else 0
+        n += nf + nu + ns
+        rows = len(e.X)
+        counts.append(f"'{e.name}': " + ", ".join(
+            ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
+            + ([f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
+               if e.has_field else [])
+            + ([f"{ns} shear angle{'s' * (ns != 1)}"] if e.has_shear else [])))
+    if n < len(free):
+        if remedy is None:
+            remedy = " (fewer terms, or fixed)" if fixed is not None else " (fewer terms)"
+        raise InputError(f"{terms or terms_label(model)}: {len(free)} moduli to fit "
+                         f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
+                         f"({'; '.join(counts)}): fewer data than moduli, the fit is "
+                         "under-determined; give more data (load steps, field points) or fit "
+                         "fewer moduli" + remedy)
+
+
+def _origin(e) -> str:
+    """Where an experiment came from, for a message: its directory, else its name."""
+    return str(Path(e.files[0]).parent) if e.files else f"experiment '{e.name}'"
+
+
+def check_in_loop(exps: list, data: list | None = None) -> None:
+    """Refuse data of a test (or a kind of data of a test) the comparison does not support yet,
+    naming the key; ``data``: the experiments' directories (default: where they were read)."""
+    for e, d in zip(exps, data if data is not None else [_origin(e) for e in exps]):
+        why = NOT_IN_LOOP.get(e.test)
+        if why:
+            raise InputError(f"{d}/experiment.toml: [loading] test = \"{e.test}\": {why}")
+        why = FIELD_NOT_IN_LOOP.get(e.test) if e.has_field else None
+        if why:
+            raise InputError(f"{d}/experiment.toml: [data] field with [loading] test = "
+                             f"\"{e.test}\": {why}")
+        if e.test == "hemisphere":
+            _stroke_within_reach(e, d)
+
+
+def _stroke_within_reach(e, d) -> None:
+    """A measured stroke the die and blank cannot allow is refused before the forward model
+    follows it into a Newton failure (forming_blank.check_stroke)."""
+    from fabricsurf.errors import DataError
+    from fabricsurf.experiments import forming_blank
+
+    i = int(max(range(len(e.path)), key=lambda j: e.path[j]))
+    try:
+        forming_blank.check_stroke(e.setup, float(e.path[i]))
+    except DataError as err:
+        raise InputError(f"{d}: step {int(e.steps[i])}: {err}") from None
+
+
+def check_terms_fit_data(exps: list, model: list, spec: str | None = None,
+                         option: str = "--terms") -> None:
+    """Terms the data cannot carry, refused by name before any computation: an out-of-plane
+    effect (normal bending, twist) on a planar test has no meaning there (it needs a placement
+    in 3D), and a cantilever or a formed sheet without a second-gradient term has no bending
+    stiffness. ``spec``: the terms as given on the command line (``--terms spec``); without
+    it the library's ``terms [...]``."""
+    from fabricsurf.experiments import get_test
+
+    label = f"{option} {spec}" if spec is not None else terms_label(model)
+    where = option if spec is not None else "the terms"
+    for e in exps:
+        planar = get_test(e.test).d == 2
+        out_of_plane = [t.name for t in model if not t.in_plane]
+        if planar and out_of_plane:
+            raise InputError(f"{label}: {', '.join(out_of_plane)} is an out-of-plane "
+                             f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
+                             "it has no out-of-plane placement, so its data cannot identify "
+                             f"it; remove it from {where} (or use out-of-plane data alone, "
+                             "e.g. a cantilever)")
+        if e.test in BENDS and not any(t.order == 2 for t in model):
+            raise InputError(f"{label}: experiment '{e.name}' is a {BENDS[e.test]}, "
+                             "and no term has a second gradient, so the sheet would have no "
+                             "bending stiffness at all (its tangent is singular); add "
+                             "normal_bending (and twist)")
+
+
+def planar_candidates(exps: list, cands: list[str] | None, option: str = "candidates") -> None:
+    """Planar and out-of-plane data together: an out-of-plane candidate (by default every
+    effect some data can see) would enter the planar experiments' models too, where it has no
+    meaning; refused, naming the remedy. ``option``: the candidates' name (``--candidates``)."""
+    from fabricsurf.experiments import get_test
+    from fabricsurf.inverse.fitting.diagnose import visible_effects
+    from fabricsurf.model.terms import in_plane_invisible
+
+    planar = [e.name for e in exps if get_test(e.test).d == 2]
+    pool = cands if cands is not None else visible_effects(exps)
+    out_of_plane = [c for c in pool if c in in_plane_invisible()]
+    if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
+        given = f"{option} " + ",".join(cands) if cands is not None else (
+            f"no {option} given: the default candidates include")
+        raise InputError(f"{given}: {', '.join(out_of_plane)} cannot be tried on planar "
+                         f"experiment '{planar[0]}' (out-of-plane effects need a placement in "
+                         "3D); diagnose planar and out-of-plane data apart, or give "
+                         f"{option} without them")
+
+
+def fit_preconditions(exps: list, model: list, fixed: list[str] | None = None,
+                      command: str = "fit", start: list | None = None) -> None:
+    """Every check above, in the command line's order, for a fit of ``model`` (its terms not
+    in ``fixed``) to ``exps``, as the library names its arguments (the command line calls
+    each with its options' names); ``start``: the terms whose starting moduli are checked
+    (default: all of ``model``)."""
+    check_in_loop(exps)
+    check_terms_fit_data(exps, model)
+    positive_start(model if start is None else start, "params", command, terms_label(model))
+    enough_data(exps, model, fixed)
