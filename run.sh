@@ -43,7 +43,7 @@ ensure_debs() {
 
 ensure_venv() {
   [ -x "$PY" ] || /usr/bin/python3 -m venv --system-site-packages "$VENV"
-  if ! "$PY" -c "import pytest, fabricsurf, geometry" 2>/dev/null || ! [ -x "$VENV/bin/ruff" ]; then
+  if ! "$PY" -c "import pytest, fabricsurf.geometry" 2>/dev/null || ! [ -x "$VENV/bin/ruff" ]; then
     echo "[run.sh] installing fabricsurf (editable) and dev tools into $VENV"
     "$PY" -m pip install -q --upgrade "pip>=23"
     "$PY" -m pip install -q -e ".[dev]"

@@ -16,13 +16,14 @@ the plain public API call. Exits with status 1 if any run stops short of ū.
 
 import argparse
 import json
+import logging
 import sys
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, rank0
 from fabricsurf.network.homogenize import identify_macro
 from fabricsurf.verification.bias_comparison import EPS_EXACT, IDENTIFIED_K_E
 from fabricsurf.verification.bipantographic_range import (
@@ -32,26 +33,28 @@ from fabricsurf.verification.bipantographic_range import (
     values_at,
 )
 
+logger = logging.getLogger(__name__)
+
 
 def report(comm, run: dict, loads: list[float]) -> None:
-    rank0_print(comm, f"\n{run['clamp']} clamps, level {run['level']} ({run['dofs']} DOFs), "
-                      f"set-up {run['setup_seconds']:.1f} s")
+    rank0(logger, comm, f"\n{run['clamp']} clamps, level {run['level']} ({run['dofs']} DOFs), "
+                        f"set-up {run['setup_seconds']:.1f} s")
     if run["failure"]:
-        rank0_print(comm, "  FAILED: " + run["failure"]["message"])
+        rank0(logger, comm, "  FAILED: " + run["failure"]["message"])
         if "ubar" not in run:
             return
     for row in values_at(run, [u for u in loads if u <= run["ubar"][-1] + 1e-9]):
-        rank0_print(comm, f"  ū = {row['ubar']:4.0f} mm  F = {row['force']:9.4f} N  "
-                          f"γ_A = {row['angle_A_deg']:6.2f}°  γ_B = {row['angle_B_deg']:6.2f}°")
+        rank0(logger, comm, f"  ū = {row['ubar']:4.0f} mm  F = {row['force']:9.4f} N  "
+                            f"γ_A = {row['angle_A_deg']:6.2f}°  γ_B = {row['angle_B_deg']:6.2f}°")
     s = run["stretch"][-1]
-    rank0_print(comm, f"  largest stretch at ū = {s['ubar']:.0f} mm: ρ = {s['max_stretch']:.4f}"
-                      f" (ρ cos γ = {s['rho_cos_gamma']:.4f}) at {np.round(s['at'], 1)}")
+    rank0(logger, comm, f"  largest stretch at ū = {s['ubar']:.0f} mm: ρ = {s['max_stretch']:.4f}"
+                        f" (ρ cos γ = {s['rho_cos_gamma']:.4f}) at {np.round(s['at'], 1)}")
     its, st = np.array(run["newton"]), np.array(run["step_seconds"])
-    rank0_print(comm, f"  {len(its)} load steps, {its.sum()} Newton iterations "
-                      f"({its.min()}–{its.max()} per step), domain errors "
-                      f"{run['domain_errors']}; wall time {run['seconds']:.1f} s: "
-                      f"{st.mean():.2f} s per load step, "
-                      f"{st.sum() / its.sum():.3f} s per Newton iteration")
+    rank0(logger, comm, f"  {len(its)} load steps, {its.sum()} Newton iterations "
+                        f"({its.min()}–{its.max()} per step), domain errors "
+                        f"{run['domain_errors']}; wall time {run['seconds']:.1f} s: "
+                        f"{st.mean():.2f} s per load step, "
+                        f"{st.sum() / its.sum():.3f} s per Newton iteration")
 
 
 def identified_moduli(comm) -> dict:
@@ -80,6 +83,7 @@ def main() -> None:
                          "line search (the plain public API)")
     ap.add_argument("--out", type=Path, default=None, help="write all results as JSON")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
     moduli = identified_moduli(comm) if a.identified else None
     options = None if a.package_defaults else RANGE_OPTIONS
@@ -96,18 +100,18 @@ def main() -> None:
         if conv:
             for u, c in conv.items():
                 rates = ", ".join("none" if x is None else f"{x:.2f}" for x in c["rates"])
-                rank0_print(comm, f"  {clamp}: force at ū = {u} mm: differences "
-                                  + ", ".join(f"{d:.4f}" for d in c["differences"])
-                                  + f" N, rate(s) {rates}")
+                rank0(logger, comm, f"  {clamp}: force at ū = {u} mm: differences "
+                                    + ", ".join(f"{d:.4f}" for d in c["differences"])
+                                    + f" N, rate(s) {rates}")
         results[clamp] = {"runs": runs, "convergence": conv}
     if a.out and comm.rank == 0:
         a.out.write_text(json.dumps(results, indent=1))
     short = [f"{c} level {r['level']}" for c, v in results.items() for r in v["runs"]
              if r["failure"]]
     if short:
-        rank0_print(comm, f"\nNOT REACHED ū = {a.ubar:g} mm: " + ", ".join(short))
+        rank0(logger, comm, f"\nNOT REACHED ū = {a.ubar:g} mm: " + ", ".join(short))
         sys.exit(1)
-    rank0_print(comm, f"\nevery run reached ū = {a.ubar:g} mm")
+    rank0(logger, comm, f"\nevery run reached ū = {a.ubar:g} mm")
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import logging
 import time
 from pathlib import Path
 
@@ -45,13 +46,15 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import write_json
-from fabricsurf.inverse.fitting import significance as sg
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, detail, rank0
 from fabricsurf.network import ConvergenceError
+
+logger = logging.getLogger(__name__)
 
 LENGTH, WIDTH = 60.0, 30.0
 REGIMES = {"soft": (30.0, 0.5, 0.05), "stiff": (1000.0, 0.4, 0.12)}  # k_l, k_s, strain
@@ -106,7 +109,7 @@ def configuration_cases(a, comm, pairs: bool = False):
             clean = [lattice(k_l, k_s, strain, l_b, size=(f * length, f * width),
                              spacing=spacing) for f in scales]
         except ConvergenceError as e:
-            rank0_print(comm, f"configuration {k}: the lattice generator failed ({e}); left out")
+            rank0(logger, comm, f"configuration {k}: the lattice generator failed ({e}); left out")
             continue
         if pairs:
             for j, c in enumerate(clean):
@@ -178,9 +181,10 @@ def fitted(exp, params: dict, h: float, comm, mesh: bool = True):
     make = ForwardSet if isinstance(exp, list) else ForwardModel
     with make(exp, full_model(COMPLETE, start), h=h, comm=comm) as fm:
         free = [i for i, (t, _) in enumerate(fm.params) if t.name in COMPLETE]
-        res = fit(fm, free, verbose=False, scale_start=False, space="linear")
-        if mesh:
-            res.check_mesh(fm)
+        with detail():  # one of many fits: its iterations are detail
+            res = fit(fm, free, scale_start=False, space="linear")
+            if mesh:
+                res.check_mesh(fm)
     return res
 
 
@@ -222,8 +226,9 @@ def part_null(a, comm, say) -> list[dict]:
     rows = []
     for regime, kind, seed, exp, _, e_f, _ in cases(a, comm):
         t0 = time.perf_counter()
-        d = diagnose(exp, COMPLETE, h=a.h, confirm=1, max_effects=1,
-                     check_discretisation=False, comm=comm, verbose=False)
+        with detail():
+            d = diagnose(exp, COMPLETE, h=a.h, confirm=1, max_effects=1,
+                         check_discretisation=False, comm=comm)
         rows.append({"regime": regime, "noise": kind, "seed": seed, "noise_mm": e_f,
                      "verdict": d.verdict, "candidate": candidate(d),
                      "seconds": time.perf_counter() - t0})
@@ -236,9 +241,9 @@ def part_detect(a, comm, say) -> list[dict]:
     for l_b in (float(x) for x in a.bending_lengths.split(",")):
         try:
             for regime, kind, seed, exp, params, e_f, _ in cases(a, comm, l_b):
-                d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1,
-                             max_effects=1, check_discretisation=False, comm=comm,
-                             verbose=False)
+                with detail():
+                    d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1,
+                                 max_effects=1, check_discretisation=False, comm=comm)
                 fm = ForwardModel(exp, full_model(COMPLETE, params), h=a.h, comm=comm)
                 floor = fm.misfit(fm.run())["combined"]
                 fm.close()
@@ -308,8 +313,9 @@ def main() -> None:
     ap.add_argument("--corr", type=float, default=3.0, help="DIC noise correlation length")
     ap.add_argument("--bending-lengths", default="2,5,10", help="hidden l_b (mm) of detect")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
-    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    say = lambda s: rank0(logger, comm, s)  # noqa: E731
     path = Path(a.out) / "uncertainty_calibration.json"
     data = json.loads(path.read_text()) if path.exists() else {}
     run = {"coverage": part_coverage, "null": part_null, "detect": part_detect}[a.part]

@@ -23,18 +23,21 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import write_json
-from fabricsurf.inverse.fitting import significance as sg
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
-from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, detail, rank0
 from fabricsurf.network import ConvergenceError
+
+logger = logging.getLogger(__name__)
 
 LENGTH, WIDTH = 60.0, 30.0
 REGIMES = {"soft": (30.0, 0.5), "stiff": (1000.0, 0.4)}
@@ -86,8 +89,9 @@ def null_sets(a, comm, say) -> list[dict]:
         clean = lattice(spacing, k_l, k_s, A_g, strain)
         e_f = form_error(clean, k_l, k_s, A_g, a.h)
         for ratio, seed in itertools.product((0.5, 1.0, 3.0), range(a.seeds)):
-            d = diagnose(noisy(clean, ratio * e_f, 100 + seed), COMPLETE, h=a.h, confirm=1,
-                         max_effects=1, check_discretisation=False, comm=comm, verbose=False)
+            with detail():
+                d = diagnose(noisy(clean, ratio * e_f, 100 + seed), COMPLETE, h=a.h,
+                             confirm=1, max_effects=1, check_discretisation=False, comm=comm)
             null.append({"regime": regime, "spacing": spacing, "noise_over_form": ratio,
                          "form_error_mm": e_f, "verdict": d.verdict, "adequate": d.adequate,
                          "misfit": d.final_fit.misfit["combined"], "best": best_candidate(d)})
@@ -115,8 +119,9 @@ def power_sets(a, comm, say) -> list[dict]:
             say(f"power {regime} l_b={l_b}: the lattice generator failed ({e})")
             continue
         exp = noisy(clean, noise, 200 + seed)
-        d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1, max_effects=1,
-                     check_discretisation=False, comm=comm, verbose=False)
+        with detail():
+            d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1, max_effects=1,
+                         check_discretisation=False, comm=comm)
         fm = ForwardModel(exp, truth_model(k_l, k_s, k_s * l_b**2), h=a.h, comm=comm)
         floor = fm.misfit(fm.run())["combined"]
         base = d.base_fit.misfit["combined"]
@@ -145,8 +150,9 @@ def main() -> None:
                     help="hidden l_b (mm) of the power part; rows of other lengths already in "
                          "OUT/calibration.json are kept")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
-    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    say = lambda s: rank0(logger, comm, s)  # noqa: E731
     parts = set(a.parts.split(","))
     if not parts or parts - {"null", "power"}:
         raise SystemExit(f"diagnose_calibration: --parts {a.parts!r}: give null, power or both")

@@ -29,6 +29,7 @@ nested refit stuck, or is the rest form error?).
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 from pathlib import Path
 
@@ -36,15 +37,17 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import write_json
+from fabricsurf.geometry.specimen import BIAS_LENGTH as LENGTH
+from fabricsurf.geometry.specimen import BIAS_WIDTH as WIDTH
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardSet
+from fabricsurf.inverse.forward.runs import ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, detail, rank0
 from fabricsurf.network import spanning_spacing
-from geometry.specimen import BIAS_LENGTH as LENGTH
-from geometry.specimen import BIAS_WIDTH as WIDTH
+
+logger = logging.getLogger(__name__)
 
 SPACING, STEPS, STRAIN = 2.5, 12, 0.15
 K_L, K_S, A_G = 1000.0, 0.4, 40.0
@@ -91,7 +94,8 @@ def truth_check(exp, case: str, h: float, comm) -> dict:
     if case == "hidden_shear":
         free = [i for i, (t, _) in enumerate(fs.params) if t.name in COMPLETE]
         t0 = time.perf_counter()
-        r = fit(fs, free, verbose=False, scale_start=False, space="linear")
+        with detail():
+            r = fit(fs, free, scale_start=False, space="linear")
         out |= {"complete_fit_from_truth": {"misfit": r.misfit["combined"], "chi2": r.chi2,
                                             "params": r.params(), "iterations": r.iterations,
                                             "seconds": time.perf_counter() - t0}}
@@ -128,8 +132,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true",
                     help="a cheap run: half-size specimen, h = 8, one case per regime")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
-    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    say = lambda s: rank0(logger, comm, s)  # noqa: E731
     cases = a.cases.split(",")
     unknown = sorted(set(cases) - set(CASES))
     if unknown:
@@ -161,7 +166,7 @@ def main() -> None:
             exp = in_m_kn(exp, out, comm)
         t1 = time.perf_counter()
         d = diagnose(exp, baseline, h=h, confirm=a.confirm, max_effects=a.max_effects,
-                     check_discretisation=not a.no_discretisation, comm=comm, verbose=True)
+                     check_discretisation=not a.no_discretisation, comm=comm)
         row = summary(d, time.perf_counter() - t1)
         if a.truth:
             row["truth"] = truth_check(exp, case, h, comm)

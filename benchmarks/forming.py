@@ -2,9 +2,9 @@
 of a 250 mm blank.
 
 1. ``--study convergence`` (R = 20 mm, 72 mm blank, die clearance and lip R/5 as in
-   fabricsurf/studies/forming.py and tests/test_hemisphere.py, so that the meshes resolve
+   fabricsurf/studies/hemisphere_forming.py and tests/test_hemisphere.py, so that the meshes resolve
    the tools): the fitted woven fabric of docs/woven_fabric.md, with the assumed bending of
-   demo_forming.py and the holder of fabricsurf/studies/forming.py (friction), formed to
+   demo_forming.py and the holder of fabricsurf/studies/hemisphere_forming.py (friction), formed to
    0.6 R in 12 steps on meshes h = R/5·√2^k,
    k = 1, 0, −1, −2. Printed per mesh: DOFs, Newton iterations, time, the punch force at the
    final stroke and the recovered shear at X = R/2 on the diagonal; then the differences of
@@ -34,6 +34,7 @@ Run: ``mpirun -n 2 python benchmarks/forming.py [--study convergence|performance
 """
 
 import argparse
+import logging
 import math
 import sys
 import time
@@ -46,10 +47,12 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepError
-from fabricsurf.experiments.forming_log import StepLog
-from fabricsurf.log import rank0_print
-from fabricsurf.studies import forming as parts
+from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.log import configure, rank0
+from fabricsurf.studies import hemisphere_forming as parts
 from fabricsurf.verification.fishnet import bisector_shear
+
+logger = logging.getLogger(__name__)
 
 comm = MPI.COMM_WORLD
 STROKE_FRACTION, STEPS = 0.6, 12
@@ -103,32 +106,31 @@ def demo(size: str, runs: list[str], steps: int = STEPS) -> None:
     params = DOCUMENTED_PARAMS["params"]
     every = {"kinematic": parts.KINEMATIC, "fitted": parts.fitted_values(params, 0.1),
              **parts.effect_variants(params, 0.1)}
-    rank0_print(comm, f"== demo runs: {size} (R = {R:g} mm, {blank:g} mm blank, h = {h:g} mm),"
-                      f" stroke {STROKE_FRACTION * R:g} mm in {steps} steps, {comm.size} ranks, "
-                      f"load {_load()} ==")
+    rank0(logger, comm, f"== demo runs: {size} (R = {R:g} mm, {blank:g} mm blank, h = {h:g} mm),"
+                        f" stroke {STROKE_FRACTION * R:g} mm in {steps} steps, {comm.size} ranks, "
+                        f"load {_load()} ==")
     rows, t0 = [], time.perf_counter()
     with parts.experiment(R, blank, h, 45.0, parts.forming_model(params, 0.1, 0.1), comm) as e:
         setup = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         for name in [n for n in every if n in runs or "all" in runs]:
             t, c = time.perf_counter(), time.process_time()
             try:
-                r = parts.reform(e, every[name], STROKE_FRACTION * R, steps,
-                                 log=lambda m: rank0_print(comm, m), label=f"{name}: ")
+                r = parts.reform(e, every[name], STROKE_FRACTION * R, steps, label=f"{name}: ")
                 book, note = r["step_log"], f"{r['diagonal_shear_max_diff_deg']:.2f} deg"
             except LoadStepError as err:
-                book, note = StepLog.totals(e.steps), f"stopped at {err.last_load:.4g} mm"
+                book, note = StrokeLog.totals(e.steps), f"stopped at {err.last_load:.4g} mm"
             rows.append((name, book, comm.allreduce(time.perf_counter() - t, op=MPI.MAX),
                          comm.allreduce(time.process_time() - c, op=MPI.MAX), note))
-    rank0_print(comm, f"\nset-up (mesh, forms) {setup:.1f} s; load now {_load()}")
-    rank0_print(comm, "run                 steps  Newton  cuts  l2   wall s   CPU s  CPU s/it  "
-                      "diagonal vs fishnet / stop")
+    rank0(logger, comm, f"\nset-up (mesh, forms) {setup:.1f} s; load now {_load()}")
+    rank0(logger, comm, "run                 steps  Newton  cuts  l2   wall s   CPU s  CPU s/it  "
+                        "diagonal vs fishnet / stop")
     for name, b, wall, cpu, note in rows:
-        rank0_print(comm, f"{name:18s} {b['steps']:6d} {b['newton_iterations']:7d} "
-                          f"{b['cuts']:5d} {b['fallbacks']:3d} {wall:8.1f} {cpu:7.1f} "
-                          f"{cpu / max(b['newton_iterations'], 1):9.3f}  {note}")
+        rank0(logger, comm, f"{name:18s} {b['steps']:6d} {b['newton_iterations']:7d} "
+                            f"{b['cuts']:5d} {b['fallbacks']:3d} {wall:8.1f} {cpu:7.1f} "
+                            f"{cpu / max(b['newton_iterations'], 1):9.3f}  {note}")
     its = sum(b["newton_iterations"] for _, b, *_ in rows)
-    rank0_print(comm, f"total: {its} Newton iterations, {sum(w for *_, w, _, _ in rows):.1f} s "
-                      f"wall, {sum(c for *_, c, _ in rows):.1f} s CPU on the busiest rank")
+    rank0(logger, comm, f"total: {its} Newton iterations, {sum(w for *_, w, _, _ in rows):.1f} s "
+                        f"wall, {sum(c for *_, c, _ in rows):.1f} s CPU on the busiest rank")
 
 
 def _load() -> str:
@@ -144,26 +146,26 @@ def steps(size: str, case: str) -> None:
     values = parts.KINEMATIC if case == "kinematic" else {
         **DOCUMENTED_PARAMS["params"], "normal_bending": {"k_b": 0.1},
         "twist": {"k_t": 0.1}}
-    rank0_print(comm, f"== steps: {size} (R = {R:g} mm, {blank:g} mm blank, h = {h:g} mm), "
-                      f"{case}, {comm.size} ranks ==")
+    rank0(logger, comm, f"== steps: {size} (R = {R:g} mm, {blank:g} mm blank, h = {h:g} mm), "
+                        f"{case}, {comm.size} ranks ==")
     model = parts.forming_model(DOCUMENTED_PARAMS["params"], 0.1, 0.1)
     with parts.experiment(R, blank, h, 45.0, model, comm) as e:
         parts.set_moduli(e, values)
         t0, c0 = time.perf_counter(), time.process_time()
-        e.run(STROKE_FRACTION * R, STEPS, log=lambda m: rank0_print(comm, m))
+        e.run(STROKE_FRACTION * R, STEPS)
         seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         cpu = comm.allreduce(time.process_time() - c0, op=MPI.MAX)
-        book = StepLog.totals(e.steps)
-    rank0_print(comm, "\n step  stroke  Newton  cuts  l2  contact   s")
+        book = StrokeLog.totals(e.steps)
+    rank0(logger, comm, "\n step  stroke  Newton  cuts  l2  contact   s")
     for r in e.steps:
-        rank0_print(comm, f"{r['step']:5d} {r['stroke_mm']:7.2f} {r['newton_iterations']:7d} "
-                          f"{r['attempts'] - 1:5d} {r['fallbacks']:3d} {r['contact_changes']:8d}"
-                          f" {r['seconds']:5.1f}")
-    rank0_print(comm, f"total: {book['newton_iterations']} Newton iterations, {book['cuts']} "
-                      f"cuts, {book['fallbacks']} l2 repeats, {seconds:.1f} s wall "
-                      f"({seconds / max(book['newton_iterations'], 1):.3f} s per iteration), "
-                      f"{cpu:.1f} s of CPU on the busiest rank (the wall time on an idle "
-                      "machine; on a shared one the wall time is inflated)")
+        rank0(logger, comm, f"{r['step']:5d} {r['stroke_mm']:7.2f} {r['newton_iterations']:7d} "
+                            f"{r['attempts'] - 1:5d} {r['fallbacks']:3d} {r['contact_changes']:8d}"
+                            f" {r['seconds']:5.1f}")
+    rank0(logger, comm, f"total: {book['newton_iterations']} Newton iterations, {book['cuts']} "
+                        f"cuts, {book['fallbacks']} l2 repeats, {seconds:.1f} s wall "
+                        f"({seconds / max(book['newton_iterations'], 1):.3f} s per iteration), "
+                        f"{cpu:.1f} s of CPU on the busiest rank (the wall time on an idle "
+                        "machine; on a shared one the wall time is inflated)")
 
 
 def rates(values: list[float]) -> tuple[list[float], list[float]]:
@@ -181,27 +183,27 @@ def observed_rates(errors: list[float]) -> list[float]:
 def convergence() -> None:
     R, blank = 20.0, 72.0
     meshes = [R / 5.0 * math.sqrt(2.0) ** k for k in (1, 0, -1, -2)]
-    rank0_print(comm, f"== convergence: R = {R:g} mm, {blank:g} mm blank, stroke "
-                      f"{STROKE_FRACTION * R:g} mm in {STEPS} steps ==")
+    rank0(logger, comm, f"== convergence: R = {R:g} mm, {blank:g} mm blank, stroke "
+                        f"{STROKE_FRACTION * R:g} mm in {STEPS} steps ==")
     rows, kin = [], []
     for h in meshes:
         rows.append(form(R, blank, h))
         kin.append(form(R, blank, h, parts.KINEMATIC))
         r, k = rows[-1], kin[-1]
-        rank0_print(comm, f"h = {h:6.3f} mm ({r['dofs']} DOFs): {r['seconds']:6.1f} s, "
-                          f"{sum(r['iterations'])} Newton iterations, force {r['force']:.5g} N, "
-                          f"shear at R/2 {r['shear']:.4g} deg; kinematic limit {k['shear']:.4g}"
-                          f" deg ({k['seconds']:.1f} s)")
+        rank0(logger, comm, f"h = {h:6.3f} mm ({r['dofs']} DOFs): {r['seconds']:6.1f} s, "
+                            f"{sum(r['iterations'])} Newton iterations, force {r['force']:.5g} N, "
+                            f"shear at R/2 {r['shear']:.4g} deg; kinematic limit {k['shear']:.4g}"
+                            f" deg ({k['seconds']:.1f} s)")
     for key, label in (("force", "punch force (N)"), ("shear", "shear at X = R/2 (deg)")):
         d, r = rates([row[key] for row in rows])
-        rank0_print(comm, f"{label}: differences {np.round(d, 4).tolist()}; observed rates "
-                          f"{np.round(r, 2).tolist()}")
+        rank0(logger, comm, f"{label}: differences {np.round(d, 4).tolist()}; observed rates "
+                            f"{np.round(r, 2).tolist()}")
     exact = float(np.degrees(bisector_shear(R, np.array([0.5 * R])))[0])
     err = [abs(k["shear"] - exact) for k in kin]
     r = observed_rates(err)
-    rank0_print(comm, f"kinematic limit at X = R/2: fishnet {exact:.4f} deg; errors "
-                      f"{np.round(err, 4).tolist()}; observed rates {np.round(r, 2).tolist()}"
-                      f"; gaps to the punch {np.round([k['gap'] for k in kin], 4).tolist()} mm")
+    rank0(logger, comm, f"kinematic limit at X = R/2: fishnet {exact:.4f} deg; errors "
+                        f"{np.round(err, 4).tolist()}; observed rates {np.round(r, 2).tolist()}"
+                        f"; gaps to the punch {np.round([k['gap'] for k in kin], 4).tolist()} mm")
 
 
 def performance(tools: bool = False, divisions: tuple = (4.0, 5.0, 5.0 * math.sqrt(2.0), 10.0),
@@ -211,30 +213,30 @@ def performance(tools: bool = False, divisions: tuple = (4.0, 5.0, 5.0 * math.sq
     only."""
     R, blank = 50.0, 250.0
     which = "friction on all tools" if tools else "friction under the holder"
-    rank0_print(comm, f"== performance: R = {R:g} mm, {blank:g} mm blank, {which}, {comm.size} "
-                      f"ranks, load {_load()} ==")
+    rank0(logger, comm, f"== performance: R = {R:g} mm, {blank:g} mm blank, {which}, {comm.size} "
+                        f"ranks, load {_load()} ==")
     rows = []
     for h in (R / d for d in divisions):
         r = form(R, blank, h, count_changes=True, tooling=TOOL_FRICTION if tools else None)
         rows.append(r)
-        rank0_print(comm, f"h = {h:.3f} mm: {r['dofs']} DOFs, {r['cells']} cells, "
-                          f"{r['seconds']:.1f} s, force {r['force']:.5g} N, dissipated "
-                          f"{r['dissipated']:.5g} N·mm")
-        rank0_print(comm, f"  Newton iterations per step {r['iterations']}; attempts "
-                          f"{r['attempts']}")
-        rank0_print(comm, f"  active-set changes per step {r['changes']}")
-    rank0_print(comm, "\n    h   cells   DOFs  wall s  CPU s  Newton its  CPU s/iteration")
+        rank0(logger, comm, f"h = {h:.3f} mm: {r['dofs']} DOFs, {r['cells']} cells, "
+                            f"{r['seconds']:.1f} s, force {r['force']:.5g} N, dissipated "
+                            f"{r['dissipated']:.5g} N·mm")
+        rank0(logger, comm, f"  Newton iterations per step {r['iterations']}; attempts "
+                            f"{r['attempts']}")
+        rank0(logger, comm, f"  active-set changes per step {r['changes']}")
+    rank0(logger, comm, "\n    h   cells   DOFs  wall s  CPU s  Newton its  CPU s/iteration")
     for r in rows:
         n = sum(r["iterations"])
-        rank0_print(comm, f"{r['h']:6.3f} {r['cells']:6d} {r['dofs']:6d} {r['seconds']:7.1f} "
-                          f"{r['cpu']:6.1f} {n:10d}  {r['cpu'] / n:.3f}")
+        rank0(logger, comm, f"{r['h']:6.3f} {r['cells']:6d} {r['dofs']:6d} {r['seconds']:7.1f} "
+                            f"{r['cpu']:6.1f} {n:10d}  {r['cpu'] / n:.3f}")
     first, last = rows[0], rows[-1]
     if len(rows) > 1:
         grow = math.log(last["cpu"] / first["cpu"]) / math.log(last["cells"] / first["cells"])
-        rank0_print(comm, f"CPU time grows as cells^{grow:.2f}")
-    rank0_print(comm, f"h = R/{R / last['h']:.3g} takes {last['seconds']:.1f} s "
-                      f"wall, {last['cpu']:.1f} s CPU on the busiest rank (issue 40: at most a "
-                      f"minute on 2 ranks); load now {_load()}")
+        rank0(logger, comm, f"CPU time grows as cells^{grow:.2f}")
+    rank0(logger, comm, f"h = R/{R / last['h']:.3g} takes {last['seconds']:.1f} s "
+                        f"wall, {last['cpu']:.1f} s CPU on the busiest rank (issue 40: at most a "
+                        f"minute on 2 ranks); load now {_load()}")
 
 
 if __name__ == "__main__":
@@ -253,6 +255,7 @@ if __name__ == "__main__":
                     help="performance study: meshes h = R/d, comma-separated d (default "
                          "4,5,7.0711,10; 10 is issue 40's size)")
     args = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     if args.study == "steps":
         steps(args.size, args.case)
     if args.study == "demo":

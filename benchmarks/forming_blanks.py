@@ -21,6 +21,7 @@ mesh, the outline then passing through lattice vertices).
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 from pathlib import Path
 
@@ -28,16 +29,17 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepError
-from fabricsurf.experiments import forming_blank
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.experiments.hemisphere import HemispherePlugin
+from fabricsurf.geometry.fibre_blank import fibre_blank
+from fabricsurf.log import PROGRESS, configure
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification.forming_map import (
     compare_with_drapes,
     compare_with_generator_drape,
 )
 from fabricsurf.verification.generator_drape import draw_map
-from geometry.fibre_blank import fibre_blank
 
 R = 20.0
 TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
@@ -51,21 +53,16 @@ def soft(k: float = 1e3) -> list:
             Twist(k_t=0.05)]
 
 
-def say(line: str) -> None:
-    if MPI.COMM_WORLD.rank == 0:
-        print("   ", line, flush=True)
-
-
 def case(blank: str, angles: tuple[float, float], h: float, k: float, stroke: float,
-         steps: int, domain: str = "auto", tools: float = 2.0, size=None, log: bool = False,
+         steps: int, domain: str = "auto", tools: float = 2.0, size=None,
          figures: Path | None = None) -> dict:
     L, W = size or SIZES[blank]
-    setup = Setup("hemisphere", L, W, angles, dict(TOOLING, blank=blank, blank_domain=domain,
+    setup = PluginSetup("hemisphere", L, W, angles, dict(TOOLING, blank=blank, blank_domain=domain,
                                                    clearance=tools, die_lip=tools))
     t = time.perf_counter()
-    with HemisphereForming(setup, soft(k), h) as e:
+    with HemispherePlugin(setup, soft(k), h) as e:
         try:
-            e.run(stroke, steps, log=say if log else None)
+            e.run(stroke, steps, label="    ")
         except LoadStepError as err:
             return {"blank": blank, "fibres": angles, "domain": e.domain,
                     "cells": e.discretisation["cells"], "stopped": err.last_load,
@@ -122,13 +119,14 @@ def main() -> None:
                     help="the full blank of a symmetric square on the clipped fibre lattice "
                          "(geometry/fibre_blank.py) instead of the quarter's mesh unfolded")
     a = ap.parse_args()
+    configure(PROGRESS if a.log else logging.WARNING)  # the load steps with --log only
     if a.lattice:
         forming_blank.blank_mesh = lambda s, dom, theta, h, comm: fibre_blank(
             "rectangle", 0.5 * s.length, 0.5 * s.width, tuple(s.fibre_angles_deg), h, comm)
     for c in a.cases:
         blank, pair = c.split(":")
         angles = tuple(float(v) for v in pair.split(","))
-        r = case(blank, angles, a.h, a.k, a.stroke, a.steps, a.domain, a.tools, a.size, a.log,
+        r = case(blank, angles, a.h, a.k, a.stroke, a.steps, a.domain, a.tools, a.size,
                  a.figures)
         if MPI.COMM_WORLD.rank == 0 and "stopped" in r:
             print(f"{r['blank']:9s} {a.size or SIZES[blank]} tools {a.tools:g} "

@@ -1,6 +1,6 @@
 """Forming data with a hidden effect, diagnosed (docs/forming.md "In the loop").
 
-Synthetic hemisphere data (fabricsurf/inverse/synthetic/forming.py): the punch force at every
+Synthetic hemisphere data (fabricsurf/inverse/synthetic/formed_part.py): the punch force at every
 stroke step and the shear angles at points of the formed part (an optical system's grid over
 the die opening, all four quarters of the blank, at mid-stroke and at the end), made with a
 model holding a hidden effect, plus Gaussian noise of known size; then ``diagnose`` from a
@@ -23,14 +23,17 @@ baseline and final misfits, the ranking with every refit, the verdict and the ti
 from __future__ import annotations
 
 import argparse
+import logging
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.inverse.fitting.diagnose import diagnose
-from fabricsurf.inverse.synthetic import forming as sf
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.diagnosis.diagnose import diagnose
+from fabricsurf.inverse.synthetic import formed_part as sf
+from fabricsurf.log import configure, detail, rank0
 from fabricsurf.model.terms import make_term
+
+logger = logging.getLogger(__name__)
 
 R, BLANK = 20.0, 60.0
 TOOLS = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
@@ -75,8 +78,9 @@ def main() -> None:
     ap.add_argument("--k4", type=float, default=None,
                     help="shear locking's k4 of the locking case (N/mm, default 1)")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
-    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    say = lambda s: rank0(logger, comm, s)  # noqa: E731
     case = CASES[a.case]
     if a.k4 is not None and "shear_locking" in case["truth"]:
         case["truth"] = case["truth"] | {"shear_locking": {"k4": a.k4, "k6": 0.0}}
@@ -88,9 +92,10 @@ def main() -> None:
         f"{exp.shear_noise_deg:g}°); data in {MPI.Wtime() - t0:.1f} s")
     t1 = MPI.Wtime()
     cands = a.candidates.split(",") if a.candidates else None
-    d = diagnose([exp], case["baseline"], h=a.h, params=case["truth"], comm=comm,
-                 fixed=case["fixed"] or None, candidates=cands, check_discretisation=False,
-                 verbose=False).as_dict()
+    with detail():
+        d = diagnose([exp], case["baseline"], h=a.h, params=case["truth"], comm=comm,
+                     fixed=case["fixed"] or None, candidates=cands,
+                     check_discretisation=False).as_dict()
     say(f"baseline {'+'.join(case['baseline'])}: misfit {d['baseline']['misfit']:.3f}")
     for q in d["ranking"]:
         say(f"  {q['effect']:18s} score {q['score']:10.4g}  refit misfit "

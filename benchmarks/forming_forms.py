@@ -11,6 +11,7 @@ Run: ``python benchmarks/forming_forms.py [--h 10] [--steps 2] [--repeat 5] [--f
 """
 
 import argparse
+import logging
 import sys
 import time
 from pathlib import Path
@@ -26,8 +27,10 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from ufl.algorithms import estimate_total_polynomial_degree, expand_derivatives
 
-from fabricsurf.log import rank0_print
-from fabricsurf.studies import forming as parts
+from fabricsurf.log import configure, rank0
+from fabricsurf.studies import hemisphere_forming as parts
+
+logger = logging.getLogger(__name__)
 
 comm = MPI.COMM_WORLD
 TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}
@@ -77,8 +80,8 @@ def report(e, repeat: int, jit: dict, mat_type: str | None = None) -> None:
              "Jacobian": (p.energy.jacobian(du, v) + ufl.derivative(dP, p.u, du), 2)}
     tf, tJ = p.tool_friction()
     forms.update({"tool friction residual": (tf, 1), "tool friction Jacobian": (tJ, 2)})
-    rank0_print(comm, "form                     integral            explicit  UFL est.  points  "
-                      "ms/assembly")
+    rank0(logger, comm, "form                     integral            explicit  UFL est.  points  "
+                        "ms/assembly")
     for name, (form, rank) in forms.items():
         for label, piece in _pieces(form):
             itg = piece.integrals()[0]
@@ -86,8 +89,8 @@ def report(e, repeat: int, jit: dict, mat_type: str | None = None) -> None:
             est = estimate_total_polynomial_degree(expand_derivatives(itg.integrand()))
             pts = len(basix.make_quadrature(POINTS_CELL[itg.integral_type()], int(deg))[1])
             t = _timed(_assembler(fem.form(piece, jit_params=jit), rank, mat_type), repeat)
-            rank0_print(comm, f"{name:24s} {label:20s} {deg!s:>8s} {est:9d} {pts:7d} "
-                              f"{1e3 * t:11.1f}")
+            rank0(logger, comm, f"{name:24s} {label:20s} {deg!s:>8s} {est:9d} {pts:7d} "
+                                f"{1e3 * t:11.1f}")
     s = e.solver
     x = s.b.duplicate()
     with x.localForm() as xl:
@@ -97,17 +100,17 @@ def report(e, repeat: int, jit: dict, mat_type: str | None = None) -> None:
              "Jacobian _J (with the friction forms)": lambda: s._J(None, x, s.A, s.A),
              "the mirror conditions' lifting alone": lambda: fem_petsc.apply_lifting(
                  lift, [s.a], bcs=[s.bcs], x0=[x], scale=-1.0)}
-    rank0_print(comm, f"\nas the solver assembles them ({s.A.getType()} Jacobian), ms per call:")
+    rank0(logger, comm, f"\nas the solver assembles them ({s.A.getType()} Jacobian), ms per call:")
     for label, fn in calls.items():
-        rank0_print(comm, f"  {label}: {1e3 * _timed(fn, repeat):.1f}")
+        rank0(logger, comm, f"  {label}: {1e3 * _timed(fn, repeat):.1f}")
     info = s.A.getInfo()
-    rank0_print(comm, f"  Jacobian: {int(comm.allreduce(info['nz_used']))} non-zeros")
+    rank0(logger, comm, f"  Jacobian: {int(comm.allreduce(info['nz_used']))} non-zeros")
     for solver, pc_type in (("mumps", "lu"), ("mumps", "cholesky"), ("superlu_dist", "lu"),
                             ("petsc", "lu")):
         if solver == "petsc" and comm.size > 1:
             continue
-        rank0_print(comm, f"  {solver} {pc_type} factorisation + solve "
-                          f"{1e3 * _factor_solve(s, b, solver, pc_type, repeat):.1f}")
+        rank0(logger, comm, f"  {solver} {pc_type} factorisation + solve "
+                            f"{1e3 * _factor_solve(s, b, solver, pc_type, repeat):.1f}")
 
 
 def _factor_solve(s, b, solver: str, pc_type: str, repeat: int) -> float:
@@ -145,6 +148,7 @@ def main() -> None:
                     help="the kernels' compiler flags in one string, e.g. '-O3 -march=native'")
     ap.add_argument("--mat-type", default=None, help="PETSc matrix type of the pieces (aij, baij)")
     args = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     jit = {} if args.flags is None else {"cffi_extra_compile_args": args.flags.split()}
     R = 50.0
     model = parts.forming_model(DOCUMENTED_PARAMS["params"], 0.1, 0.1)
@@ -152,8 +156,8 @@ def main() -> None:
         dofs = 3 * e.problem.V.dofmap.index_map.size_global
         cells = e.specimen.mesh.topology.index_map(2).size_global
         its = e.run(0.6 * R * args.steps / 12, args.steps)
-        rank0_print(comm, f"h = {args.h:g} mm: {cells} cells, {dofs} DOFs, {comm.size} ranks; "
-                          f"state after {args.steps} steps ({list(its)} iterations)")
+        rank0(logger, comm, f"h = {args.h:g} mm: {cells} cells, {dofs} DOFs, {comm.size} ranks; "
+                            f"state after {args.steps} steps ({list(its)} iterations)")
         report(e, args.repeat, jit, args.mat_type)
 
 

@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from fabricsurf.experiments import three_zone as tz
-from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.slip import SLIP_STRAIN
 
@@ -88,7 +88,7 @@ def main() -> None:
         for kind, exp in (("field + force", field), ("force only", force)):
             t0 = time.perf_counter()
             d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=a.confirm,
-                         max_effects=1, check_discretisation=False, verbose=False)
+                         max_effects=1, check_discretisation=False)
             report(f"{label}, {kind}", d, time.perf_counter() - t0)
 
 

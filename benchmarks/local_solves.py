@@ -7,13 +7,14 @@ a run (largest over the ranks) and the ratio distributed / rank-local. Run on 2 
 
     mpirun -n 2 .venv/bin/python benchmarks/local_solves.py [--h 23.8,11.9,5.95,3]
 
-The threshold :data:`fabricsurf.inverse.fitting.local.LOCAL_CELLS` rests on this table
+The threshold :data:`fabricsurf.inverse.forward.ranks.LOCAL_CELLS` rests on this table
 (docs/dic.md, "Rank-local solves").
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import statistics
 import time
@@ -21,11 +22,13 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.inverse.fitting import warm_start
-from fabricsurf.inverse.fitting.diagnose import full_model
-from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.diagnosis.diagnose import full_model
+from fabricsurf.inverse.forward import warm_start
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, rank0
+
+logger = logging.getLogger(__name__)
 
 LENGTH, WIDTH, STEPS, STRAIN = 187.0, 119.0, 12, 0.15
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
@@ -67,18 +70,19 @@ def main() -> None:
                     help="warm-start the repeated runs (default cold: every step's Newton solve "
                     "from the previous step, as a fit's first runs)")
     args = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     warm_start.ENABLED = args.warm
     comm = MPI.COMM_WORLD
     exp = experiment()
-    rank0_print(comm, f"{comm.size} ranks; median of {args.repeat} runs with sensitivities")
-    rank0_print(comm, "h (mm) | cells | DOFs | Newton | distributed wall / CPU s | "
-                "rank-local wall / CPU s | wall ratio")
+    rank0(logger, comm, f"{comm.size} ranks; median of {args.repeat} runs with sensitivities")
+    rank0(logger, comm, "h (mm) | cells | DOFs | Newton | distributed wall / CPU s | "
+                  "rank-local wall / CPU s | wall ratio")
     for h in (float(x) for x in args.h.split(",")):
         d = timed_runs(exp, h, False, args.repeat, comm)
         loc = timed_runs(exp, h, True, args.repeat, comm)
-        rank0_print(comm, f"{h:g} | {d['cells']} | {d['dofs']} | {d['newton']}/{loc['newton']} | "
-                    f"{d['wall']:.2f} / {d['cpu']:.2f} | {loc['wall']:.2f} / {loc['cpu']:.2f} | "
-                    f"{d['wall'] / loc['wall']:.2f}")
+        rank0(logger, comm, f"{h:g} | {d['cells']} | {d['dofs']} | {d['newton']}/{loc['newton']} | "
+                      f"{d['wall']:.2f} / {d['cpu']:.2f} | {loc['wall']:.2f} / {loc['cpu']:.2f} | "
+                      f"{d['wall'] / loc['wall']:.2f}")
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ from W/10, the coarsest h of the default mesh and of gmsh's within 1 % of the co
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 from pathlib import Path
 
@@ -37,8 +38,10 @@ from mpi4py import MPI
 from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.three_zone import kinematic_force
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, detail, rank0
 from fabricsurf.model.terms import FibreStretch, Shear
+
+logger = logging.getLogger(__name__)
 
 K_S, STEPS = 0.022, 6
 SIZES = ((250, 115), (320, 100), (350, 120), (245, 110), (270, 95), (300, 130), (215, 70),
@@ -60,14 +63,14 @@ def run(length: float, width: float, h: float, ratio: float | None, mesh: str, t
     fibres = (FibreStretch(inextensible=True) if ratio is None
               else FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S))
     t0 = time.perf_counter()
-    b = BiasExtension([fibres, Shear(k_s=K_S)], length=length, width=width, h=h,
-                      clamp="position", mesh=mesh, fibre_treatment=treatment, comm=comm,
-                      quiet=True)
     ubar = 0.13 * length
-    try:
-        force = b.run(ubar, STEPS, verbose=False).force[-1]
-    except RuntimeError:
-        force = float("nan")
+    with detail():  # the run's notes and steps (its warnings stay warnings)
+        b = BiasExtension([fibres, Shear(k_s=K_S)], length=length, width=width, h=h,
+                          clamp="position", mesh=mesh, fibre_treatment=treatment, comm=comm)
+        try:
+            force = b.run(ubar, STEPS).force[-1]
+        except RuntimeError:
+            force = float("nan")
     ideal = float(kinematic_force(np.array([ubar]), length, width, [Shear(k_s=K_S)])[0])
     dofs = b.problem.V.dofmap.index_map.size_global * b.problem.V.dofmap.index_map_bs
     return {"length": length, "width": width, "h": h, "ratio_K": ratio, "mesh": mesh,
@@ -83,9 +86,9 @@ def table(variants: list[str], sizes: int, comm) -> list[dict]:
             for ratio in RATIOS:
                 r = run(length, width, width / 10, ratio, mesh, treatment, comm)
                 rows.append(r | {"variant": name})
-                rank0_print(comm, f"{length:4g} x {width:4g}  {name:13s} {r['kind']:13s} "
-                            f"K/k_s = {ratio:6.0e}  force/three-zone "
-                            f"{r['force_ratio']:10.4f}  {r['seconds']:5.1f} s")
+                rank0(logger, comm, f"{length:4g} x {width:4g}  {name:13s} {r['kind']:13s} "
+                              f"K/k_s = {ratio:6.0e}  force/three-zone "
+                              f"{r['force_ratio']:10.4f}  {r['seconds']:5.1f} s")
     return rows
 
 
@@ -95,8 +98,8 @@ def exact(comm) -> list[dict]:
     for length, width in EXACT_SIZES:
         r = run(length, width, width / 10, None, "auto", "auto", comm)
         rows.append(r)
-        rank0_print(comm, f"{length:4g} x {width:4g}  exact  {r['kind']:13s} force/three-zone "
-                    f"{r['force_ratio']:12.8f}  {r['seconds']:5.1f} s")
+        rank0(logger, comm, f"{length:4g} x {width:4g}  exact  {r['kind']:13s} force/three-zone "
+                      f"{r['force_ratio']:12.8f}  {r['seconds']:5.1f} s")
     return rows
 
 
@@ -108,12 +111,12 @@ def cost(K: float, levels: int, comm) -> dict:
     out = {"reference_force": ref}
     for name, rs in rows.items():
         for r in rs:
-            rank0_print(comm, f"{name:10s} h = {r['h']:7.4f}  force {r['force']:10.4f} N  "
-                        f"/ converged {r['force'] / ref:9.4f}  dofs {r['dofs']:7d}  "
-                        f"{r['seconds']:6.1f} s")
+            rank0(logger, comm, f"{name:10s} h = {r['h']:7.4f}  force {r['force']:10.4f} N  "
+                          f"/ converged {r['force'] / ref:9.4f}  dofs {r['dofs']:7d}  "
+                          f"{r['seconds']:6.1f} s")
         ok = [r for r in rs if abs(r["force"] / ref - 1) < 0.01]
         out[name] = ok[0] if ok else None
-        rank0_print(comm, f"K = {K:g}: {name} within 1 % of the converged force: " + (
+        rank0(logger, comm, f"K = {K:g}: {name} within 1 % of the converged force: " + (
             f"h = {ok[0]['h']:.4g}, {ok[0]['dofs']} dofs, {ok[0]['seconds']:.1f} s" if ok
             else "not reached at h >= " + f"{rs[-1]['h']:.4g}"))
     return out
@@ -130,18 +133,19 @@ def zones(comm) -> list[dict]:
         for ratio in RATIOS:
             f = {}
             for h, mesh in [ref, *others]:
-                b = BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S),
-                                   Shear(k_s=K_S)], length=length, width=width, h=h,
-                                  clamp="position", fibre_angles=angles, mesh=mesh, comm=comm,
-                                  quiet=True)
-                try:
-                    f[(h, b.discretisation["mesh_kind"])] = b.run(20.0, 4, verbose=False).force[-1]
-                except RuntimeError:
-                    f[(h, b.discretisation["mesh_kind"])] = float("nan")
+                with detail():
+                    b = BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S),
+                                       Shear(k_s=K_S)], length=length, width=width, h=h,
+                                      clamp="position", fibre_angles=angles, mesh=mesh,
+                                      comm=comm)
+                    try:
+                        f[(h, b.discretisation["mesh_kind"])] = b.run(20.0, 4).force[-1]
+                    except RuntimeError:
+                        f[(h, b.discretisation["mesh_kind"])] = float("nan")
             base = next(iter(f.values()))
             ratios = ", ".join(f"{k} h = {h:g}: {v / base:.4f}" for (h, k), v in f.items())
-            rank0_print(comm, f"{length:g} x {width:g} at {angles}, K/k_s = {ratio:6.0e}: "
-                        + ratios)
+            rank0(logger, comm, f"{length:g} x {width:g} at {angles}, K/k_s = {ratio:6.0e}: "
+                          + ratios)
             rows.append({"length": length, "width": width, "angles": angles, "ratio_K": ratio,
                          "forces": {f"{k} h={h:g}": v for (h, k), v in f.items()}})
     return rows
@@ -159,6 +163,7 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, default=len(SIZES), help="the first N sizes only")
     ap.add_argument("--levels", type=int, default=3, help="h = W/10 · 2^-i, i < levels")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
     if a.zones:
         result = {"zones": zones(comm)}

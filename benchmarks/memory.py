@@ -17,14 +17,17 @@ diagnosis may leave less than :data:`TARGET_MB` behind.
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, detail, rank0
+
+logger = logging.getLogger(__name__)
 
 TARGET_MB = 5.0
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
@@ -66,13 +69,14 @@ CASES = {"bias": bias_case, "stiff": stiff_case}
 
 def run_case(name: str, count: int, comm: MPI.Comm) -> float:
     """Diagnose ``count`` times; returns the growth per diagnosis after the first (MB)."""
-    say = lambda *s: rank0_print(comm, *s)  # noqa: E731
+    say = lambda s: rank0(logger, comm, s)  # noqa: E731
     exp, kw = CASES[name](comm)
     say(f"{name}: {count} diagnoses on {comm.size} rank(s); resident memory, max over ranks")
     rss = []
     for k in range(count):
         t0 = MPI.Wtime()
-        d = diagnose(exp, confirm=1, max_effects=1, comm=comm, verbose=False, **kw)
+        with detail():
+            d = diagnose(exp, confirm=1, max_effects=1, comm=comm, **kw)
         outcome = d.outcome()
         del d
         rss.append(comm.allreduce(resident_mb(), op=MPI.MAX))
@@ -89,6 +93,7 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=50, help="diagnoses per case")
     ap.add_argument("--cases", default="bias,stiff", help=f"comma list of {list(CASES)}")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
     names = [c for c in a.cases.split(",") if c]
     unknown = [c for c in names if c not in CASES]
@@ -96,11 +101,11 @@ def main() -> None:
         raise SystemExit(f"--cases {unknown} unknown (use {list(CASES)}) or --count < 2")
     t0 = time.perf_counter()
     growth = {c: run_case(c, a.count, comm) for c in names}
-    rank0_print(comm, "summary: " + ", ".join(f"{c} {g:.3f} MB/diagnosis" for c, g in
+    rank0(logger, comm, "summary: " + ", ".join(f"{c} {g:.3f} MB/diagnosis" for c, g in
                                             growth.items())
-                + f"; target < {TARGET_MB:g} MB "
-                + ("met" if all(g < TARGET_MB for g in growth.values()) else "NOT met")
-                + f" ({time.perf_counter() - t0:.0f} s)")
+                  + f"; target < {TARGET_MB:g} MB "
+                  + ("met" if all(g < TARGET_MB for g in growth.values()) else "NOT met")
+                  + f" ({time.perf_counter() - t0:.0f} s)")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ Each case: continuum bias-extension data of the complete model (fibre_stretch + 
 hidden effect) made on a mesh finer than any the diagnosis builds, with Gaussian noise; the
 diagnosis of fibre_stretch + shear at the test's default h (W/10), once on that mesh alone (the
 diagnosis before mesh selection: its outcome ends "refine h" when the h/2 check is too coarse)
-and once with :func:`~fabricsurf.inverse.fitting.mesh_choice.diagnose_on_mesh` (default
+and once with :func:`~fabricsurf.inverse.diagnosis.mesh_choice.diagnose_on_mesh` (default
 budget unless ``--max-dofs`` / ``--time-budget``). Prints per case and mode: wall time,
 unknowns of the last fit mesh, verdict, adequate, the h/2 check against the noise band, and
 the outcome; writes OUT/mesh_selection.json.
@@ -29,8 +29,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import write_json
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
-from fabricsurf.inverse.fitting.mesh_choice import Budget, diagnose_on_mesh, level_record
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.mesh_choice import Budget, diagnose_on_mesh, level_record
 from fabricsurf.inverse.synthetic import generate as sy
 
 COMM = MPI.COMM_WORLD
@@ -72,7 +72,7 @@ def main() -> None:
     results = {}
     for name in args.cases.split(","):
         exp = data(CASES[name])
-        kw = dict(confirm=1, max_effects=1, comm=COMM, verbose=False)
+        kw = dict(confirm=1, max_effects=1, comm=COMM)
         t = time.perf_counter()
         before = diagnose(exp, list(BASE), **kw)
         t_before = time.perf_counter() - t

@@ -14,10 +14,10 @@ import time
 
 import numpy as np
 
+from fabricsurf.geometry.specimen import BIAS_LENGTH, BIAS_WIDTH
+from fabricsurf.network.equilibrium import Dirichlet, solve_steps
 from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
 from fabricsurf.network.linsolve import FreeDofSolver
-from fabricsurf.network.solver import Dirichlet, solve_steps
-from geometry.specimen import BIAS_LENGTH, BIAS_WIDTH
 
 
 def main() -> None:

@@ -24,9 +24,9 @@ The CPU seconds of each stage are printed beside its wall time (on a shared mach
 time is mostly waiting; MPI's busy waiting counts as CPU), and per command the forward runs per
 element size (with or without sensitivities), their Newton iterations and seconds.
 ``--profile`` writes rank 0's cProfile of each command; ``--cold`` turns the warm start of the
-forward runs off (inverse/fitting/warm_start.py: every load step from the last converged one,
+forward runs off (inverse/forward/warm_start.py: every load step from the last converged one,
 as before), for comparison; ``--distributed`` solves every mesh distributed over the ranks
-(before the rank-local solves of inverse/fitting/local.py); ``--diagnose-args`` passes
+(before the rank-local solves of inverse/forward/ranks.py); ``--diagnose-args`` passes
 options to diagnose (e.g. ``--max-dofs 1``: the default mesh only, no mesh selection).
 Aims (issue 36): at 10⁶ points ≤ 2 GB per rank, a one-effect diagnosis ≤ 2 min on 2 ranks.
 ``--limit-gb`` sets an address-space limit per process (RLIMIT_AS) to show what fails under it.
@@ -43,6 +43,7 @@ import functools
 import importlib
 import io
 import json
+import logging
 import math
 import pstats
 import resource
@@ -55,9 +56,11 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, rank0
+
+logger = logging.getLogger(__name__)
 
 LENGTH, WIDTH, STEPS, STRAIN = 187.0, 119.0, 12, 0.15
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
@@ -67,22 +70,22 @@ STAGES = ("reading", "forward solves", "sensitivities", "evaluation at points", 
           "figures", "writing", "other")
 HOOKS = {  # stage: (module, name), name "Class.method" for a method; missing ones are skipped
     "reading": [("fabricsurf.inverse.contract.data", "load_experiment")],
-    "forward solves": [("fabricsurf.inverse.fitting.forward", "ForwardModel.run")],
-    "sensitivities": [("fabricsurf.inverse.fitting.tangent", "sensitivities")],
+    "forward solves": [("fabricsurf.inverse.forward.runs", "ForwardModel.run")],
+    "sensitivities": [("fabricsurf.inverse.forward.tangent", "sensitivities")],
     "evaluation at points": [("fabricsurf.discretise.evaluation", "eval_points"),
                              ("fabricsurf.discretise.evaluation", "PointLocator.__init__"),
                              ("fabricsurf.discretise.evaluation", "PointLocator.__call__")],
-    "statistics": [("fabricsurf.inverse.fitting.misfit", "residuals"),
-                   ("fabricsurf.inverse.fitting.misfit", "misfit"),
-                   ("fabricsurf.inverse.fitting.uncertainty", "sandwich"),
-                   ("fabricsurf.inverse.fitting.uncertainty", "blocks"),
-                   ("fabricsurf.inverse.fitting.systematic", "model_form"),
-                   ("fabricsurf.inverse.fitting.systematic", "mesh_shift"),
+    "statistics": [("fabricsurf.inverse.forward.misfit", "residuals"),
+                   ("fabricsurf.inverse.forward.misfit", "misfit"),
+                   ("fabricsurf.inverse.uncertainty.statistical", "sandwich"),
+                   ("fabricsurf.inverse.uncertainty.statistical", "blocks"),
+                   ("fabricsurf.inverse.uncertainty.systematic", "model_form"),
+                   ("fabricsurf.inverse.uncertainty.systematic", "mesh_shift"),
                    ("fabricsurf.inverse.fitting.fit", "undetermined"),
                    ("fabricsurf.inverse.fitting.fit", "FitResult.uncertainty"),
-                   ("fabricsurf.inverse.fitting.diagnose", "scores"),
-                   ("fabricsurf.inverse.fitting.diagnose", "gauss_newton_start"),
-                   ("fabricsurf.inverse.fitting.linalg", "lstsq"),
+                   ("fabricsurf.inverse.diagnosis.diagnose", "scores"),
+                   ("fabricsurf.inverse.diagnosis.diagnose", "gauss_newton_start"),
+                   ("fabricsurf.inverse.forward.linalg", "lstsq"),
                    ("fabricsurf.inverse.fitting.band", "_half_widths")],
     "figures": [("fabricsurf.inverse.plots.figures", n) for n in
                 ("error_map", "field_band", "force_curves", "force_band", "error_vs_step",
@@ -161,7 +164,7 @@ class Stages:
     def install(self) -> None:
         """Wrap every hooked function where it is defined and wherever it was imported (the
         forward runs counted first, inside their timer)."""
-        from fabricsurf.inverse.fitting.forward import ForwardModel
+        from fabricsurf.inverse.forward.runs import ForwardModel
         ForwardModel.run = self.count_run(ForwardModel.run)
         for stage, hooks in HOOKS.items():
             for modname, name in hooks:
@@ -271,11 +274,11 @@ def table(results: dict, comm: MPI.Comm) -> None:
         rows = [(n, results[n].get(command)) for n in sizes if command in results[n]]
         if not rows:
             continue
-        rank0_print(comm, f"\n{command}: " + "  ".join(
+        rank0(logger, comm, f"\n{command}: " + "  ".join(
             f"N={n}: {r['seconds']:.1f} s (CPU {r.get('cpu', 0):.1f} s, the busier rank), "
             f"status {r['status']}" for n, r in rows))
         head = f"{'stage':22s}" + "".join(f"{'N=' + n:>38s}" for n, _ in rows) + "  exponents"
-        rank0_print(comm, head)
+        rank0(logger, comm, head)
         for s in STAGES:
             cells, ts = "", []
             for _, r in rows:
@@ -286,9 +289,9 @@ def table(results: dict, comm: MPI.Comm) -> None:
             ns = [int(n) for n, _ in rows]
             exps = [math.log(max(ts[i + 1], 1e-3) / max(ts[i], 1e-3)) / math.log(ns[i + 1] / ns[i])
                     for i in range(len(ns) - 1)]
-            rank0_print(comm, f"{s:22s}{cells}  " + " ".join(f"{e:5.2f}" for e in exps))
+            rank0(logger, comm, f"{s:22s}{cells}  " + " ".join(f"{e:5.2f}" for e in exps))
         for n, r in rows:
-            rank0_print(comm, f"N={n} counts: " + ", ".join(
+            rank0(logger, comm, f"N={n} counts: " + ", ".join(
                 f"{k} {v}" for k, v in r.get("counts", {}).items()))
 
 
@@ -308,19 +311,20 @@ def main_benchmark() -> None:
                     help="further options of diagnose, e.g. '--max-dofs 1' (no mesh selection)")
     ap.add_argument("--cold", action="store_true",
                     help="no warm start of the forward runs (every load step from the last "
-                    "converged one, as before; inverse/fitting/warm_start.py)")
+                    "converged one, as before; inverse/forward/warm_start.py)")
     ap.add_argument("--distributed", action="store_true",
                     help="solve every mesh distributed over the ranks (as before the rank-local "
-                    "solves of inverse/fitting/local.py)")
+                    "solves of inverse/forward/ranks.py)")
     ap.add_argument("--profile", action="store_true",
                     help="cProfile on rank 0: OUT/out_N/COMMAND.prof and COMMAND.prof.txt")
     args = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
     root = Path(args.out)
     if args.cold:
-        importlib.import_module("fabricsurf.inverse.fitting.warm_start").ENABLED = False
+        importlib.import_module("fabricsurf.inverse.forward.warm_start").ENABLED = False
     if args.distributed:
-        importlib.import_module("fabricsurf.inverse.fitting.local").LOCAL_CELLS = 0
+        importlib.import_module("fabricsurf.inverse.forward.ranks").LOCAL_CELLS = 0
     results: dict = {}
     st = Stages()
     st.install()
@@ -334,8 +338,8 @@ def main_benchmark() -> None:
             extra = args.diagnose_args.split() if command == "diagnose" else []
             results[str(n)][command] = res = run(st, command, data, root / f"out_{n}", comm,
                                                  args.h, extra, args.profile)
-            rank0_print(comm, f"[scale] N = {n} {command}: {res['seconds']:.1f} s, status "
-                        f"{res['status']} {res['note']}")
+            rank0(logger, comm, f"[scale] N = {n} {command}: {res['seconds']:.1f} s, status "
+                          f"{res['status']} {res['note']}")
         if args.limit_gb:
             resource.setrlimit(resource.RLIMIT_AS, limit)
         if comm.rank == 0:

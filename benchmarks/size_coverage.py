@@ -18,13 +18,16 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import logging
 import time
 from pathlib import Path
 
 from mpi4py import MPI
 
 from fabricsurf.inverse.synthetic import sizes
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, rank0
+
+logger = logging.getLogger(__name__)
 
 FITTED = (40.0, 20.0)
 RATIOS = (1.5, 2.0)
@@ -41,8 +44,9 @@ def main() -> None:
     ap.add_argument("--effects", nargs="*", default=list(sizes.HIDDEN))
     ap.add_argument("--ratios", nargs="*", type=float, default=list(RATIOS))
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
-    say = lambda *x: rank0_print(comm, *x)  # noqa: E731
+    say = lambda s: rank0(logger, comm, s)  # noqa: E731
     fabrics, ratios = (a.fabrics[:1], a.ratios[:1]) if a.quick else (a.fabrics, a.ratios)
     out = Path(a.out)
     if comm.rank == 0:

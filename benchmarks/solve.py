@@ -51,7 +51,7 @@ def floor_seconds(test: BiasExtension, repeats: int = 3) -> float:
 
 def run(comm: MPI.Comm, h: float, ubar: float, steps: int) -> dict:
     test = BiasExtension(h=h, comm=comm)
-    test.run(ubar, steps, verbose=False)
+    test.run(ubar, steps)
     t0 = time.perf_counter()
     test.set_load(ubar * (1 + 0.5 / steps))
     reason, its = test.solver.solve()

@@ -20,14 +20,17 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import logging
 import time
 
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import configure, detail, rank0
+
+logger = logging.getLogger(__name__)
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 HIDDEN = {"none": {}, "geodesic_bending": {"geodesic_bending": {"A_g": 15.0}},
@@ -61,8 +64,9 @@ def run(seeds: int, first: int = 0) -> list[dict]:
             HIDDEN, DISPLACEMENTS.items(), NOISES, range(first, first + seeds)):
         t0 = time.perf_counter()
         exp = data(hidden, d_max, noise, 100 + seed)
-        d = diagnose(exp, ["fibre_stretch", "shear"], h=3.5, confirm=3, max_effects=1,
-                     check_discretisation=False, verbose=False)
+        with detail():
+            d = diagnose(exp, ["fibre_stretch", "shear"], h=3.5, confirm=3, max_effects=1,
+                         check_discretisation=False)
         comps = d.tie.comparisons if d.tie else []
         row = {"hidden": hidden, "regime": regime, "noise": noise, "seed": seed,
                "verdict": d.verdict, "tie": d.tied(), "outcome": outcome(d, hidden),
@@ -70,15 +74,15 @@ def run(seeds: int, first: int = 0) -> list[dict]:
                                                   "p", "cosine")} for c in comps],
                "seconds": time.perf_counter() - t0}
         rows.append(row)
-        rank0_print(MPI.COMM_WORLD, f"{hidden:17s} {regime:5s} noise {noise:<5g} seed {seed}: "
-                    f"{row['outcome']:17s} verdict {d.verdict} tie {d.tied()} " + "; ".join(
+        rank0(logger, MPI.COMM_WORLD, f"{hidden:17s} {regime:5s} noise {noise:<5g} seed {seed}: "
+                      f"{row['outcome']:17s} verdict {d.verdict} tie {d.tied()} " + "; ".join(
                         f"{'/'.join(c['effects'])} z {c['z']:.2f} cos {c['cosine']:.3f}"
                         for c in row["comparisons"]) + f" ({row['seconds']:.0f} s)")
     return rows
 
 
 def table(rows: list[dict]) -> None:
-    say = lambda m: rank0_print(MPI.COMM_WORLD, m)  # noqa: E731
+    say = lambda m: rank0(logger, MPI.COMM_WORLD, m)  # noqa: E731
     kinds = ["right single", "tie with truth", "wrong single", "tie without truth", "nothing",
              "false single", "false tie"]
     say("\nhidden            regime  n  " + "  ".join(f"{k:>6.6s}" for k in kinds)
@@ -107,6 +111,7 @@ def main() -> None:
     ap.add_argument("--table", nargs="*", default=None,
                     help="only print the table of these --json files (no runs)")
     args = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     if args.table:
         rows = []
         for name in args.table:

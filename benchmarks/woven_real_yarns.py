@@ -17,6 +17,7 @@ the finest model predicts for a 150 × 450 mm specimen, with its zone-C angle.
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 from pathlib import Path
 
@@ -29,10 +30,12 @@ from fabricsurf.experiments import three_zone as tz
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardSet
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.forward.runs import ForwardSet
+from fabricsurf.log import configure, detail, rank0
 from fabricsurf.model.terms import FibreStretch, Shear
 from fabricsurf.studies import woven as wv
+
+logger = logging.getLogger(__name__)
 
 
 def model(k_yarn: float, k_s: float = 0.02) -> list:
@@ -47,6 +50,7 @@ def main() -> None:
                     help="largest zone-C angle (deg, eq. 13) of the fitted points")
     ap.add_argument("--h", type=float, default=11.5, help="coarsest element size (mm)")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
     full = load_experiment(cao2008_plain_weave())
     exp = wv.up_to_angle(full, a.max_angle)
@@ -54,7 +58,8 @@ def main() -> None:
     for h in (a.h, a.h / 2, a.h / 4):
         t0 = time.perf_counter()
         fs = ForwardSet([exp], model(a.k_yarn), h=h, comm=comm)
-        r = fit(fs, free=[2], verbose=False)
+        with detail():
+            r = fit(fs, free=[2])
         fitted[h] = r.params()["shear"]["k_s"]
         err = np.asarray(r.prediction[0].force) - exp.force
         allf = ForwardSet([full], model(a.k_yarn, fitted[h]), h=h, comm=comm).run()[0].force
@@ -64,10 +69,10 @@ def main() -> None:
                      "rms_N": float(np.sqrt(np.mean(err**2))),
                      "rms_all_N": float(np.sqrt(np.mean(err_all**2))), "all_steps": n_all,
                      "seconds": time.perf_counter() - t0})
-        rank0_print(comm, f"h = {h:7.4f}: k_s = {fitted[h]:.5f} N/mm  chi2 {r.chi2:8.2f}  "
-                    f"RMS {rows[-1]['rms_N']:.3f} N on {len(exp.path)} points (<= "
-                    f"{a.max_angle:g} deg), {rows[-1]['rms_all_N']:.3f} N on all {n_all}; "
-                    f"{rows[-1]['seconds']:.0f} s")
+        rank0(logger, comm, f"h = {h:7.4f}: k_s = {fitted[h]:.5f} N/mm  chi2 {r.chi2:8.2f}  "
+                      f"RMS {rows[-1]['rms_N']:.3f} N on {len(exp.path)} points (<= "
+                      f"{a.max_angle:g} deg), {rows[-1]['rms_all_N']:.3f} N on all {n_all}; "
+                      f"{rows[-1]['seconds']:.0f} s")
     ks = np.array(list(fitted.values()))
     spread = float((ks.max() - ks.min()) / ks[-1])
     h2 = a.h / 2
@@ -76,14 +81,15 @@ def main() -> None:
     sig = 0.01 * float(np.max(np.abs(exp.force)))
     chi2_h = float(np.sum(((np.asarray(coarse.run()[0].force)
                             - np.asarray(fine.run()[0].force)) / sig) ** 2))
-    rank0_print(comm, f"k_s spread over h, h/2, h/4: {100 * spread:.2f} %; discretisation chi2 "
-                f"(h vs h/2) {chi2_h:.3g} against the misfit chi2 {rows[1]['chi2']:.3g}")
+    rank0(logger, comm, f"k_s spread over h, h/2, h/4: {100 * spread:.2f} %; discretisation chi2 "
+                  f"(h vs h/2) {chi2_h:.3g} against the misfit chi2 {rows[1]['chi2']:.3g}")
     b = BiasExtension(model(a.k_yarn, fitted[a.h / 4]), length=450.0, width=150.0, h=a.h,
                       clamp=full.setup.options.get("clamp", "gradient"), comm=comm)
-    pred = b.run(110.0, 11, verbose=False)
+    with detail():
+        pred = b.run(110.0, 11)
     gam = np.degrees(tz.zone_c_shear_angle(np.array(pred.ubar), 450.0, 150.0))
     for d, f, g in zip(pred.ubar, pred.force, gam):
-        rank0_print(comm, f"  150 x 450: d = {d:6.1f} mm  F = {f:8.3f} N  zone-C angle {g:5.1f}")
+        rank0(logger, comm, f"  150 x 450: d = {d:6.1f} mm  F = {f:8.3f} N  zone-C angle {g:5.1f}")
     write_json(comm, Path(a.out) / "woven_real_yarns.json",
                {"rows": rows, "k_s_spread": spread, "chi2_h": chi2_h,
                 "prediction_150x450": {"d": pred.ubar, "force": pred.force,

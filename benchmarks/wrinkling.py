@@ -17,16 +17,19 @@ Run: ``python benchmarks/wrinkling.py [--h 4 2.83 2] [--variants ...] [--bound 0
 """
 
 import argparse
+import logging
 import math
 import time
 
 from mpi4py import MPI
 
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.hemisphere import HemisphereForming
-from fabricsurf.log import rank0_print
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.hemisphere import HemispherePlugin
+from fabricsurf.log import configure, rank0
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification import wrinkling
+
+logger = logging.getLogger(__name__)
 
 comm = MPI.COMM_WORLD
 R, BLANK, STROKE, STEPS = 20.0, 72.0, 12.0, 12
@@ -44,7 +47,7 @@ def model() -> list:
             Twist(k_t=0.1)]
 
 
-def run(e: HemisphereForming, k_b: float, p_h: float, bound: float) -> dict:
+def run(e: HemispherePlugin, k_b: float, p_h: float, bound: float) -> dict:
     e.model[2].set(k_b=k_b)
     e.model[3].set(k_t=k_b)
     e.tools.p_h.value = p_h
@@ -68,34 +71,34 @@ def run(e: HemisphereForming, k_b: float, p_h: float, bound: float) -> dict:
 def main(hs: list[float], names: list[str], bound: float, blank: float = BLANK) -> None:
     rows = []
     for h in hs:
-        setup = Setup("hemisphere", blank, blank, (45.0, -45.0), dict(TOOLING))
-        with HemisphereForming(setup, model(), h, comm) as e:
+        setup = PluginSetup("hemisphere", blank, blank, (45.0, -45.0), dict(TOOLING))
+        with HemispherePlugin(setup, model(), h, comm) as e:
             dofs = 3 * e.problem.V.dofmap.index_map.size_global
             for name in names:
                 k_b, p_h = VARIANTS[name]
                 r = run(e, k_b, p_h, bound)
                 rows.append((name, h, dofs, r))
                 b = r["buckling"]
-                rank0_print(comm, f"{name}, h = {h:.3g} mm ({dofs} DOFs, {r['seconds']:.0f} s)"
-                                  f" {r['stopped']}")
+                rank0(logger, comm, f"{name}, h = {h:.3g} mm ({dofs} DOFs, {r['seconds']:.0f} s)"
+                                    f" {r['stopped']}")
                 for s, a, q, w in r["history"]:
-                    rank0_print(comm, f"  stroke {s:5.2f}: amplitude {a:.4f} mm, buckling "
-                                      f"ratio {q:6.2f}, indicator {w:.4f}")
-                rank0_print(comm, "  bands (inner rho, points, largest residual): " + ", ".join(
+                    rank0(logger, comm, f"  stroke {s:5.2f}: amplitude {a:.4f} mm, buckling "
+                                        f"ratio {q:6.2f}, indicator {w:.4f}")
+                rank0(logger, comm, "  bands (inner rho, points, largest residual): " + ", ".join(
                     f"{a:.0f}:{m:.3f}" for a, _, m in r["bands"][:8]))
-                rank0_print(comm, f"  strip: N = {b['hoop']:.3f} N/mm on {b['points']} points,"
-                                  f" D = {b['D']:.3f} N·mm, b = {b['b']:g} mm, N_cr "
-                                  f"{b['N_cr']['simply supported']:.3f} (s.s.) – "
-                                  f"{b['N_cr']['clamped']:.3f} (clamped) N/mm")
-                rank0_print(comm, "  " + line(name, h, r))
-    rank0_print(comm, f"\nreference: |residual| > {bound} mm; indicator: the least principal "
-                      "value of the smoothed membrane force in the unheld strip below -N_cr; "
-                      "curvature flag: T < "
-                      f"-{TOOLING['wrinkle_tension']:g} N/mm and |K| > κ_w; points of the "
-                      f"81 × 81 sample grid of the quarter")
-    rank0_print(comm, HEADER)
+                rank0(logger, comm, f"  strip: N = {b['hoop']:.3f} N/mm on {b['points']} points,"
+                                    f" D = {b['D']:.3f} N·mm, b = {b['b']:g} mm, N_cr "
+                                    f"{b['N_cr']['simply supported']:.3f} (s.s.) – "
+                                    f"{b['N_cr']['clamped']:.3f} (clamped) N/mm")
+                rank0(logger, comm, "  " + line(name, h, r))
+    rank0(logger, comm, f"\nreference: |residual| > {bound} mm; indicator: the least principal "
+                        "value of the smoothed membrane force in the unheld strip below -N_cr; "
+                        "curvature flag: T < "
+                        f"-{TOOLING['wrinkle_tension']:g} N/mm and |K| > κ_w; points of the "
+                        f"81 × 81 sample grid of the quarter")
+    rank0(logger, comm, HEADER)
     for name, h, _, r in rows:
-        rank0_print(comm, line(name, h, r))
+        rank0(logger, comm, line(name, h, r))
 
 
 HEADER = ("variant           h (mm)  amplitude (mm)  ref. area  ref. points  N_hoop  N_cr(ss)  "
@@ -123,4 +126,5 @@ if __name__ == "__main__":
     ap.add_argument("--blank", type=float, default=BLANK,
                     help="side of the blank (mm; tests/test_wrinkling.py: 60)")
     a = ap.parse_args()
+    configure()  # the messages: on rank 0, at PROGRESS
     main(a.h, a.variants, a.bound, a.blank)

@@ -47,6 +47,7 @@
 # Run: `mpirun -n 2 python demos/demo_bias_extension.py --out DIR` (`--quick`: coarse, fast).
 
 # %%
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -57,7 +58,7 @@ from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.discretise.output import write_json
-from fabricsurf.log import rank0_print
+from fabricsurf.log import rank0
 from fabricsurf.model.materials import TABLE3_MACRO, bipantographic
 from fabricsurf.network import hencky_lattice, lattice_from_continuum
 from fabricsurf.network.bipantographic import TABLE3, bipantographic_lattice
@@ -140,11 +141,13 @@ ap.add_argument("--conv-grading", type=float, default=0.6,
 ap.add_argument("--conv-steps", type=int, default=5)
 ap.add_argument("--skip-bip", action="store_true")
 opts = vars(parse(ap))
-quick, _ = opts.pop("quick"), opts.pop("verbose")
+quick = opts.pop("quick")
+opts.pop("verbose"), opts.pop("quiet")  # the messages: configured by parse
 settings = BiasStudySettings(**opts)
 settings = settings.quick() if quick else settings  # h 8, 4 steps, ū ≤ 10 %, no whole range
 out = settings.out
 comm = MPI.COMM_WORLD
+logger = logging.getLogger(__name__)
 t0 = time.perf_counter()
 
 # %% [markdown]
@@ -243,7 +246,7 @@ def run_bias_study(s: BiasStudySettings, comm: MPI.Comm = MPI.COMM_WORLD) -> tup
     conv = force_convergence(hencky_model(), [int(v) for v in s.conv_levels.split(",")],
                              s.ubar_frac * LENGTH, s.conv_steps, grading=s.conv_grading,
                              comm=comm)
-    rank0_print(comm, f"[convergence] differences {conv['differences']}, rates {conv['rates']}")
+    rank0(logger, comm, f"[convergence] differences {conv['differences']}, rates {conv['rates']}")
     keys = ("force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
             "position_rms_diff", "curves", "failure")
     summary = {nm: {kk: r[kk] for kk in keys} for nm, r in results.items()}
@@ -573,4 +576,4 @@ verify(summary, CHECKS)
 check(summary, settings)
 if settings.is_quick:
     check_quick(summary, settings, out)
-rank0_print(comm, f"done in {time.perf_counter() - t0:.1f} s; summary: {out / 'summary.json'}")
+rank0(logger, comm, f"done in {time.perf_counter() - t0:.1f} s; summary: {out / 'summary.json'}")

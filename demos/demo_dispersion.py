@@ -55,6 +55,7 @@
 
 # %%
 import json
+import logging
 import math
 from pathlib import Path
 
@@ -63,6 +64,7 @@ from dolfinx import fem, io
 from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, require, verify
+from fabricsurf.log import rank0
 from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
 from fabricsurf.verification import dispersion as dp
 
@@ -452,5 +454,5 @@ require(abs(dep["transverse: shear"] - math.sqrt(0.02 / res2["beta"])) < 0.1 * d
     "transverse: shear"])
 require(dep["longitudinal: + stretch_gradient A_s=+k_l eps^2/12"] < dep[
     "longitudinal: fibre_stretch"])
-if comm.rank == 0:
-    print(f"all checks passed; wrote {out}/summary.json, figures and dispersion_modes.xdmf")
+rank0(logging.getLogger(__name__), comm,
+      f"all checks passed; wrote {out}/summary.json, figures and dispersion_modes.xdmf")

@@ -43,6 +43,7 @@
 
 # %%
 import csv
+import logging
 import sys
 import time
 from pathlib import Path
@@ -53,12 +54,13 @@ from mpi4py import MPI
 from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
-from fabricsurf.log import rank0_print
-from fabricsurf.studies import forming as parts
+from fabricsurf.log import rank0, warn
+from fabricsurf.studies import hemisphere_forming as parts
 from fabricsurf.verification import drape_map, wrinkling
 from fabricsurf.verification.forming_map import compare_with_drapes
 
 comm = MPI.COMM_WORLD
+logger = logging.getLogger(__name__)
 ap = demo_parser("A fitted woven fabric formed over a hemisphere", "out/forming")
 ap.add_argument("--params", type=Path, default=Path("out/woven/woven_params.json"),
                 help="params file of demo_woven_fabric.py")
@@ -72,7 +74,7 @@ STROKE, STEPS = 0.6 * R, 12
 K_BEND = 0.1
 params, source = on_rank0(comm, parts.read_params, args.params, out) or (None, None)
 params, source = comm.bcast((params, source), root=0)
-rank0_print(comm, f"model from {source}")
+rank0(logger, comm, f"model from {source}")
 
 # %% [markdown]
 # ## 1. The kinematic check
@@ -80,30 +82,26 @@ rank0_print(comm, f"model from {source}")
 # angles along the diagonal against the fishnet drape of the same hemisphere.
 
 # %%
-def progress(message: str) -> None:
-    rank0_print(comm, message)
-
-
 def form(name: str, values: dict) -> dict:
     """One forming run, a line per step as it converges; a step that cannot be followed ends
     the demo with where it stopped (failure.json, the steps converged before it)."""
     try:
-        return parts.reform(e, values, STROKE, STEPS, log=progress, label=f"{name}: ")
+        return parts.reform(e, values, STROKE, STEPS, label=f"{name}: ")
     except LoadStepError as err:
         report = {"run": name, **err.as_dict(), "converged_steps": e.steps}
         write_json(comm, out / "failure.json", report)
-        rank0_print(comm, f"{name}: {err}\n{name}: the steps converged before are in "
-                          f"{out / 'failure.json'}")
+        rank0(logger, comm, f"{name}: {err}\n{name}: the steps converged before are in "
+                            f"{out / 'failure.json'}", level=logging.ERROR)
         sys.exit(1)
 
 
 e = parts.experiment(R, BLANK, H, 45.0, parts.forming_model(params, K_BEND, K_BEND), comm)
 kinematic = form("kinematic", parts.KINEMATIC)
 k = kinematic
-rank0_print(comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_punch']} points of "
-                  f"the diagonal on the punch {k['diagonal_shear_max_diff_deg']:.2f} deg "
-                  f"(recovered shear), {k['per_element_max_diff_deg']:.2f} deg (per element), "
-                  f"{k['centres_max_diff_deg']:.2f} deg at the element centres")
+rank0(logger, comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_punch']} points of "
+                    f"the diagonal on the punch {k['diagonal_shear_max_diff_deg']:.2f} deg "
+                    f"(recovered shear), {k['per_element_max_diff_deg']:.2f} deg (per element), "
+                    f"{k['centres_max_diff_deg']:.2f} deg at the element centres")
 
 # %% [markdown]
 # The same run over the whole contact area, not only the diagonal: the recovered shear on a
@@ -119,10 +117,10 @@ radius = np.hypot(*drapes["points"].T)
 inner = radius < 0.75 * radius.max()
 drape_summary = {**drape_map.summary(drapes), "inner_max_diff_deg": float(
     np.abs(drapes["continuum_deg"] - drapes["fishnet_deg"])[inner].max())}
-rank0_print(comm, "kinematic limit over the contact area ({points} points): against the "
-                  "fishnet max {f[max_deg]:.2f}, RMS {f[rms_deg]:.2f} deg; against the Goursat "
-                  "net max {g[max_deg]:.2f}, RMS {g[rms_deg]:.2f} deg; inside 3/4 of the "
-                  "contact radius max {i:.2f} deg".format(points=drape_summary["points"],
+rank0(logger, comm, "kinematic limit over the contact area ({points} points): against the "
+                    "fishnet max {f[max_deg]:.2f}, RMS {f[rms_deg]:.2f} deg; against the Goursat "
+                    "net max {g[max_deg]:.2f}, RMS {g[rms_deg]:.2f} deg; inside 3/4 of the "
+                    "contact radius max {i:.2f} deg".format(points=drape_summary["points"],
                                        f=drape_summary["continuum_vs_fishnet"],
                                        g=drape_summary["continuum_vs_goursat"],
                                        i=drape_summary["inner_max_diff_deg"]))
@@ -154,9 +152,9 @@ wrinkle_summary = {"amplitude_mm": wrinkles["amplitude"], "bound_mm": GAP / 8.0,
                    "holder_gap_mm": GAP, "reference_area": wrinkles["reference_area"],
                    "indicator": wrinkles["indicator"][0], "hoop_N_mm": strip["hoop"],
                    "buckling_N_mm": strip["N_cr"], "buckling_ratio": strip["ratio"]}
-rank0_print(comm, "wrinkling: amplitude {a:.3f} mm (holder gap {g:g} mm), {r:.1%} of the quarter "
-                  "beyond {b:.3g} mm; indicator {i:.2%} of the blank; strip hoop force {n:.3g} "
-                  "N/mm, {q:.2f} of its buckling load".format(
+rank0(logger, comm, "wrinkling: amplitude {a:.3f} mm (holder gap {g:g} mm), {r:.1%} of the quarter "
+                    "beyond {b:.3g} mm; indicator {i:.2%} of the blank; strip hoop force {n:.3g} "
+                    "N/mm, {q:.2f} of its buckling load".format(
                       a=wrinkles["amplitude"], g=GAP, r=wrinkles["reference_area"], b=GAP / 8.0,
                       i=wrinkles["indicator"][0]["area"], n=strip["hoop"], q=strip["ratio"]))
 on_rank0(comm, wrinkling.draw_map, out / "wrinkle_map.png", wrinkles, BLANK, R)
@@ -173,18 +171,17 @@ failed = {}
 if args.effects or not args.quick:
     for name, values in parts.effect_variants(params, K_BEND).items():
         try:
-            cases[name] = parts.reform(e, values, STROKE, STEPS, log=progress,
-                                       label=f"{name}: ")
+            cases[name] = parts.reform(e, values, STROKE, STEPS, label=f"{name}: ")
         except LoadStepError as err:
             failed[name] = err.as_dict()
-            rank0_print(comm, f"{name}: {err}")
+            warn(logger, comm, f"{name}: {err}")
 e.close()
 main = cases["fitted"]
 effects = {name: max(abs(a - b) for a, b in zip(c["diagonal_shear_deg"],
                                                  main["diagonal_shear_deg"]))
            for name, c in cases.items() if name != "fitted"}
 for name, d in effects.items():
-    rank0_print(comm, f"{name}: the shear along the whole diagonal changes by up to {d:.2f} deg")
+    rank0(logger, comm, f"{name}: the shear along the whole diagonal changes by up to {d:.2f} deg")
 
 
 def write_outputs() -> None:
@@ -254,4 +251,4 @@ CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, No
           "wrinkling/amplitude_per_gap": (0.0, 1.0), "wrinkling/buckling_ratio": (None, 0.0),
           "effects_failed": {}}
 verify(summary, CHECKS)
-rank0_print(comm, f"done in {summary['seconds']:.1f} s; outputs in {out}")
+rank0(logger, comm, f"done in {summary['seconds']:.1f} s; outputs in {out}")

@@ -26,6 +26,7 @@
 
 # %%
 import json
+import logging
 import time
 
 import numpy as np
@@ -36,14 +37,15 @@ from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.diagnosis.report import result_lines
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
-from fabricsurf.inverse.fitting.report import result_lines
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.log import rank0_print
+from fabricsurf.log import detail, rank0
 from fabricsurf.model.terms import parse_terms
 
 comm = MPI.COMM_WORLD
+logger = logging.getLogger(__name__)
 ap = demo_parser(__doc__, "out/hidden_effect")
 ap.add_argument("--spacing", type=float, default=0.5, help="lattice spacing (mm)")
 ap.add_argument("--noise", type=float, default=0.02, help="displacement noise std (mm)")
@@ -54,7 +56,12 @@ if args.quick:
     args.spacing = 1.0
 args.h = args.h or (4.0 if args.quick else 3.0)
 out = args.out
-say = lambda *a: rank0_print(comm, *a)  # noqa: E731
+
+
+def say(message: str) -> None:
+    rank0(logger, comm, message)
+
+
 t_start = time.perf_counter()
 
 # %% [markdown]
@@ -106,10 +113,11 @@ diag = comm.bcast(diag)
 verdict = diag["verdict"]
 terms = "fibre_stretch,shear" + (f",{verdict}" if verdict else "")
 fm = ForwardModel(exp, parse_terms(terms, diag["final"]["params"]), h=args.h)
-refit = fit(fm, verbose=False, scale_start=False)
-refit.check_mesh(fm)  # the mesh part of the moduli's intervals (one run at h/2)
-BiasExtension(fm.model, exp.length, exp.width, args.h).run(
-    float(exp.path[-1]), len(exp.path), out=out / "final_model", verbose=False)  # XDMF
+with detail():  # its iterations and load steps: detail here (the account below sums it up)
+    refit = fit(fm, scale_start=False)
+    refit.check_mesh(fm)  # the mesh part of the moduli's intervals (one run at h/2)
+    BiasExtension(fm.model, exp.length, exp.width, args.h).run(
+        float(exp.path[-1]), len(exp.path), out=out / "final_model")  # XDMF
 
 # %% [markdown]
 # ## 5. How far is the lattice from the continuum? The complete model at the lattice's moduli

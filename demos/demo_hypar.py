@@ -42,6 +42,7 @@
 
 # %%
 import dataclasses
+import logging
 
 import numpy as np
 from mpi4py import MPI
@@ -49,7 +50,8 @@ from mpi4py import MPI
 from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.output import FieldWriter, write_json
-from fabricsurf.log import rank0_print
+from fabricsurf.geometry.specimen import square
+from fabricsurf.log import rank0
 from fabricsurf.verification.hypar import (
     CORNER_SIGNS,
     Hypar,
@@ -59,9 +61,9 @@ from fabricsurf.verification.hypar import (
     solve_natural,
 )
 from fabricsurf.verification.rates import rates
-from geometry.specimen import square
 
 comm = MPI.COMM_WORLD
+logger = logging.getLogger(__name__)
 parser = demo_parser(__doc__.splitlines()[0] if __doc__ else None, "out/hypar")
 parser.add_argument("--sizes", type=float, nargs="+", default=[0.5, 0.35, 0.25],
                     help="mesh sizes of the natural-case convergence study (coarse to fine)")
@@ -75,7 +77,7 @@ hyp = Hypar()
 
 # %%
 p_dir, dirichlet_max_error = solve_dirichlet(square(1.0, 0.25), hyp)
-rank0_print(comm, f"Dirichlet case: max nodal error {dirichlet_max_error:.3e}")
+rank0(logger, comm, f"Dirichlet case: max nodal error {dirichlet_max_error:.3e}")
 
 # %% [markdown]
 # ## 2. Edge tractions and corner forces (natural case), under refinement
@@ -85,12 +87,12 @@ errors = []
 for h in args.sizes:
     p_nat = solve_natural(square(1.0, h), hyp)
     errors.append(l2_error(p_nat, hyp))
-    rank0_print(comm, f"natural case h = {h}: L2 error {errors[-1]:.3e}")
+    rank0(logger, comm, f"natural case h = {h}: L2 error {errors[-1]:.3e}")
 natural_rates = rates(errors, args.sizes)
 corner = computed_corner_forces(p_nat)
 corner_rel = max(np.linalg.norm(f - hyp.corner_force(c)) / np.linalg.norm(hyp.corner_force(c))
                  for c, f in corner.items())
-rank0_print(comm, f"rates {np.round(natural_rates, 2)}; corner force rel. error {corner_rel:.2e}")
+rank0(logger, comm, f"rates {np.round(natural_rates, 2)}; corner force rel. error {corner_rel:.2e}")
 writer = FieldWriter(args.out / "hypar.xdmf", p_nat.u, p_nat.energy.kin)
 writer.write(0.0)
 writer.close()
@@ -102,7 +104,7 @@ writer.close()
 mismatch = dataclasses.replace(hyp, k_t=2.0 * hyp.A_Gamma)
 p_bad = solve_natural(square(1.0, args.sizes[-1]), mismatch)
 departure = l2_error(p_bad, mismatch)
-rank0_print(comm, f"k_t = 2 A_Gamma: L2 distance from the hyperbolic paraboloid {departure:.3e}")
+rank0(logger, comm, f"k_t = 2 A_Gamma: L2 distance from the hyperbolic paraboloid {departure:.3e}")
 
 # %% [markdown]
 # ## Figure and summary
@@ -156,4 +158,4 @@ CHECKS = {"dirichlet_max_error": (0.0, 1e-10), "natural_l2_errors/*": (0.0, 1e-8
 verify(summary, CHECKS)
 require(natural_rates[0] > 4.0 or errors[0] < 1e-11, natural_rates)
 require(departure > 1e4 * max(errors), (departure, errors))
-rank0_print(comm, f"all checks passed; output in {args.out}")
+rank0(logger, comm, f"all checks passed; output in {args.out}")

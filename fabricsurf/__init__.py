@@ -16,9 +16,10 @@ _SOURCES = {
     "fabricsurf.experiments": ("TESTS", "get_test"),
     "fabricsurf.experiments.bias_extension": ("BiasExtension",),
     "fabricsurf.inverse.contract.data": ("Experiment", "load_experiment", "write_experiment"),
-    "fabricsurf.inverse.fitting.diagnose": ("diagnose",),
+    "fabricsurf.inverse.diagnosis.diagnose": ("diagnose",),
+    "fabricsurf.inverse.fitting.compare": ("Comparison", "compare"),
     "fabricsurf.inverse.fitting.fit": ("fit",),
-    "fabricsurf.inverse.fitting.forward": ("ForwardModel", "ForwardSet"),
+    "fabricsurf.inverse.forward.runs": ("ForwardModel", "ForwardSet"),
     "fabricsurf.model.terms": (
         "EFFECTS", "FibreStretch", "GeodesicBending", "NormalBending", "Shear", "ShearGradient",
         "ShearLocking", "StretchGradient", "Term", "Twist", "make_term", "parse_terms",
@@ -28,11 +29,12 @@ _SOURCES = {
 _LAZY = {name: module for module, names in _SOURCES.items() for name in names}
 
 __all__ = [
-    "EFFECTS", "TESTS", "BiasExtension", "DataError", "Experiment", "FibreStretch",
-    "ForwardModel", "ForwardSet", "GeodesicBending", "InputError", "NormalBending", "Shear",
-    "ShearGradient", "ShearLocking", "StretchGradient", "Term", "Twist", "__version__",
-    "diagnose", "effects_from", "fit", "get_test", "load_effects", "load_experiment",
-    "make_term", "parse_terms", "register_effect", "write_experiment",
+    "EFFECTS", "TESTS", "BiasExtension", "Comparison", "DataError", "Experiment",
+    "FibreStretch", "ForwardModel", "ForwardSet", "GeodesicBending", "InputError",
+    "NormalBending", "Shear", "ShearGradient", "ShearLocking", "StretchGradient", "Term",
+    "Twist", "__version__", "compare", "diagnose", "effects_from", "fit", "get_test",
+    "load_effects", "load_experiment", "make_term", "parse_terms", "register_effect",
+    "write_experiment",
 ]
 
 

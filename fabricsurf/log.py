@@ -1,34 +1,114 @@
-"""The ``fabricsurf`` logger: progress of long runs and notes, written on rank 0.
+"""The package's messages: one channel, the standard :mod:`logging` (as dolfinx and
+fenicsx-pulse do).
 
-Library code reports through :func:`rank0_print` (or ``logger``), never ``print``. Progress is
-logged at :data:`PROGRESS`, between INFO and WARNING, so that it survives the
-``logging.disable(logging.INFO)`` that keeps the JIT compiler quiet
-(:func:`fabricsurf.cli.compiler_messages`). By default the messages go to the current
-``sys.stdout``, one flushed write per message, so they reach the terminal when they are written,
-under ``mpirun`` too. A library user silences them with
-``logging.getLogger("fabricsurf").setLevel(logging.WARNING)`` (the command line's ``--quiet``)
-or sends them elsewhere by replacing the logger's handlers (:func:`use_handler`).
+**In the library.** Every module that reports has ``logger = logging.getLogger(__name__)`` (a
+child of the ``fabricsurf`` logger) and reports through :func:`rank0` (progress, notes, detail)
+or :func:`warn` (warnings), never ``print`` or ``warnings.warn`` (tests/test_layout.py). Both
+say a message on rank 0 of the communicator the work runs on; the other ranks say nothing.
+The levels:
 
-Warnings the package issues with ``warnings.warn`` (a mesh too coarse for the tools, a
-near-mechanism) reach the same logger as one line ``warning: …`` on rank 0 while
-:func:`package_warnings` is in force (the command line's); without it Python shows them its
-own way.
+* DEBUG: detail (a load step's increment cut, a digest that differed between ranks);
+* :data:`PROGRESS` (25): progress of long runs and notes (load steps, fit iterations, the
+  stages of a diagnosis, the mesh a bias test got);
+* WARNING: something the user should act on (a mesh that may lock, a mesh coarser than the
+  tools, a near-mechanism): :func:`warn`, once per message;
+* ERROR: the command line's last message when it fails.
+
+PROGRESS sits between INFO and WARNING, so that it survives the ``logging.disable(
+logging.INFO)`` with which the command line keeps the JIT compiler quiet.
+
+**No configuration at import.** The package adds no handler, sets no level and leaves
+propagation on: its messages reach whatever logging the application configured (pytest's
+``caplog`` included). A library user turns progress on with, e.g.,
+``logging.basicConfig(level=PROGRESS, format="%(message)s")`` (INFO would also show the JIT
+compiler's messages), or takes the command line's terminal output with :func:`configure`.
+Without either, warnings only are shown (on standard error: by FFCx's root handler once it is
+imported, else by Python's last resort).
+
+**Programs.** The command line, the demos and the benchmarks call :func:`configure`: a handler
+on rank 0 that writes every message to the current ``sys.stdout`` and flushes it (so it
+reaches the terminal when it is written, under ``mpirun`` too, whose pipe would otherwise hold
+it), at DEBUG (``-v``), PROGRESS (default) or WARNING (``-q``). While it is in force the
+configured loggers do not propagate: FFCx calls ``logging.basicConfig()`` when it is imported,
+so every FEniCSx program has a handler on the root logger, which would write each message a
+second time (on standard error, as ``WARNING:fabricsurf…:``). :meth:`Configuration.undo` (or
+leaving its ``with`` block) puts everything back.
+
+**Nesting.** Inside :func:`detail` the progress messages of the work called are logged at
+DEBUG (the load steps of each run of a convergence study are detail of the study); inside
+:func:`muted` nothing is said (the ranks other than 0 while each solves the same rank-local
+model: fabricsurf/inverse/forward/ranks.py). Both hold for the calling context only and
+change no logger's level.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import logging
-import os
 import sys
-import warnings
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 
 PROGRESS = 25
 """The level of progress messages (load steps, fit iterations, stages of a diagnosis)."""
 logging.addLevelName(PROGRESS, "PROGRESS")
 
-logger = logging.getLogger("fabricsurf")
+PACKAGE = "fabricsurf"
+"""The package's logger, parent of every module's."""
+
+_NORMAL, _DETAIL, _MUTED = 0, 1, 2
+_state: contextvars.ContextVar[int] = contextvars.ContextVar("fabricsurf_log", default=_NORMAL)
+_warned: set[tuple[str, str]] = set()
+
+
+def rank0(log: logging.Logger, comm, msg: str, *args, level: int = PROGRESS) -> None:
+    """Log ``msg`` (``%``-formatted with ``args``, if any, as :mod:`logging` does) to ``log`` at
+    ``level`` on rank 0 of ``comm``; the other ranks say nothing. Inside :func:`detail` a
+    PROGRESS message is logged at DEBUG; inside :func:`muted`, not at all."""
+    if comm.rank != 0:
+        return
+    state = _state.get()
+    if state == _MUTED:
+        return
+    if state == _DETAIL and level == PROGRESS:
+        level = logging.DEBUG
+    log.log(level, msg, *args, stacklevel=2)
+
+
+def warn(log: logging.Logger, comm, msg: str) -> None:
+    """A warning: logged to ``log`` at WARNING on rank 0 of ``comm``, once per message and
+    logger (as Python shows a warning once per place) until :func:`configure` starts a new
+    run; the other ranks say nothing. :func:`detail` does not lower it."""
+    if comm.rank != 0 or _state.get() == _MUTED or (log.name, msg) in _warned:
+        return
+    _warned.add((log.name, msg))
+    log.warning(msg, stacklevel=2)
+
+
+def forget_warnings() -> None:
+    """Let every warning be said again (the test suite calls it before each test)."""
+    _warned.clear()
+
+
+@contextlib.contextmanager
+def _within(state: int) -> Iterator[None]:
+    token = _state.set(max(state, _state.get()))
+    try:
+        yield
+    finally:
+        _state.reset(token)
+
+
+def detail(on: bool = True) -> contextlib.AbstractContextManager[None]:
+    """While in force (if ``on``), progress messages of the calling context are logged at DEBUG:
+    the work called is detail of the caller's, which reports its own progress."""
+    return _within(_DETAIL if on else _NORMAL)
+
+
+def muted(on: bool = True) -> contextlib.AbstractContextManager[None]:
+    """While in force (if ``on``), :func:`rank0` and :func:`warn` say nothing in the calling
+    context."""
+    return _within(_MUTED if on else _NORMAL)
 
 
 class StdoutHandler(logging.StreamHandler):
@@ -37,7 +117,6 @@ class StdoutHandler(logging.StreamHandler):
 
     def __init__(self) -> None:
         super().__init__(sys.stdout)
-        self.setFormatter(logging.Formatter("%(message)s"))
 
     @property
     def stream(self):
@@ -48,73 +127,93 @@ class StdoutHandler(logging.StreamHandler):
         pass
 
 
-def use_handler(handler: logging.Handler) -> None:
-    """Send fabricsurf's messages to ``handler`` only (instead of standard output)."""
-    for h in list(logger.handlers):
-        logger.removeHandler(h)
-    logger.addHandler(handler)
+class TerminalFormatter(logging.Formatter):
+    """The message as it is; a warning with ``warning: `` before each of its lines."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = super().format(record)
+        if logging.WARNING <= record.levelno < logging.ERROR:
+            text = "\n".join(f"warning: {line}" for line in text.split("\n"))
+        return text
 
 
-if not logger.handlers:
-    logger.addHandler(StdoutHandler())
-    logger.setLevel(PROGRESS)
-    logger.propagate = False
+class Configuration:
+    """What :func:`configure` changed, and how to put it back (:meth:`undo`, or leave the
+    ``with`` block)."""
+
+    def __init__(self, level: int, comm, names: Iterable[str]) -> None:
+        if comm is None:
+            from mpi4py import MPI
+
+            comm = MPI.COMM_WORLD
+        self.handler: logging.Handler = StdoutHandler() if comm.rank == 0 \
+            else logging.NullHandler()
+        self.handler.setFormatter(TerminalFormatter("%(message)s"))
+        self.handler._fabricsurf_terminal = True
+        self.saved = []
+        for name in dict.fromkeys(names):
+            lg = logging.getLogger(name)
+            self.saved.append((lg, lg.level, list(lg.handlers), lg.propagate))
+            for h in list(lg.handlers):  # an earlier configuration's: replaced, not stacked
+                if getattr(h, "_fabricsurf_terminal", False):
+                    lg.removeHandler(h)
+            lg.addHandler(self.handler)
+            lg.setLevel(level)
+            lg.propagate = False  # FFCx's root handler (module docstring) would repeat them
+        self.warned = set(_warned)
+        _warned.clear()
+
+    def undo(self) -> None:
+        """Remove the handler, restore the loggers' levels, handlers and propagation as they
+        were."""
+        for lg, level, handlers, propagate in reversed(self.saved):
+            for h in list(lg.handlers):
+                if h not in handlers:
+                    lg.removeHandler(h)
+            for h in handlers:
+                if h not in lg.handlers:
+                    lg.addHandler(h)
+            lg.setLevel(level)
+            lg.propagate = propagate
+        self.saved = []
+        _warned.clear()
+        _warned.update(self.warned)
+
+    def __enter__(self) -> Configuration:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.undo()
+
+
+def configure(level: int = PROGRESS, comm=None,
+              names: Iterable[str] = (PACKAGE, "__main__")) -> Configuration:
+    """The terminal output of a program (the command line, a demo, a benchmark): on rank 0 of
+    ``comm`` (default ``MPI.COMM_WORLD``) a handler that writes each message of the loggers
+    ``names`` (the package's and the running script's) at ``level`` or above to the current
+    ``sys.stdout`` and flushes it, warnings as ``warning: …``; on the other ranks a handler that
+    drops them (nothing reaches Python's last-resort output). The loggers' levels are set to
+    ``level`` and they stop propagating (module docstring: FFCx's root handler). A handler of
+    an earlier call is replaced, not stacked.
+    Returns the :class:`Configuration`, whose :meth:`~Configuration.undo` (or the end of its
+    ``with`` block) restores everything."""
+    return Configuration(level, comm, names)
+
+
+def level_of(verbose: bool = False, quiet: bool = False) -> int:
+    """The level of a program's ``-v`` (DEBUG), default (PROGRESS) and ``-q`` (WARNING)."""
+    return logging.DEBUG if verbose else logging.WARNING if quiet else PROGRESS
 
 
 def rank0_print(comm, *args, level: int = PROGRESS) -> None:
-    """Log ``args`` (joined by spaces, as ``print`` does) at ``level`` on rank 0 of ``comm``;
-    the other ranks say nothing."""
-    if comm.rank == 0:
-        logger.log(level, " ".join(str(a) for a in args))
-
-
-@contextlib.contextmanager
-def progress(show: bool) -> Iterator[None]:
-    """Show progress messages (``show``) or only warnings and errors, then restore the level."""
-    level = logger.level
-    logger.setLevel(PROGRESS if show else logging.WARNING)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
-
-
-PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
-"""Warnings attributed to a file under this directory are the package's own."""
-
-
-def ours(category: type[Warning], filename: str) -> bool:
-    """Whether a warning is one the package issued: a UserWarning (what ``warnings.warn``
-    gives by default; numpy's RuntimeWarnings and the libraries' DeprecationWarnings are
-    not) attributed to a module of the package (``stacklevel=2`` names the package's caller)."""
-    return issubclass(category, UserWarning) and os.path.abspath(filename).startswith(PACKAGE)
-
-
-@contextlib.contextmanager
-def package_warnings(rank: int) -> Iterator[None]:
-    """The package's warnings (:func:`ours`) as one line ``warning: MESSAGE`` through the logger
-    at WARNING (shown with --quiet too), on rank ``0`` only (every rank of a distributed mesh
-    issues the same one); any other warning is shown as before. Python's filters still decide
-    whether a warning is shown at all (by default once per message and place).
-
-    FFCx, on import, routes every warning through the root logger
-    (``logging.captureWarnings``), which prints it as ``WARNING:py.warnings:FILE:LINE:
-    UserWarning: …`` with a line of source. Capturing is switched on here first, so that
-    FFCx's call, when it comes, leaves this hook in place; on exit the previous state is back."""
-    before = warnings.showwarning
-    logging.captureWarnings(True)
-    captured = warnings.showwarning
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        if not ours(category, filename):
-            captured(message, category, filename, lineno, file, line)
-        elif rank == 0:
-            logger.warning(f"warning: {message}")
-
-    warnings.showwarning = show
-    try:
-        yield
-    finally:
-        warnings.showwarning = captured
-        if captured is not before:
-            logging.captureWarnings(False)
+    """Kept only for the modules still to convert (fabricsurf/cli/measure.py, cli/bias.py,
+    cli/dic.py; demos/demo_bending.py, demo_woven_fabric.py, demo_dic.py): :func:`rank0` on the
+    ``fabricsurf`` logger with ``args`` joined by spaces, as ``print`` does. A message that
+    begins with ``warning: `` is a warning (:func:`warn`, without that prefix), so that
+    ``--quiet`` keeps it. New code calls :func:`rank0` or :func:`warn` with its module's
+    logger."""
+    msg, package = " ".join(str(a) for a in args), logging.getLogger(PACKAGE)
+    if msg.startswith("warning: ") and level == PROGRESS:
+        warn(package, comm, msg[len("warning: "):])
+    else:
+        rank0(package, comm, msg, level=level)

@@ -23,7 +23,7 @@ from collections.abc import Callable
 import numpy as np
 from mpi4py import MPI
 
-from geometry.specimen import (
+from .specimen import (
     Specimen,
     check_positive,
     corner_points,

@@ -40,9 +40,9 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from geometry.aligned import quarter_divisions, quarter_triangles
-from geometry.specimen import EDGE_TAGS as RECTANGLE_TAGS
-from geometry.specimen import Specimen, check_positive, distributed_mesh
+from .aligned import quarter_divisions, quarter_triangles
+from .specimen import EDGE_TAGS as RECTANGLE_TAGS
+from .specimen import Specimen, check_positive, distributed_mesh
 
 EDGE_TAGS = {**RECTANGLE_TAGS, "edge": 5}
 """The outline is ``edge``; the rectangle's names stay declared (with no facets) so that a

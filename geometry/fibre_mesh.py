@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from mpi4py import MPI
 
-from geometry.aligned import (
+from .aligned import (
     ANGLE_TOLERANCE_DEG,
     EXACT_DEG,
     canonical_angles,
@@ -14,14 +14,14 @@ from geometry.aligned import (
     lattice_divisions,
     symmetric_angle,
 )
-from geometry.lattice_pair import pair_divisions, paired_lattice_rectangle
-from geometry.specimen import Specimen, rectangle
-from geometry.zone_mesh import zone_rectangle
+from .lattice_pair import pair_divisions, paired_lattice_rectangle
+from .specimen import Specimen, rectangle
+from .zone_mesh import zone_rectangle
 
 MESH_KINDS = ("auto", "aligned", "lattice_pair", "zones", "unstructured")
-"""``aligned``: :func:`~geometry.aligned.fibre_aligned_rectangle` (one lattice corner to
-corner); ``lattice_pair``: :func:`~geometry.lattice_pair.paired_lattice_rectangle` (a lattice
-from each grip and a band between); ``zones``: :func:`~geometry.zone_mesh.zone_rectangle`
+"""``aligned``: :func:`~.aligned.fibre_aligned_rectangle` (one lattice corner to
+corner); ``lattice_pair``: :func:`~.lattice_pair.paired_lattice_rectangle` (a lattice
+from each grip and a band between); ``zones``: :func:`~.zone_mesh.zone_rectangle`
 (gmsh with the corner fibre lines as edges); ``unstructured``: gmsh's frontal Delaunay;
 ``auto``: aligned where a corner-to-corner lattice fits (its angle within the caller's
 ``max_mismatch_deg`` of the fibres'), else the lattice pair where its band lies in the centre
@@ -35,7 +35,7 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
     """The mesh of a rectangular specimen of the given ``kind`` (:data:`MESH_KINDS`); the
     specimen's ``kind`` says which was built and its ``note`` how. ``max_mismatch_deg`` bounds
     the angle between an ``auto`` corner-to-corner lattice and the fibres (stiff fibres lock a
-    lattice that is off their angle: experiments/discretisation.py); a lattice further off is
+    lattice that is off their angle: experiments/bias_mesh.py); a lattice further off is
     skipped, and the note says so."""
     if kind not in MESH_KINDS:
         raise ValueError(f"geometry: mesh = {kind!r} must be one of {', '.join(MESH_KINDS)}")

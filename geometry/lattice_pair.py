@@ -21,8 +21,8 @@ import math
 import numpy as np
 from mpi4py import MPI
 
-from geometry.aligned import lattice_triangles
-from geometry.specimen import (
+from .aligned import lattice_triangles
+from .specimen import (
     Specimen,
     check_positive,
     corner_points,

@@ -18,7 +18,7 @@ import gmsh
 import numpy as np
 from mpi4py import MPI
 
-from geometry.specimen import (
+from .specimen import (
     Specimen,
     _triangulation,
     check_positive,

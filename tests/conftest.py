@@ -30,3 +30,12 @@ def pytest_runtest_setup(item):
     mark = item.get_closest_marker("serial")
     if mark is not None and MPI.COMM_WORLD.size > 1:
         pytest.skip(f"serial session only: {mark.args[0]}")
+
+
+@pytest.fixture(autouse=True)
+def _warnings_said_again():
+    """The package says each warning once per run (fabricsurf.log.warn); every test is a run
+    of its own, as pytest shows Python's warnings again in each test."""
+    from fabricsurf.log import forget_warnings
+
+    forget_warnings()

@@ -196,8 +196,7 @@ def _angle_a(A_g: float, h: float) -> float:
 
     model = [FibreStretch(k_l=2e4, k_m=2e4), Shear(k_s=0.5)]
     model += [GeodesicBending(A_g=A_g)] if A_g else []
-    return BiasExtension(model, 100.0, 60.0, h, quiet=True).run(10.0, 2, verbose=False
-                                                                 ).angle_A_deg[-1]
+    return BiasExtension(model, 100.0, 60.0, h).run(10.0, 2).angle_A_deg[-1]
 
 
 def test_shear_angle_at_A_converges_only_with_an_internal_length():
@@ -222,8 +221,7 @@ def test_steep_fibres_on_a_mesh_coarser_than_the_grip_zones():
     from fabricsurf.model.terms import FibreStretch, Shear
 
     f = [BiasExtension([FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5)], 40.0, 20.0, h,
-                       fibre_angles=(80.0, -80.0), quiet=True).run(2.0, 2, verbose=False
-                                                                   ).force[-1]
+                       fibre_angles=(80.0, -80.0)).run(2.0, 2).force[-1]
          for h in (4.0, 2.0)]
     print(f)
     assert f[0] == pytest.approx(f[1], rel=1e-3)

@@ -1,6 +1,7 @@
-"""The questions a diagnosis may be asked are checked once (fabricsurf/inverse/fitting/choices.py):
-the library's ``diagnose`` refuses what the command line refuses, with the same message worded
-with its own argument names, before anything is built."""
+"""The questions a diagnosis may be asked are checked once
+(fabricsurf/inverse/diagnosis/choices.py): the library's ``diagnose`` refuses what the command
+line refuses, with the same message worded with its own argument names, before anything is
+built."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ import pytest
 
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.experiment import template
-from fabricsurf.inverse.fitting import diagnose as dg
-from fabricsurf.inverse.fitting.choices import Labels, check_choices, library_labels
+from fabricsurf.inverse.diagnosis import diagnose as dg
+from fabricsurf.inverse.diagnosis.choices import Labels, check_choices, library_labels
 
 BASE = ["fibre_stretch", "shear"]
 PARAMS = {"shear": {"k_s": 0.5}}

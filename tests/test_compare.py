@@ -9,9 +9,9 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.diagnose import full_model
-from fabricsurf.inverse.fitting.forward import ForwardModel
-from fabricsurf.inverse.fitting.misfit import misfit
+from fabricsurf.inverse.diagnosis.diagnose import full_model
+from fabricsurf.inverse.forward.misfit import misfit
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},

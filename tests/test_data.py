@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.inverse.contract.data import (
     DataError,
     Experiment,
@@ -21,7 +21,7 @@ def good_experiment() -> Experiment:
     steps = np.array([1, 2])
     field_step = np.repeat(steps, len(X))
     u = np.column_stack([np.linspace(0, 1, 6), np.linspace(0, -0.1, 6)])
-    setup = Setup("bias_extension", 40.0, 20.0, (45.0, -45.0), {"clamp": "gradient"})
+    setup = PluginSetup("bias_extension", 40.0, 20.0, (45.0, -45.0), {"clamp": "gradient"})
     return Experiment("t", setup, steps, np.array([1.0, 2.0]), np.array([0.5, 1.1]),
                       field_step, np.vstack([X, X]), u, noise_std=0.01)
 
@@ -135,7 +135,7 @@ def test_spreadsheet_bom_and_unit_types(good):
 
 
 def test_compare_rejects_terms_outside_vocabulary():
-    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.forward.runs import ForwardModel
     from fabricsurf.model.materials import bipantographic
 
     with pytest.raises(ValueError, match="not in the vocabulary"):

@@ -3,7 +3,7 @@ ranks first and adding it brings the misfit to the noise level; a complete model
 verdict.
 
 Noise-level criterion: the combined misfit (RMS of residuals divided by the noise std,
-fabricsurf.inverse.fitting.misfit) of the refit is ≤ 1.25, i.e. the residual RMS is within 25 %
+fabricsurf.inverse.forward.misfit) of the refit is ≤ 1.25, i.e. the residual RMS is within 25 %
 of the noise. The data use specimen sizes, meshes and noise seeds other than those used while
 developing the method. Hidden effects here: geodesic_bending (continuum, via the CLI), shear,
 shear_gradient; lattice data with hidden geodesic bending are diagnosed by the main demo
@@ -22,8 +22,8 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.diagnose import diagnose as _diagnose
-from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.diagnosis.diagnose import diagnose as _diagnose
+from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.synthetic import generate as sy
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
@@ -81,15 +81,13 @@ def test_hidden_shear():
     pivot stiffness only by stiffening the fibres and their bending (to well above the true 30
     and 15); adding shear restores the noise level."""
     exp = continuum(60.0, 36.0, {"geodesic_bending": {"A_g": 15.0}}, seed=16)
-    check(diagnose(exp, ["fibre_stretch", "geodesic_bending"], h=3.6, confirm=1,
-                   verbose=False), "shear")
+    check(diagnose(exp, ["fibre_stretch", "geodesic_bending"], h=3.6, confirm=1), "shear")
 
 
 @SERIAL
 def test_complete_model_gives_null():
     exp = continuum(62.0, 31.0, {"geodesic_bending": {"A_g": 15.0}}, seed=15)
-    d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.1, confirm=1,
-                 verbose=False)
+    d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.1, confirm=1)
     print(d.base_fit.misfit["combined"], [(r["effect"], r["refit_misfit"], r["significant"])
                                           for r in d.ranking])
     assert d.verdict is None and d.base_fit.misfit["combined"] <= NOISE_LEVEL

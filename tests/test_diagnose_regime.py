@@ -21,8 +21,8 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
-from fabricsurf.inverse.fitting import significance as sg
-from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 
 K_L, K_S = 1000.0, 0.4
@@ -42,7 +42,7 @@ def lattice(angles, A_g, seed, spacing=1.6, noise=0.02):
 def test_complete_model_no_false_alarm_in_the_stiff_regime():
     exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=3)
     d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.0, confirm=1,
-                 max_effects=1, check_discretisation=False, verbose=False)
+                 max_effects=1, check_discretisation=False)
     print(d.outcome(), d.base_fit.misfit["combined"],
           [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking])
     assert d.verdict is None
@@ -66,7 +66,7 @@ def test_hidden_geodesic_bending_at_40_degrees_in_m_and_kn(tmp_path):
     assert np.allclose(loaded.u, exp.u) and np.isclose(loaded.length, LENGTH)
     assert np.allclose(loaded.force, exp.force)
     d = diagnose(loaded, ["fibre_stretch", "shear"], h=3.0, confirm=1, max_effects=1,
-                 check_discretisation=False, verbose=False)
+                 check_discretisation=False)
     print(d.outcome(), d.path, [(r["effect"], r["refit_misfit"]) for r in d.ranking])
     assert d.verdict == "geodesic_bending" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
@@ -83,7 +83,7 @@ def test_hidden_geodesic_bending_strong_and_weak(l_b):
     (the misfits are in docs/verification.md, "Margins of the tests")."""
     exp = lattice((45.0, -45.0), A_g=K_S * l_b**2, seed=8, spacing=1.0)
     d = diagnose(exp, ["fibre_stretch", "shear"], h=3.0, confirm=1, max_effects=1,
-                 check_discretisation=False, verbose=False)
+                 check_discretisation=False)
     print(l_b, d.outcome(), [round(p["misfit"], 3) for p in d.path],
           [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking])
     assert d.verdict == "geodesic_bending" == d.ranking[0]["effect"]
@@ -101,7 +101,7 @@ def test_hidden_shear_in_the_stiff_regime():
     another effect; on the full 187 × 119 mm specimen shear is named (docs/diagnosis.md)."""
     exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=6)
     d = diagnose(exp, ["fibre_stretch", "geodesic_bending"], h=3.0, confirm=1, max_effects=1,
-                 check_discretisation=False, verbose=False)
+                 check_discretisation=False)
     row = d.ranking[0]
     print(d.outcome(), d.path, row["refit_params"], d.unexplained and d.unexplained["best_lead"])
     assert row["effect"] == "shear" and 0.5 * K_S < row["refit_params"]["k_s"] < 2.0 * K_S

@@ -20,12 +20,12 @@ import math
 import pytest
 from mpi4py import MPI
 
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
-from fabricsurf.inverse.fitting.discrimination import Z_CRIT, design
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.discrimination import Z_CRIT, design
+from fabricsurf.inverse.diagnosis.report import tie_lines
+from fabricsurf.inverse.diagnosis.ties import compare
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardSet
-from fabricsurf.inverse.fitting.report import tie_lines
-from fabricsurf.inverse.fitting.ties import compare
+from fabricsurf.inverse.forward.runs import ForwardSet
 from fabricsurf.inverse.plots import figures
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.terms import make_term
@@ -50,7 +50,7 @@ def continuum(angles, seed, nx=10, ny=5):
 def test_collinear_pair_is_a_tie_and_the_suggested_test_separates_it(tmp_path):
     exp = continuum((45.0, -45.0), seed=14)
     d = diagnose(exp, ["fibre_stretch", "shear"], h=3.3, confirm=3, max_effects=1,
-                 check_discretisation=False, verbose=False)
+                 check_discretisation=False)
     tie = d.as_dict()
     print(tie["tie"], tie["tie_test"])
     assert sorted(tie["tie"]) == PAIR and tie["verdict"] in PAIR
@@ -88,7 +88,7 @@ def test_collinear_pair_is_a_tie_and_the_suggested_test_separates_it(tmp_path):
                     h=3.3) as fs:
         for c in PAIR:
             fs.set_values(d.tie.refits[c].values)
-            refit[c] = fit(fs, d.tie.refits[c].free, verbose=False, scale_start=False,
+            refit[c] = fit(fs, d.tie.refits[c].free, scale_start=False,
                            space="linear")
         rf_t, rf_o = refit["shear_gradient"], refit["stretch_gradient"]
         vs = compare(fs, rf_t, rf_o, rf_t.free[:-1], rf_t.free[-1:], rf_o.free[-1:])

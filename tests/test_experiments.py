@@ -22,9 +22,9 @@ from fabricsurf.cli import main
 from fabricsurf.datasets import cao2008_plain_weave
 from fabricsurf.experiments.picture_frame import frame_force_exact, frame_shear_angle
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
-from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
 
 CAO = cao2008_plain_weave()
@@ -104,7 +104,7 @@ def test_bias_and_frame_fitted_together(tmp_path):
     assert [m.h for m in fs.models] == [2.0, 10.0]  # each test's default mesh
     fs.models[0] = ForwardModel(bias, model, h=4.0)  # the data's own mesh: no form error
     idx = [i for i, (t, _) in enumerate(fs.params) if t.name in truth]
-    res = fit(fs, idx, verbose=False)
+    res = fit(fs, idx)
     vals = dict(zip(res.names, res.values))
     assert vals["shear.k_s"] == pytest.approx(0.4, rel=0.02)
     assert [e["experiment"] for e in res.misfit["experiments"]] == ["bias", "frame"]

@@ -12,9 +12,9 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
 TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
@@ -33,7 +33,7 @@ def test_fit_recovers_moduli():
              "geodesic_bending": {"A_g": 3.0}}
     fm = ForwardModel(exp, full_model(list(TRUTH), start), h=4.0)
     idx = [i for i, (t, _) in enumerate(fm.params) if t.name in TRUTH]
-    res = fit(fm, idx, verbose=False)
+    res = fit(fm, idx)
     truth = np.array([TRUTH[t.name][p] for t, p in fm.params if t.name in TRUTH])
     z = (res.values[idx] - truth) / res.std[idx]
     print("fitted", res.values[idx], "+-", res.std[idx], "z", z, "runs", res.forward_runs)

@@ -42,18 +42,19 @@ def test_penalty_follows_the_stretch_by_default():
     max(1, min(ρ + margin, (ρ + 1/cos γ)/2)) of that step's largest fibre stretch ρ (the
     follower's rule), uniform over all cells of all ranks; as the specimen is pulled ρ grows,
     so ρ_p rises above its initial 1 and keeps rising (frozen at 1, the penalty of the
-    bi-pantographic energy loses coercivity where the stretch concentrates). ``reset`` returns
-    ρ_p to the term's own value."""
-    model = bipantographic()
-    bending = next(t for t in model if isinstance(t, PantographBending))
-    test = small_test(model)
+    bi-pantographic energy loses coercivity where the stretch concentrates); the term's own
+    ``penalty_stretch`` follows. ``reset`` returns ρ_p, in the form and the term, to the
+    term's value before the run."""
+    test = small_test(bipantographic())
+    bending = next(t for t in test.model if isinstance(t, PantographBending))  # the test's own
     assert [type(f) for f in test.followers] == [PenaltyFollower]
-    seen = []
+    seen, own = [], []
 
     def on_step(k: int, ubar: float) -> None:
         seen.append((largest_stretch(test), *penalty_range(bending, test)))
+        own.append(bending.penalty_stretch)  # the term's own value follows its form's
 
-    test.run(0.06 * LENGTH, 3, verbose=False, on_step=on_step)
+    test.run(0.06 * LENGTH, 3, on_step=on_step)
     history = test.followers[0].history
     assert len(history) == len(seen) == 3
     for (rho, lo, hi), rec in zip(seen, history):
@@ -63,16 +64,16 @@ def test_penalty_follows_the_stretch_by_default():
         assert rec["rho_cos_gamma"] == pytest.approx(rho * math.cos(bending.gamma), rel=1e-12)
     rho_p = [lo for _, lo, _ in seen]
     assert rho_p[0] > 1.0 and np.all(np.diff(rho_p) > 0), seen
+    assert own == rho_p
     test.followers[0].reset()
-    assert penalty_range(bending, test) == (bending.penalty_stretch, bending.penalty_stretch)
+    assert penalty_range(bending, test) == (1.0, 1.0) and bending.penalty_stretch == 1.0
 
 
 def test_an_empty_follower_list_freezes_the_penalty():
     """``followers = []`` leaves ρ_p at the term's value although the stretch grows."""
-    model = bipantographic()
-    bending = next(t for t in model if isinstance(t, PantographBending))
-    test = small_test(model)
+    test = small_test(bipantographic())
+    bending = next(t for t in test.model if isinstance(t, PantographBending))  # the test's own
     test.followers = []
-    test.run(0.06 * LENGTH, 1, verbose=False)
+    test.run(0.06 * LENGTH, 1)
     assert largest_stretch(test) > 1.0
     assert penalty_range(bending, test) == (1.0, 1.0)

@@ -1,6 +1,6 @@
 """Forming beyond the symmetric square (docs/forming.md, "Blanks"): blanks of any outline and
 fibre pairs without mirror symmetry about both mid-lines, solved on the full blank with its rigid
-motions removed (experiments/forming_blank.py) on a fibre lattice clipped to the outline
+motions removed (experiments/forming/blank.py) on a fibre lattice clipped to the outline
 (geometry/fibre_blank.py).
 
 * the lattice (no FEniCSx form): centrally symmetric (the pole pin relies on it), covering the
@@ -45,16 +45,16 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import forming_blank
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.experiments.hemisphere import HemispherePlugin
+from fabricsurf.geometry.fibre_blank import MERGE, clip_lattice, lattice_triangulation, outline
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification.drape_map import summary
 from fabricsurf.verification.forming_map import (
     compare_with_drapes,
     compare_with_generator_drape,
 )
-from geometry.fibre_blank import MERGE, clip_lattice, lattice_triangulation, outline
 
 COMM = MPI.COMM_WORLD
 R, BLANK, H = 20.0, 60.0, 4.0
@@ -86,7 +86,7 @@ def soft():
 
 
 def setup(blank="square", angles=(45.0, -45.0), size=(BLANK, BLANK), **extra):
-    return Setup("hemisphere", *size, angles, dict(TOOLING, blank=blank, **extra))
+    return PluginSetup("hemisphere", *size, angles, dict(TOOLING, blank=blank, **extra))
 
 
 @pytest.mark.serial("numpy only: the lattice is built on one process")
@@ -192,21 +192,21 @@ def test_clipped_lattice_holds_every_fibre_net(shape, a, b, angles):
 
 def test_bad_blanks_refused_before_computing():
     with pytest.raises(DataError, match=r"\[tooling\] blank = 'oval'"):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": R, "blank": "oval"}}, 1.0,
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": R, "blank": "oval"}}, 1.0,
                                         "t")
     with pytest.raises(DataError, match=r"blank_domain = 'half'"):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": R,
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": R,
                                                      "blank_domain": "half"}}, 1.0, "t")
     with pytest.raises(DataError, match=r"circle blank 40 × 40 mm .*die opening"):
-        HemisphereForming.check_specimen(setup("circle", size=(40.0, 40.0)), "t")
+        HemispherePlugin.check_specimen(setup("circle", size=(40.0, 40.0)), "t")
     with pytest.raises(DataError, match=r"rectangle blank 80 × 44 mm .*die opening"):
-        HemisphereForming.check_specimen(setup("rectangle", size=(80.0, 44.0)), "t")
+        HemispherePlugin.check_specimen(setup("rectangle", size=(80.0, 44.0)), "t")
     with pytest.raises(DataError, match=r"blank = 'circle' needs length = width"):
-        HemisphereForming.check_specimen(setup("circle", size=(60.0, 50.0)), "t")
+        HemispherePlugin.check_specimen(setup("circle", size=(60.0, 50.0)), "t")
     with pytest.raises(DataError, match=r"fibre_angles_deg = \[30.0, 50.0\].* 20° apart"):
-        HemisphereForming(setup("circle", (30.0, 50.0)), model(), H, COMM)
+        HemispherePlugin(setup("circle", (30.0, 50.0)), model(), H, COMM)
     with pytest.raises(DataError, match=r"blank_domain = 'quarter' needs a square"):
-        HemisphereForming(setup("square", (30.0, 120.0), blank_domain="quarter"), model(), H,
+        HemispherePlugin(setup("square", (30.0, 120.0), blank_domain="quarter"), model(), H,
                           COMM)
     with pytest.raises(DataError, match=r"h = 12 mm is more than 0.5 of the punch radius"):
         forming_blank.check_mesh(setup("circle"), 12.0, False)
@@ -227,9 +227,9 @@ def test_domain_choice():
     assert forming_blank.bisector_deg((20.0, -50.0)) == -15.0
 
 
-def formed(s: Setup, moduli, stroke: float, steps: int, h: float = H
-           ) -> tuple[HemisphereForming, dict]:
-    e = HemisphereForming(s, moduli, h, COMM)
+def formed(s: PluginSetup, moduli, stroke: float, steps: int, h: float = H
+           ) -> tuple[HemispherePlugin, dict]:
+    e = HemispherePlugin(s, moduli, h, COMM)
     e.run(stroke, steps)
     return e, {"force": np.array(e.force), "shear": e.max_shear_deg(),
                "pins": e.pin_reactions(), "record": e.discretisation}
@@ -257,7 +257,7 @@ def test_circle_rotated_pair_against_drapes():
     """0/90 turned by 30° on a circular blank in the kinematic limit: the drapes with the
     same fibre directions from the pole. With friction the rotation is not pinned; the pole
     pins carry no load."""
-    s = Setup("hemisphere", CIRCLE, CIRCLE, (30.0, 120.0), dict(TOOLING, **FRICTION,
+    s = PluginSetup("hemisphere", CIRCLE, CIRCLE, (30.0, 120.0), dict(TOOLING, **FRICTION,
                                                                   blank="circle"))
     e, out = formed(s, soft(), DEEP, DEEP_STEPS)
     with e:
@@ -291,7 +291,7 @@ def test_rectangle_unbalanced_pair_against_its_own_generators():
     continuum's own generators (verification/generator_drape.py) is: what is left is the
     discretisation's difference, which must fall at least at first order in h (measured RMS
     2.28°, 1.20°, 0.76° at h = 5.66, 4, 2.83 mm; within 0.75 R max 6.2°, 2.4°, 1.4°)."""
-    s = Setup("hemisphere", 72.0, 60.0, (40.0, -50.0), dict(TOOLING, **FRICTION,
+    s = PluginSetup("hemisphere", 72.0, 60.0, (40.0, -50.0), dict(TOOLING, **FRICTION,
                                                              blank="rectangle"))
     rms, inner = [], []
     for h in (4.0 * math.sqrt(2.0), H):

@@ -32,13 +32,13 @@ from fabricsurf.cli import main
 from fabricsurf.cli.options import enough_data
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments import get_test
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.contract.shear import read_shear
-from fabricsurf.inverse.fitting.forward import ForwardModel
-from fabricsurf.inverse.fitting.misfit import misfit
 from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
-from fabricsurf.inverse.synthetic import forming as sf
+from fabricsurf.inverse.forward.misfit import misfit
+from fabricsurf.inverse.forward.runs import ForwardModel
+from fabricsurf.inverse.synthetic import formed_part as sf
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
@@ -88,7 +88,7 @@ def test_sensitivities_match_central_differences():
 
 def _plugin(angles, domain="quarter"):
     """The mapping needs the blank, its domain and the fibres only (no mesh)."""
-    e = HemisphereForming.__new__(HemisphereForming)
+    e = HemispherePlugin.__new__(HemispherePlugin)
     e.setup = type("S", (), {"length": BLANK, "width": BLANK})()
     e.theta = 0.0 if tuple(angles) == (0.0, 90.0) else 45.0
     e.domain = domain

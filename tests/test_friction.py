@@ -23,7 +23,7 @@ from mpi4py import MPI
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.three_zone import kinematic_force
 from fabricsurf.inverse.contract.checks import unloading_warning
-from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
@@ -78,7 +78,7 @@ def test_bias_force_is_the_three_zone_force_with_friction():
     H, W, k_s = 230.0, 115.0, 0.02
     model = [FibreStretch(inextensible=True), Shear(k_s=k_s), CrossoverFriction(tau_f=TAU_F)]
     res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(
-        30.0, 3, verbose=False)
+        30.0, 3)
     ratio = np.array(res.force) / kinematic_force(np.array(res.ubar), H, W, model)
     friction_share = 1.0 - kinematic_force(np.array(res.ubar), H, W,
                                            [Shear(k_s=k_s)]) / np.array(res.force)
@@ -109,7 +109,7 @@ def test_hidden_friction_in_lattice_data_is_diagnosed(regime, tau_f):
     lattice-continuum form error that keeps the refit above the noise)."""
     exp, h = _hidden_friction(regime, tau_f)
     d = diagnose(exp, ["fibre_stretch", "shear"], h=h, confirm=1, max_effects=1,
-                 check_discretisation=False, verbose=False)
+                 check_discretisation=False)
     print(d.outcome(), [(r["effect"], r["score"], r["refit_misfit"]) for r in d.ranking])
     assert d.verdict == "crossover_friction" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2

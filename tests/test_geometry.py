@@ -8,7 +8,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from geometry.specimen import EDGE_TAGS, graded, structured_rectangle
+from fabricsurf.geometry.specimen import EDGE_TAGS, graded, structured_rectangle
 
 COMM = MPI.COMM_WORLD
 
@@ -55,7 +55,7 @@ def test_grading_rejected():
 def test_gmsh_failure_on_rank0_raises_everywhere(monkeypatch):
     """A gmsh error on rank 0 is broadcast: every rank raises instead of waiting in
     the mesh distribution (on 2 ranks this test would hang without it)."""
-    import geometry.specimen as spec
+    import fabricsurf.geometry.specimen as spec
 
     def fail(*args):
         raise ValueError("synthetic gmsh failure")
@@ -68,7 +68,7 @@ def test_gmsh_failure_on_rank0_raises_everywhere(monkeypatch):
 def test_aligned_sizes_near_the_one_asked():
     """187 × 119 mm is 11 : 7, so its ±45° corner-to-corner lattices have 14 k rows: fibre
     edges of 12.02, 6.01, 4.007 mm. Near h = 10 those are 6.01 (finer) and 12.02 (coarser)."""
-    from geometry.aligned import lattice_sizes
+    from fabricsurf.geometry.aligned import lattice_sizes
 
     finer, coarser = lattice_sizes(187.0, 119.0, 10.0, 45.0)
     assert finer == pytest.approx(math.hypot(187 / 44, 119 / 28), rel=1e-12)
@@ -83,7 +83,7 @@ def test_mesh_coarser_than_asked_is_announced():
     from types import SimpleNamespace
 
     from fabricsurf.experiments.bias_extension import default_model
-    from fabricsurf.experiments.discretisation import choose_fibre_treatment
+    from fabricsurf.experiments.bias_mesh import choose_fibre_treatment
 
     def notice(asked, used):
         sp = SimpleNamespace(kind="aligned", h=used, length=187.0, width=119.0, note="")

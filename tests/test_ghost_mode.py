@@ -13,8 +13,8 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from geometry.aligned import fibre_aligned_rectangle
-from geometry.specimen import rectangle, structured_rectangle
+from fabricsurf.geometry.aligned import fibre_aligned_rectangle
+from fabricsurf.geometry.specimen import rectangle, structured_rectangle
 
 BUILDERS = {
     "gmsh rectangle": lambda comm: rectangle(30.0, 15.0, 3.0, comm),

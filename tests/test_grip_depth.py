@@ -17,7 +17,7 @@ from mpi4py import MPI
 
 from fabricsurf.cli import main
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.synthetic import generate as sy
 
 TERMS = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
@@ -39,7 +39,7 @@ def gripped_data(seed=17):
 
 def run(exp, **kw):
     return diagnose([exp], list(TERMS), h=4.4, params=TERMS, confirm=1, max_effects=1,
-                    check_discretisation=False, verbose=False, **kw)
+                    check_discretisation=False, **kw)
 
 
 def test_grip_depth_profile_and_false_alarm_without_it():

@@ -28,11 +28,11 @@ from mpi4py import MPI
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.data import check_field_moves, load_experiment, write_experiment
-from fabricsurf.inverse.fitting import intervals
-from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.fitting.fit import FitResult, undetermined
 from fabricsurf.inverse.fitting.params import MAX_MODULUS, load_params
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.inverse.uncertainty import intervals
+from fabricsurf.inverse.uncertainty import statistical as unc
 
 COMM = MPI.COMM_WORLD
 TERMS = th.TERMS
@@ -233,7 +233,7 @@ def test_determined_directions_are_untouched():
 def test_still_field_refused_by_the_python_diagnose(monkeypatch):
     """The Python API refuses it too, before any forward model; a step whose load is 0 may
     show no displacement."""
-    import fabricsurf.inverse.fitting.diagnose as dg
+    import fabricsurf.inverse.diagnosis.diagnose as dg
 
     built = []
     monkeypatch.setattr(dg, "ForwardSet", lambda *a, **k: built.append(a))

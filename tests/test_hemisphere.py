@@ -41,6 +41,7 @@ read that run:
 """
 
 import json
+import logging
 import os
 import subprocess
 import sys
@@ -52,10 +53,12 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import forming_options, get_test
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.forming_log import StepLog
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments import get_test
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.forming import options as forming_options
+from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.experiments.hemisphere import HemispherePlugin
+from fabricsurf.log import PROGRESS
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification.drape_map import summary
 from fabricsurf.verification.fishnet import bisector_shear
@@ -86,9 +89,9 @@ def model():
             Twist(k_t=0.1)]
 
 
-def form(comm) -> tuple[HemisphereForming, dict]:
+def form(comm) -> tuple[HemispherePlugin, dict]:
     """The experiment formed to STROKE, with its reduced numbers."""
-    e = HemisphereForming(Setup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING)),
+    e = HemispherePlugin(PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING)),
                           model(), H, comm)
     e.set_load(0.0)
     start = sum(e.energies())
@@ -106,36 +109,36 @@ def formed():
 
 
 def test_registered():
-    assert get_test("hemisphere") is HemisphereForming and HemisphereForming.d == 3
+    assert get_test("hemisphere") is HemispherePlugin and HemispherePlugin.d == 3
 
 
 def test_rejects_bad_set_up():
     with pytest.raises(DataError, match="fibre_angles_deg"):  # 20° apart: slivers
-        HemisphereForming.check_specimen(Setup("hemisphere", BLANK, BLANK, (70.0, 90.0),
+        HemispherePlugin.check_specimen(PluginSetup("hemisphere", BLANK, BLANK, (70.0, 90.0),
                                                dict(TOOLING)), "t")
     with pytest.raises(DataError, match="square wider"):
-        HemisphereForming.check_specimen(Setup("hemisphere", 40.0, 40.0, (45.0, -45.0),
+        HemispherePlugin.check_specimen(PluginSetup("hemisphere", 40.0, 40.0, (45.0, -45.0),
                                                dict(TOOLING)), "t")
 
 
 def test_options():
-    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0}}, 10.0, "t")
+    opts = HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0}}, 10.0, "t")
     assert opts["punch_radius"] == 50.0 and opts["clearance"] == pytest.approx(10.0)
     assert opts["wrinkle_curvature"] == pytest.approx(1.0 / 50.0)
     with pytest.raises(DataError, match=r"\[tooling\] punch_radius"):
-        HemisphereForming.parse_options({"tooling": {}}, 1.0, "t")
+        HemispherePlugin.parse_options({"tooling": {}}, 1.0, "t")
     with pytest.raises(DataError, match="holder_gap = -1"):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0, "holder_gap": -1}},
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0, "holder_gap": -1}},
                                         1.0, "t")
     assert opts["friction"] == 0.0 and opts["friction_slip_rate"] == 0.01
     assert opts["areal_density_g_m2"] == 0.0
     with pytest.raises(DataError, match=r"friction = -0\.2"):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0, "friction": -0.2}},
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0, "friction": -0.2}},
                                         1.0, "t")
     with pytest.raises(DataError, match=r"areal_density_g_m2 = 0\.2"):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0},
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0},
                                          "material": {"areal_density_g_m2": 0.2}}, 1.0, "t")
-    heavy = HemisphereForming.parse_options({"tooling": {"punch_radius": 5.0},
+    heavy = HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0},
                                              "material": {"areal_density_g_m2": 300}}, 1.0, "t")
     assert heavy["areal_density_g_m2"] == 300.0
 
@@ -153,7 +156,7 @@ def test_options_out_of_range(key, value, words):
     """Each option outside its plausible range is refused before any computation, naming the
     key, its value and the range (issues 40 and 41: these were accepted)."""
     with pytest.raises(DataError, match=words):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": 20.0, key: value}}, 1.0,
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": 20.0, key: value}}, 1.0,
                                         "t")
 
 
@@ -161,16 +164,16 @@ def test_size_and_stroke_guards():
     """A punch radius too small for the blank (its default mesh h = R/6 took 3.6 GB and
     failed), a mesh too fine for the memory, a blank inside the die, and a stroke beyond what
     the die allows are refused before meshing or forming."""
-    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 0.05}}, 1.0, "t")
+    opts = HemispherePlugin.parse_options({"tooling": {"punch_radius": 0.05}}, 1.0, "t")
     with pytest.raises(DataError, match=r"punch_radius = 0\.05 .*plausible range"):
-        HemisphereForming.check_specimen(Setup("hemisphere", 150.0, 150.0, (45.0, -45.0), opts),
-                                         "t")
-    big = Setup("hemisphere", 150.0, 150.0, (45.0, -45.0), dict(TOOLING))
+        setup = PluginSetup("hemisphere", 150.0, 150.0, (45.0, -45.0), opts)
+        HemispherePlugin.check_specimen(setup, "t")
+    big = PluginSetup("hemisphere", 150.0, 150.0, (45.0, -45.0), dict(TOOLING))
     with pytest.raises(DataError, match=r"h = 0\.05 mm would mesh .* cells"):
         forming_options.check_mesh(big, 0.05, False)
     forming_options.check_mesh(big, 5.0, True)
     with pytest.raises(DataError, match=r"blank 40 × 40 mm .*wider than the die"):
-        HemisphereForming.check_specimen(Setup("hemisphere", 40.0, 40.0, (45.0, -45.0),
+        HemispherePlugin.check_specimen(PluginSetup("hemisphere", 40.0, 40.0, (45.0, -45.0),
                                                dict(TOOLING)), "t")
     top = forming_options.max_stroke(TOOLING, BLANK)
     assert top == pytest.approx((0.5 * BLANK**2 - 24.0**2) ** 0.5)
@@ -178,36 +181,40 @@ def test_size_and_stroke_guards():
     for bad in (-1.0, 0.0, 1.01 * top, float("inf")):
         with pytest.raises(DataError, match=r"stroke .* outside"):
             forming_options.check_stroke(TOOLING, BLANK, bad)
-    HemisphereForming.check_path([0, 1], [0.0, 2.0], "force.csv")
+    HemispherePlugin.check_path([0, 1], [0.0, 2.0], "force.csv")
     with pytest.raises(DataError, match=r"force.csv: step 1: punch stroke -2 mm is negative"):
-        HemisphereForming.check_path([0, 1], [0.0, -2.0], "force.csv")
+        HemispherePlugin.check_path([0, 1], [0.0, -2.0], "force.csv")
 
 
 def test_unheld_edge():
     """A blank whose sides end inside the holder's pressure ramp is named (the demo's full size
     before issue 40: B/2 = 75 mm, full pressure from 90 mm); one that reaches it is not."""
-    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": 50.0}}, 1.0, "t")
+    opts = HemispherePlugin.parse_options({"tooling": {"punch_radius": 50.0}}, 1.0, "t")
     message = forming_options.unheld_edge(opts, 150.0)
     assert message is not None and "75 mm" in message and "= 90 mm" in message
     assert forming_options.unheld_edge(opts, 180.0) is None
     assert forming_options.unheld_edge(TOOLING, BLANK) is None
 
 
-def test_step_log_lines():
+def test_step_log_lines(caplog):
     """Every converged step gives its line at once, with the contact changes counted since the
     step before and the l2 repeats of this step only; the totals add the records."""
     states = iter([np.array([0, 0, 1]), np.array([1, 0, 1]), np.array([0, 1, 0])])
     repeats = iter([0, 1, 1])
-    lines = []
-    book = StepLog(COMM, lambda: next(states), lambda: next(repeats), lines.append, "run: ")
+    caplog.set_level(logging.DEBUG, logger="fabricsurf")
+    book = StrokeLog(COMM, lambda: next(states), lambda: next(repeats), "run: ")
     book.step(0, 1.0, 0.5, 12, 2, 2)
     book.step(1, 2.0, 0.9, 7, 1, 2)
     n = COMM.size
     assert [r["contact_changes"] for r in book.records] == [n, 3 * n]
     assert [r["fallbacks"] for r in book.records] == [1, 0]
-    assert lines[0].startswith("run: step 1/2: stroke 1 mm, force 0.5 N, 12 Newton iterations, "
-                               f"1 cuts, 1 l2 repeats, {n} contact changes")
-    total = StepLog.totals(book.records)
+    lines = [r.getMessage() for r in caplog.records]  # at PROGRESS, on rank 0 only
+    assert len(lines) == (2 if COMM.rank == 0 else 0)
+    assert all(r.levelno == PROGRESS for r in caplog.records)
+    if COMM.rank == 0:
+        assert lines[0].startswith("run: step 1/2: stroke 1 mm, force 0.5 N, 12 Newton "
+                                   f"iterations, 1 cuts, 1 l2 repeats, {n} contact changes")
+    total = StrokeLog.totals(book.records)
     assert (total["newton_iterations"], total["cuts"], total["fallbacks"]) == (19, 1, 1)
 
 
@@ -229,7 +236,7 @@ def test_work_balance(formed):
     assert abs(richardson) < 0.25 * abs(fine)
 
 
-def balance_error(e: HemisphereForming, steps: int) -> tuple[float, float, float]:
+def balance_error(e: HemispherePlugin, steps: int) -> tuple[float, float, float]:
     """(punch work − change of Π − dissipation, punch work, dissipation) of a run from s = 0."""
     e.set_load(0.0)
     e.solver.u.x.array[:] = 0.0
@@ -243,7 +250,7 @@ def friction_balance(comm) -> dict:
     """The experiment with friction under the holder formed twice, in STEPS and 2 STEPS steps:
     balance errors, punch work and dissipation (of the finer run)."""
     opts = dict(TOOLING, **FRICTION)
-    with HemisphereForming(Setup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model(), H,
+    with HemispherePlugin(PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model(), H,
                            comm) as e:
         coarse, _, _ = balance_error(e, STEPS)
         fine, work, dissipated = balance_error(e, 2 * STEPS)
@@ -271,8 +278,8 @@ def test_mesh_convergence():
     opts = dict(TOOLING, **FRICTION, **CONVERGENCE_TOOLS)
     force = []
     for h in (4.0 * np.sqrt(2.0), 4.0, 4.0 / np.sqrt(2.0)):
-        setup = Setup("hemisphere", CONVERGENCE_BLANK, CONVERGENCE_BLANK, (45.0, -45.0), opts)
-        with HemisphereForming(setup, model(), h, COMM) as e:
+        setup = PluginSetup("hemisphere", CONVERGENCE_BLANK, CONVERGENCE_BLANK, (45.0, -45.0), opts)
+        with HemispherePlugin(setup, model(), h, COMM) as e:
             e.run(CONVERGENCE_STROKE, int(CONVERGENCE_STROKE))
             force.append(e.force[-1])
     d1, d2 = abs(force[0] - force[1]), abs(force[1] - force[2])
@@ -344,7 +351,7 @@ def test_kinematic_limit_matches_fishnet(formed):
     assert m["fishnet_deg"].min() < -15.0  # the sign changes across the fibre x = y
 
 
-def check_contact_map(e: HemisphereForming, points: int) -> dict:
+def check_contact_map(e: HemispherePlugin, points: int) -> dict:
     """The recovered shear over the whole contact area (a 41 × 41 grid of the quarter, the
     points within TOUCH of the punch, more than ``points`` of them) against the fishnet and the
     Goursat net (two drapes that share no code, cell R/40: 0.007° apart over the whole cap,
@@ -375,8 +382,8 @@ def test_fibres_along_the_sides():
     on the punch: near the pole the drape does not depend on how the blank is cut."""
     soft = [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1e-2), NormalBending(k_b=0.05),
             Twist(k_t=0.05)]
-    setup = Setup("hemisphere", BLANK, BLANK, (0.0, 90.0), dict(TOOLING, **FRICTION))
-    with HemisphereForming(setup, soft, H, COMM) as e:
+    setup = PluginSetup("hemisphere", BLANK, BLANK, (0.0, 90.0), dict(TOOLING, **FRICTION))
+    with HemispherePlugin(setup, soft, H, COMM) as e:
         assert e.diagonal_deg == 45.0
         e.run(DEEP, DEEP_STEPS)
         a = np.array([[4.0, 11.0], [7.5, 16.0], [3.0, 26.0], [12.0, 20.0]])

@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from fabricsurf.geometry.specimen import square
 from fabricsurf.verification.hypar import (
     Hypar,
     computed_corner_forces,
@@ -20,7 +21,6 @@ from fabricsurf.verification.hypar import (
     solve_natural,
 )
 from fabricsurf.verification.rates import rates
-from geometry.specimen import square
 
 SIZES = (0.5, 0.35, 0.25)
 

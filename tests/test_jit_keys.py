@@ -28,8 +28,8 @@ from fabricsurf.discretise.energy import EnergyForm
 from fabricsurf.discretise.jit_keys import mark_equispaced
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.geometry.specimen import square
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, ShearGradient, StretchGradient
-from geometry.specimen import square
 
 COMM = MPI.COMM_WORLD
 

@@ -1,5 +1,5 @@
 """No locking on rectangles without a corner-to-corner fibre lattice, and never a silent
-fallback (docs/theory.md, "Locking"; geometry/lattice_pair.py, experiments/discretisation.py).
+fallback (docs/theory.md, "Locking"; geometry/lattice_pair.py, experiments/bias_mesh.py).
 
 The bias test (fibres ±45°, position clamps, fibre_stretch K + shear k_s = 0.022 N/mm) on
 specimens whose sides admit no corner-to-corner lattice at h = W/10: before, the plug-in fell
@@ -9,6 +9,7 @@ benchmarks/locking.py; here one size per mesh kind, the cheap runs, on 1 and 2 r
 """
 
 import itertools
+import logging
 import math
 
 import numpy as np
@@ -18,11 +19,12 @@ from mpi4py import MPI
 from test_locking import tangent_zero_eigenvalues
 
 from fabricsurf.experiments.bias_extension import BiasExtension, specimen_mesh
-from fabricsurf.experiments.discretisation import check_bias_angles
+from fabricsurf.experiments.bias_mesh import check_bias_angles
 from fabricsurf.experiments.three_zone import kinematic_force
+from fabricsurf.geometry.aligned import canonical_angles, lattice_divisions, symmetric_angle
+from fabricsurf.geometry.lattice_pair import pair_divisions, pair_triangles
+from fabricsurf.log import PROGRESS
 from fabricsurf.model.terms import FibreStretch, Shear
-from geometry.aligned import canonical_angles, lattice_divisions, symmetric_angle
-from geometry.lattice_pair import pair_divisions, pair_triangles
 
 K_S = 0.022
 
@@ -34,7 +36,7 @@ def bias(length, width, ratio, **kw):
 
 def force_ratio(b, steps=3) -> float:
     L, W = b.specimen.length, b.specimen.width
-    res = b.run(0.13 * L, steps, verbose=False)
+    res = b.run(0.13 * L, steps)
     return res.force[-1] / float(kinematic_force(np.array(res.ubar[-1:]), L, W,
                                                  [Shear(k_s=K_S)])[0])
 
@@ -67,7 +69,7 @@ def test_bias_force_without_locking_off_the_corner_lattice():
     in benchmarks/locking.py). Today's fallback gave 6.7 and 5337 times it on 250 × 115 at
     K/k_s = 10⁶ and 10⁹."""
     length, width, ratios = 250.0, 115.0, (1e2, 1e6, 1e9)
-    q = [force_ratio(bias(length, width, r, quiet=True)) for r in ratios]
+    q = [force_ratio(bias(length, width, r)) for r in ratios]
     print(f"{length} x {width}: K/k_s {ratios}: force / three-zone {q}")
     assert all(a < b + 1e-4 for a, b in itertools.pairwise(q))
     assert q[-1] < 1.0 + 1e-4
@@ -75,22 +77,23 @@ def test_bias_force_without_locking_off_the_corner_lattice():
     assert q[0] < q[1] - 0.05  # soft fibres do stretch: the test can tell K apart
 
 
-def test_fibre_pair_spellings_are_one_pair(capsys):
+def test_fibre_pair_spellings_are_one_pair(caplog):
     """[45, 135] and [405, −45] are the fibres of [45, −45] (directions mod 180°): the same
     aligned mesh, the same force and shear angles (before: the gmsh mesh and 2.45× the force),
     and the run says it respelled them and records both spellings."""
     assert canonical_angles((45.0, 135.0)) == canonical_angles((405.0, -45.0)) == (45.0, -45.0)
     assert symmetric_angle((45.0, 135.0)) == symmetric_angle((-135.0, 135.0)) == 45.0
     assert specimen_mesh(230.0, 115.0, 11.5, (405.0, -45.0)).kind == "aligned"
+    caplog.set_level(PROGRESS, logger="fabricsurf")
     res = {}
     for angles in [(45.0, -45.0), (45.0, 135.0)]:
         b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
                           length=230.0, width=115.0, h=11.5, clamp="position",
                           fibre_angles=angles)
         assert b.discretisation["mesh_kind"] == "aligned"
-        r = b.run(10.0, 1, verbose=False)
+        r = b.run(10.0, 1)
         res[angles] = (r.force[-1], r.angle_A_deg[-1], r.discretisation)
-    out = capsys.readouterr().out
+    out = caplog.text
     ref = res[(45.0, -45.0)]
     for angles in [(45.0, 135.0)]:
         assert np.allclose(res[angles][:2], ref[:2], rtol=1e-9, atol=1e-12)
@@ -113,16 +116,17 @@ def test_family_without_a_corner_lattice_is_within_2_percent(length, width):
     (measured 0.982–0.988 and 0.993–1.0000). Below 10⁴ the fibres do stretch and the
     converged force itself is below the limit (at K/k_s = 10² on 250 × 115: 0.7068, 0.7028,
     0.7018 at W/10, W/20, W/40), so the limit is not the reference there."""
-    q = [force_ratio(bias(length, width, r, quiet=True)) for r in (1e4, 1e9)]
+    q = [force_ratio(bias(length, width, r)) for r in (1e4, 1e9)]
     assert q[0] <= q[1] + 1e-6 and q[1] < 1.0 + 1e-6
     assert all(abs(v - 1.0) < 0.02 for v in q), q
 
 
-def test_fallback_and_lattice_pair_are_announced_and_recorded(capsys):
+def test_fallback_and_lattice_pair_are_announced_and_recorded(caplog):
     """Before anything is computed the run names the mesh kind, the h used, K/k_s and the
-    fibre treatment; on a mesh that may lock (gmsh's, stiff fibres) it says WARNING, LOCKED and
-    the remedy even when quiet; the result records the same."""
-    b = bias(250.0, 115.0, 1e6, mesh="unstructured", quiet=True)
+    fibre treatment (a note at PROGRESS); on a mesh that may lock (gmsh's, stiff fibres) a
+    warning, which --quiet keeps, says LOCKED and the remedy; the result records the same."""
+    caplog.set_level(PROGRESS, logger="fabricsurf")
+    b = bias(250.0, 115.0, 1e6, mesh="unstructured")
     d = b.discretisation
     assert d["mesh_kind"] == "unstructured" and d["may_lock"] and d["h_used"] == 11.5
     assert d["fibre_treatment"] == "full" and d["fibre_stiffness_ratio"] == pytest.approx(1e6)
@@ -130,13 +134,20 @@ def test_fallback_and_lattice_pair_are_announced_and_recorded(capsys):
     assert pair.discretisation["mesh_kind"] == "lattice_pair"
     assert not pair.discretisation["may_lock"]
     assert math.isclose(pair.discretisation["h_used"], math.hypot(115 / 14, 115 / 14))
-    soft = bias(250.0, 115.0, 10.0, mesh="unstructured", quiet=True)
+    soft = bias(250.0, 115.0, 10.0, mesh="unstructured")
     assert not soft.discretisation["may_lock"]
-    out = capsys.readouterr().out
-    if MPI.COMM_WORLD.rank == 0:
-        assert "WARNING mesh: unstructured (mesh = 'unstructured' requested)" in out
-        assert "K/k_s = 1e+06" in out and "LOCKED" in out and "Remedy" in out
-        assert "mesh: lattice_pair (two fibre lattices of 14 × 14 steps" in out
+    said = {r.levelno: [] for r in caplog.records}
+    for r in caplog.records:
+        said[r.levelno].append(r.getMessage())
+    if MPI.COMM_WORLD.rank > 0:
+        assert not said
+        return
+    warned = "\n".join(said[logging.WARNING])
+    assert len(said[logging.WARNING]) == 1
+    assert warned.startswith("mesh: unstructured (mesh = 'unstructured' requested)")
+    assert "K/k_s = 1e+06" in warned and "LOCKED" in warned and "Remedy" in warned
+    assert any(m.startswith("note: mesh: lattice_pair (two fibre lattices of 14 × 14 steps")
+               for m in said[PROGRESS])
 
 
 @pytest.mark.parametrize("angles, match", [
@@ -164,7 +175,7 @@ def test_tangent_null_space_on_the_new_meshes_is_the_continuum_one(mesh, length,
     without clamps, none with."""
     b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
                       length=length, width=width, h=h, clamp="position", mesh=mesh,
-                      comm=MPI.COMM_SELF, quiet=True)
+                      comm=MPI.COMM_SELF)
     assert b.discretisation["mesh_kind"] == mesh
     assert tangent_zero_eigenvalues(b, with_bcs=False) == 3
     assert tangent_zero_eigenvalues(b, with_bcs=True) == 0
@@ -173,14 +184,14 @@ def test_tangent_null_space_on_the_new_meshes_is_the_continuum_one(mesh, length,
 def test_degenerate_fibre_pair_in_the_data_is_refused_by_key():
     """Through the measurement contract: a DataError naming the file, the key and the value."""
     from fabricsurf.errors import DataError
-    from fabricsurf.experiments.base import Setup
-    from fabricsurf.experiments.bias_extension import BiasExtensionTest
+    from fabricsurf.experiments.base import PluginSetup
+    from fabricsurf.experiments.bias_extension import BiasExtensionPlugin
 
-    setup = Setup("bias_extension", 230.0, 115.0, (0.0, 90.0), {"clamp": "position"})
+    setup = PluginSetup("bias_extension", 230.0, 115.0, (0.0, 90.0), {"clamp": "position"})
     with pytest.raises(DataError, match=r"experiment.toml: \[specimen\] fibre_angles_deg = "
                        r"\[0.0, 90.0\]: bias test: fibres at 0 deg to the load run from clamp"):
-        BiasExtensionTest.check_specimen(setup, "experiment.toml")
-    BiasExtensionTest.check_specimen(Setup("bias_extension", 230.0, 115.0, (45.0, 135.0),
+        BiasExtensionPlugin.check_specimen(setup, "experiment.toml")
+    BiasExtensionPlugin.check_specimen(PluginSetup("bias_extension", 230.0, 115.0, (45.0, 135.0),
                                            {"clamp": "position"}), "experiment.toml")
 
 
@@ -191,8 +202,8 @@ def test_short_specimen_gets_the_corner_lines_and_does_not_lock():
     0.1 % (the old gmsh fallback: 127 times it, benchmarks/locking.py --zones)."""
     def force(h):
         b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
-                          length=187.0, width=119.0, h=h, clamp="position", quiet=True)
-        return b.discretisation["mesh_kind"], b.run(20.0, 2, verbose=False).force[-1]
+                          length=187.0, width=119.0, h=h, clamp="position")
+        return b.discretisation["mesh_kind"], b.run(20.0, 2).force[-1]
 
     (kind_a, f_a), (kind_z, f_z) = force(15.0), force(17.0)
     assert (kind_a, kind_z) == ("aligned", "zones")
@@ -209,7 +220,7 @@ def test_aligned_lattice_off_the_fibre_angle_is_announced(ratio, warned):
     fibres = (FibreStretch(inextensible=True) if math.isinf(ratio)
               else FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S))
     b = BiasExtension([fibres, Shear(k_s=K_S)], length=250.0, width=115.0, h=5.75,
-                      clamp="position", mesh="aligned", quiet=True)
+                      clamp="position", mesh="aligned")
     d = b.discretisation
     assert d["mesh_kind"] == "aligned"
     assert d["angle_mismatch_deg"] == pytest.approx(0.0337, abs=1e-4)
@@ -225,7 +236,7 @@ def test_auto_skips_a_lattice_off_the_fibre_angle_that_would_lock(ratio, kind):
     the lattice pair it is within 1e-4 of it (measured 0.99998), and 0.3 % above at 10⁶ on the
     lattice kept (K/k_s · δ² = 0.35)."""
     b = BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S), Shear(k_s=K_S)],
-                      length=250.0, width=115.0, h=5.75, clamp="position", quiet=True)
+                      length=250.0, width=115.0, h=5.75, clamp="position")
     d = b.discretisation
     assert d["mesh_kind"] == kind and not d["may_lock"]
     assert ("0.0337 deg off the fibres" in d["notice"]) is (kind == "lattice_pair")
@@ -244,7 +255,7 @@ def test_exact_inextensibility_holds_on_the_fibre_aligned_meshes(length, width, 
     idealisation (as the elastic fibres' force at K/k_s = 10⁹ does on these sizes), and
     nothing warns."""
     b = BiasExtension([FibreStretch(inextensible=True), Shear(k_s=K_S)], length=length,
-                      width=width, h=width / 10, clamp="position", quiet=True)
+                      width=width, h=width / 10, clamp="position")
     d = b.discretisation
     assert d["mesh_kind"] == kind and not d["may_lock"] and "WARNING" not in d["notice"]
     assert 0.993 < force_ratio(b, steps=6) < 1.0 + 1e-6
@@ -259,8 +270,8 @@ def test_bow_penalty_vanishes_at_the_exact_solution():
     1.2e-5 apart, the elastic fibres' own stretch)."""
     def run(fibres):
         b = BiasExtension([fibres, Shear(k_s=K_S)], length=345.0, width=115.0, h=11.5,
-                          clamp="position", quiet=True)
-        return b, b.run(0.13 * 345.0, 6, verbose=False).force[-1]
+                          clamp="position")
+        return b, b.run(0.13 * 345.0, 6).force[-1]
 
     b, exact = run(FibreStretch(inextensible=True))
     e = b.problem.energy
@@ -283,9 +294,8 @@ def test_exact_inextensibility_at_other_fibre_angles(length, width, theta, frac)
     1e-13 their own initial residual asked for."""
     def run(fibres):
         b = BiasExtension([fibres, Shear(k_s=K_S)], length=length, width=width,
-                          h=width / 10, clamp="position", fibre_angles=(theta, -theta),
-                          quiet=True)
-        return b, b.run(frac * length, 4, verbose=False).force[-1]
+                          h=width / 10, clamp="position", fibre_angles=(theta, -theta))
+        return b, b.run(frac * length, 4).force[-1]
 
     b, exact = run(FibreStretch(inextensible=True))
     d = b.discretisation
@@ -309,8 +319,8 @@ def test_other_fibre_angles_against_the_converged_aligned_lattice(length, width,
     def force(h, mesh):
         b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
                           length=length, width=width, h=h, clamp="position",
-                          fibre_angles=(theta, -theta), mesh=mesh, quiet=True)
-        return b.discretisation, b.run(frac * length, 4, verbose=False).force[-1]
+                          fibre_angles=(theta, -theta), mesh=mesh)
+        return b.discretisation, b.run(frac * length, 4).force[-1]
 
     (d, f), (d_ref, f_ref) = force(width / 10, "auto"), force(h_ref, "aligned")
     assert d["mesh_kind"] == "lattice_pair" and not d["may_lock"]

@@ -14,7 +14,7 @@ import pytest
 from mpi4py import MPI
 from test_hardening import edits, good_experiment, replace, run_cli, shared_root, variant
 
-import fabricsurf.inverse.fitting.diagnose as diagnose_mod
+import fabricsurf.inverse.diagnosis.diagnose as diagnose_mod
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.fitting.fit import fit
@@ -95,7 +95,7 @@ def test_fit_refuses_like_the_cli(case, root, capsys, monkeypatch):
     params = json.loads((root / pfile).read_text()) if pfile else {}
     fm = Recorder([load_experiment(root / data)], model(terms, params))
     with pytest.raises(InputError) as err:
-        fit(fm, verbose=False)
+        fit(fm)
     assert fm.solves == 0
     assert re.search(pattern, str(err.value)), str(err.value)
     assert str(err.value) == neutral(cli, terms, pfile)
@@ -109,8 +109,7 @@ def test_diagnose_refuses_like_the_cli(case, root, capsys, monkeypatch):
     cli = cli_message("diagnose", root, data, terms, pfile, capsys, monkeypatch)
     params = json.loads((root / pfile).read_text()) if pfile else None
     with pytest.raises(InputError) as err:
-        diagnose_mod.diagnose([load_experiment(root / data)], terms.split(","), params=params,
-                              verbose=False)
+        diagnose_mod.diagnose([load_experiment(root / data)], terms.split(","), params=params)
     assert not built
     assert re.search(pattern, str(err.value)), str(err.value)
     assert str(err.value) == neutral(cli, terms, pfile)
@@ -120,5 +119,5 @@ def test_in_memory_experiment_refused():
     """An experiment made in Python (no files): the same refusal, naming the terms."""
     fm = Recorder([good_experiment()], model(TERMS + ",normal_bending", {}))
     with pytest.raises(InputError, match=r"normal_bending is an out-of-plane effect"):
-        fit(fm, verbose=False)
+        fit(fm)
     assert fm.solves == 0

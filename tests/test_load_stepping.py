@@ -3,6 +3,8 @@ the step (1-based, as the output files), the SNES reason in words, the loads tri
 converged load; residuals outside the energy's domain are domain errors that a backtracking line
 search steps back from; the solver leaves no option behind in the global PETSc database."""
 
+import logging
+
 import numpy as np
 import pytest
 import ufl
@@ -48,14 +50,13 @@ def test_cut_and_regrow():
     assert all(n > 1 for n in stepper.attempts)
 
 
-def test_failure_message_names_step_reason_cuts_and_last_load():
+def test_failure_message_names_step_reason_cuts_and_last_load(caplog):
     """The message says 'load step 1' (the user's count), the reason in words, how often the
     increment was cut and the loads tried, and the last converged load; the exception carries
-    the same as attributes."""
+    the same as attributes; each cut is logged (DEBUG)."""
+    caplog.set_level(logging.DEBUG, logger="fabricsurf.discretise.stepping")
     s = StubSolver(max_inc=1e-6)
-    logged = []
-    stepper = LoadStepper(s, s.set, lambda k, t, its: None, min_fraction=1e-3,
-                          log=logged.append)
+    stepper = LoadStepper(s, s.set, lambda k, t, its: None, min_fraction=1e-3)
     with pytest.raises(LoadStepError) as info:
         stepper.run([1.0])
     e = info.value
@@ -68,6 +69,7 @@ def test_failure_message_names_step_reason_cuts_and_last_load():
     assert msg.endswith("last converged load 0")
     assert (e.step, e.target, e.last_load, e.reason) == (1, 1.0, 0.0, -5)
     assert [t for t, _ in e.attempts] == [2.0**-i for i in range(10)]
+    logged = [r.getMessage() for r in caplog.records if r.levelno == logging.DEBUG]
     assert logged[0].startswith("step 1: SNES DIVERGED_MAX_IT (-5) at load 1;")
 
 

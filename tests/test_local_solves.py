@@ -1,4 +1,4 @@
-"""Rank-local forward solves (fabricsurf/inverse/fitting/local.py): a small mesh solved whole on
+"""Rank-local forward solves (fabricsurf/inverse/forward/ranks.py): a small mesh solved whole on
 every rank gives the distributed solve's fit (the same problem: equal to Newton's tolerance,
 asserted at 1e-7 relative; the fit's own steps are taken on numbers the ranks agree on bit for
 bit, and a repeated fit repeats them bit for bit), the ranks compute alike (no run needed rank
@@ -15,11 +15,11 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepError
-from fabricsurf.inverse.fitting import local
-from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.start import candidate_start
+from fabricsurf.inverse.forward import ranks as local
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
 COMM = MPI.COMM_WORLD
@@ -77,7 +77,7 @@ def test_rank_local_fit_equals_the_distributed_fit_and_repeats_bit_for_bit():
                                                                 {"A_g": 3.0}}),
                           h=4.0, local=mode) as fm:
             before = local.differed
-            res = fit(fm, free_of(fm, TRUTH), verbose=False)
+            res = fit(fm, free_of(fm, TRUTH))
             out.append((res.values, res.misfit["chi2"], res.iterations, local.differed - before))
     (v_dist, chi2_dist, _, _), (values, chi2, its, differed), again = out
     assert np.allclose(values, v_dist, rtol=1e-7, atol=0)

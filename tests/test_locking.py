@@ -43,7 +43,7 @@ def bias(ratio, h, mesh="auto"):
 
 
 def force_ratios(ratio, h) -> np.ndarray:
-    res = bias(ratio, h).run(UBAR[-1], len(UBAR), verbose=False)
+    res = bias(ratio, h).run(UBAR[-1], len(UBAR))
     ideal = kinematic_force(np.array(res.ubar), H, W, [Shear(k_s=K_S)])
     return np.array(res.force) / ideal
 
@@ -73,7 +73,7 @@ def test_zone_angles_follow_eq13(tmp_path):
     pts = np.array([[W / 6, W / 2], [W / 2, W / 6], [H / 2, W / 2]])
     angles = []
     out = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
-    res = b.run(UBAR[-1], len(UBAR), out=out, verbose=False,
+    res = b.run(UBAR[-1], len(UBAR), out=out,
                 on_step=lambda k, u: angles.append(np.degrees(b.fibre_fields_at(pts)[:, 2])))
     assert np.all(np.diff(res.tension_max) > 0) and res.tension_max[0] > 0
     MPI.COMM_WORLD.barrier()
@@ -145,7 +145,7 @@ def test_picture_frame_exact_at_any_fibre_stiffness(k):
     sides: its force is the closed form at every fibre stiffness K (to 1e-6: the round-off of
     the fibre terms, K times machine precision, enters the reaction; 7e-8 at K = 4e7 N/mm)."""
     from fabricsurf.experiments.picture_frame import frame_force_exact
-    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.forward.runs import ForwardModel
     from fabricsurf.inverse.synthetic import generate as sy
 
     exp = sy.template(80.0, 80.0, [6.0, 12.0, 20.0], np.zeros((0, 2)), angles=(0.0, 90.0),

@@ -1,4 +1,4 @@
-"""The diagnosis chooses the mesh it needs (fabricsurf/inverse/fitting/mesh_choice.py,
+"""The diagnosis chooses the mesh it needs (fabricsurf/inverse/diagnosis/mesh_choice.py,
 docs/diagnosis.md "Mesh selection").
 
 * Refining by 2 keeps a fibre-aligned bias mesh: wherever the plug-in's ``auto`` choice is the
@@ -20,11 +20,11 @@ import pytest
 from mpi4py import MPI
 
 from fabricsurf.cli import main
+from fabricsurf.geometry.aligned import lattice_divisions
+from fabricsurf.geometry.lattice_pair import pair_divisions
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.mesh_choice import Budget, _why_not
-from fabricsurf.inverse.fitting.report import Diagnosis
-from geometry.aligned import lattice_divisions
-from geometry.lattice_pair import pair_divisions
+from fabricsurf.inverse.diagnosis.mesh_choice import Budget, _why_not
+from fabricsurf.inverse.diagnosis.report import Diagnosis
 
 
 def _kind(length: float, width: float, h: float, theta: float) -> str:
@@ -89,7 +89,7 @@ def too_coarse_data():
     """Geodesic bending hidden, position clamps (their force converges at rate ~1 in h),
     data from a mesh finer than any the diagnosis builds, noise low enough that the default
     mesh's own error exceeds the noise band."""
-    from fabricsurf.inverse.fitting.diagnose import full_model
+    from fabricsurf.inverse.diagnosis.diagnose import full_model
     from fabricsurf.inverse.synthetic import generate as sy
 
     exp = sy.template(LENGTH, WIDTH, [1.0, 2.0], sy.grid_points(LENGTH, WIDTH, 6, 5),
@@ -129,12 +129,11 @@ def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
     assert levels[1]["dofs"] > 3.5 * levels[0]["dofs"]
     assert d["provenance"]["h_mm"] == [H0 / 2] == [m["h"] for m in
                                                        d["discretisation"]["meshes"]]
-    from fabricsurf.inverse.fitting.diagnose import diagnose
+    from fabricsurf.inverse.diagnosis.diagnose import diagnose
 
     finer = diagnose(exp, ["fibre_stretch", "shear"], h=H0 / 4, confirm=1, max_effects=1,
                      params={t: d["baseline"]["params"][t] for t in ("fibre_stretch", "shear")},
-                     warm_start=d["final"]["params"], check_discretisation=False,
-                     verbose=False)
+                     warm_start=d["final"]["params"], check_discretisation=False)
     assert finer.verdict == d["verdict"]
     for name, m in d["final"]["moduli"].items():
         t, p = name.split(".")
@@ -166,17 +165,17 @@ class _Level:
 def test_refinement_loop_stops_at_the_budget_on_every_rank(monkeypatch):
     """h halves while the check says too coarse; the refinement the budget refuses is named in
     the outcome's note; ranks whose clocks differ take the same decision (rank 0's)."""
-    import fabricsurf.inverse.fitting.mesh_choice as mc
+    import fabricsurf.inverse.diagnosis.mesh_choice as mc
 
     calls, checks = [], iter([400.0, 100.0, 30.0])
     monkeypatch.setattr(mc, "diagnose", lambda exps, b, h, **kw: _Level(h, next(checks), calls))
     exp = SimpleNamespace(test="bias_extension", setup=SimpleNamespace(length=25.0, width=20.0))
-    d = mc.diagnose_on_mesh(exp, ["shear"], verbose=False)
+    d = mc.diagnose_on_mesh(exp, ["shear"])
     assert calls == [[2.0], [1.0], [0.5]] and d.mesh_selection["stopped"] is None
     assert d.mesh_selection["refinements"] == 2 and d.mesh_note() == ""
     calls.clear()
     checks = iter([400.0, 100.0])
-    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(max_dofs=3300), verbose=False)
+    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(max_dofs=3300))
     assert calls == [[2.0], [1.0]]
     assert "refine h): the mesh budget is spent: h = 0.5 mm would have about 13,200 " \
            "unknowns, more than max_dofs = 3,300 (--max-dofs)" in d.mesh_note()
@@ -184,7 +183,7 @@ def test_refinement_loop_stops_at_the_budget_on_every_rank(monkeypatch):
     checks = iter([400.0, 100.0])
     clock = iter(np.arange(0.0, 1e4, 100.0) * (1 + 0.01 * MPI.COMM_WORLD.rank))
     monkeypatch.setattr(mc.MPI, "Wtime", lambda: float(next(clock)))
-    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(seconds=900.0), verbose=False)
+    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(seconds=900.0))
     assert len(calls) == 2 and "the time budget is spent" in d.mesh_selection["stopped"]
     assert MPI.COMM_WORLD.allgather(d.mesh_selection["stopped"]) == \
         [d.mesh_selection["stopped"]] * MPI.COMM_WORLD.size

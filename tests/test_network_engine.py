@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 
 from fabricsurf.network.engine import SpringNetwork
-from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, reaction, solve_steps
+from fabricsurf.network.equilibrium import (
+    ConvergenceError,
+    Dirichlet,
+    newton,
+    reaction,
+    solve_steps,
+)
 
 
 def random_network(seed=0, n=12, locking=False):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from fabricsurf.network.bipantographic import EPS_B, TABLE3, bipantographic_lattice
+from fabricsurf.network.equilibrium import newton
 from fabricsurf.network.homogenize import (
     a_rho_from_chain,
     a_theta_from_chain,
@@ -21,7 +22,6 @@ from fabricsurf.network.homogenize import (
     pantographic_chain,
     uniform_density,
 )
-from fabricsurf.network.solver import newton
 
 EPS = EPS_B
 K_E, K_R1, K_R2 = TABLE3["k_e"], TABLE3["k_r1"], TABLE3["k_r2"]

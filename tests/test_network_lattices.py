@@ -14,6 +14,7 @@ from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import CrossoverFriction, FibreStretch, Shear, ShearLocking
+from fabricsurf.network.equilibrium import Dirichlet, solve_steps
 from fabricsurf.network.hencky import (
     continuum_from_lattice,
     fibre_directions,
@@ -22,7 +23,6 @@ from fabricsurf.network.hencky import (
     spanning_spacing,
 )
 from fabricsurf.network.micromacro import grid_fields
-from fabricsurf.network.solver import Dirichlet, solve_steps
 
 K_L, K_S, A_G = 1.0, 0.3, 0.5  # N/mm, N/mm, N mm
 K4, K6 = 0.4, 0.2  # shear_locking moduli, N/mm

@@ -32,7 +32,7 @@ ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
 def solve(comm) -> np.ndarray:
     """Force, angles at A and B per step, and ‖u‖_L2 at the end (reduced over ``comm``)."""
     b = BiasExtension(h=16.0, comm=comm)
-    res = b.run(20.0, 2, verbose=False)
+    res = b.run(20.0, 2)
     u = b.problem.u
     dx = ufl.Measure("dx", domain=u.function_space.mesh, metadata={"quadrature_degree": 4})
     norm = np.sqrt(comm.allreduce(fem.assemble_scalar(fem.form(ufl.inner(u, u) * dx))))

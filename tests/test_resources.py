@@ -14,8 +14,8 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from fabricsurf.discretise.solver import SNESSolver
-from fabricsurf.inverse.fitting.diagnose import full_model
-from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet
+from fabricsurf.inverse.diagnosis.diagnose import full_model
+from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}

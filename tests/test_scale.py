@@ -26,10 +26,10 @@ from mpi4py import MPI
 from fabricsurf.cli import main
 from fabricsurf.discretise.output import write_json
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting.diagnose import diagnose, full_model
+from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.fitting.fit import fit, undetermined
-from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
 TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
@@ -83,7 +83,7 @@ def test_fit_of_1e5_residuals(big):
     with address_space_limit():
         with ForwardModel(exp, full_model(list(TRUTH), TRUTH), h=5.0) as fm:
             free = [i for i, (t, _) in enumerate(fm.params) if t.name in TRUTH]
-            res = fit(fm, free, verbose=False, scale_start=False, space="linear")
+            res = fit(fm, free, scale_start=False, space="linear")
         out = res.as_dict()
     n = res.misfit["n"]
     assert n > 10**5 and out["undetermined"] == []
@@ -107,8 +107,7 @@ def test_diagnose_then_compare_with_bands_of_1e5_residuals(big):
     comm = MPI.COMM_WORLD
     base = {k: v for k, v in TRUTH.items() if k != "geodesic_bending"}
     with address_space_limit():
-        d = diagnose(exp, list(base), h=5.0, params=base, confirm=1, max_effects=1,
-                     verbose=False)
+        d = diagnose(exp, list(base), h=5.0, params=base, confirm=1, max_effects=1)
         final = d.as_dict()["final"]
         write_json(comm, root / "model_best.json", d.final_fit.as_dict())
         assert main(["compare", str(root / "data"), "--params", str(root / "model_best.json"),

@@ -1,4 +1,4 @@
-"""The significance rule of a nested effect (fabricsurf/inverse/fitting/significance.py).
+"""The significance rule of a nested effect (fabricsurf/inverse/diagnosis/significance.py).
 
 The cases are those met on real data (docs/diagnosis.md, "Significant"): each of the two tests
 alone lets through a case the other stops.
@@ -6,7 +6,7 @@ alone lets through a case the other stops.
 
 import pytest
 
-from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.diagnosis import significance as sg
 
 
 @pytest.mark.parametrize("n", [30, 300, 3000])

@@ -16,18 +16,18 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fabricsurf.inverse.fitting.report import look_alikes
+from fabricsurf.inverse.diagnosis.report import look_alikes
 from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.slip import YarnSlip
 from fabricsurf.model.terms import EFFECTS, CrossoverFriction, FibreStretch, Shear
 from fabricsurf.network.engine import SpringNetwork
+from fabricsurf.network.equilibrium import Dirichlet, solve_steps
 from fabricsurf.network.hencky import (
     continuum_from_lattice,
     hencky_lattice,
     lattice_from_continuum,
 )
-from fabricsurf.network.solver import Dirichlet, solve_steps
 
 pytestmark = pytest.mark.serial("numpy lattices and one cell's density: nothing parallel "
                                  "(the term's forms run on 2 ranks in every diagnosis test)")
@@ -192,7 +192,7 @@ def test_locking_ratio_counts_the_sticking_yarns():
     """K/k_s with yarn_slip is (k_l + T_s/ε_s)/k_s = 140 here, above the ratio from which a
     mesh not aligned with the fibres locks (LOCKING_RATIO = 100): the run must warn. Taking the
     tension T_s for a stiffness gave max(k_l, T_s)/k_s = 6.7 and no warning."""
-    from fabricsurf.experiments import discretisation as disc
+    from fabricsurf.experiments import bias_mesh as disc
 
     model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), YarnSlip(T_s=T_S, eps_s=EPS_S)]
     assert disc.stiffness_ratio(model) == pytest.approx((K_L + T_S / EPS_S) / K_S)

@@ -123,7 +123,7 @@ def test_bias_continuum_follows_the_estimate_with_its_own_friction_angle(fibres)
     H, W = 230.0, 115.0
     model = [fibres, Shear(k_s=K_S), CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)]
     res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(
-        6.0, 3, verbose=False)
+        6.0, 3)
     d, force = np.array(res.ubar), np.array(res.force)
     new = force / tz.kinematic_force(d, H, W, model)
     old = force / tz.kinematic_force(d, H, W, [Shear(k_s=K_S), CrossoverFriction(tau_f=TAU_F)])

@@ -1,4 +1,4 @@
-"""The tie rule's statistic (fabricsurf/inverse/fitting/ties.py, docs/diagnosis.md "Ties") on
+"""The tie rule's statistic (fabricsurf/inverse/diagnosis/ties.py, docs/diagnosis.md "Ties") on
 residuals drawn here, no forward model: its resolution is that of Δχ² under the noise, so a
 difference of predictions |δ| is resolved when |δ|/2 exceeds the critical z, and correlated
 noise widens it; the separation of a candidate experiment (discrimination.py) is Σ(Δ/σ)²."""
@@ -8,9 +8,9 @@ import numpy as np
 from fabricsurf.experiments.picture_frame import frame_displacement, frame_shear_angle
 from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import template
-from fabricsurf.inverse.fitting import discrimination as dc
-from fabricsurf.inverse.fitting.forward import Prediction
-from fabricsurf.inverse.fitting.ties import vuong
+from fabricsurf.inverse.diagnosis import discrimination as dc
+from fabricsurf.inverse.diagnosis.ties import vuong
+from fabricsurf.inverse.forward.runs import Prediction
 
 N, G = 4000, 40
 LABELS = np.repeat(np.arange(G), N // G)

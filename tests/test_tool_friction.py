@@ -1,4 +1,4 @@
-"""Coulomb friction on the punch and over the die's lip (fabricsurf/experiments/forming_friction.py,
+"""Coulomb friction on the punch and over the die's lip (fabricsurf/experiments/forming/friction.py,
 docs/forming.md).
 
 One experiment of tests/test_hemisphere.py's set-up (the same model, mesh, tools and compiled
@@ -45,8 +45,8 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
@@ -67,7 +67,7 @@ def model():
             Twist(k_t=0.1)]
 
 
-def formed(e: HemisphereForming, mu_punch: float, mu_die: float, steps: int) -> dict:
+def formed(e: HemispherePlugin, mu_punch: float, mu_die: float, steps: int) -> dict:
     """Form from the flat blank with these tool coefficients: forces, work, energy change,
     dissipation, draw-in of the edge points, and the punch force of the frictionless formula."""
     e.tools.mu_punch.value, e.tools.mu_die.value = mu_punch, mu_die
@@ -105,8 +105,8 @@ PARALLEL = (f"all_{STEPS}",)
 
 def runs(comm, names=tuple(RUNS)) -> dict:
     """The runs the tests read, on one experiment."""
-    setup = Setup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING))
-    with HemisphereForming(setup, model(), H, comm) as e:
+    setup = PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING))
+    with HemispherePlugin(setup, model(), H, comm) as e:
         return {name: formed(e, *RUNS[name]) for name in names}
 
 
@@ -121,10 +121,10 @@ def numbers():
 def test_options(key, value, words):
     """Negative or absurd coefficients are refused before any computation, naming key and value;
     the defaults are 0 (frictionless, today's results)."""
-    opts = HemisphereForming.parse_options({"tooling": {"punch_radius": R}}, 1.0, "t")
+    opts = HemispherePlugin.parse_options({"tooling": {"punch_radius": R}}, 1.0, "t")
     assert opts[key] == 0.0
     with pytest.raises(DataError, match=rf"\[tooling\] {key} " + words.format(key)):
-        HemisphereForming.parse_options({"tooling": {"punch_radius": R, key: value}}, 1.0, "t")
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": R, key: value}}, 1.0, "t")
 
 
 @pytest.mark.serial("1 = 2 ranks: test_serial_matches_two_ranks runs the same under mpirun")

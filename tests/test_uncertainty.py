@@ -6,9 +6,9 @@ contract keys of a fit. Linear models and numpy only: seconds."""
 import numpy as np
 from scipy import stats
 
-from fabricsurf.inverse.fitting import intervals, systematic
-from fabricsurf.inverse.fitting import uncertainty as unc
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.inverse.uncertainty import intervals, systematic
+from fabricsurf.inverse.uncertainty import statistical as unc
 
 RNG = np.random.default_rng(7)
 G, M, RHO = 60, 10, 0.5  # blocks, residuals per block, correlation inside a block
@@ -198,11 +198,11 @@ def test_fit_contract_and_params_read_back(tmp_path):
     from mpi4py import MPI
 
     from fabricsurf.discretise.output import write_json
-    from fabricsurf.inverse.fitting.diagnose import full_model
+    from fabricsurf.inverse.diagnosis.diagnose import full_model
+    from fabricsurf.inverse.diagnosis.report import result_lines
     from fabricsurf.inverse.fitting.fit import fit
-    from fabricsurf.inverse.fitting.forward import ForwardModel
     from fabricsurf.inverse.fitting.params import load_params
-    from fabricsurf.inverse.fitting.report import result_lines
+    from fabricsurf.inverse.forward.runs import ForwardModel
 
     comm = MPI.COMM_WORLD
     truth = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4}}
@@ -211,7 +211,7 @@ def test_fit_contract_and_params_read_back(tmp_path):
     sy.add_noise(exp, 0.005, 0.005, 5)
     fm = ForwardModel(exp, full_model(list(truth), truth), h=4.0, comm=comm)
     free = [i for i, (t, _) in enumerate(fm.params) if t.name in truth]
-    res = fit(fm, free, verbose=False, scale_start=False)
+    res = fit(fm, free, scale_start=False)
     res.check_mesh(fm)
     saved = res.as_dict()
     assert set(saved["moduli"]) == {"fibre_stretch.k_l", "fibre_stretch.k_m", "shear.k_s"}
@@ -241,8 +241,8 @@ def bands_from_the_saved_fit(fit_json, exp, truth: dict, comm) -> None:
 
     from fabricsurf.cli import main
     from fabricsurf.inverse.contract.data import write_experiment
-    from fabricsurf.inverse.fitting.diagnose import full_model
-    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.diagnosis.diagnose import full_model
+    from fabricsurf.inverse.forward.runs import ForwardModel
 
     root = fit_json.parent
     if comm.rank == 0:

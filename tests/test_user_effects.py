@@ -20,10 +20,10 @@ from mpi4py import MPI
 from test_hardening import good_experiment, rejected_message, run_cli
 
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.fitting.diagnose import check_unsigned, full_model, visible_effects
+from fabricsurf.inverse.diagnosis.diagnose import check_unsigned, full_model, visible_effects
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
 from fabricsurf.inverse.fitting.params import load_params
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.registry import BUILTIN
 from fabricsurf.model.terms import EFFECTS, make_term, parse_terms
@@ -226,7 +226,7 @@ def test_python_api(registered, root):
     exp = load_experiment(root / "st")
     start = parse_terms(TERMS, {"fibre_stretch": {"k_l": 20.0, "k_m": 20.0},
                                 "shear": {"k_s": 0.5}, "shear_tension": {"k_c": 1.0}})
-    res = fit(ForwardModel(exp, start, h=10.0), verbose=False)
+    res = fit(ForwardModel(exp, start, h=10.0))
     np.testing.assert_allclose(res.values, [25.0, 25.0, 0.4, 2.0], rtol=1e-3)
     # a diagnosis candidate by default, like a built-in the data can see (at modulus 0)
     assert "shear_tension" in visible_effects([exp])
@@ -271,7 +271,7 @@ def test_register_effect_decorator_and_signed_moduli(tmp_path):
             check_unsigned(["shear", "coupling_test"])
         fake = SimpleNamespace(params=[(make_term("coupling_test"), "k_c")])
         with pytest.raises(ValueError, match=r"coupling_test\.k_c may be negative"):
-            fit(fake, verbose=False)
+            fit(fake)
     finally:
         EFFECTS.unregister("coupling_test")
     assert "coupling_test" not in EFFECTS

@@ -1,4 +1,4 @@
-"""Warm starts of the forward runs (fabricsurf/inverse/fitting/warm_start.py): a fit gives the
+"""Warm starts of the forward runs (fabricsurf/inverse/forward/warm_start.py): a fit gives the
 same moduli and χ² as with every load step started cold, to what Newton's tolerance allows,
 with fewer Newton iterations; the load stepper falls back to the last converged state when
 Newton fails from a predicted one.
@@ -9,14 +9,16 @@ two converged states differ by about 1e-10 / k in displacement (k ≥ 0.4 N/mm h
 relative precision, and a fit that takes the same steps ends at moduli and χ² that agree to
 well below 1e-6 (the fit's own stopping tolerance on χ² is 1e-6)."""
 
+import logging
+
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepper
-from fabricsurf.inverse.fitting import warm_start
-from fabricsurf.inverse.fitting.diagnose import full_model
+from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardModel
+from fabricsurf.inverse.forward import warm_start
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
 TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
@@ -42,7 +44,7 @@ def one_fit(exp, warm: bool):
 
             fm.run = counted
             free = [i for i, (t, _) in enumerate(fm.params) if t.name in TRUTH]
-            res = fit(fm, free, verbose=False, scale_start=False, space="linear")
+            res = fit(fm, free, scale_start=False, space="linear")
             return res, newton
     finally:
         warm_start.ENABLED = old
@@ -92,17 +94,17 @@ class Stub:
         return -5, 25
 
 
-def test_stepper_uses_a_good_prediction_and_falls_back_from_a_bad_one():
+def test_stepper_uses_a_good_prediction_and_falls_back_from_a_bad_one(caplog):
     s = Stub(basin=1.5)
     stepper = LoadStepper(s, s.set, predictor=lambda k, t: np.array([t + 0.1]))
     assert stepper.run([1.0, 2.0, 3.0]) == [1, 1, 1]
     assert stepper.predicted == [True, True, True] and stepper.attempts == [1, 1, 1]
     s = Stub(basin=1.5)
-    logged = []
-    stepper = LoadStepper(s, s.set, predictor=lambda k, t: np.array([t + 10.0]),
-                          log=logged.append)
+    caplog.set_level(logging.DEBUG, logger="fabricsurf.discretise.stepping")
+    stepper = LoadStepper(s, s.set, predictor=lambda k, t: np.array([t + 10.0]))
     assert stepper.run([1.0, 2.0]) == [26, 26]  # the failed start's 25, then one from u_k−1
     assert stepper.predicted == [False, False] and s.u.x.array[0] == 2.0
+    logged = [r.getMessage() for r in caplog.records]
     assert logged[0].startswith("step 1: SNES DIVERGED_MAX_IT (-5) from the predicted state")
     stepper = LoadStepper(s, s.set, predictor=lambda k, t: None)
     s.u.x.array[:] = 0.0

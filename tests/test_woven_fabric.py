@@ -16,7 +16,7 @@ benchmark formulas are exact.
 import numpy as np
 
 from fabricsurf.experiments import three_zone as tz
-from fabricsurf.inverse.fitting.diagnose import diagnose
+from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.terms import Shear, ShearLocking
 
@@ -47,7 +47,7 @@ def test_hidden_locking_in_lattice_data_is_diagnosed():
     sy.add_noise(exp, 0.01, 0.02, 7)
     assert np.degrees(tz.zone_c_shear_angle(6.8, 48.0, 24.0)) > 40.0
     d = diagnose(exp, ["fibre_stretch", "shear"], h=4.0, confirm=1, max_effects=1,
-                 check_discretisation=False, verbose=False)
+                 check_discretisation=False)
     print(d.base_fit.misfit["combined"], [(r["effect"], r["score"], r["refit_misfit"])
                                           for r in d.ranking], d.final_fit.params())
     assert d.verdict == "shear_locking" == d.ranking[0]["effect"]

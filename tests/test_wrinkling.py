@@ -1,4 +1,4 @@
-"""The wrinkling indicator of the hemisphere plug-in (fabricsurf/experiments/wrinkling.py)
+"""The wrinkling indicator of the hemisphere plug-in (fabricsurf/experiments/forming/indicators.py)
 against the flange's out-of-plane amplitude (fabricsurf/verification/wrinkling.py,
 docs/forming.md "Wrinkling").
 
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.hemisphere import HemisphereForming
-from fabricsurf.experiments.wrinkling import Indicators
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.forming.indicators import Indicators
+from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification import wrinkling
 
@@ -47,9 +47,9 @@ def model():
 def states():
     """The comparison (wrinkling.compare, with the curvature flag at κ_w = 1/R) and the
     buckling estimate at every step, by stroke; the experiment, formed to STROKE."""
-    setup = Setup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING))
+    setup = PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING))
     out = {}
-    e = HemisphereForming(setup, model(), H, COMM)
+    e = HemispherePlugin(setup, model(), H, COMM)
 
     def look(k: int, s: float) -> None:
         out[s] = {**wrinkling.compare(e, BOUND, (1.0 / R,)), "buckling": wrinkling.buckling(e)}

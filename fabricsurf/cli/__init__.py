@@ -9,9 +9,11 @@ its step log and a failure.json, not the fields) or removed
 mpirun's own: Open MPI 4.1 returns 1 when it is itself interrupted, whatever its ranks return
 (a job whose ranks exit with 130 by themselves gives 130), so 130 holds for serial runs only;
 an unexpected failure on one rank aborts all ranks instead of leaving the
-others waiting. The JIT compiler's messages (FFCx, UFL and the C compiler lines that cffi logs
-through the root logger) are hidden unless ``--verbose``; the package's own warnings print as
-one line ``warning: …`` (:func:`fabricsurf.log.package_warnings`). The environment (the JIT
+others waiting. Messages go to standard output on rank 0 through
+:func:`fabricsurf.log.configure` while a command runs: progress by default, details too with
+``-v/--verbose`` (which also shows the JIT compiler's messages: FFCx, UFL and the C compiler
+lines that cffi logs through the root logger), warnings and errors only with ``-q/--quiet``;
+a warning is one line ``warning: …``, with ``--quiet`` too. The environment (the JIT
 compiler's directories under HOME, FABRICSURF_LOCAL_CELLS) is checked before any computation
 (:mod:`fabricsurf.cli.environment`).
 
@@ -37,8 +39,9 @@ from mpi4py import MPI
 from fabricsurf.cli.effects import add_effects, user_effects
 from fabricsurf.cli.environment import check_environment
 from fabricsurf.errors import InputError
-from fabricsurf.log import package_warnings, progress, rank0_print
+from fabricsurf.log import configure, level_of, rank0
 
+logger = logging.getLogger(__name__)
 COMM = MPI.COMM_WORLD
 JIT_LOGGERS = ("ffcx", "UFL", "UFL_LEGACY", "dolfinx")
 
@@ -59,15 +62,15 @@ def cmd_terms(args) -> int:
     from fabricsurf.model.registry import BUILTIN
     from fabricsurf.model.terms import EFFECTS
 
-    rank0_print(COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
-                      "docs/vocabulary.md). Use the names in --terms and --params.")
+    rank0(logger, COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
+                        "docs/vocabulary.md). Use the names in --terms and --params.")
     for name, cls in EFFECTS.items():
         units = ", ".join(f"{p} ({cls.units.get(p, '?')}{', signed' * (p in cls.signed)})"
                           for p in cls.parameters())
         doc = ((cls.__doc__ or "").strip().splitlines() or [""])[0]
         origin = EFFECTS.origin(name)
         where = "" if origin == BUILTIN else f"\n{'':18s} (your effect, from {origin})"
-        rank0_print(COMM, f"{name:18s} {units}\n{'':18s} {doc}{where}")
+        rank0(logger, COMM, f"{name:18s} {units}\n{'':18s} {doc}{where}")
     return 0
 
 
@@ -100,8 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
 def _verbose(p: argparse.ArgumentParser, default) -> None:
     """``--verbose`` and ``--quiet`` before or after the command (SUPPRESS: the command's copy
     does not overwrite the value given before it)."""
-    p.add_argument("--verbose", action="store_true", default=default,
-                   help="show the JIT compiler's messages (FFCx, UFL, C compiler)")
+    p.add_argument("-v", "--verbose", action="store_true", default=default,
+                   help="details too (the 'fabricsurf' logger at DEBUG) and the JIT "
+                   "compiler's messages (FFCx, UFL, C compiler)")
     p.add_argument("-q", "--quiet", action="store_true", default=default,
                    help="no progress messages, only warnings and errors (the 'fabricsurf' "
                    "logger at WARNING)")
@@ -241,27 +245,28 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    """The command, its errors turned into one message and the exit status."""
-    try:
-        with compiler_messages(args.verbose), progress(not args.quiet), \
-                package_warnings(COMM.rank):
-            check_environment(COMM, args.command)
-            with user_effects(args):
-                return args.func(args)
-    except (InputError, OSError) as e:
-        rank0_print(COMM, f"fabricsurf {args.command}: error: {e}", level=logging.ERROR)
-        return 2
-    except RuntimeError as e:
-        rank0_print(COMM, f"fabricsurf {args.command}: failed: {e}", level=logging.ERROR)
-        return 2
-    except Exception:
-        if COMM.size > 1:
-            import traceback
+    """The command, its errors turned into one message and the exit status; the messages
+    configured (:func:`fabricsurf.log.configure`) for the command only."""
+    with configure(level_of(args.verbose, args.quiet), COMM):
+        try:
+            with compiler_messages(args.verbose):
+                check_environment(COMM, args.command)
+                with user_effects(args):
+                    return args.func(args)
+        except (InputError, OSError) as e:
+            rank0(logger, COMM, f"fabricsurf {args.command}: error: {e}", level=logging.ERROR)
+            return 2
+        except RuntimeError as e:
+            rank0(logger, COMM, f"fabricsurf {args.command}: failed: {e}", level=logging.ERROR)
+            return 2
+        except Exception:
+            if COMM.size > 1:
+                import traceback
 
-            traceback.print_exc()
-            sys.stderr.flush()
-            COMM.Abort(1)
-        raise
+                traceback.print_exc()
+                sys.stderr.flush()
+                COMM.Abort(1)
+            raise
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ prediction band (docs/uncertainty.md): OUT/force_band.csv, OUT/force_band.png an
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 from pathlib import Path
 
@@ -34,34 +35,17 @@ from fabricsurf.discretise.energy import has_second_gradient
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
-from fabricsurf.experiments.bias_extension import BiasExtension, BiasResult, default_model
+from fabricsurf.experiments.bias_extension import BiasExtension, default_model
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.plots.bias_curves import bias_curves
+from fabricsurf.log import rank0
 from fabricsurf.model.terms import EFFECTS
+
+log = logging.getLogger(__name__)
 
 OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
            "force.png", "force_band.csv", "force_band.png", "summary.json", "failure.json")
 
-
-
-def plot_curves(res: BiasResult, path: Path, label: str = "continuum") -> None:
-    """Force and shear angles at A and B against ū (PNG; call on rank 0)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
-    ax[0].plot(res.ubar, res.force, "o-", label=label)
-    ax[0].set(xlabel="grip displacement ū (mm)", ylabel="reaction force (N)")
-    ax[1].plot(res.ubar, res.angle_A_deg, "o-")
-    ax[1].set(xlabel="ū (mm)", ylabel="shear angle at A (deg)")
-    ax[2].plot(res.ubar, res.angle_B_deg, "o-")
-    ax[2].set(xlabel="ū (mm)", ylabel="shear angle at B (deg)")
-    ax[0].legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=out_path, default=Path("out/bias"),
@@ -183,12 +167,12 @@ def run(args: argparse.Namespace) -> int:
     saved = saved_fit(args)
     od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS,
                    inputs=((f"--params {args.params}", args.params),) if args.params else ())
-    rank0_print(comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
+    rank0(log, comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
                       f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
                       f"on {comm.size} rank(s)")
     defaulted = defaulted_moduli(model, params) if args.params else []
     if defaulted:  # a partial --params file: the rest are the terms' defaults, said
-        rank0_print(comm, f"note: --params {args.params} gives no value for "
+        rank0(log, comm, f"note: --params {args.params} gives no value for "
                           f"{', '.join(defaulted)}: the term's default is used")
     with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
@@ -196,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
                    "discretisation": test.discretisation,
                    "angle_A_mesh_dependent": not has_second_gradient(model)}
         if summary["angle_A_mesh_dependent"]:
-            rank0_print(comm, ANGLE_A_NOTE)
+            rank0(log, comm, ANGLE_A_NOTE)
         done: list[int] = []
 
         od.on_interrupt = lambda stage_dir: interrupted_report(  # no MPI call in there
@@ -212,12 +196,12 @@ def run(args: argparse.Namespace) -> int:
         if saved is not None:
             band = summary["force_band"] = _band(args, model, ubar, saved, stage, comm)
             half, F = band["half_width"][-1], band["force"][-1]
-            rank0_print(comm, f"prediction band at ubar = {ubar:g} mm: {F:.4g} ± {half:.2g} N "
+            rank0(log, comm, f"prediction band at ubar = {ubar:g} mm: {F:.4g} ± {half:.2g} N "
                               f"(95 %; linearisation "
                               f"{'holds' if band['reliable'] else 'fails: refit instead'})")
         write_json(comm, stage / "summary.json", summary)
-        on_rank0(comm, plot_curves, res, stage / "force.png")
-    rank0_print(comm, f"done in {res.seconds:.1f} s; XDMF, force curve and summary in {args.out}")
+        on_rank0(comm, bias_curves, res, stage / "force.png")
+    rank0(log, comm, f"done in {res.seconds:.1f} s; XDMF, force curve and summary in {args.out}")
     return 0
 
 

@@ -1,9 +1,12 @@
 """What every demo in demos/ shares: its command line and the checks it declares on its
 summary.json.
 
-**Command line.** ``--out DIR``, ``--quick`` and ``--verbose`` (:func:`demo_parser`); after
-:func:`parse` the JIT compiler stays quiet for the rest of the run unless ``--verbose``, with
-the mechanism of the ``fabricsurf`` command (:func:`fabricsurf.cli.compiler_messages`).
+**Command line.** ``--out DIR``, ``--quick``, ``-v/--verbose`` and ``-q/--quiet``
+(:func:`demo_parser`); :func:`parse` configures the messages for the rest of the run as the
+``fabricsurf`` command does (:func:`fabricsurf.log.configure`: the demo's own, logged through
+``logging.getLogger(__name__)``, and the package's, on rank 0, flushed; details with
+``--verbose``, warnings only with ``--quiet``) and keeps the JIT compiler quiet unless
+``--verbose`` (:func:`fabricsurf.cli.compiler_messages`).
 
 **Checks.** One module-level ``CHECKS`` dict of the demo script, read both by the demo itself
 (at its end, :func:`verify`) and by tests/test_demos.py (from the source, :func:`declared`,
@@ -34,16 +37,21 @@ def demo_parser(description: str | None, out: str) -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--out", type=Path, default=Path(out), help="output directory")
     ap.add_argument("--quick", action="store_true", help="small and fast (the test suite)")
-    ap.add_argument("--verbose", action="store_true",
-                    help="show the JIT compiler's messages (FFCx, UFL, C compiler)")
+    ap.add_argument("-v", "--verbose", action="store_true",
+                    help="details too, and the JIT compiler's messages (FFCx, UFL, C compiler)")
+    ap.add_argument("-q", "--quiet", action="store_true",
+                    help="no progress messages, only warnings and errors")
     return ap
 
 
 def parse(ap: argparse.ArgumentParser, argv: list[str] | None = None) -> argparse.Namespace:
-    """Parse the options and, unless ``--verbose``, hide the compiler from here on."""
+    """Parse the options, configure the messages (:func:`fabricsurf.log.configure`) and,
+    unless ``--verbose``, hide the compiler, from here on."""
     from fabricsurf.cli import compiler_messages
+    from fabricsurf.log import configure, level_of
 
     args = ap.parse_args(argv)
+    _QUIET.enter_context(configure(level_of(args.verbose, args.quiet)))
     _QUIET.enter_context(compiler_messages(args.verbose))
     return args
 

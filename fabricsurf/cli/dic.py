@@ -10,15 +10,17 @@ nothing is written to DIR unless the whole import succeeds (cli.outdir).
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
-import numpy as np
 from mpi4py import MPI
 
 from fabricsurf import __version__
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import on_rank0, write_json
-from fabricsurf.log import rank0_print
+from fabricsurf.log import rank0
+
+log = logging.getLogger(__name__)
 
 COMM = MPI.COMM_WORLD
 OUTPUTS = ("experiment.toml", "field.csv", "force.csv", "dic_import.json")
@@ -36,20 +38,11 @@ def add_parser(sub, formatter) -> None:
 
 
 def write_directory(stage: Path, exp, report: dict) -> None:
-    """The contract files of ``exp`` (mm, N) and the report, into ``stage`` (one rank)."""
-    from fabricsurf.inverse.contract.writer import toml_text
+    """The contract files of ``exp`` (mm, N; the contract's own writer, full precision) and the
+    report, into ``stage`` (one rank)."""
+    from fabricsurf.inverse.contract.writer import write_files
 
-    (stage / "experiment.toml").write_text(toml_text(exp))
-    comps = ["ux", "uy", "uz"][: exp.u.shape[1]]
-    table = np.column_stack([exp.field_step, exp.X, exp.u])
-    with open(stage / "field.csv", "w") as fh:
-        fh.write(",".join(["step", "X", "Y", *comps]) + "\n")
-        np.savetxt(fh, table, fmt=["%d"] + ["%.10g"] * (table.shape[1] - 1), delimiter=",")
-    if exp.has_force:
-        with open(stage / "force.csv", "w") as fh:
-            fh.write("step,displacement,force\n")
-            np.savetxt(fh, np.column_stack([exp.steps, exp.path, exp.force]),
-                       fmt=["%d", "%.10g", "%.10g"], delimiter=",")
+    write_files(stage, exp)
     write_json(MPI.COMM_SELF, stage / "dic_import.json", report)
 
 
@@ -110,5 +103,5 @@ def run(args: argparse.Namespace) -> int:
     od = OutputDir(args.out, COMM, files=OUTPUTS, inputs=_inputs(args.spec))
     with od as stage:
         message = on_rank0(COMM, _import, args.spec, stage)
-    rank0_print(COMM, f"{message}\nmeasurement directory: {args.out}")
+    rank0(log, COMM, f"{message}\nmeasurement directory: {args.out}")
     return 0

@@ -2,7 +2,7 @@
 "Environment"): what would otherwise fail deep inside a run, with a traceback naming neither the
 variable nor the remedy.
 
-* ``FABRICSURF_LOCAL_CELLS`` (:func:`fabricsurf.inverse.fitting.local.local_cells`): read when
+* ``FABRICSURF_LOCAL_CELLS`` (:func:`fabricsurf.inverse.forward.ranks.local_cells`): read when
   the first forward model is built, by rank 0 alone; a bad value ended a 2-rank ``compare``
   with a ValueError traceback and MPI_ABORT, and was ignored by a serial run.
 * The JIT compiler's files, under ``HOME`` unless ``XDG_CONFIG_HOME`` / ``XDG_CACHE_HOME`` say
@@ -45,7 +45,7 @@ def check_environment(comm: MPI.Comm, command: str) -> None:
 
 
 def local_cells() -> None:
-    from fabricsurf.inverse.fitting.local import local_cells as threshold
+    from fabricsurf.inverse.forward.ranks import local_cells as threshold
 
     threshold()
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 from collections.abc import Iterator
 
 from mpi4py import MPI
@@ -38,17 +39,19 @@ from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment
-from fabricsurf.inverse.fitting.mesh_choice import (
+from fabricsurf.inverse.diagnosis.mesh_choice import (
     DEFAULT_MAX_DOFS,
     DEFAULT_SECONDS,
     LEVEL_GROWTH,
 )
-from fabricsurf.inverse.fitting.misfit import converged_steps
+from fabricsurf.inverse.diagnosis.report import misfit_summary, result_lines, tie_lines
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
-from fabricsurf.inverse.fitting.report import misfit_summary, result_lines, tie_lines
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.forward.misfit import converged_steps
+from fabricsurf.log import rank0, warn
 from fabricsurf.model.terms import EFFECTS
+
+log = logging.getLogger(__name__)
 
 COMM = MPI.COMM_WORLD
 def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
@@ -100,7 +103,7 @@ def _setup(args, refine: int = 1):
     for e in exps:
         warning = unloading_warning(e, model)
         if warning:
-            rank0_print(COMM, f"warning: {warning}")
+            warn(log, COMM, str(warning))
     if args.h is not None:
         check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
                    args.max_elements, refine)
@@ -129,46 +132,41 @@ def _failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
                            ) from None
 
 
-def _prov(model, fs, args) -> dict:
+def _prov(model, args, h: list[float], discretisation: dict) -> dict:
     """The provenance of a compare or fit, with the mesh kind, size and fibre treatment each
-    experiment actually got (the plug-in's record, where it keeps one)."""
-    prov = provenance(model, [str(d) for d in args.data], [m.h for m in fs.models])
-    prov["discretisation"] = {m.exp.name: getattr(m.test, "discretisation", None)
-                              for m in fs.models}
-    return {"provenance": prov}
+    experiment actually got (``discretisation``: the plug-in's record, where it keeps one)."""
+    prov = provenance(model, [str(d) for d in args.data], h)
+    return {"provenance": prov | {"discretisation": discretisation}}
 
 
 def cmd_compare(args) -> int:
-    from fabricsurf.inverse.fitting.forward import ForwardSet
-    from fabricsurf.inverse.plots.outputs import write_bands, write_comparison
+    from fabricsurf.inverse.fitting.compare import compare
+    from fabricsurf.inverse.plots.comparison_bands import write_band_files
+    from fabricsurf.inverse.plots.outputs import write_comparison
 
     exps, model, params = _setup(args)
     steps = error_map_steps(args.steps, exps)
     note = compare_moduli(args, model, params)  # refuses moduli a --params file lacks
     saved = saved_fit(args)
-    od = OutputDir(args.out, COMM, files=("misfit.json",),
-                   inputs=input_paths(args, exps))
+    od = OutputDir(args.out, COMM, files=("misfit.json",), inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         if note:
-            rank0_print(COMM, note)
-        with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
-            preds = fs.run()
-            m = fs.misfit(preds)
-            extra = _prov(model, fs, args)
-            if saved is not None:
-                try:
-                    extra["force_bands"] = write_bands(stage, fs, saved, COMM)
-                except ValueError as e:
-                    raise InputError(f"--params {args.params}: {e}") from None
-        label = "+".join(t.name for t in model)
-        write_comparison(stage, exps, [(label, preds)], [(label, m)], steps, extra=extra)
-    rank0_print(COMM, misfit_summary(label, m))
+            rank0(log, COMM, note)
+        res = compare(exps, model, h=args.h, band=saved, comm=COMM)
+        extra = _prov(model, args, res.h, res.discretisation)
+        if res.bands is not None:
+            write_band_files(stage, exps, res.bands, COMM)
+            extra["force_bands"] = res.band_summary()
+        write_comparison(stage, exps, [(res.label, res.predictions)],
+                         [(res.label, res.misfit)], steps, extra=extra)
+    rank0(log, COMM, misfit_summary(res.label, res.misfit))
     return 0
 
 
 def cmd_fit(args) -> int:
+    from fabricsurf.inverse.fitting.compare import records
     from fabricsurf.inverse.fitting.fit import fit
-    from fabricsurf.inverse.fitting.forward import ForwardSet
+    from fabricsurf.inverse.forward.runs import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
     exps, model, _ = _setup(args, refine=2)
@@ -178,35 +176,21 @@ def cmd_fit(args) -> int:
                    inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
-            res = fit(fs, verbose=True)
+            res = fit(fs)
             res.check_mesh(fs)
-            extra = _prov(model, fs, args)
+            extra = _prov(model, args, [m.h for m in fs.models], records(fs))
         write_json(COMM, stage / "fit.json", res.as_dict() | extra)
         label = "fit: " + "+".join(t.name for t in model)
         write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
     for line in result_lines(res.as_dict()):
-        rank0_print(COMM, line)
-    rank0_print(COMM, misfit_summary(label, res.misfit))
+        rank0(log, COMM, line)
+    rank0(log, COMM, misfit_summary(label, res.misfit))
     return 0
 
 
-def separate_tie(d, exps, h, stage) -> None:
-    """For a tie, the experiments that would separate it (``d.separating_experiment``) and the
-    map of the two models' difference (tie_difference_map.png in ``stage``)."""
-    from fabricsurf.inverse.fitting.discrimination import design
-    from fabricsurf.inverse.plots import figures
-
-    if not d.tied():
-        return
-    a, b = d.tie.members[:2]
-    des = design(exps, d.tie.refits[a], d.tie.refits[b], [a, b], h=h, comm=COMM)
-    d.separating_experiment = des.as_dict()
-    on_rank0(COMM, figures.difference_map, des.maps, [a, b],
-             stage / "tie_difference_map.png")
-
-
 def cmd_diagnose(args) -> int:
-    from fabricsurf.inverse.fitting.mesh_choice import diagnose_on_mesh
+    from fabricsurf.inverse.diagnosis.discrimination import separate_tie
+    from fabricsurf.inverse.diagnosis.mesh_choice import diagnose_on_mesh
     from fabricsurf.inverse.plots import figures
     from fabricsurf.inverse.plots.outputs import write_comparison
 
@@ -227,7 +211,10 @@ def cmd_diagnose(args) -> int:
                                  candidates=candidates, fixed=fixed, grip_depths=depths)
         except ValueError as e:
             raise InputError(str(e)) from None
-        separate_tie(d, exps, args.h, stage)
+        d, tie = separate_tie(d, exps, args.h, COMM)
+        if tie is not None:
+            on_rank0(COMM, figures.difference_map, tie.maps, tie.effects,
+                     stage / "tie_difference_map.png")
         out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
                                                       [m["h"] for m in d.meshes])}
         write_json(COMM, stage / "diagnosis.json", out)
@@ -242,24 +229,24 @@ def cmd_diagnose(args) -> int:
                 write_json(COMM, stage / "model_best.json", f.as_dict())
         on_rank0(COMM, figures.misfit_path, d.path, stage / "misfit_path.png")
     if d.grip_depth is not None:
-        rank0_print(COMM, f"grip depth: {d.grip_depth['best_mm']:g} mm (the best of "
+        rank0(log, COMM, f"grip depth: {d.grip_depth['best_mm']:g} mm (the best of "
                     f"{[q['depth_mm'] for q in d.grip_depth['profile']]})")
-    rank0_print(COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
+    rank0(log, COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
     for r in d.ranking:
-        rank0_print(COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
+        rank0(log, COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
                     f"{r['refit_misfit']}  Wald p {r.get('wald_p')}  significant "
                     f"{r['significant']}")
     for line in tie_lines(d):
-        rank0_print(COMM, line)
-    rank0_print(COMM, f"verdict: {d.verdict_text()}; final {'+'.join(d.terms)} misfit "
+        rank0(log, COMM, line)
+    rank0(log, COMM, f"verdict: {d.verdict_text()}; final {'+'.join(d.terms)} misfit "
                 f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}")
     for line in result_lines(out["final"]):
-        rank0_print(COMM, line)
+        rank0(log, COMM, line)
     lead = (d.unexplained or {}).get("best_lead")
     if lead:
         wald = "no Wald test" if lead["wald_p"] is None else \
             f"Wald p = {lead['wald_p']:.3g} (must be below {lead['wald_p_needed']:.3g})"
-        rank0_print(COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
+        rank0(log, COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
                     f"the excess misfit; {wald}; F-test "
                     f"{'passed' if lead['f_test_passed'] else 'failed'} (both are needed)")
     return 0

@@ -104,8 +104,8 @@ def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
 
 def mesh_budget(args):
     """``--max-dofs`` and ``--time-budget`` of diagnose (with ``--max-elements``) as the mesh
-    selection's budget (:class:`~fabricsurf.inverse.fitting.mesh_choice.Budget`)."""
-    from fabricsurf.inverse.fitting.mesh_choice import Budget
+    selection's budget (:class:`~fabricsurf.inverse.diagnosis.mesh_choice.Budget`)."""
+    from fabricsurf.inverse.diagnosis.mesh_choice import Budget
 
     if args.max_dofs < 1:
         raise InputError(f"--max-dofs {args.max_dofs}: must be at least 1 (displacement "
@@ -193,7 +193,7 @@ def grip_depths(spec: str | None, exps: list) -> list[float] | None:
     """``--grip-depths``: comma-separated depths in mm, checked against the experiments."""
     if spec is None:
         return None
-    from fabricsurf.inverse.fitting.nuisance import check_depths
+    from fabricsurf.inverse.diagnosis.nuisance import check_depths
 
     depths = number_list(spec, "--grip-depths", float, "depths in mm, e.g. 0,0.5,1")
     try:
@@ -206,10 +206,10 @@ def grip_depths(spec: str | None, exps: list) -> list[float] | None:
 def diagnose_options(args, exps: list, model: list, params: dict
                       ) -> tuple[list[str] | None, list[str] | None]:
     """--candidates, --fixed, --confirm and --max-effects, checked against the vocabulary, the
-    baseline (--terms), the data and --params (:mod:`~fabricsurf.inverse.fitting.choices`,
+    baseline (--terms), the data and --params (:mod:`~fabricsurf.inverse.diagnosis.choices`,
     the library's own checks, worded with the options' names)."""
-    from fabricsurf.inverse.fitting.choices import Labels, check_choices
-    from fabricsurf.inverse.fitting.diagnose import check_unsigned, visible_effects
+    from fabricsurf.inverse.diagnosis.choices import Labels, check_choices
+    from fabricsurf.inverse.diagnosis.diagnose import check_unsigned, visible_effects
 
     baseline = [t.name for t in model]
     cands, fixed = name_list(args.candidates), name_list(args.fixed)

@@ -18,7 +18,9 @@ state, e.g. the bi-pantographic coefficients, evaluates them on a DG0 field); on
 facet the larger of the two cells' values is taken, so the penalty dominates on both sides.
 The constants belong to the form: an EnergyForm asks each term for its own on its mesh
 (``Term.constants``) and builds every expression from them, so forms on several meshes, of one
-model or several, never share or swap constants.
+model or several, never share or swap constants. An EnergyForm (and a FabricProblem) binds the
+very term objects it is given, so ``Term.set`` on them reaches it; the tests and forward models
+above it hand it their own copies (docs/usage.md, "Changing moduli").
 α = 8 is the value of dolfinx's P2 biharmonic demo; the tests show
 that results change by less than the discretisation error for α in [4, 64] (test_penalty).
 """
@@ -168,7 +170,12 @@ class EnergyForm:
 
     def constants_of(self, term: Term) -> TermConstants:
         """The constants of ``term`` (the very object, one of :attr:`model`) in this form."""
-        return next(c for t, c in self.bound if t is term)
+        for t, c in self.bound:
+            if t is term:
+                return c
+        raise ValueError(f"term '{term.name}' is not one of this form's terms; a test builds "
+                         "its forms from its own copies of the terms it was given: use those "
+                         "(test.model)")
 
     @property
     def reduced(self) -> bool:

@@ -4,21 +4,28 @@ Newton solver it drives (as dolfiny keeps continuation apart from Newton): any o
 
 A ``predictor`` may offer, for each requested step, a state to start Newton from instead of the
 last converged one (e.g. the same step of an earlier run with nearby moduli, corrected by its
-sensitivities: fabricsurf/inverse/fitting/warm_start.py). The step is then tried once from that
+sensitivities: fabricsurf/inverse/forward/warm_start.py). The step is then tried once from that
 state at its full load; if Newton does not converge from it, the step is followed as without a
 predictor, from the last converged state. For a problem whose equilibrium at a load does not
 depend on the path taken to it (elastic, no friction or history), the converged state is the
 same up to Newton's tolerance.
+
+Each cut of an increment is logged at DEBUG (detail: the step's own line, at PROGRESS, is the
+caller's), on rank 0 of the solver's communicator.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.solver import SNESSolver, reason_name
+from fabricsurf.log import rank0
+
+logger = logging.getLogger(__name__)
 
 
 class LoadStepError(RuntimeError):
@@ -54,15 +61,17 @@ class LoadStepper:
     ``predictor(k, t_k)``, called with the load already set to t_k, returns a start for Newton
     (an array like ``solver.u.x.array``, ghosts included) or None (module docstring);
     ``predicted`` records per step whether the predicted start converged (None: no start).
+    Each cut is logged at DEBUG (module docstring), its line prefixed with ``label``.
     """
 
     def __init__(self, solver: SNESSolver, set_load: Callable[[float], None],
                  on_converged: Callable[[int, float, int], None] | None = None,
-                 min_fraction: float = 1e-4, log: Callable | None = None,
-                 predictor: Callable[[int, float], np.ndarray | None] | None = None):
+                 min_fraction: float = 1e-4,
+                 predictor: Callable[[int, float], np.ndarray | None] | None = None,
+                 label: str = ""):
         self.solver, self.set_load, self.on_converged = solver, set_load, on_converged
-        self.min_fraction, self.predictor = min_fraction, predictor
-        self.log = log or (lambda msg: None)
+        self.min_fraction, self.predictor, self.label = min_fraction, predictor, label
+        self.comm = getattr(solver, "comm", MPI.COMM_SELF)
         self.t = 0.0
         self.iterations: list[int] = []
         self.attempts: list[int] = []
@@ -75,8 +84,7 @@ class LoadStepper:
             self.solver.u.x.array[:] = start
         reason, its = self.solver.solve()
         finite = bool(np.isfinite(self.solver.u.x.array).all())
-        comm = getattr(self.solver, "comm", MPI.COMM_SELF)
-        ok = reason > 0 and comm.allreduce(finite, op=MPI.LAND)
+        ok = reason > 0 and self.comm.allreduce(finite, op=MPI.LAND)
         if not ok:
             self.solver.restore(backup)
         return ok, reason, its
@@ -99,8 +107,8 @@ class LoadStepper:
                 dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
                 continue
             dt = 0.5 * (t_next - self.t)
-            self.log(f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
-                     f"cutting the increment to {dt:.3g}")
+            self._say(f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
+                      f"cutting the increment to {dt:.3g}")
             if abs(dt) < self.min_fraction * abs(span):
                 self.set_load(self.t)
                 raise LoadStepError(_failure_message(k + 1, target, self.t, reason, tried,
@@ -127,9 +135,12 @@ class LoadStepper:
             self.t = target
             self.attempts.append(1)
         else:
-            self.log(f"step {k + 1}: SNES {reason_name(reason)} from the predicted state; "
-                     "stepping from the last converged one")
+            self._say(f"step {k + 1}: SNES {reason_name(reason)} from the predicted state; "
+                      "stepping from the last converged one")
         return ok, its
+
+    def _say(self, message: str) -> None:
+        rank0(logger, self.comm, self.label + message, level=logging.DEBUG)
 
     def run(self, targets: Sequence[float]) -> list[int]:
         for k, target in enumerate(targets):

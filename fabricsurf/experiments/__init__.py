@@ -1,20 +1,20 @@
 """Experiment plug-ins and their registry (the ``[loading] test`` values).
 
-A new test is one module with an :class:`~fabricsurf.experiments.base.ExperimentSetup`
+A new test is one module with an :class:`~fabricsurf.experiments.base.ExperimentPlugin`
 subclass and one entry in :data:`TESTS`.
 """
 
 from __future__ import annotations
 
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import ExperimentSetup, Setup
-from fabricsurf.experiments.bias_extension import BiasExtensionTest
-from fabricsurf.experiments.cantilever import CantileverTest
-from fabricsurf.experiments.hemisphere import HemisphereForming
-from fabricsurf.experiments.picture_frame import PictureFrameTest
+from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
+from fabricsurf.experiments.bias_extension import BiasExtensionPlugin
+from fabricsurf.experiments.cantilever import CantileverPlugin
+from fabricsurf.experiments.hemisphere import HemispherePlugin
+from fabricsurf.experiments.picture_frame import PictureFramePlugin
 
-TESTS: dict[str, type[ExperimentSetup]] = {
-    c.name: c for c in (BiasExtensionTest, PictureFrameTest, CantileverTest, HemisphereForming)
+TESTS: dict[str, type[ExperimentPlugin]] = {
+    c.name: c for c in (BiasExtensionPlugin, PictureFramePlugin, CantileverPlugin, HemispherePlugin)
 }
 ALIASES: dict[str, str] = {}
 """Other names of a test (none now: ``tensile`` was one of ``bias_extension``, see
@@ -32,7 +32,7 @@ NOT_MODELLED = {
 alias of ``bias_extension``: a name promising a test that plug-in refuses)."""
 
 
-def get_test(name: str) -> type[ExperimentSetup]:
+def get_test(name: str) -> type[ExperimentPlugin]:
     """The plug-in class of a test name (aliases accepted); unknown names list the valid ones,
     a name of :data:`NOT_MODELLED` says why it is not a test here."""
     key = ALIASES.get(name, name) if isinstance(name, str) else name
@@ -44,4 +44,4 @@ def get_test(name: str) -> type[ExperimentSetup]:
     return TESTS[key]
 
 
-__all__ = ["ALIASES", "NOT_MODELLED", "TESTS", "ExperimentSetup", "Setup", "get_test"]
+__all__ = ["ALIASES", "NOT_MODELLED", "TESTS", "ExperimentPlugin", "PluginSetup", "get_test"]

@@ -1,26 +1,26 @@
 """The experiment protocol: what a test must provide so that compare, fit and diagnose can use it.
 
-An experiment plug-in is one class derived from :class:`ExperimentSetup` (one file in
+An experiment plug-in is one class derived from :class:`ExperimentPlugin` (one file in
 ``fabricsurf/experiments/``) and one entry in the registry of :mod:`fabricsurf.experiments`.
 From the experiment description (specimen, fibre angles, plug-in options) it builds the mesh,
-the boundary conditions and the solver; :meth:`~ExperimentSetup.set_load` applies one value of
+the boundary conditions and the solver; :meth:`~ExperimentPlugin.set_load` applies one value of
 the load path (one value per measured step); at a converged state the generic forward model
-(:mod:`fabricsurf.inverse.fitting.forward`) observes
+(:mod:`fabricsurf.inverse.forward.runs`) observes
 
-* displacements at points: the d components of u (d = :attr:`~ExperimentSetup.d`),
+* displacements at points: the d components of u (d = :attr:`~ExperimentPlugin.d`),
 * the measured reaction as a virtual-work functional R(u)·w, with w =
-  :meth:`~ExperimentSetup.reaction_weight` the derivative of the prescribed boundary motion
+  :meth:`~ExperimentPlugin.reaction_weight` the derivative of the prescribed boundary motion
   with respect to the load-path value (so edge and corner forces are included, and the
   sensitivity of the reaction is (∂R/∂p + K du/dp)·w); or, for a test whose reaction is not
   the work conjugate of a prescribed boundary motion (a rigid tool's force through a contact
   penalty: the hemisphere's punch), a general reaction functional F(u) =
-  :meth:`~ExperimentSetup.reaction_form` (a UFL form), with the sensitivity ∂F/∂p + (∂F/∂u)·du/dp,
+  :meth:`~ExperimentPlugin.reaction_form` (a UFL form), with the sensitivity ∂F/∂p + (∂F/∂u)·du/dp,
 * scalar fields at points (the shear angle of a formed part, as optical measurement gives it):
-  :meth:`~ExperimentSetup.shear_angle` and :meth:`~ExperimentSetup.shear_points` (points of the
+  :meth:`~ExperimentPlugin.shear_angle` and :meth:`~ExperimentPlugin.shear_points` (points of the
   whole specimen mapped onto the solved part by the set-up's symmetry).
 
-Each plug-in validates its own keys of ``experiment.toml`` (:attr:`~ExperimentSetup.keys`,
-:meth:`~ExperimentSetup.parse_options`); keys it does not declare are rejected by the loader.
+Each plug-in validates its own keys of ``experiment.toml`` (:attr:`~ExperimentPlugin.keys`,
+:meth:`~ExperimentPlugin.parse_options`); keys it does not declare are rejected by the loader.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from fabricsurf.model.terms import Term
 
 
 @dataclass
-class Setup:
+class PluginSetup:
     """What a plug-in needs to build its boundary-value problem (lengths in mm).
 
     ``options`` holds the plug-in's own validated keys (e.g. ``clamp``), already in mm and N.
@@ -55,7 +55,7 @@ class Setup:
     options: dict = field(default_factory=dict)
 
 
-class ExperimentSetup(Owner, ABC):
+class ExperimentPlugin(Owner, ABC):
     """Base class of the experiment plug-ins (module docstring).
 
     Class attributes: ``name`` (the ``[loading] test`` value), ``d`` (2: planar, 3: out of
@@ -70,7 +70,10 @@ class ExperimentSetup(Owner, ABC):
     given values instead of moving them by decades into values that break the forward model).
 
     A plug-in owns its problem's PETSc objects: :meth:`close` (or ``with``) destroys them when
-    a run ends (discretise/resources.py).
+    a run ends (discretise/resources.py). It owns its terms too: :attr:`model` holds copies of
+    those given (``Term.copy``), and a plug-in builds its forms, and reads moduli, from
+    ``self.model``, never from the ``model`` argument: a forward model sets the moduli of
+    ``self.model`` and the forms follow without recompiling.
     """
 
     name: ClassVar[str] = ""
@@ -87,9 +90,12 @@ class ExperimentSetup(Owner, ABC):
     problem: FabricProblem
     solver: SNESSolver
 
-    def __init__(self, setup: Setup, model: list[Term], h: float,
+    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
-        self.setup, self.model, self.h, self.comm = setup, list(model), float(h), comm
+        self.setup, self.h, self.comm = setup, float(h), comm
+        self.model: list[Term] = [t.copy() for t in model]
+        """The plug-in's own terms (copies of those given): its forms are built from them, so a
+        change of the given terms leaves it alone, and ``set`` on these changes it."""
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
@@ -97,7 +103,7 @@ class ExperimentSetup(Owner, ABC):
         return {}
 
     @classmethod
-    def check_specimen(cls, setup: Setup, where: str) -> None:
+    def check_specimen(cls, setup: PluginSetup, where: str) -> None:
         """Reject specimens the test cannot have (e.g. a non-square picture frame)."""
 
     @classmethod
@@ -115,7 +121,7 @@ class ExperimentSetup(Owner, ABC):
                             "pulled, displacements ≥ 0), not compression")
 
     @classmethod
-    def default_h(cls, setup: Setup) -> float:
+    def default_h(cls, setup: PluginSetup) -> float:
         """Default element size (mm)."""
         return min(setup.length, setup.width) / 10.0
 

@@ -9,6 +9,7 @@ of Barchiesi et al. 2020 Fig. 4 (A: where the fibre lines from the clamp's corne
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -30,20 +31,21 @@ from fabricsurf.discretise.output import FieldWriter, StepLog, write_json
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option, number_option
-from fabricsurf.experiments.discretisation import (
+from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup, choice_option, number_option
+from fabricsurf.experiments.bias_mesh import (
     announce,
     check_bias_angles,
     choose_fibre_treatment,
     tolerated_mismatch_deg,
 )
 from fabricsurf.experiments.followers import step_followers
-from fabricsurf.log import rank0_print
+from fabricsurf.geometry.aligned import canonical_angles
+from fabricsurf.geometry.fibre_mesh import bias_mesh
+from fabricsurf.geometry.specimen import Specimen, bias_points, check_positive, shift_x
+from fabricsurf.log import rank0
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
-from geometry.aligned import canonical_angles
-from geometry.fibre_mesh import bias_mesh
-from geometry.specimen import Specimen, bias_points, check_positive, shift_x
 
+logger = logging.getLogger(__name__)
 CLAMPS = ("gradient", "position")
 
 
@@ -57,8 +59,8 @@ def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[flo
                   comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto",
                   model: list[Term] | None = None) -> Specimen:
     """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
-    :data:`geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
-    :func:`~geometry.specimen.bias_points`; for ``model``'s fibres, ``auto`` takes no
+    :data:`fabricsurf.geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
+    :func:`~fabricsurf.geometry.specimen.bias_points`; for ``model``'s fibres, ``auto`` takes no
     corner-to-corner lattice so far off their angle that they would lock it."""
     check_positive(length=length, width=width, h=h)
     if width > length:
@@ -92,31 +94,37 @@ class BiasExtension:
     The mesh is :func:`specimen_mesh` of size ``h`` and kind ``mesh``: by default fibre-aligned
     when the fibres are at ±θ to the load (corner to corner where a lattice fits, else a
     lattice from each grip; no intra-ply shear locking, so nearly inextensible yarns need no
-    fine mesh; docs/theory.md), else gmsh's unstructured one. A ``specimen``
-    (e.g. a graded :func:`~geometry.specimen.structured_rectangle`) replaces it; its edges must
+    fine mesh; docs/theory.md), else gmsh's unstructured one. A ``specimen`` (e.g. a graded
+    :func:`~fabricsurf.geometry.specimen.structured_rectangle`) replaces it; its edges must
     carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h``, ``mesh`` are then
     unused (A and B follow ``specimen.length`` and ``specimen.width``).
+
+    :attr:`model` holds the test's own copies of the terms given (``Term.copy``): changing
+    those given afterwards leaves this test alone; ``test.model[i].set(...)`` changes it
+    (without recompiling).
 
     ``followers`` are called after each converged step of :meth:`run`: by default those the
     model's terms need (:func:`~fabricsurf.experiments.followers.step_followers`, e.g. the
     interior penalty of the bi-pantographic energy following the stretch); replace the list to
     change them (an empty list freezes those parameters).
 
-    ``fibre_treatment`` (:data:`~fabricsurf.experiments.discretisation.TREATMENTS`): ``auto``
+    ``fibre_treatment`` (:data:`~fabricsurf.experiments.bias_mesh.TREATMENTS`): ``auto``
     integrates the fibre terms fully (``reduced``, one point per cell, is measured too soft);
     the mesh kind and size actually used, the treatment, the fibre angles (as lines, mod 180°)
-    and whether the answer may be locked are printed before computing (unless ``quiet``, and
-    always a warning) and recorded in :attr:`discretisation` and the result.
+    and whether the answer may be locked are logged before computing (a note at PROGRESS, a
+    warning when the answer may be locked: :func:`~fabricsurf.experiments.bias_mesh.announce`)
+    and recorded in :attr:`discretisation` and the result.
     """
 
     def __init__(self, model: list[Term] | None = None, length: float = 187.0,
                  width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
                  fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
                  comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None,
-                 mesh: str = "auto", fibre_treatment: str = "auto", quiet: bool = False) -> None:
+                 mesh: str = "auto", fibre_treatment: str = "auto") -> None:
         if clamp not in CLAMPS:
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
-        self.model = model if model is not None else default_model()
+        self.model = ([t.copy() for t in model] if model is not None  # its own terms
+                      else default_model())
         given = tuple(float(a) for a in fibre_angles)
         fibre_angles = canonical_angles(given)
         if specimen is None:
@@ -126,8 +134,7 @@ class BiasExtension:
                                             self.model))
         self.discretisation = choose_fibre_treatment(
             fibre_treatment, self.specimen, self.model, h, given, fibre_angles)
-        if not quiet or self.discretisation["may_lock"]:
-            announce(comm, self.discretisation)
+        announce(comm, self.discretisation)
         p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
                           snes_options=snes_options, prefix="fabricsurf_bias_",
                           fibre_treatment=self.discretisation["fibre_treatment"])
@@ -171,9 +178,9 @@ class BiasExtension:
         return eval_points(f, points)
 
     def run(self, ubar_max: float, steps: int, out: Path | None = None,
-            verbose: bool = True,
             on_step: Callable[[int, float], None] | None = None) -> BiasResult:
-        """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``.
+        """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``;
+        each converged step is logged at PROGRESS (its increments' cuts at DEBUG).
 
         After each converged requested step the :attr:`followers` are called, then
         ``on_step(k, ubar)`` on every rank (e.g. to sample :meth:`displacement_at`); collective
@@ -198,17 +205,15 @@ class BiasExtension:
                 writer.write(ubar)
                 log.add(step=k + 1, ubar=ubar, force=f, angle_A_deg=a[0], angle_B_deg=a[1],
                         tension_max=t_max, newton_iterations=its)
-            if verbose:
-                rank0_print(comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
-                            f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
-                            f"  max fibre tension {t_max:8.4g} N/mm  Newton {its}")
+            rank0(logger, comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
+                  f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
+                  f"  max fibre tension {t_max:8.4g} N/mm  Newton {its}")
             for follow in self.followers:
                 follow()
             if on_step is not None:
                 on_step(k, ubar)
 
-        stepper = LoadStepper(self.solver, self.set_load, converged,
-                              log=lambda m: rank0_print(comm, "  " + m) if verbose else None)
+        stepper = LoadStepper(self.solver, self.set_load, converged, label="  ")
         try:
             stepper.run(np.linspace(ubar_max / steps, ubar_max, steps))
         except LoadStepError as e:
@@ -246,7 +251,7 @@ def _writer_degree(energy) -> int:
     return 2
 
 
-class BiasExtensionTest(ExperimentSetup):
+class BiasExtensionPlugin(ExperimentPlugin):
     """The bias-extension test as an experiment plug-in: rectangle length × width (x along the
     load), grips at x = 0 and x = length; load path: grip displacement along +x (mm); reaction:
     total grip reaction along x (N). Option ``[loading] clamp``: "gradient" (u = 0 and zero
@@ -259,22 +264,23 @@ class BiasExtensionTest(ExperimentSetup):
                         "grip_depth": "depth held by each grip beyond the free length (length "
                         "units, default 0)"}}
 
-    def __init__(self, setup: Setup, model: list[Term], h: float,
+    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         super().__init__(setup, model, h, comm)
         depth = float(setup.options.get("grip_depth", 0.0))
         angles = canonical_angles(tuple(setup.fibre_angles_deg))
         check_bias_angles(angles, setup.length - 2 * depth, setup.width)
         specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h, angles, comm,
-                                 model=model)
+                                 model=self.model)
         if depth:
             shift_x(specimen, depth)
-        self.bias = BiasExtension(model, setup.length, setup.width, h,
+        self.bias = BiasExtension(self.model, setup.length, setup.width, h,
                                   setup.options.get("clamp", "gradient"),
                                   tuple(setup.fibre_angles_deg), comm=comm, specimen=specimen)
         self.discretisation = self.bias.discretisation
         self.problem, self.solver = self.bias.problem, self.bias.solver
         self.followers = self.bias.followers
+        self.model = self.bias.model  # the terms its forms are built from
         self._w = fem.Function(self.problem.V)
         self._w.x.array[self.problem.component_dofs("grip", 0)] = 1.0
 
@@ -287,7 +293,7 @@ class BiasExtensionTest(ExperimentSetup):
                 "grip_depth": depth * length_scale}
 
     @classmethod
-    def check_specimen(cls, setup: Setup, where: str) -> None:
+    def check_specimen(cls, setup: PluginSetup, where: str) -> None:
         if 2 * setup.options.get("grip_depth", 0.0) >= 0.5 * setup.length:
             raise DataError(f"{where}: [loading] grip_depth "
                             f"{setup.options['grip_depth']:g} mm leaves less than half of the "

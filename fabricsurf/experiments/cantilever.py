@@ -16,15 +16,15 @@ the strip nearly inextensible in its plane. A strip whose fibres are both off it
 ±45°) is a near-mechanism without twist: its fibres can become the asymptotic lines of an
 anticlastic surface (K_L = K_M = 0), and its narrow-strip rigidity 2k_b k_t/(k_t + 2k_b) vanishes
 with k_t (docs/bending.md); only the clamp's boundary layer and the membrane resist.
-:meth:`CantileverTest.mechanism_note` says so (a warning when the plug-in is built, appended
-to the error of a failed :meth:`~CantileverTest.run`); the solve then converges to that very
+:meth:`CantileverPlugin.mechanism_note` says so (a warning when the plug-in is built, appended
+to the error of a failed :meth:`~CantileverPlugin.run`); the solve then converges to that very
 soft state or fails with that message, never silently.
 """
 
 from __future__ import annotations
 
+import logging
 import math
-import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -37,11 +37,13 @@ from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import ExperimentSetup, Setup, number_option
+from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup, number_option
+from fabricsurf.geometry.specimen import structured_rectangle
+from fabricsurf.log import warn
 from fabricsurf.model.rigidity import cylindrical_rigidity, narrow_strip_rigidity
 from fabricsurf.model.terms import Term
-from geometry.specimen import structured_rectangle
 
+logger = logging.getLogger(__name__)
 GRAVITY = 9.81
 """m/s², along −z."""
 MECHANISM_RATIO = 0.05
@@ -79,7 +81,7 @@ def moduli(model: list[Term]) -> tuple[float, float]:
             vals.get("twist", {}).get("k_t", 0.0))
 
 
-class CantileverTest(ExperimentSetup):
+class CantileverPlugin(ExperimentPlugin):
     """Plug-in: strip clamped at x = 0 sagging under its own weight (module docstring).
     Load path: the self-weight factor t; observed: u (3 components) at points."""
 
@@ -92,7 +94,7 @@ class CantileverTest(ExperimentSetup):
     keys = {"material": {"areal_density_g_m2": "areal density (g/m²), gravity 9.81 m/s² "
                                                 "along −z (required)"}}
 
-    def __init__(self, setup: Setup, model: list[Term], h: float,
+    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         super().__init__(setup, model, h, comm)
         if not has_second_gradient(model):
@@ -101,7 +103,8 @@ class CantileverTest(ExperimentSetup):
         L, w = setup.length, setup.width
         self.specimen = structured_rectangle(L, w, max(2, round(L / h)), max(1, round(w / h)),
                                              comm)
-        p = FabricProblem(self.specimen, model, d=3, fibre_angles=tuple(setup.fibre_angles_deg),
+        p = FabricProblem(self.specimen, self.model, d=3,
+                          fibre_angles=tuple(setup.fibre_angles_deg),
                           prefix="fabricsurf_cantilever_")
         p.fix("clamp", (0.0, 0.0, 0.0))
         p.clamp_gradient("clamp")
@@ -112,7 +115,7 @@ class CantileverTest(ExperimentSetup):
         self.tip = np.array([[L, 0.5 * w]])
         note = self.mechanism_note()
         if note is not None:
-            warnings.warn(note, stacklevel=2)
+            warn(logger, comm, note)
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
@@ -129,7 +132,7 @@ class CantileverTest(ExperimentSetup):
                             "own weight (t = 1: the full weight)")
 
     @classmethod
-    def default_h(cls, setup: Setup) -> float:
+    def default_h(cls, setup: PluginSetup) -> float:
         return min(setup.length / 16.0, setup.width / 2.0)
 
     def set_load(self, t: float) -> None:

@@ -56,7 +56,9 @@ def penalty_stretch(rho, margin: float, gamma: float):
 class PenaltyFollower:
     """After each converged step: the largest fibre stretch ρ (and where), and the penalty
     stretch of the given :class:`PantographBending` terms set to
-    ρ_p = max(ρ_0, :func:`penalty_stretch` (ρ)), ρ_0 the term's own ``penalty_stretch``.
+    ρ_p = max(ρ_0, :func:`penalty_stretch` (ρ)), ρ_0 the term's own ``penalty_stretch``
+    before the follower raised it (:meth:`floor`). The terms must be those the problem's
+    energy was built from (``test.model``: a test's own copies).
 
     By default ρ is the largest stretch anywhere and ρ_p uniform; with ``local`` ρ is the largest
     stretch in each cell and ρ_p a DG0 field, raised only where the stretch concentrates (more
@@ -75,6 +77,23 @@ class PenaltyFollower:
         self._X = V.tabulate_dof_coordinates()[:, :2]
         self._cell_nodes = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
         self.history: list[dict] = []
+        self._floors = [t.penalty_stretch for t in self.terms]
+        self._written = list(self._floors)
+
+    def floor(self, k: int) -> float:
+        """ρ_0 of ``terms[k]``: its own ``penalty_stretch`` when the follower was made, or as
+        ``set`` changed it since (writing ρ_p changes the term's own value too:
+        :meth:`PantographBending.set_penalty_stretch`, so what this follower wrote is not
+        taken for a new ρ_0)."""
+        t = self.terms[k]
+        if t.penalty_stretch != self._written[k]:
+            self._floors[k] = t.penalty_stretch
+        return self._floors[k]
+
+    def _write(self, k: int, values: np.ndarray) -> None:
+        t = self.terms[k]
+        t.set_penalty_stretch(self.problem.energy.constants_of(t), values)
+        self._written[k] = t.penalty_stretch
 
     def max_stretch(self, nodal: np.ndarray) -> tuple[float, list[float]]:
         """The largest of the stretches ``nodal`` (one per DG2 node) and its reference position,
@@ -92,18 +111,18 @@ class PenaltyFollower:
         rho, where = self.max_stretch(nodal)
         cells = (nodal[self._cell_nodes].max(axis=1) if self.local
                  else np.full(len(self._cell_nodes), rho))
-        for t in self.terms:
-            t.set_penalty_stretch(self.problem.energy.constants_of(t), np.maximum(
-                t.penalty_stretch, penalty_stretch(cells, self.margin, t.gamma)))
+        for k, t in enumerate(self.terms):
+            self._write(k, np.maximum(self.floor(k), penalty_stretch(cells, self.margin,
+                                                                     t.gamma)))
         gamma = self.terms[0].gamma if self.terms else math.pi / 6
         self.history.append({"max_stretch": rho, "rho_cos_gamma": rho * math.cos(gamma),
                              "at": where})
 
     def reset(self) -> None:
-        """ρ_p back to each term's own ``penalty_stretch`` (uniform); the history is kept."""
-        for t in self.terms:
-            t.set_penalty_stretch(self.problem.energy.constants_of(t),
-                                  np.full(len(self._cell_nodes), t.penalty_stretch))
+        """ρ_p back to each term's ρ_0 (uniform; :meth:`floor`), the term's own value too; the
+        history is kept."""
+        for k in range(len(self.terms)):
+            self._write(k, np.full(len(self._cell_nodes), self.floor(k)))
 
 
 FOLLOWERS: dict[type[Term], FollowerFactory] = {PantographBending: PenaltyFollower}

@@ -4,7 +4,7 @@ A square blank of side B = ``length`` = ``width`` (mm), centred on the punch axi
 at ±θ to its sides or along them (0°/90°), lies at z = 0 between a blank holder and a die with
 an opening of radius R_o = R + clearance; a rigid hemispherical punch of radius R, its pole at
 z = s (the stroke, the load path, mm), pushes it up through the opening
-(experiments/forming_tools.py: the signed distances, the penalty contact, the holder friction,
+(experiments/forming/tools.py: the signed distances, the penalty contact, the holder friction,
 the punch force as the work conjugate of the stroke).
 
 The set-up is symmetric about the blank's mid-lines (each maps the pair of fibre families onto
@@ -20,8 +20,8 @@ a fibre lattice clipped to its outline, with its rigid motions pinned (forming_b
 one, on what: :attr:`discretisation`). Each stroke increment starts from
 the path extrapolated through the last two converged states, Newton takes full steps and, if
 that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
-cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemisphereForming.run`
-keeps a step log and reports each step as it converges (forming_log.py); the options and their
+cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemispherePlugin.run`
+keeps a step log and logs each step as it converges (forming/stroke_log.py); the options and their
 plausible ranges are checked before any computation (forming_options.py).
 
 Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
@@ -34,8 +34,8 @@ the region beyond the locking angle (|γ| > γ_lock).
 
 from __future__ import annotations
 
+import logging
 import math
-import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -50,14 +50,25 @@ from fabricsurf.discretise.evaluation import (
 from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import forming_blank, forming_options, forming_profile
-from fabricsurf.experiments.base import ExperimentSetup, Setup
-from fabricsurf.experiments.forming_log import StepLog
-from fabricsurf.experiments.forming_tools import ContactProblem, Tools
-from fabricsurf.experiments.wrinkling import Indicators, Wrinkling
+from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
+from fabricsurf.experiments.forming import (
+    blank as forming_blank,
+)
+from fabricsurf.experiments.forming import (
+    options as forming_options,
+)
+from fabricsurf.experiments.forming import (
+    profile as forming_profile,
+)
+from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
+from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.experiments.forming.tools import ContactProblem, Tools
+from fabricsurf.geometry.aligned import blank_angle
+from fabricsurf.log import warn
 from fabricsurf.model.kinematics import l_dir, m_dir
 from fabricsurf.model.terms import Term
-from geometry.aligned import blank_angle
+
+logger = logging.getLogger(__name__)
 
 FULL_STEP_ITERATIONS = 40
 """Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
@@ -67,7 +78,7 @@ FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
 """Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
 if it fails too, the load stepper cuts the stroke increment."""
 
-class HemisphereForming(ExperimentSetup):
+class HemispherePlugin(ExperimentPlugin):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
     stroke s (mm); reaction: the punch force (N)."""
 
@@ -96,20 +107,19 @@ class HemisphereForming(ExperimentSetup):
         "material": {"areal_density_g_m2": "areal density for self-weight (g/m², gravity "
                                            "9.81 m/s² along −z; default: no self-weight)"}}
 
-    def __init__(self, setup: Setup, model: list[Term], h: float,
+    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD, snes_options: dict | None = None) -> None:
         super().__init__(setup, model, h, comm)
         o = setup.options
         self.check_specimen(setup, "hemisphere")
         forming_blank.check_mesh(setup, h, h == self.default_h(setup))
         if h > min(o["clearance"], o["die_lip"]):
-            warnings.warn(f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
-                          f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not "
-                          "resolve the tools and the punch force is not mesh-converged",
-                          stacklevel=2)
+            warn(logger, comm, f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
+                 f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not resolve the "
+                 "tools and the punch force is not mesh-converged")
         unheld = forming_blank.unheld_edge(setup)
         if unheld is not None:
-            warnings.warn(unheld, stacklevel=2)
+            warn(logger, comm, unheld)
         self.R = o["punch_radius"]
         self.theta = blank_angle(tuple(setup.fibre_angles_deg))
         self.diagonal_deg = forming_blank.bisector_deg(tuple(setup.fibre_angles_deg))
@@ -118,7 +128,7 @@ class HemisphereForming(ExperimentSetup):
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools.from_options(msh, o)
-        p = ContactProblem(self.specimen, model, self.tools, d=3,
+        p = ContactProblem(self.specimen, self.model, self.tools, d=3,
                            fibre_angles=tuple(setup.fibre_angles_deg),
                            prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
                            snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
@@ -136,7 +146,7 @@ class HemisphereForming(ExperimentSetup):
         pen = self.tools.penetrations(self.r)
         self.indicators = Indicators.from_options(msh, o)
         self.wrinkling = Wrinkling(msh, self.r, kin, p.energy.tension_fields(), self.tools,
-                                   model, p.dx)
+                                   self.model, p.dx)
         self._forms = {"force": self.tools.force_density(self.r) * p.dx,
                        "stored": p.energy.internal(), "tools": p.contact_energy(),
                        "wrinkle": self.wrinkling.mark * p.dx,
@@ -156,7 +166,7 @@ class HemisphereForming(ExperimentSetup):
                 **forming_blank.parse(tables, where)}
 
     @classmethod
-    def check_specimen(cls, setup: Setup, where: str) -> None:
+    def check_specimen(cls, setup: PluginSetup, where: str) -> None:
         forming_blank.check_specimen(setup, where)
 
     def pin_reactions(self) -> dict[str, float]:
@@ -171,7 +181,7 @@ class HemisphereForming(ExperimentSetup):
         return out
 
     @classmethod
-    def default_h(cls, setup: Setup) -> float:
+    def default_h(cls, setup: PluginSetup) -> float:
         return setup.options["punch_radius"] / 6.0
 
     @classmethod
@@ -266,18 +276,18 @@ class HemisphereForming(ExperimentSetup):
 
     def run(self, stroke: float, steps: int = 8,
             on_step: Callable[[int, float], None] | None = None,
-            log: Callable[[str], None] | None = None, label: str = "") -> list[int]:
+            label: str = "") -> list[int]:
         """Move the punch from s = 0 (touching the flat blank) to ``stroke`` in ``steps`` equal
         requested steps (cut on divergence, LoadStepper); records :attr:`stroke`,
-        :attr:`force` and the step log :attr:`steps` (forming_log.StepLog) at each, and
-        sends its line and every cut to ``log`` (prefixed with ``label``) as it happens.
+        :attr:`force` and the step log :attr:`steps` (forming/stroke_log.StrokeLog) at each, and
+        logs its line (PROGRESS) and every cut (DEBUG), prefixed with ``label``, as it happens.
         Returns the Newton iterations per step; raises LoadStepError (where it stopped) if a
         step cannot be followed, with :attr:`steps` holding the steps converged before."""
         self.check_stroke(stroke)
         self.solver.reset()
         self.set_load(0.0)
         self.stroke, self.force = [0.0], [0.0]
-        book = StepLog(self.comm, self.active_set, lambda: self.solver.fallbacks, log, label)
+        book = StrokeLog(self.comm, self.active_set, lambda: self.solver.fallbacks, label)
         self.steps = book.records
 
         def done(k: int, s: float, its: int) -> None:
@@ -288,7 +298,7 @@ class HemisphereForming(ExperimentSetup):
             if on_step is not None:
                 on_step(k, s)
 
-        self.stepper = LoadStepper(self.solver, self.set_load, done, log=book.say)
+        self.stepper = LoadStepper(self.solver, self.set_load, done, label=label)
         return self.stepper.run(np.linspace(stroke / steps, stroke, steps))
 
     # -- observations of the compare/fit/diagnose loop (docs/forming.md, "In the loop") -----

@@ -28,9 +28,9 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import ExperimentSetup, Setup, choice_option
+from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup, choice_option
+from fabricsurf.geometry.specimen import EDGE_TAGS, rectangle
 from fabricsurf.model.terms import Term
-from geometry.specimen import EDGE_TAGS, rectangle
 
 FRAMES = ("pinned", "clamped")
 
@@ -72,7 +72,7 @@ def frame_force_exact(d: float, a: float, dW_dgamma) -> float:
     return a * a * dW_dgamma(frame_shear_angle(d, a)) / (a * math.sin(phi))
 
 
-class PictureFrameTest(ExperimentSetup):
+class PictureFramePlugin(ExperimentPlugin):
     """Plug-in: square specimen in a hinged frame pulled along the diagonal (module docstring).
     Load path: crosshead displacement (mm); reaction: crosshead force along the diagonal (N)."""
 
@@ -81,12 +81,12 @@ class PictureFrameTest(ExperimentSetup):
     reaction_label = "crosshead force (N)"
     keys = {"loading": {"frame": "pinned | clamped (default pinned)"}}
 
-    def __init__(self, setup: Setup, model: list[Term], h: float,
+    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         super().__init__(setup, model, h, comm)
         self.a = setup.length
         specimen = rectangle(self.a, self.a, h, comm)
-        p = FabricProblem(specimen, model, d=2, fibre_angles=tuple(setup.fibre_angles_deg),
+        p = FabricProblem(specimen, self.model, d=2, fibre_angles=tuple(setup.fibre_angles_deg),
                           prefix="fabricsurf_frame_")
         V = p.V
         self._g, self._w = fem.Function(V), fem.Function(V)
@@ -104,13 +104,13 @@ class PictureFrameTest(ExperimentSetup):
         return {"frame": choice_option(tables, "loading", "frame", FRAMES, "pinned", where)}
 
     @classmethod
-    def check_specimen(cls, setup: Setup, where: str) -> None:
+    def check_specimen(cls, setup: PluginSetup, where: str) -> None:
         if not math.isclose(setup.length, setup.width, rel_tol=1e-9):
             raise DataError(f"{where}: the picture frame is square: [specimen] length "
                             f"{setup.length:g} mm and width {setup.width:g} mm differ")
 
     @classmethod
-    def default_h(cls, setup: Setup) -> float:
+    def default_h(cls, setup: PluginSetup) -> float:
         return setup.length / 8.0
 
     def set_load(self, t: float) -> None:

@@ -26,6 +26,7 @@ from typing import ClassVar
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.term_constants import Params, TermConstants
@@ -76,7 +77,10 @@ class PantographBending(Term):
     "Interior penalty"). In a form, ρ_p lives in a cellwise-constant (DG0) field of that form
     (``constants["penalty_stretch"]``): ``set(penalty_stretch=...)`` makes it uniform in every
     form, a caller that follows the local stretch writes one form's cell by cell
-    (:meth:`set_penalty_stretch`); neither recompiles.
+    (:meth:`set_penalty_stretch`); neither recompiles. Either way the term's own
+    ``penalty_stretch`` is the value last written: uniform, that value; cell by cell, the
+    largest (over all ranks), so the term, its copy or pickle, and a form built from it
+    afterwards never carry a smaller ρ_p (a weaker penalty) than the form written.
     """
 
     K_E: float = TABLE3_MACRO["K_E"]
@@ -103,14 +107,20 @@ class PantographBending(Term):
     def set_penalty_stretch(self, constants: TermConstants, values: np.ndarray) -> None:
         """Set ρ_p cell by cell in one form (``constants``: this term's in that form):
         ``values`` in the order of the local cells of its mesh, ghosts included; each must
-        lie inside the energy's domain."""
+        lie inside the energy's domain. Collective on that mesh: the term's own
+        ``penalty_stretch`` becomes the largest value over all ranks (class docstring)."""
         values = np.asarray(values, dtype=float)
-        if not (values * math.cos(self.gamma) < 1.0).all():
+        f = constants["penalty_stretch"]
+        comm = f.function_space.mesh.comm
+        ok = bool((values * math.cos(self.gamma) < 1.0).all())
+        if not comm.allreduce(ok, op=MPI.LAND):
             raise ValueError(f"term '{self.name}': penalty_stretch must satisfy "
                              f"penalty_stretch·cos γ < 1 in every cell")
-        f = constants["penalty_stretch"]
         f.x.array[f.function_space.dofmap.list.array] = values
         f.x.scatter_forward()
+        largest = comm.allreduce(float(np.max(values, initial=-np.inf)), op=MPI.MAX)
+        if math.isfinite(largest):
+            self.penalty_stretch = largest
 
     def _coeffs(self, rho, p: Params):
         return _coefficients(rho, p["K_E"], p["K_F"], ufl.cos(p["gamma"]))

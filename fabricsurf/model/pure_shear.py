@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import ufl
@@ -33,8 +33,17 @@ from ufl.algorithms import expand_derivatives
 from fabricsurf.model.kinematics import Kinematics, fibre_vectors
 from fabricsurf.model.term_constants import TermConstants
 
-if TYPE_CHECKING:
-    from fabricsurf.model.term import Term
+
+class Term(Protocol):
+    """What the pure-shear evaluation reads of a term (:class:`~.term.Term`): its parameters,
+    their values, one UFL parameter of each on a mesh, its shape options and its density."""
+
+    options: tuple[str, ...]
+
+    def parameters(self) -> list[str]: ...
+    def values(self) -> dict[str, float]: ...
+    def parameter_on(self, msh, name: str): ...
+    def density(self, kin: Kinematics, p): ...
 
 BIAS_ANGLES = (45.0, -45.0)
 """Fibre angles (deg from the load axis) of the bias test, the default of :func:`shear_moment`."""

@@ -4,12 +4,16 @@ units, and what it tells about itself (order, whether it stretches the fibres, w
 can see it, its shear moment in the bias test's three-zone estimate).
 
 Every form built from a term owns the ``fem.Constant``\\ s of its moduli, on its own mesh
-(fabricsurf/model/term_constants.py); :meth:`Term.set` changes them in every live form without
-recompiling any.
+(fabricsurf/model/term_constants.py); :meth:`Term.set` changes them in every live form built
+from that very term object, without recompiling any. A test or a forward model builds its forms
+from its own copy of the terms it is given (:meth:`Term.copy`), so changing a user's term
+changes the tests built after it, never one built before (docs/usage.md, "Changing moduli").
+A term pickles and copies as its moduli and options alone, without live forms.
 """
 
 from __future__ import annotations
 
+import copy as _copy
 import math
 import weakref
 from dataclasses import dataclass, field, fields
@@ -27,7 +31,16 @@ from fabricsurf.model.term_constants import Params, TermConstants
 @dataclass
 class Term:
     """Base class: a named energy density with finite moduli, non-negative unless named in
-    ``signed`` (the coefficient of a coupling, which may have either sign)."""
+    ``signed`` (the coefficient of a coupling, which may have either sign).
+
+    Changing moduli: :meth:`set` changes the term and the constants of every live form built
+    from this very object (no recompilation). The owners of forms (an experiment plug-in, a
+    :class:`~fabricsurf.experiments.bias_extension.BiasExtension`, a forward model) build them
+    from their own copies (:meth:`copy`, exposed as their ``model``), so ``set`` on the terms a
+    user handed them changes only what is built from those terms afterwards; to change an
+    existing test, set its own terms (``test.model``); a fit sets its forward model's. A term
+    pickles and copies (:meth:`copy`, :func:`copy.copy`, :func:`copy.deepcopy`) as its fields
+    alone: an equal term with no live forms."""
 
     name: ClassVar[str] = ""
     order: ClassVar[int] = 1  # 1: depends on F only; 2: depends on the second gradient H
@@ -43,6 +56,22 @@ class Term:
     def __post_init__(self) -> None:
         for p in self.parameters():
             self._check(p, getattr(self, p))
+
+    def copy(self) -> Term:
+        """An equal term (moduli and options) with no live forms: :meth:`set` on either
+        leaves the other and its forms alone."""
+        return _copy.deepcopy(self)
+
+    def __getstate__(self) -> dict:
+        """The fields (and any other attribute) without the weak references to live forms,
+        which neither pickle nor belong to a copy."""
+        state = dict(self.__dict__)
+        state.pop("_live", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._live = weakref.WeakSet()
 
     @classmethod
     def parameters(cls) -> list[str]:
@@ -75,7 +104,8 @@ class Term:
         return fem.Constant(msh, float(getattr(self, name)))
 
     def set(self, **values: float) -> None:
-        """Change moduli, in the constants of every live form too (no recompilation)."""
+        """Change moduli, in the constants of every live form built from this term object too
+        (no recompilation); not in those of a copy (the class docstring)."""
         for p, v in values.items():
             if p not in self.parameters():
                 raise ValueError(f"term '{self.name}' has no parameter '{p}'; "

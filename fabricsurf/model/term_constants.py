@@ -4,8 +4,10 @@ A term (fabricsurf/model/terms.py) holds its moduli as floats. Every form built 
 term for UFL objects of its own on its own mesh (:meth:`Term.constants`): ``fem.Constant``\\ s, or
 a cellwise field where a parameter may vary from cell to cell (the bi-pantographic penalty
 stretch). The term keeps weak references to them, so :meth:`Term.set` reaches every live form
-without recompiling, a form that is dropped is freed with its constants, and no form depends on
-which mesh another form was built on.
+built from that term object without recompiling, a form that is dropped is freed with its
+constants, and no form depends on which mesh another form was built on. The references are not
+part of the term's state: a copy or a pickle of it has no live forms (a test builds its forms
+from its own copies, docs/usage.md, "Changing moduli").
 """
 
 from __future__ import annotations

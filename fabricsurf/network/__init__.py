@@ -6,6 +6,13 @@ See ``docs/network.md`` for the micro-macro identification and the reconstructio
 """
 
 from fabricsurf.network.engine import SpringNetwork
+from fabricsurf.network.equilibrium import (
+    ConvergenceError,
+    Dirichlet,
+    newton,
+    reaction,
+    solve_steps,
+)
 from fabricsurf.network.hencky import (
     Lattice,
     continuum_from_lattice,
@@ -13,7 +20,6 @@ from fabricsurf.network.hencky import (
     lattice_from_continuum,
     spanning_spacing,
 )
-from fabricsurf.network.solver import ConvergenceError, Dirichlet, newton, reaction, solve_steps
 
 __all__ = ["ConvergenceError", "Dirichlet", "Lattice", "SpringNetwork", "continuum_from_lattice",
            "hencky_lattice", "lattice_from_continuum", "newton", "reaction", "solve_steps",

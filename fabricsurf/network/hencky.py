@@ -69,7 +69,7 @@ import numpy as np
 
 from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.network.engine import SpringNetwork
-from fabricsurf.network.solver import Dirichlet
+from fabricsurf.network.equilibrium import Dirichlet
 
 
 @dataclass

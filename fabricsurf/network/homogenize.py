@@ -39,7 +39,7 @@ import numpy as np
 
 from fabricsurf.network.bipantographic import EPS_B, TABLE3
 from fabricsurf.network.engine import SpringNetwork
-from fabricsurf.network.solver import newton
+from fabricsurf.network.equilibrium import newton
 
 GAMMA = np.pi / 6
 C = np.cos(GAMMA)

@@ -32,10 +32,11 @@ def force_errors(model, measured) -> dict:
 def unexplained_ranges(d, error, measured, s_F: float, length: float, width: float
                        ) -> list[dict]:
     """Displacement ranges where |force error| exceeds three noise levels (the criterion of
-    :func:`fabricsurf.inverse.fitting.report.where_unexplained`), each named. A range is the initial
-    knee if every point before it has a measured force below three noise levels (there the
-    data cannot tell any response from zero, so it is where the curve first departs); a range
-    reaching the last point is beyond locking; anything else is an intermediate range."""
+    :func:`fabricsurf.inverse.diagnosis.report.where_unexplained`), each named. A range is the
+    initial knee if every point before it has a measured force below three noise levels
+    (there the data cannot tell any response from zero, so it is where the curve first
+    departs); a range reaching the last point is beyond locking; anything else is an
+    intermediate range."""
     d, error, measured = (np.asarray(a, float) for a in (d, error, measured))
     bad = np.abs(error) > 3.0 * s_F
     out, k = [], 0

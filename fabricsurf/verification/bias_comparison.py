@@ -8,6 +8,7 @@ comparison, the three zones of the bias test, and the identified bi-pantographic
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 
@@ -16,12 +17,14 @@ from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
-from fabricsurf.log import rank0_print
+from fabricsurf.geometry.specimen import BIAS_LENGTH as LENGTH
+from fabricsurf.geometry.specimen import BIAS_WIDTH as WIDTH
+from fabricsurf.log import detail, rank0
 from fabricsurf.model.materials import bipantographic
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear
 from fabricsurf.network import solve_steps
-from geometry.specimen import BIAS_LENGTH as LENGTH
-from geometry.specimen import BIAS_WIDTH as WIDTH
+
+logger = logging.getLogger(__name__)
 
 EPS_EXACT = LENGTH / (11 * math.sqrt(2))
 """12.0208 mm: 11 × 7 cells of side √2 ε = 17 mm tile the specimen (187 × 119 mm) exactly
@@ -119,8 +122,8 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
     Xn = np.clip(lat.net.X[nodes], 0.0, [LENGTH, WIDTH])
     if latres is None:
         latres = solve_lattice(lat, ubar_max, steps, comm)
-        rank0_print(comm, f"[{name}] lattice ({lat.net.n_nodes} nodes) solved in "
-                          f"{latres['seconds']:.1f} s")
+        rank0(logger, comm, f"[{name}] lattice ({lat.net.n_nodes} nodes) solved in "
+                            f"{latres['seconds']:.1f} s")
     bias = BiasExtension(model, LENGTH, WIDTH, h=h, comm=comm, snes_options=snes_options)
     samples, Z = [], np.array(list(ZONE_POINTS.values()))
 
@@ -133,10 +136,11 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
 
     failure = None
     try:
-        cres = bias.run(ubar_max, steps, out=out, on_step=sample, verbose=False)
+        with detail():  # the continuum's steps: detail of the comparison
+            cres = bias.run(ubar_max, steps, out=out, on_step=sample)
     except LoadStepError as e:
         cres, failure = e.partial, e.as_dict()
-        rank0_print(comm, f"[{name}] continuum stopped: {e}")
+        rank0(logger, comm, f"[{name}] continuum stopped: {e}")
         if not cres.ubar:
             raise
         latres = {k: (v[:len(cres.ubar)] if isinstance(v, list) else v)
@@ -161,10 +165,11 @@ def compare(name: str, model, lat, ubar_max: float, steps: int, h: float, comm: 
                    "angle_B_continuum_deg": cres.angle_B_deg, "angle_B_lattice_deg": lat_B,
                    "position_rms_diff": rms},
     }
-    rank0_print(comm, f"[{name}] continuum {cres.seconds:.1f} s; force_rel_diff = "
-                      f"{summary['force_rel_diff']:.4f}, angle A/B max diff = "
-                      f"{summary['angle_A_max_diff_deg']:.2f}/{summary['angle_B_max_diff_deg']:.2f}"
-                      f" deg, position rms (max over ū) = {summary['position_rms_diff']:.3f} mm")
+    rank0(logger, comm, f"[{name}] continuum {cres.seconds:.1f} s; force_rel_diff = "
+                        f"{summary['force_rel_diff']:.4f}, angle A/B max diff = "
+                        f"{summary['angle_A_max_diff_deg']:.2f}/"
+                        f"{summary['angle_B_max_diff_deg']:.2f} deg, position rms (max over ū) "
+                        f"= {summary['position_rms_diff']:.3f} mm")
     zones = {kk: [float(sm["zones"][i]) for sm in samples] for i, kk in enumerate(ZONE_POINTS)}
     zones["ubar"] = list(cres.ubar)
     zones["ideal_centre_deg"] = [ideal_centre_shear_deg(u) for u in cres.ubar]
@@ -184,6 +189,7 @@ def clamp_offset_bracket(model, latres: dict, n: int, h: float, comm: MPI.Comm,
     """
     short = LENGTH - 2 * math.sqrt(2) * EPS_EXACT
     b = BiasExtension(model, short, WIDTH, h=h, comm=comm, snes_options=snes_options)
-    r = b.run(latres["ubar"][n - 1], n, verbose=False)
+    with detail():
+        r = b.run(latres["ubar"][n - 1], n)
     return {"free_length_mm": short, "ubar": r.ubar, "force_free_length": r.force,
             "force_lattice": latres["force"][:n]}

@@ -22,6 +22,7 @@ kernels for the gradient clamps take minutes to compile, so it is not used here
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -31,10 +32,12 @@ from fabricsurf.discretise.solver import DOMAIN_AWARE
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower
-from fabricsurf.log import rank0_print
+from fabricsurf.log import detail, rank0
 from fabricsurf.model.materials import PantographBending, bipantographic
 from fabricsurf.verification.bias_convergence import graded_specimen
 from fabricsurf.verification.rates import richardson_summary
+
+logger = logging.getLogger(__name__)
 
 RANGE_OPTIONS = dict(DOMAIN_AWARE)
 """Solver options of the whole-range runs (module docstring)."""
@@ -47,22 +50,23 @@ def stretch_history(test: BiasExtension) -> list[dict]:
 
 def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
               limit_stretch: float | None = None, grading: float = 0.6,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False,
-              moduli: dict | None = None, local_penalty: bool = False,
+              comm: MPI.Comm = MPI.COMM_WORLD, moduli: dict | None = None,
+              local_penalty: bool = False,
               snes_options: dict | None = RANGE_OPTIONS) -> dict:
     """Eq. (2) (Table 3 moduli, or ``moduli``: K_S, K_E, K_F) on the graded mesh of ``level``
     to ``ubar`` in ``steps`` steps; returns the curves, the largest stretch per step, Newton
     iterations, times, and the failure (step, load, reason) if the path could not be
     followed. The penalty follows the stretch as in any :class:`BiasExtension` run;
     ``local_penalty``: cell by cell (:class:`PenaltyFollower` ``local``). ``snes_options``
-    None: the package's defaults, i.e. the plain public API. JSON-ready; scalars reduced."""
+    None: the package's defaults, i.e. the plain public API. JSON-ready; scalars reduced. The
+    run is logged at PROGRESS in one line when done, its steps at DEBUG."""
     model = bipantographic(limit_stretch=limit_stretch, **(moduli or {}))
     t0 = time.perf_counter()
     test = BiasExtension(model, clamp=clamp, specimen=graded_specimen(level, grading, comm=comm),
                          snes_options=snes_options, comm=comm)
     setup = time.perf_counter() - t0
     if local_penalty:
-        bending = [t for t in model if isinstance(t, PantographBending)]
+        bending = [t for t in test.model if isinstance(t, PantographBending)]  # its own
         test.followers = [PenaltyFollower(test.problem, bending, local=True)]
     step_times, loads, last = [], [], [time.perf_counter()]
 
@@ -74,7 +78,8 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
 
     failure = None
     try:
-        res = test.run(ubar, steps, verbose=verbose, on_step=on_step)
+        with detail():
+            res = test.run(ubar, steps, on_step=on_step)
     except LoadStepError as e:
         failure = e.as_dict()
         res = e.partial if e.partial is not None and e.partial.ubar else None
@@ -90,10 +95,10 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
     if res is not None:
         out |= {"ubar": res.ubar, "force": res.force, "angle_A_deg": res.angle_A_deg,
                 "angle_B_deg": res.angle_B_deg, "newton": res.newton, "seconds": res.seconds}
-    rank0_print(comm, f"[range] {clamp} level {level}: "
-                      + (f"failed: {failure['message']}" if failure else
-                         f"ū = {ubar} mm reached, force {res.force[-1]:.4f} N, "
-                         f"{sum(res.newton)} Newton iterations, {res.seconds:.1f} s"))
+    rank0(logger, comm, f"[range] {clamp} level {level}: "
+                        + (f"failed: {failure['message']}" if failure else
+                           f"ū = {ubar} mm reached, force {res.force[-1]:.4f} N, "
+                           f"{sum(res.newton)} Newton iterations, {res.seconds:.1f} s"))
     return out
 
 

@@ -12,17 +12,17 @@ import numpy as np
 
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, nodal_average
-from fabricsurf.experiments import forming_blank
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.verification import generator_drape
 from fabricsurf.verification.drape_map import shear_difference_map
 
 TOUCH_FRACTION = 0.01
 """Points within this fraction of R of the punch's cap count as on it (as along the diagonal,
-fabricsurf/studies/forming.py)."""
+fabricsurf/studies/hemisphere_forming.py)."""
 
 
-def contact_map(e: HemisphereForming, n: int = 41) -> dict[str, np.ndarray]:
+def contact_map(e: HemispherePlugin, n: int = 41) -> dict[str, np.ndarray]:
     """On a grid of reference points of the solved domain, n points per half side (the quarter
     [0, B/2]², or the full blank, 2n − 1 per side, the points inside its outline): the recovered
     shear angle (deg, evaluation.nodal_average, the continuous field compared along the
@@ -43,7 +43,7 @@ def contact_map(e: HemisphereForming, n: int = 41) -> dict[str, np.ndarray]:
             "on": gap < TOUCH_FRACTION * e.R, "mirror_band": band}
 
 
-def _grid(e: HemisphereForming, n: int) -> np.ndarray:
+def _grid(e: HemispherePlugin, n: int) -> np.ndarray:
     """The reference points of :func:`contact_map`."""
     a, b = 0.5 * e.setup.length, 0.5 * e.setup.width
     if e.domain == "quarter":
@@ -56,7 +56,7 @@ def _grid(e: HemisphereForming, n: int) -> np.ndarray:
     return pts
 
 
-def compare_with_drapes(e: HemisphereForming, n: int = 41, a: float | None = None) -> dict:
+def compare_with_drapes(e: HemispherePlugin, n: int = 41, a: float | None = None) -> dict:
     """:func:`contact_map` against both drapes (drape_map.shear_difference_map) over the points
     on the punch outside the mirror band, the drapes' fibres at the experiment's angles;
     ``excluded``: the points on the punch in the band."""
@@ -66,7 +66,7 @@ def compare_with_drapes(e: HemisphereForming, n: int = 41, a: float | None = Non
     return {**out, "excluded": int((m["on"] & m["mirror_band"]).sum())}
 
 
-def compare_with_generator_drape(e: HemisphereForming, n: int = 41, a: float | None = None
+def compare_with_generator_drape(e: HemispherePlugin, n: int = 41, a: float | None = None
                                  ) -> dict:
     """:func:`contact_map` against the drape closed from the continuum's own fibres through
     the pole (generator_drape.compare), cell ``a`` (default R/40), over the points on the punch

@@ -1,4 +1,5 @@
-"""References for the wrinkling indicator of the hemisphere plug-in (experiments/wrinkling.py):
+"""References for the wrinkling indicator of the hemisphere plug-in
+(experiments/forming/indicators.py):
 the flange's out-of-plane amplitude and a buckling estimate of its unpressed strip.
 
 **Amplitude.** Beyond the die's lip (current distance from the axis ρ ≥ R_o + r_d, where the
@@ -37,7 +38,8 @@ from dolfinx import fem
 
 from fabricsurf.discretise.energy import placement
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
-from fabricsurf.experiments import forming_blank, wrinkling
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.experiments.forming import indicators as wrinkling
 from fabricsurf.model.kinematics import l_dir, m_dir
 
 HARMONICS = (1, 2)

@@ -19,8 +19,8 @@ from dolfinx import fem
 from fabricsurf.discretise.energy import EVERYWHERE, EnergyForm
 from fabricsurf.discretise.problem import boundary_facets
 from fabricsurf.discretise.solver import SNESSolver
+from fabricsurf.geometry.specimen import structured_rectangle
 from fabricsurf.model.terms import Term
-from geometry.specimen import structured_rectangle
 
 
 def norms(e, msh, qdeg: int = 6) -> dict[str, float]:

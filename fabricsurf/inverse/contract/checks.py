@@ -3,11 +3,15 @@ the file, line or key and what to check (unit mix-ups are the common cause of ab
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.errors import DataError
-from fabricsurf.log import rank0_print
+from fabricsurf.log import warn
+
+logger = logging.getLogger(__name__)
 
 MAX_SPECIMEN_MM = 5000.0
 MIN_SPECIMEN_MM = 0.5
@@ -41,8 +45,8 @@ def noise_keys(noise: dict, files: dict) -> None:
                         "(degrees; the measured shear angles themselves lie within ±90°)")
     for key, kind in NOISE_DATA.items():
         if noise.get(key) is not None and files.get(kind) is None:
-            rank0_print(MPI.COMM_WORLD, f"warning: experiment.toml: [data] {key} is given but "
-                        f"[data] {kind} is not: the noise level is not used", level=30)
+            warn(logger, MPI.COMM_WORLD, f"experiment.toml: [data] {key} is given but "
+                 f"[data] {kind} is not: the noise level is not used")
 
 
 def steps(values: np.ndarray, lines: np.ndarray, name: str) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
-from fabricsurf.experiments.base import Setup, number_option
+from fabricsurf.experiments.base import PluginSetup, number_option
 from fabricsurf.inverse.contract import checks
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.contract.shear import read_shear, zero_shear
@@ -88,7 +88,7 @@ def _item(values: list, i: int, label: str) -> float:
     return float(v)
 
 
-def _setup(t: dict, plugin, test: str, ls: float) -> Setup:
+def _setup(t: dict, plugin, test: str, ls: float) -> PluginSetup:
     length = number_option(t, "specimen", "length", "experiment.toml") * ls
     width = number_option(t, "specimen", "width", "experiment.toml") * ls
     angles = _get(t, "specimen", "fibre_angles_deg")
@@ -97,7 +97,7 @@ def _setup(t: dict, plugin, test: str, ls: float) -> Setup:
                         "a list of two angles")
     angles = tuple(_item(angles, i, "[specimen] fibre_angles_deg") for i in range(2))
     checks.fibre_angles(angles)
-    setup = Setup(test, length, width, angles, plugin.parse_options(t, ls, "experiment.toml"))
+    setup = PluginSetup(test, length, width, angles, plugin.parse_options(t, ls, "experiment.toml"))
     plugin.check_specimen(setup, "experiment.toml")
     return setup
 

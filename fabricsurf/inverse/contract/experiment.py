@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fabricsurf.experiments.base import Setup
+from fabricsurf.experiments.base import PluginSetup
 
 
 @dataclass
@@ -20,7 +20,7 @@ class Experiment:
     """
 
     name: str
-    setup: Setup
+    setup: PluginSetup
     steps: np.ndarray
     path: np.ndarray
     force: np.ndarray | None = None
@@ -88,7 +88,7 @@ def template(length: float, width: float, displacements, points: np.ndarray,
     d = np.asarray(displacements, float)
     steps = np.arange(1, len(d) + 1)
     opts = {"clamp": clamp} if options is None else dict(options)
-    setup = Setup(test, float(length), float(width), tuple(angles), opts)
+    setup = PluginSetup(test, float(length), float(width), tuple(angles), opts)
     pts = np.asarray(points, float).reshape(-1, 2)
     return Experiment(name, setup, steps, d, np.zeros(len(d)) if force else None,
                       np.repeat(steps, len(pts)), np.tile(pts, (len(d), 1)),

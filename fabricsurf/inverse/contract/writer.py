@@ -9,6 +9,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.checks import NOISE_DATA
@@ -81,27 +83,33 @@ def toml_text(exp: Experiment) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write_files(tmp: Path, exp: Experiment) -> None:
-    (tmp / "experiment.toml").write_text(toml_text(exp))
+def _table(path: Path, header: list[str], steps, *columns) -> None:
+    """One CSV of the contract: the step, then ``columns`` (arrays, one row per step entry),
+    each number as ``repr`` (the shortest text that reads back as the same float)."""
+    rows = np.column_stack([np.asarray(c, float) for c in columns]).tolist()
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows([s, *map(repr, row)] for s, row in zip(
+            np.asarray(steps).astype(int).tolist(), rows))
+
+
+def write_files(directory: str | Path, exp: Experiment) -> None:
+    """The contract files of ``exp`` (experiment.toml and its CSVs, mm and N, every number at
+    full precision, so a load gives back the very floats) into the existing ``directory``
+    (a staging directory: no atomic replacement, :func:`write_experiment` does that); the one
+    writer of the contract's files (the DIC import writes with it too). Call on one rank."""
+    d = Path(directory)
+    (d / "experiment.toml").write_text(toml_text(exp))
     if exp.has_force:
-        with open(tmp / "force.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(("step", "displacement", "force"))
-            for s, p, f in zip(exp.steps, exp.path, exp.force):
-                w.writerow([int(s), repr(float(p)), repr(float(f))])
+        _table(d / "force.csv", ["step", "displacement", "force"], exp.steps, exp.path,
+               exp.force)
     if exp.has_field:
         comps = ["ux", "uy", "uz"][: exp.u.shape[1]]
-        with open(tmp / "field.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["step", "X", "Y", *comps])
-            for s, x, u in zip(exp.field_step, exp.X, exp.u):
-                w.writerow([int(s), *(repr(float(v)) for v in (*x, *u))])
+        _table(d / "field.csv", ["step", "X", "Y", *comps], exp.field_step, exp.X, exp.u)
     if exp.has_shear:
-        with open(tmp / "shear.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["step", "X", "Y", "shear_deg"])
-            for s, x, g in zip(exp.shear_step, exp.shear_X, exp.shear):
-                w.writerow([int(s), *(repr(float(v)) for v in (*x, g))])
+        _table(d / "shear.csv", ["step", "X", "Y", "shear_deg"], exp.shear_step, exp.shear_X,
+               exp.shear)
 
 
 def write_experiment(directory: str | Path, exp: Experiment, overwrite: bool = False) -> Path:
@@ -112,7 +120,7 @@ def write_experiment(directory: str | Path, exp: Experiment, overwrite: bool = F
     d.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{d.name}.", dir=d.parent))
     try:
-        _write_files(tmp, exp)
+        write_files(tmp, exp)
         if d.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{d.name}.old.", dir=d.parent))
             os.replace(d, old / "x")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
-from fabricsurf.experiments.base import Setup, choice_option, number_option
+from fabricsurf.experiments.base import PluginSetup, choice_option, number_option
 from fabricsurf.inverse.contract import checks
 from fabricsurf.inverse.contract.data import FORCE_UNITS
 from fabricsurf.inverse.contract.tables import read_toml
@@ -43,7 +43,7 @@ class ImportSpec:
     root: Path
     frame: Frame
     outside: str
-    setup: Setup
+    setup: PluginSetup
     images: list[int]
     reference_images: list[int]
     path: list[float]
@@ -154,7 +154,7 @@ def _units(t: dict, where: str, layout: Layout) -> tuple[str, float, float]:
     return unit, scale, FORCE_UNITS[force]
 
 
-def _setup(t: dict, where: str, plugin) -> Setup:
+def _setup(t: dict, where: str, plugin) -> PluginSetup:
     length = number_option(t, "specimen", "length", where)
     width = number_option(t, "specimen", "width", where)
     angles = t.get("specimen", {}).get("fibre_angles_deg")
@@ -164,7 +164,7 @@ def _setup(t: dict, where: str, plugin) -> Setup:
     angles = tuple(number_option({"s": {"a": a}}, "s", "a", where, positive=False)
                    for a in angles)
     checks.fibre_angles(angles)
-    setup = Setup(plugin.name, length, width, angles, plugin.parse_options(t, 1.0, where))
+    setup = PluginSetup(plugin.name, length, width, angles, plugin.parse_options(t, 1.0, where))
     plugin.check_specimen(setup, where)
     return setup
 

@@ -22,10 +22,10 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.inverse.contract.experiment import template
-from fabricsurf.inverse.fitting import linalg as la
 from fabricsurf.inverse.fitting import size_form as sz
-from fabricsurf.inverse.fitting.forward import ForwardModel
-from fabricsurf.inverse.fitting.intervals import MESH_FACTOR, Z95
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward.runs import ForwardModel
+from fabricsurf.inverse.uncertainty.intervals import MESH_FACTOR, Z95
 
 NONLINEAR = 0.2
 """The largest departure from linearity, as a share of the band, for which it is reliable."""

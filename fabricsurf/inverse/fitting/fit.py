@@ -24,20 +24,27 @@ identifiable combinations (:mod:`~.intervals`).
 
 from __future__ import annotations
 
+import logging
 import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fabricsurf.discretise.stepping import LoadStepError
-from fabricsurf.inverse.fitting import intervals, systematic
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting import uncertainty as unc
-from fabricsurf.inverse.fitting.forward import ForwardModel, ForwardSet, Prediction
 from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_moduli
-from fabricsurf.inverse.fitting.size_form import OMITS_INTERVALS
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.uncertainty import intervals, systematic
+from fabricsurf.inverse.uncertainty import statistical as unc
+from fabricsurf.log import detail, rank0
+
+logger = logging.getLogger(__name__)
+
+OMITS_INTERVALS = ("the size part: moduli fitted on one specimen carry its share of effects "
+                   "with a length, wrong for another size (size_form.size_record; "
+                   "docs/uncertainty.md)")
+"""What the intervals of a fit on one specimen size leave out (:mod:`size_form`)."""
 
 
 @dataclass
@@ -236,14 +243,24 @@ def _preconditions(fm: Forward, free: list[int]) -> None:
 
 
 def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
-        tol: float = 1e-6, max_step: float = 1.5, verbose: bool = True,
-        scale_start: bool = True, space: str = "log") -> FitResult:
+        tol: float = 1e-6, max_step: float = 1.5, scale_start: bool = True,
+        space: str = "log", *, verbose: bool | None = None) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
     free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
     docstring). The inputs are checked first, before any solve (the command line's refusals,
-    :func:`~.preconditions.fit_preconditions`)."""
+    :func:`~.preconditions.fit_preconditions`). Each iteration is logged at PROGRESS.
+
+    ``verbose`` is kept only for the callers still to convert (fabricsurf/cli/measure.py,
+    demos/demo_bending.py, demos/demo_woven_fabric.py): False logs the progress at DEBUG
+    (:func:`fabricsurf.log.detail`); otherwise it does nothing."""
+    with detail(verbose is False):
+        return _fit(fm, free, max_iter, tol, max_step, scale_start, space)
+
+
+def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_step: float,
+         scale_start: bool, space: str) -> FitResult:
     if space not in ("log", "linear"):
         raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
@@ -253,12 +270,11 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
     if scale_start:
         vals = scan_terms(fm, free, vals)
         held = held_terms(fm, free)
-        if verbose and held:
-            rank0_print(fm.comm, f"  fit: {', '.join(held)} held at the given moduli in the "
-                        "scale scan (the experiments hardly see them)")
-        if verbose:
-            rank0_print(fm.comm, "  fit: start after the scale scan: " + "  ".join(
-                f"{fm.names[k]} = {vals[k]:.4g}" for k in free))
+        if held:
+            rank0(logger, fm.comm, f"  fit: {', '.join(held)} held at the given moduli in the "
+                  "scale scan (the experiments hardly see them)")
+        rank0(logger, fm.comm, "  fit: start after the scale scan: " + "  ".join(
+            f"{fm.names[k]} = {vals[k]:.4g}" for k in free))
     try:
         pred, rj, chi2 = _start(fm, free, vals)
     except LoadStepError as e:
@@ -266,9 +282,8 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         # hardly see, e.g. a cantilever's membrane, scanned down): start from those given
         if not scale_start or np.array_equal(vals, given):
             raise
-        if verbose:
-            rank0_print(fm.comm, f"  fit: the scanned start fails ({e}); starting from the "
-                        "given moduli instead")
+        rank0(logger, fm.comm, f"  fit: the scanned start fails ({e}); starting from the "
+              "given moduli instead")
         vals = given
         pred, rj, chi2 = _start(fm, free, vals)
     r, Jr = rj
@@ -307,9 +322,8 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         at_bound = (space == "linear") & (~act | (vals[free] + step <= 0))
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
         hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
-        if verbose:
-            rank0_print(fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
-                        + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
+        rank0(logger, fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
+              + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
         moving = space == "log" and np.max(dlog) >= max_step * (1 - 1e-9)  # cut: go on
         if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < STALL:
             break
@@ -332,8 +346,8 @@ def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
     lost = res.lost()
     if lost:  # a null direction's zero variance is not a known modulus
         res.std[[k for k, n in enumerate(res.names) if n in lost]] = np.inf
-        rank0_print(fm.comm, "  fit: not determined by the data (standard deviation "
-                    f"undetermined, reported as null): {'; '.join(res.undetermined)}")
+        rank0(logger, fm.comm, "  fit: not determined by the data (standard deviation "
+              f"undetermined, reported as null): {'; '.join(res.undetermined)}")
     return res
 
 

@@ -1,6 +1,6 @@
 """What a fit or a diagnosis refuses before any computation, checked in one place for the
 library (:func:`~fabricsurf.inverse.fitting.fit.fit`,
-:func:`~fabricsurf.inverse.fitting.diagnose.diagnose`) and the command line: signed or zero
+:func:`~fabricsurf.inverse.diagnosis.diagnose.diagnose`) and the command line: signed or zero
 starting moduli (the fit steps in log-moduli), more moduli than data (under-determined), tests
 or kinds of data not yet in the comparison loop, and terms the data cannot carry (out-of-plane
 effects on planar data, a bending test without bending stiffness).
@@ -14,7 +14,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fabricsurf.errors import InputError
+from fabricsurf.errors import DataError, InputError
+from fabricsurf.experiments import get_test
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.model.terms import EFFECTS, in_plane_invisible
 
 NOT_IN_LOOP: dict[str, str] = {}
 """Tests that have a plug-in but are not yet compared with measurements, and why (none now:
@@ -70,7 +73,6 @@ def enough_data(exps: list, model: list, fixed: list[str] | None = None,
     meaningless). Data: every force value, every field row times the components the test
     compares, and every measured shear angle. The moduli fitted: those of the terms of
     ``model`` not in ``fixed``; ``remedy``: how to fit fewer (default: the library's names)."""
-    from fabricsurf.experiments import get_test
 
     free = [f"{t.name}.{p}" for t in model if t.name not in (fixed or []) for p in t.values()]
     counts, n = [], 0
@@ -119,8 +121,7 @@ def check_in_loop(exps: list, data: list | None = None) -> None:
 def _stroke_within_reach(e, d) -> None:
     """A measured stroke the die and blank cannot allow is refused before the forward model
     follows it into a Newton failure (forming_blank.check_stroke)."""
-    from fabricsurf.errors import DataError
-    from fabricsurf.experiments import forming_blank
+    from fabricsurf.experiments.forming import blank as forming_blank
 
     i = int(max(range(len(e.path)), key=lambda j: e.path[j]))
     try:
@@ -136,7 +137,6 @@ def check_terms_fit_data(exps: list, model: list, spec: str | None = None,
     in 3D), and a cantilever or a formed sheet without a second-gradient term has no bending
     stiffness. ``spec``: the terms as given on the command line (``--terms spec``); without
     it the library's ``terms [...]``."""
-    from fabricsurf.experiments import get_test
 
     label = f"{option} {spec}" if spec is not None else terms_label(model)
     where = option if spec is not None else "the terms"
@@ -160,9 +160,6 @@ def planar_candidates(exps: list, cands: list[str] | None, option: str = "candid
     """Planar and out-of-plane data together: an out-of-plane candidate (by default every
     effect some data can see) would enter the planar experiments' models too, where it has no
     meaning; refused, naming the remedy. ``option``: the candidates' name (``--candidates``)."""
-    from fabricsurf.experiments import get_test
-    from fabricsurf.inverse.fitting.diagnose import visible_effects
-    from fabricsurf.model.terms import in_plane_invisible
 
     planar = [e.name for e in exps if get_test(e.test).d == 2]
     pool = cands if cands is not None else visible_effects(exps)
@@ -186,3 +183,30 @@ def fit_preconditions(exps: list, model: list, fixed: list[str] | None = None,
     check_terms_fit_data(exps, model)
     positive_start(model if start is None else start, "params", command, terms_label(model))
     enough_data(exps, model, fixed)
+
+
+def visible_effects(exps: list[Experiment]) -> list[str]:
+    """The vocabulary effects these data can see: out-of-plane ones only with 3D data (a 3D
+    field, or the force and shear angles of a test solved in 3D: a formed part). The
+    vocabulary is the registry :data:`EFFECTS`: a user's registered effect is seen (and is a
+    candidate by default) like a built-in, unless it has signed moduli."""
+    three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3)
+                  for e in exps)
+    return [n for n in EFFECTS if three_d or EFFECTS[n].in_plane]
+
+
+SIGNED_REASON = ("a modulus that may be negative (signed): not a candidate, the diagnosis "
+                 "scores and fits moduli ≥ 0")
+"""Why an effect with a signed modulus is not among the candidates."""
+
+
+def check_unsigned(names: list[str]) -> None:
+    """Refuse effects with signed moduli in a diagnosis (baseline or named candidates): its
+    scores, refits and log-scale baseline fit take moduli ≥ 0. They are left out of the
+    default candidates (and reported as not tried, :data:`SIGNED_REASON`)."""
+    bad = [n for n in names if n in EFFECTS and EFFECTS[n].signed]
+    if bad:
+        raise ValueError(f"diagnose: {', '.join(bad)} has moduli that may be negative "
+                         f"({', '.join(f'{n}.{p}' for n in bad for p in EFFECTS[n].signed)}); "
+                         "the diagnosis works with moduli ≥ 0, so signed effects can be "
+                         "compared but not diagnosed yet")

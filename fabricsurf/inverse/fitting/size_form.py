@@ -32,7 +32,9 @@ import numpy as np
 from scipy import stats
 
 from fabricsurf.discretise.stepping import LoadStepError
-from fabricsurf.inverse.fitting import local as ranks
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.forward import ranks
+from fabricsurf.log import detail
 from fabricsurf.model.terms import EFFECTS, make_term
 
 SIZE_CANDIDATES = ("geodesic_bending",)
@@ -46,10 +48,6 @@ METHOD = ("profile over the length of each candidate size effect, the lengths th
           "data do not exclude transferred to the other size (docs/uncertainty.md)")
 
 LEVEL = 0.95
-
-OMITS_INTERVALS = ("the size part: moduli fitted on one specimen carry its share of effects "
-                   "with a length, wrong for another size (size_form.size_record; "
-                   "docs/uncertainty.md)")
 
 REFINE = 2
 """Secant steps towards the end of the interval not excluded (:func:`refine`)."""
@@ -168,15 +166,18 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
     """The size part's record for a forward model ``fm`` of the calibrating data whose model
     is :func:`extended_model` at the fitted moduli (as set; ``fitted`` their names, ``chi2_fit``
     their χ²): per candidate its profile and the lengths not excluded (module docstring)."""
-    from fabricsurf.inverse.fitting.fit import fit
 
     vals = fm.values()
     if k_ref is None and "shear.k_s" not in fm.names:
         raise ValueError("size form: the model has no shear.k_s to scale the candidates' "
                          "lengths by; give k_ref (N/mm)")
     k_ref = k_ref or float(vals[fm.names.index("shear.k_s")])
-    fit_fn = lambda f, free: fit(f, free, verbose=False, scale_start=False,  # noqa: E731
-                                 space="linear", tol=PROFILE_TOL, max_iter=PROFILE_ITER)
+
+    def fit_fn(f, free):
+        with detail():  # a profile's many fits: their iterations are detail (DEBUG)
+            return fit(f, free, scale_start=False, space="linear", tol=PROFILE_TOL,
+                       max_iter=PROFILE_ITER)
+
     if not any(t.name in candidates and f"{t.name}.{p}" not in fitted for t, p in fm.params):
         raise ValueError(f"size form: none of the candidates {list(candidates)} is in the "
                          "model unfitted (extend it with extended_model; a fitted effect is "

@@ -31,8 +31,8 @@ import numpy as np
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import get_test
-from fabricsurf.inverse.fitting import local as ranks
-from fabricsurf.inverse.fitting.misfit import scales
+from fabricsurf.inverse.forward import ranks
+from fabricsurf.inverse.forward.misfit import scales
 
 MAX_DECADES = 4
 SCOUT_FACTOR = 2.0

@@ -225,7 +225,7 @@ def difference_map(maps: list[tuple[str, Experiment, np.ndarray]], effects: list
                    path: Path) -> None:
     """|u_a − u_b|/s_u of two tied models' predictions at the last step of each experiment of
     ``maps`` (title, experiment, value per field row): where the data cannot separate them and
-    where the suggested experiment would (:mod:`~fabricsurf.inverse.fitting.discrimination`)."""
+    where the suggested experiment would (:mod:`~fabricsurf.inverse.diagnosis.discrimination`)."""
     plt = _plt()
     fig, axes = plt.subplots(1, max(len(maps), 1), squeeze=False,
                              figsize=(4.8 * max(len(maps), 1), 3.4))

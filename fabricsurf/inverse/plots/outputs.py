@@ -14,7 +14,8 @@ from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.fitting.band import force_band, write_band
 from fabricsurf.inverse.fitting.fit import strip_rows
-from fabricsurf.inverse.plots import figures, shear
+from fabricsurf.inverse.plots import figures
+from fabricsurf.inverse.plots import formed_shear as shear
 
 SLUG_CHARS = 60
 

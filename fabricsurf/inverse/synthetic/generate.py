@@ -85,7 +85,7 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
                    comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
     """Fill ``exp`` with the continuum solution of ``model`` on a mesh of size ``h``."""
     from fabricsurf.experiments import get_test
-    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.forward.runs import ForwardModel
 
     exp.u = np.zeros((len(exp.field_step), get_test(exp.test).d))
     with ForwardModel(exp, model, h=h, comm=comm) as fm:
@@ -113,7 +113,7 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
     strain, fibre springs that slide past their slip force).
     """
     from fabricsurf.network import hencky
-    from fabricsurf.network.solver import solve_steps
+    from fabricsurf.network.equilibrium import solve_steps
 
     angles = tuple(exp.fibre_angles_deg)
     spacing = hencky.spanning_spacing(exp.length, spacing, angles)

@@ -27,6 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.inverse.contract.experiment import Experiment, template
+from fabricsurf.log import detail
 
 FABRICS = {"soft": (30.0, 0.5, 0.3), "stiff": (1000.0, 0.4, 0.2)}
 """k_l (N/mm), k_s (N/mm), the largest displacement per length."""
@@ -73,12 +74,13 @@ def pair_coverage(calib: Experiment, other: Experiment, fabric: str, h: float,
     from fabricsurf.inverse.fitting import size_form as sz
     from fabricsurf.inverse.fitting.band import predicted_band
     from fabricsurf.inverse.fitting.fit import fit
-    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.forward.runs import ForwardModel
 
     start = 1.3 * FABRICS[fabric][1]
     with ForwardModel(calib, base_model(fabric, start), h=h, comm=comm) as fm:
         free = [fm.names.index("shear.k_s")]
-        res = fit(fm, free, verbose=False, scale_start=False, space="linear")
+        with detail():  # the calibrating fit: detail of the coverage study (DEBUG)
+            res = fit(fm, free, scale_start=False, space="linear")
         res.check_mesh(fm)
     fitted = base_model(fabric, float(res.values[free[0]]))
     ext = sz.extended_model(fitted, candidates or sz.SIZE_CANDIDATES)

@@ -3,7 +3,7 @@ line: the effects to try (``candidates``), the baseline terms held at known modu
 and the round counts. No combination may silently answer another question (docs/diagnosis.md).
 
 The messages name each choice as the caller spells it (:class:`Labels`): ``--fixed shear`` on
-the command line, ``fixed ['shear']`` in :func:`~fabricsurf.inverse.fitting.diagnose.diagnose`.
+the command line, ``fixed ['shear']`` in :func:`~fabricsurf.inverse.diagnosis.diagnose.diagnose`.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ class Labels:
 
 def library_labels(baseline: list[str], candidates: list[str] | None,
                    fixed: list[str] | None) -> Labels:
-    """The names of :func:`~fabricsurf.inverse.fitting.diagnose.diagnose`'s arguments."""
+    """The names of :func:`~fabricsurf.inverse.diagnosis.diagnose.diagnose`'s arguments."""
     return Labels(f"candidates {candidates}", f"fixed {fixed}", f"baseline {baseline}")
 
 

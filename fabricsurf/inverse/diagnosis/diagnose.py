@@ -3,7 +3,7 @@
 1. Fit the baseline terms to all experiments at once (:func:`fabricsurf.inverse.fitting.fit.fit`:
    a scan by decades, then steps in the moduli themselves).
    With ``grip_depths``, the effective grip depth of the bias experiments is first profiled
-   as a nuisance parameter (:mod:`~fabricsurf.inverse.fitting.nuisance`).
+   as a nuisance parameter (:mod:`~fabricsurf.inverse.diagnosis.nuisance`).
 2. Rank every vocabulary effect the data can see and the model lacks with one forward run:
    the model holds all those effects (vocabulary order, so one compiled form serves every
    diagnosis), candidates at modulus 0, so the state is the current fit; tangent solves give
@@ -28,58 +28,40 @@ with the steps and regions where it remains (:func:`~.report.where_unexplained`)
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.data import check_field_moves
 from fabricsurf.inverse.contract.experiment import Experiment
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting import local as ranks
-from fabricsurf.inverse.fitting import significance as sg
-from fabricsurf.inverse.fitting import uncertainty as unc
-from fabricsurf.inverse.fitting.choices import check_choices, library_labels
-from fabricsurf.inverse.fitting.fit import FitResult, fit
-from fabricsurf.inverse.fitting.forward import ForwardSet
-from fabricsurf.inverse.fitting.nuisance import grip_profile, with_depth
-from fabricsurf.inverse.fitting.preconditions import fit_preconditions, planar_candidates
-from fabricsurf.inverse.fitting.report import (
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.choices import check_choices, library_labels
+from fabricsurf.inverse.diagnosis.nuisance import grip_profile, with_depth
+from fabricsurf.inverse.diagnosis.report import (
     Diagnosis,
     best_lead,
     look_alikes,
     where_unexplained,
 )
+from fabricsurf.inverse.diagnosis.ties import find_tie
+from fabricsurf.inverse.fitting.fit import FitResult, fit
+from fabricsurf.inverse.fitting.preconditions import (
+    SIGNED_REASON,
+    check_unsigned,
+    fit_preconditions,
+    planar_candidates,
+    visible_effects,
+)
 from fabricsurf.inverse.fitting.start import candidate_start
-from fabricsurf.inverse.fitting.ties import find_tie
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward import ranks
+from fabricsurf.inverse.forward.runs import ForwardSet
+from fabricsurf.inverse.uncertainty import statistical as unc
+from fabricsurf.log import detail, rank0
 from fabricsurf.model.terms import EFFECTS, make_term
 
-
-def visible_effects(exps: list[Experiment]) -> list[str]:
-    """The vocabulary effects these data can see: out-of-plane ones only with 3D data (a 3D
-    field, or the force and shear angles of a test solved in 3D: a formed part). The
-    vocabulary is the registry :data:`EFFECTS`: a user's registered effect is seen (and is a
-    candidate by default) like a built-in, unless it has signed moduli."""
-    three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3)
-                  for e in exps)
-    return [n for n in EFFECTS if three_d or EFFECTS[n].in_plane]
-
-
-SIGNED_REASON = ("a modulus that may be negative (signed): not a candidate, the diagnosis "
-                 "scores and fits moduli ≥ 0")
-"""Why an effect with a signed modulus is not among the candidates."""
-
-
-def check_unsigned(names: list[str]) -> None:
-    """Refuse effects with signed moduli in a diagnosis (baseline or named candidates): its
-    scores, refits and log-scale baseline fit take moduli ≥ 0. They are left out of the
-    default candidates (and reported as not tried, :data:`SIGNED_REASON`)."""
-    bad = [n for n in names if n in EFFECTS and EFFECTS[n].signed]
-    if bad:
-        raise ValueError(f"diagnose: {', '.join(bad)} has moduli that may be negative "
-                         f"({', '.join(f'{n}.{p}' for n in bad for p in EFFECTS[n].signed)}); "
-                         "the diagnosis works with moduli ≥ 0, so signed effects can be "
-                         "compared but not diagnosed yet")
+logger = logging.getLogger(__name__)
 
 
 def full_model(baseline: list[str], params: dict | None = None,
@@ -127,7 +109,7 @@ def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: lis
 
 
 def _refit(fs: ForwardSet, cur: FitResult, free: list[int], idx: list[int], estimate: float,
-           gn: np.ndarray, verbose: bool, warm: np.ndarray | None = None) -> FitResult:
+           gn: np.ndarray, warm: np.ndarray | None = None) -> FitResult:
     """Nested refit from the current optimum, the candidate at its best start (among them,
     with ``warm``, the moduli a coarser mesh found for it)."""
     extra = [gn]
@@ -135,7 +117,7 @@ def _refit(fs: ForwardSet, cur: FitResult, free: list[int], idx: list[int], esti
         extra.append(cur.values.copy())
         extra[-1][free + idx] = warm[free + idx]
     fs.set_values(candidate_start(fs, cur.values, free, idx, estimate, cur.chi2, extra=extra))
-    res = fit(fs, free + idx, verbose=verbose, scale_start=False, space="linear")
+    res = fit(fs, free + idx, scale_start=False, space="linear")
     fs.set_values(cur.values)
     return res
 
@@ -148,8 +130,9 @@ def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
     return unc.wald(rf.values[idx], st.cov[np.ix_(pos, pos)], st.dof)
 
 
-def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, verbose: bool,
-                warm: np.ndarray | None = None):
+def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int,
+                verbose: bool | None = None, warm: np.ndarray | None = None):
+    # verbose: unused, kept for beyond.py's positional call until it is converted
     fs.set_values(cur.values)
     r, Jr = fs.residuals(fs.run(sens=True))
     sc = scores(r, Jr, cur.values, free, cand)
@@ -160,7 +143,7 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, v
 
     def refit(c: str) -> FitResult:
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        return _refit(fs, cur, free, cand[c], sc[c][1], gn, verbose, warm)
+        return _refit(fs, cur, free, cand[c], sc[c][1], gn, warm)
 
     small = r.size <= ranks.SPREAD_RESIDUALS  # the refits are gathered on every rank
     refits = dict(zip(chosen, ranks.spread(fs, chosen, refit) if small else map(refit, chosen)))
@@ -190,21 +173,32 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
              h: float | list[float] | None = None,
              params: dict | None = None, confirm: int = 2, max_effects: int = 2,
              check_discretisation: bool = True, comm: MPI.Comm = MPI.COMM_WORLD,
-             verbose: bool = True, candidates: list[str] | None = None,
+             candidates: list[str] | None = None,
              fixed: list[str] | None = None,
              grip_depths: list[float] | None = None,
-             warm_start: dict | None = None) -> Diagnosis:
+             warm_start: dict | None = None, *, verbose: bool | None = None) -> Diagnosis:
     """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
 
     ``candidates``: the effects to consider (default: every effect the data can see);
     ``fixed``: baseline terms held at their moduli in ``params`` (known from other tests);
     ``grip_depths``: candidate grip depths (mm) of the bias experiments, profiled first
-    (:mod:`~fabricsurf.inverse.fitting.nuisance`); the best is used. ``h``: one element size,
+    (:mod:`~fabricsurf.inverse.diagnosis.nuisance`); the best is used. ``h``: one element size,
     or one per experiment; ``warm_start``: the final moduli {term: {param: value}} of this
     diagnosis on a coarser mesh (:mod:`~.mesh_choice`; ``params`` then hold its baseline
     optimum): the baseline fit skips its scan by decades, and every effect it added is refitted
     in each round (best-scored or not), starting also from its moduli there.
+
+    Its stages and its fits' iterations are logged at PROGRESS. ``verbose`` is kept only for
+    the callers still to convert (demos/demo_bending.py, demos/demo_woven_fabric.py): False
+    logs that progress at DEBUG (:func:`fabricsurf.log.detail`); otherwise it does nothing.
     """
+    with detail(verbose is False):
+        return _diagnose(exps, baseline, h, params, confirm, max_effects, check_discretisation,
+                         comm, candidates, fixed, grip_depths, warm_start)
+
+
+def _diagnose(exps, baseline, h, params, confirm, max_effects, check_discretisation, comm,
+              candidates, fixed, grip_depths, warm_start) -> Diagnosis:
     exps = exps if isinstance(exps, list) else [exps]
     visible = seen = visible_effects(exps)
     check_choices(list(baseline), candidates, fixed, params or {}, visible, confirm,
@@ -222,27 +216,27 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
         visible = [n for n in visible if n in candidates or n in baseline]
     grip = None if grip_depths is None else grip_profile(
         exps, grip_depths, lambda: full_model(baseline, params, visible),
-        [n for n in baseline if n not in fixed], h, comm, verbose)
+        [n for n in baseline if n not in fixed], h, comm)
     exps = exps if grip is None else [with_depth(e, grip["best_mm"]) for e in exps]
     with ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm) as fs:
         idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
         free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
-        say = (lambda m: rank0_print(comm, m)) if verbose else (lambda m: None)
         t0 = MPI.Wtime()
         warm = None if warm_start is None else np.array(
             [warm_start.get(t.name, {}).get(p, 0.0) for t, p in fs.params])
-        cur = base = fit(fs, free, verbose=verbose, space="linear", scale_start=warm is None)
+        cur = base = fit(fs, free, space="linear", scale_start=warm is None)
         t_fit = MPI.Wtime() - t0
         terms, path, rankings, added = list(baseline), [], [], []
         tie = None
         path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})
-        say(f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
+        rank0(logger, comm,
+              f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
         while True:
             cand = {n: idx_of[n] for n in visible if n not in terms and idx_of[n]}
             ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
             if not cand or (ok and rankings) or len(added) >= max_effects:
                 break
-            rows, refits = _rank_round(fs, cur, free, cand, confirm, verbose, warm)
+            rows, refits = _rank_round(fs, cur, free, cand, confirm, warm=warm)
             rankings.append(rows)
             sig = [q for q in rows if q["significant"]]
             if ok or not sig:
@@ -254,7 +248,7 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
             terms.append(c)
             added.append(c)
             path.append({"added": c, "misfit": cur.misfit["combined"], "chi2": cur.chi2})
-            say(f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
+            rank0(logger, comm, f"[diagnose] added {c}: misfit {cur.misfit['combined']:.4g}")
         fs.set_values(cur.values)
         chi2_h = None
         if check_discretisation:

@@ -1,11 +1,11 @@
-"""The Newton solver of the forming problem (forming_tools.ContactProblem): a secant predictor
+"""The Newton solver of the forming problem (tools.ContactProblem): a secant predictor
 along the stroke, full Newton steps with the ``l2`` line search as a fallback, the friction of
 the punch and the die's lip added to residual and Jacobian while it is on, and the dissipation
 of each converged step (docs/forming.md)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from dolfinx import cpp as _cpp
@@ -16,8 +16,18 @@ from petsc4py import PETSc
 
 from fabricsurf.discretise.solver import SOLVER_KEYS, SNESSolver
 
-if TYPE_CHECKING:
-    from fabricsurf.experiments.forming_tools import Tools
+
+class StrokeTools(Protocol):
+    """What the solver reads of the tools (:class:`~.tools.Tools`): the stroke now and at the
+    last converged step, the friction regularisation and whether tool friction is on."""
+
+    stroke: fem.Constant
+    stroke_n: fem.Constant
+    eps: fem.Constant
+    slip_rate: float
+    R: float
+
+    def tool_friction(self) -> bool: ...
 
 
 class ContactSolver(SNESSolver):
@@ -46,7 +56,7 @@ class ContactSolver(SNESSolver):
     matrices into AIJ rows took most of their assembly (docs/forming.md, "Performance"); MUMPS
     factors it the same way."""
 
-    def __init__(self, *args, tools: Tools, u_n: fem.Function, dissipation,
+    def __init__(self, *args, tools: StrokeTools, u_n: fem.Function, dissipation,
                  tool_friction: tuple | None = None, fallback: dict | None = None,
                  **kw) -> None:
         super().__init__(*args, **kw)

@@ -10,8 +10,8 @@ import numpy as np
 
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression, nodal_average
-from fabricsurf.experiments import forming_blank
-from geometry.aligned import lattice_divisions, square_divisions
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.geometry.aligned import lattice_divisions, square_divisions
 
 
 def element_centres(e) -> np.ndarray:

@@ -1,5 +1,5 @@
 """Rigid forming tools as analytic signed distances, their penalty contact, and the problem that
-carries it (its solver: experiments/forming_solver.py; used by the hemisphere plug-in,
+carries it (its solver: experiments/forming/contact_newton.py; used by the hemisphere plug-in,
 experiments/hemisphere.py).
 
 The placement r is in a frame whose origin is the punch axis at the blank's reference plane.
@@ -31,7 +31,7 @@ shrink); w is taken at r_n, so that the normal pressure is explicit within a ste
 step then satisfies Coulomb's law (|t| ≤ 2 μ p_h w, sliding against the slip) up to slips
 slower than v_ε. Friction on the punch (coefficient μ_p, ``punch_friction``) and over the
 die's lip (μ_d, ``die_friction``) are potentials of the same kind with the tools' own contact
-pressure at r_n and the slip relative to the tool (experiments/forming_friction.py); they are
+pressure at r_n and the slip relative to the tool (experiments/forming/friction.py); they are
 compiled as forms of their own and assembled only when μ_p or μ_d is not zero, so that without
 them the residual, the Jacobian and every result are those of the code without them. The punch
 force is the work conjugate of the stroke, F = ∂(Π + Φ)/∂s at fixed u = ∫ (k_c ⟨−d_p⟩ n_z −
@@ -50,9 +50,9 @@ from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, placement
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.resources import release_vectors
 from fabricsurf.discretise.solver import SNESSolver
-from fabricsurf.experiments import forming_friction
 from fabricsurf.experiments.cantilever import weight_per_area
-from fabricsurf.experiments.forming_solver import ContactSolver
+from fabricsurf.experiments.forming import friction as forming_friction
+from fabricsurf.experiments.forming.contact_newton import ContactSolver
 from fabricsurf.model.terms import Term
 
 

@@ -43,10 +43,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting import significance as sg
-from fabricsurf.inverse.fitting import uncertainty as unc
+from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.fitting.fit import FitResult
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.uncertainty import statistical as unc
 
 
 @dataclass

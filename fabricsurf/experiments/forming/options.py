@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 from fabricsurf.errors import DataError
-from fabricsurf.experiments.base import Setup, number_option
+from fabricsurf.experiments.base import PluginSetup, number_option
 from fabricsurf.experiments.cantilever import areal_density_option
 
 DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
@@ -91,7 +91,7 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
     return out
 
 
-def check_specimen(setup: Setup, where: str) -> None:
+def check_specimen(setup: PluginSetup, where: str) -> None:
     """A square blank wider than the die's opening with its lip, at most
     :data:`MAX_BLANK_RATIO` punch radii wide."""
     o = setup.options
@@ -107,7 +107,7 @@ def check_specimen(setup: Setup, where: str) -> None:
                         f"{setup.length / MAX_BLANK_RATIO:g} mm): is it in another unit?")
 
 
-def check_mesh(setup: Setup, h: float, default: bool) -> None:
+def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
     """Refuse an element size whose quarter mesh would exceed :data:`MAX_ELEMENTS` cells
     (estimated before meshing as 2 per h × h square)."""
     n = 2 * math.ceil(0.5 * setup.length / h) ** 2

@@ -28,6 +28,7 @@ sensitivities to the fitted moduli) at the diagnosis's mesh size.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -40,11 +41,12 @@ from fabricsurf.experiments import get_test
 from fabricsurf.experiments import picture_frame as pf
 from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import Experiment, template
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting import misfit as mf
-from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.report import Diagnosis
 from fabricsurf.inverse.fitting.fit import FitResult
-from fabricsurf.inverse.fitting.forward import ForwardModel, Prediction
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward import misfit as mf
+from fabricsurf.inverse.forward.runs import ForwardModel, Prediction
 from fabricsurf.model.terms import make_term
 
 Z_CRIT = float(stats.norm.isf(0.5 * (1.0 - sg.LEVEL)))
@@ -232,3 +234,17 @@ def design(exps: list[Experiment], ra: FitResult, rb: FitResult, effects: list[s
     if rows and rows[0]["key"] in diff:
         maps.append(diff[rows[0]["key"]])
     return Design(list(effects), own, rows, maps)
+
+
+def separate_tie(d: Diagnosis, exps: list[Experiment], h: float | None = None,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[Diagnosis, Design | None]:
+    """For a diagnosis ``d`` that ends in a tie: the experiments that would separate its first
+    two members (:func:`design` of their refits, at the data's mesh size ``h``) and a copy of
+    ``d`` that holds them as its ``separating_experiment``; ``d`` itself is left as it was.
+    Without a tie: ``(d, None)``. The design's ``maps`` are the figure's
+    (:func:`~fabricsurf.inverse.plots.figures.difference_map`, tie_difference_map.png)."""
+    if not d.tied():
+        return d, None
+    a, b = d.tie.members[:2]
+    des = design(exps, d.tie.refits[a], d.tie.refits[b], [a, b], h=h, comm=comm)
+    return dataclasses.replace(d, separating_experiment=des.as_dict()), des

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting.forward import Prediction
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward.runs import Prediction
 
 GRID = 4
 """Regions per side of the specimen: each region × load step is one block."""

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricsurf.inverse.fitting import linalg as la
-from fabricsurf.inverse.fitting import misfit as mf
-from fabricsurf.inverse.fitting.forward import ForwardModel, Prediction
-from fabricsurf.inverse.fitting.uncertainty import sandwich
+from fabricsurf.inverse.forward import linalg as la
+from fabricsurf.inverse.forward import misfit as mf
+from fabricsurf.inverse.forward.runs import ForwardModel, Prediction
+from fabricsurf.inverse.uncertainty.statistical import sandwich
 
 RANK_TOL = 1e-6
 """A part whose scaled Jacobian has a singular value below this fraction of the largest does

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fabricsurf.inverse.fitting import significance as sg
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.ties import Tie
 from fabricsurf.inverse.fitting.fit import FitResult, strip_rows
-from fabricsurf.inverse.fitting.ties import Tie
 from fabricsurf.model.terms import EFFECTS
 
 UNCERTAINTY_KEYS = ("moduli", "identifiable_combinations", "weak_directions", "undetermined",

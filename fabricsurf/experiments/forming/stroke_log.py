@@ -6,27 +6,31 @@ step records the stroke, the punch force, the Newton iterations (failed attempts
 the attempts (1: no cut), the repeats with the fallback line search, how many quadrature points
 entered or left contact with the punch since the previous step, and its wall-clock time (the
 largest over ranks). Every number is reduced over ranks, so the records are the same on every
-rank; the line goes to ``log`` (e.g. :func:`~fabricsurf.discretise.output.rank0_print`, which
-flushes, so it reaches the terminal at once under ``mpirun`` too).
+rank; the line is logged at PROGRESS on rank 0 (fabricsurf/log.py: a program's terminal
+handler flushes it, so it reaches the terminal at once under ``mpirun`` too).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.log import rank0
 
-class StepLog:
+logger = logging.getLogger(__name__)
+
+
+class StrokeLog:
     """Records of the steps of one run (:attr:`records`), written as they converge."""
 
     def __init__(self, comm: MPI.Comm, active_set: Callable[[], np.ndarray],
-                 fallbacks: Callable[[], int], log: Callable[[str], None] | None = None,
-                 label: str = "") -> None:
+                 fallbacks: Callable[[], int], label: str = "") -> None:
         self.comm, self.active_set, self.fallbacks = comm, active_set, fallbacks
-        self.log, self.label = log, label
+        self.label = label
         self.records: list[dict] = []
         self._active, self._fallbacks = active_set(), fallbacks()
         self._t = time.perf_counter()
@@ -44,14 +48,10 @@ class StepLog:
                "seconds": seconds}
         self.records.append(rec)
         self._active, self._fallbacks, self._t = now, fb, t
-        self.say(f"step {k + 1}/{steps}: stroke {stroke:.4g} mm, force {force:.4g} N, "
-                 f"{iterations} Newton iterations, {attempts - 1} cuts, "
-                 f"{rec['fallbacks']} l2 repeats, {changes} contact changes, {seconds:.1f} s")
+        rank0(logger, self.comm, f"{self.label}step {k + 1}/{steps}: stroke {stroke:.4g} mm, "
+              f"force {force:.4g} N, {iterations} Newton iterations, {attempts - 1} cuts, "
+              f"{rec['fallbacks']} l2 repeats, {changes} contact changes, {seconds:.1f} s")
         return rec
-
-    def say(self, message: str) -> None:
-        if self.log is not None:
-            self.log(f"{self.label}{message}")
 
     @staticmethod
     def totals(r: list[dict]) -> dict:

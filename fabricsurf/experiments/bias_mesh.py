@@ -6,7 +6,8 @@ stiffness K); the bias plug-in therefore meshes along the fibres whenever they a
 load (geometry/fibre_mesh.py). Whatever is chosen is recorded (mesh kind, the size actually
 used, the fibre treatment, the fibre angles as given and as used) and, when the mesh is not
 the corner-to-corner lattice, its size is more than 5 % from the one asked (with why), the
-fibre pair was respelled or the set-up may lock, printed on rank 0 before anything is computed.
+fibre pair was respelled or the set-up may lock, logged on rank 0 before anything is computed
+(a warning when it may lock).
 """
 
 from __future__ import annotations
@@ -16,16 +17,23 @@ import math
 
 from mpi4py import MPI
 
-from fabricsurf.log import PROGRESS, rank0_print
+from fabricsurf.geometry.aligned import (
+    ANGLE_TOLERANCE_DEG,
+    EXACT_DEG,
+    lattice_sizes,
+    symmetric_angle,
+)
+from fabricsurf.log import rank0, warn
 from fabricsurf.model.terms import Term
-from geometry.aligned import ANGLE_TOLERANCE_DEG, EXACT_DEG, lattice_sizes, symmetric_angle
+
+logger = logging.getLogger(__name__)
 
 TREATMENTS = ("auto", "full", "reduced")
 """``auto`` (= ``full``) and the two of :data:`fabricsurf.discretise.energy.FIBRE_TREATMENTS`."""
 
 LOCKING_RATIO = 1e2
 """K/k_s from which fully integrated fibre terms on a mesh not aligned with the fibres give a
-grip force visibly above the locking-free one (benchmarks/locking.py): a warning is printed."""
+grip force visibly above the locking-free one (benchmarks/locking.py): a warning is logged."""
 
 MISMATCH_LIMIT = 1.0
 """Largest K/k_s · δ² (δ in radians: an aligned lattice's angle against the fibres') without a
@@ -174,11 +182,14 @@ def _remedy(r: dict) -> str:
 
 
 def announce(comm: MPI.Comm, record: dict) -> None:
-    """Log the record's notice on rank 0, if it has one: a warning (shown even with --quiet)
-    when the answer may be locked, else progress."""
-    if record["notice"]:
-        rank0_print(comm, "\n".join("note: " + line for line in record["notice"].split("\n")),
-                    level=logging.WARNING if record["may_lock"] else PROGRESS)
+    """Log the record's notice on rank 0, if it has one: a warning (shown even with --quiet;
+    its ``WARNING`` word left to the handler's ``warning:``) when the answer may be locked, else
+    progress, each line a ``note: …``."""
+    notice = record["notice"]
+    if notice and record["may_lock"]:
+        warn(logger, comm, notice.replace("WARNING ", "", 1))
+    elif notice:
+        rank0(logger, comm, "\n".join("note: " + line for line in notice.split("\n")))
 
 
 def check_bias_angles(angles: tuple[float, float], length: float, width: float) -> None:

@@ -37,8 +37,10 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.errors import InputError
-from fabricsurf.inverse.fitting import warm_start
-from fabricsurf.log import logger
+from fabricsurf.inverse.forward import warm_start
+from fabricsurf.log import muted, rank0
+
+logger = logging.getLogger(__name__)
 
 LOCAL_CELLS = 1000
 """Meshes of at most this many triangles (estimated: 2 per h × h square of the specimen's
@@ -106,19 +108,11 @@ def solve_comm(comm: MPI.Comm, cells: float, local: bool | None = None) -> MPI.C
     return MPI.COMM_SELF if use else comm
 
 
-@contextlib.contextmanager
-def one_voice(comm: MPI.Comm, local: bool) -> Iterator[None]:
-    """Mute the ``fabricsurf`` logger on the ranks of ``comm`` other than 0 while a rank-local
-    model builds or runs (each rank is rank 0 of its own ``COMM_SELF``)."""
-    if not local or comm.rank == 0:
-        yield
-        return
-    level = logger.level
-    logger.setLevel(logging.CRITICAL + 1)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
+def one_voice(comm: MPI.Comm, local: bool) -> contextlib.AbstractContextManager[None]:
+    """Mute the package's messages (:func:`fabricsurf.log.muted`: this context only, no
+    logger's level) on the ranks of ``comm`` other than 0 while a rank-local model builds or
+    runs (each rank is rank 0 of its own ``COMM_SELF``)."""
+    return muted(local and comm.rank != 0)
 
 
 def rank0_first(comm: MPI.Comm, local: bool, build: Callable[[], T]) -> T:
@@ -180,7 +174,8 @@ def agree(comm: MPI.Comm, local: bool, run: Callable[[], T], *, ignore=("seconds
     if len(set(comm.allgather(mine))) > 1:
         global differed
         differed += 1
-        logger.debug("rank-local solves differ between ranks: rank 0's values taken")
+        rank0(logger, comm, "rank-local solves differ between ranks: rank 0's values taken",
+              level=logging.DEBUG)
         out = comm.bcast(out if comm.rank == 0 else None, root=0)
     return out
 

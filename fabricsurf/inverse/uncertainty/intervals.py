@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricsurf.inverse.fitting import linalg as la
+from fabricsurf.inverse.forward import linalg as la
 
 MESH_FACTOR = 2.0
 """The error at h is this multiple of the shift from h to h/2 when the error halves with h:

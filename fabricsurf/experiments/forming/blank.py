@@ -22,10 +22,10 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import forming_options
-from fabricsurf.experiments.base import Setup, choice_option
-from geometry.aligned import blank_angle, canonical_angles, quarter_blank
-from geometry.fibre_blank import fibre_blank, mirrored_quarter
+from fabricsurf.experiments.base import PluginSetup, choice_option
+from fabricsurf.experiments.forming import options as forming_options
+from fabricsurf.geometry.aligned import blank_angle, canonical_angles, quarter_blank
+from fabricsurf.geometry.fibre_blank import fibre_blank, mirrored_quarter
 
 SHAPES = ("square", "rectangle", "circle")
 DOMAINS = ("auto", "quarter", "full")
@@ -46,16 +46,16 @@ def parse(tables: dict, where: str) -> dict:
                                           where)}
 
 
-def shape(setup: Setup) -> str:
+def shape(setup: PluginSetup) -> str:
     return setup.options.get("blank", "square")
 
 
-def inner_half(setup: Setup) -> float:
+def inner_half(setup: PluginSetup) -> float:
     """The shortest distance from the blank's centre to its edge (mm)."""
     return 0.5 * min(setup.length, setup.width)
 
 
-def area(setup: Setup) -> float:
+def area(setup: PluginSetup) -> float:
     """The blank's reference area (mm²)."""
     if shape(setup) == "circle":
         return math.pi * (0.5 * setup.length) ** 2
@@ -77,7 +77,7 @@ def bisector_deg(angles: tuple[float, float]) -> float:
     return 0.5 * (a + b)
 
 
-def domain(setup: Setup) -> str:
+def domain(setup: PluginSetup) -> str:
     """``quarter`` or ``full`` (module docstring)."""
     symmetric = shape(setup) == "square" and blank_angle(tuple(setup.fibre_angles_deg)) is not None
     asked = setup.options.get("blank_domain", "auto")
@@ -89,7 +89,7 @@ def domain(setup: Setup) -> str:
     return "quarter" if symmetric and asked != "full" else "full"
 
 
-def check_specimen(setup: Setup, where: str) -> None:
+def check_specimen(setup: PluginSetup, where: str) -> None:
     """The blank's outline and size against the die, and the fibre pair against the mesh."""
     o, s = setup.options, shape(setup)
     if s == "circle" and setup.length != setup.width:
@@ -119,7 +119,7 @@ MAX_H_PER_R = 0.5
 """Largest element size in punch radii: the quarter of the cap is then two elements across."""
 
 
-def check_mesh(setup: Setup, h: float, default: bool) -> None:
+def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
     """Refuse a mesh of more cells than forming_options.MAX_ELEMENTS: the quarter's estimate
     (forming_options.check_mesh) or, for the full blank, 2 triangles per lattice cell
     h² sin α; and an h too coarse to follow the punch's cap (more than :data:`MAX_H_PER_R`
@@ -143,18 +143,18 @@ def check_mesh(setup: Setup, h: float, default: bool) -> None:
                         " mm)")
 
 
-def check_stroke(setup: Setup, stroke: float) -> None:
+def check_stroke(setup: PluginSetup, stroke: float) -> None:
     """forming_options.check_stroke with the blank's shortest reach from the centre (every
     reference path to the edge is at least that long)."""
     forming_options.check_stroke(setup.options, 2.0 * inner_half(setup), stroke)
 
 
-def unheld_edge(setup: Setup) -> str | None:
+def unheld_edge(setup: PluginSetup) -> str | None:
     """forming_options.unheld_edge at the blank's nearest edge."""
     return forming_options.unheld_edge(setup.options, 2.0 * inner_half(setup))
 
 
-def reach(setup: Setup, direction_deg: float) -> float:
+def reach(setup: PluginSetup, direction_deg: float) -> float:
     """Distance from the centre to the blank's edge along the reference ray at
     ``direction_deg``."""
     a, b = 0.5 * setup.length, 0.5 * setup.width
@@ -165,7 +165,7 @@ def reach(setup: Setup, direction_deg: float) -> float:
     return min(a / c if c > 1e-12 else math.inf, b / s if s > 1e-12 else math.inf)
 
 
-def blank_mesh(setup: Setup, domain_: str, theta: float | None, h: float, comm: MPI.Comm):
+def blank_mesh(setup: PluginSetup, domain_: str, theta: float | None, h: float, comm: MPI.Comm):
     """The quarter's aligned mesh (geometry.aligned.quarter_blank); for the full blank of a
     symmetric square the quarter's unfolded (geometry.fibre_blank.mirrored_quarter); else the
     fibre lattice clipped to the blank (geometry.fibre_blank.fibre_blank)."""
@@ -190,7 +190,7 @@ def pin_rigid_motions(p, R: float, rotation: bool) -> tuple[dict, tuple | None]:
     answer's pole does not move in-plane; and the second pin only chooses one of the copies of
     the answer rotated about the axis (reachable for any rotation: the vertex lies on the y
     axis to within a cell). Either way the pins carry no load, which
-    HemisphereForming.pin_reactions measures. With friction the rotation is resisted and not
+    HemispherePlugin.pin_reactions measures. With friction the rotation is resisted and not
     a symmetry, so it is left free. Returns the pinned dofs by name and the second pin's
     vertex (None without it)."""
     bs = p.V.dofmap.index_map_bs
@@ -210,7 +210,7 @@ def pin_rigid_motions(p, R: float, rotation: bool) -> tuple[dict, tuple | None]:
     return {k: d for k, (d, _) in pins.items()}, vertex
 
 
-def record(setup: Setup, specimen, domain_: str, rotation_vertex: tuple | None, h: float
+def record(setup: PluginSetup, specimen, domain_: str, rotation_vertex: tuple | None, h: float
            ) -> dict:
     """What a run computed on: mesh kind, h asked and used, blank, domain, how the rigid
     motions were removed, cells (the experiment's ``discretisation``)."""

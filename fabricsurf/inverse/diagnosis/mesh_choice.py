@@ -25,6 +25,7 @@ profiled, is chosen on the first mesh and kept.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -33,12 +34,13 @@ from mpi4py import MPI
 
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
-from fabricsurf.inverse.fitting import significance as sg
-from fabricsurf.inverse.fitting.diagnose import diagnose
-from fabricsurf.inverse.fitting.nuisance import with_depth
-from fabricsurf.inverse.fitting.report import Diagnosis
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.diagnose import diagnose
+from fabricsurf.inverse.diagnosis.nuisance import with_depth
+from fabricsurf.inverse.diagnosis.report import Diagnosis
+from fabricsurf.log import rank0
 
+logger = logging.getLogger(__name__)
 DEFAULT_MAX_DOFS = 100_000
 """Default budget of displacement unknowns of the fit's mesh (its h/2 check solves on about
 four times as many: ~100 000 cells, ~5 GB at the command line's memory estimate)."""
@@ -116,11 +118,11 @@ def warm_params(d: Diagnosis, params: dict | None) -> dict:
 
 def diagnose_on_mesh(exps: Experiment | list[Experiment], baseline: list[str],
                      h: float | None = None, budget: Budget | None = None,
-                     comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True, **kw) -> Diagnosis:
+                     comm: MPI.Comm = MPI.COMM_WORLD, **kw) -> Diagnosis:
     """:func:`~.diagnose.diagnose` at ``h`` (default: each test's own), then on meshes refined
     by 2 while the h/2 check says the mesh is too coarse and ``budget`` allows (module
     docstring). ``kw``: the other arguments of :func:`~.diagnose.diagnose`. Returns the last
-    level's diagnosis with ``mesh_selection`` filled in."""
+    level's diagnosis with ``mesh_selection`` filled in. Each level is logged at PROGRESS."""
     exps = exps if isinstance(exps, list) else [exps]
     budget = budget or Budget()
     hs = [float(h) if h else get_test(e.test).default_h(e.setup) for e in exps]
@@ -128,12 +130,10 @@ def diagnose_on_mesh(exps: Experiment | list[Experiment], baseline: list[str],
     t_start, warm, stopped = MPI.Wtime(), None, None
     while True:
         t0 = MPI.Wtime()
-        d = diagnose(exps, baseline, h=hs, params=params, comm=comm, verbose=verbose,
-                     warm_start=warm, **kw)
+        d = diagnose(exps, baseline, h=hs, params=params, comm=comm, warm_start=warm, **kw)
         levels.append(level_record(d, comm.allreduce(MPI.Wtime() - t0, op=MPI.MAX)))
         grip = grip or d.grip_depth
-        if verbose:
-            _say(comm, len(levels) - 1, levels[-1])
+        _say(comm, len(levels) - 1, levels[-1])
         if not d.too_coarse():
             break
         spent = comm.allreduce(MPI.Wtime() - t_start, op=MPI.MAX)
@@ -148,8 +148,8 @@ def diagnose_on_mesh(exps: Experiment | list[Experiment], baseline: list[str],
     d.mesh_selection = {"budget": budget.as_dict(), "levels": levels,
                         "refinements": len(levels) - 1, "stopped": stopped,
                         "seconds": comm.allreduce(MPI.Wtime() - t_start, op=MPI.MAX)}
-    if verbose and stopped:
-        rank0_print(comm, f"[mesh] not refined further: {stopped}")
+    if stopped:
+        rank0(logger, comm, f"[mesh] not refined further: {stopped}")
     return d
 
 
@@ -157,7 +157,6 @@ def _say(comm: MPI.Comm, k: int, q: dict) -> None:
     check = ("not measured" if q["chi2_h"] is None else
              f"h/2 check chi2_h = {q['chi2_h']:.4g} against the noise band "
              f"{q['noise_band']:.4g} ({'too coarse' if q['too_coarse'] else 'fine enough'})")
-    rank0_print(comm, f"[mesh] level {k}: h = {', '.join(f'{x:.4g}' for x in q['h'])} mm "
-                f"({', '.join(str(x) for x in q['mesh_kind'])}), {q['dofs']:,} unknowns, "
-                f"{q['seconds']:.1f} s: verdict {q['verdict']}, adequate {q['adequate']}; "
-                + check)
+    rank0(logger, comm, f"[mesh] level {k}: h = {', '.join(f'{x:.4g}' for x in q['h'])} mm "
+          f"({', '.join(str(x) for x in q['mesh_kind'])}), {q['dofs']:,} unknowns, "
+          f"{q['seconds']:.1f} s: verdict {q['verdict']}, adequate {q['adequate']}; " + check)

@@ -2,7 +2,7 @@
 stroke and the shear angles at points of the formed part, as optical measurement gives them.
 
 The data are made with a model richer than the one a diagnosis starts from (a hidden effect)
-by the forward model itself (fabricsurf.inverse.fitting.forward), plus Gaussian noise of known
+by the forward model itself (fabricsurf.inverse.forward.runs), plus Gaussian noise of known
 standard deviation: :func:`hemisphere_template` lays out the experiment, :func:`forming_data`
 fills in the model's values, :func:`add_forming_noise` the noise.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.inverse.contract.experiment import Experiment, template
 from fabricsurf.model.terms import Term
 
@@ -34,7 +34,7 @@ def hemisphere_template(blank: float, tooling: dict, strokes, points: np.ndarray
     """A hemisphere experiment with zero measurements: the punch force at every stroke of
     ``strokes`` and the shear angle at ``points`` (n×2, the data's frame) at the steps
     ``shear_steps`` (default: the last). ``tooling``: the [tooling] keys (mm, N)."""
-    opts = HemisphereForming.parse_options({"tooling": dict(tooling)}, 1.0, "tooling")
+    opts = HemispherePlugin.parse_options({"tooling": dict(tooling)}, 1.0, "tooling")
     exp = template(blank, blank, strokes, np.zeros((0, 2)), angles, name=name,
                    test="hemisphere", options=opts, force=True)
     steps = exp.steps[-1:] if shear_steps is None else np.asarray(shear_steps, dtype=np.int64)
@@ -48,7 +48,7 @@ def hemisphere_template(blank: float, tooling: dict, strokes, points: np.ndarray
 def forming_data(exp: Experiment, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
     """Fill ``exp`` with the punch force and shear angles of ``model`` on a mesh of size h."""
-    from fabricsurf.inverse.fitting.forward import ForwardModel
+    from fabricsurf.inverse.forward.runs import ForwardModel
 
     with ForwardModel(exp, model, h=h, comm=comm) as fm:
         pred = fm.run()

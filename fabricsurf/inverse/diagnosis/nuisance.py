@@ -12,6 +12,7 @@ the same n. The depth of least χ² is kept; the diagnosis then uses all rows ou
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import replace
@@ -22,9 +23,11 @@ from mpi4py import MPI
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting.fit import fit
-from fabricsurf.inverse.fitting.forward import ForwardSet
-from fabricsurf.log import rank0_print
+from fabricsurf.inverse.forward.runs import ForwardSet
+from fabricsurf.log import rank0
 from fabricsurf.model.terms import Term
+
+logger = logging.getLogger(__name__)
 
 KEY = "grip_depth"
 
@@ -67,9 +70,9 @@ def outside_grips(exp: Experiment, depth: float) -> Experiment:
 
 def grip_profile(exps: list[Experiment], depths: list[float],
                  make_model: Callable[[], list[Term]], free_terms: list[str],
-                 h: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
-                 verbose: bool = True) -> dict:
-    """χ² of the baseline fit at each grip depth on common data (module docstring).
+                 h: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """χ² of the baseline fit at each grip depth on common data (module docstring), each depth
+    logged at PROGRESS.
 
     ``make_model``: a fresh model (its terms at the starting moduli) for each depth;
     ``free_terms``: the terms whose moduli are fitted. Returns {"profile": [{"depth_mm",
@@ -82,12 +85,11 @@ def grip_profile(exps: list[Experiment], depths: list[float],
         with ForwardSet([with_depth(e, d) for e in common], make_model(), h=h,
                         comm=comm) as fs:
             free = [i for i, (t, _) in enumerate(fs.params) if t.name in free_terms]
-            res = fit(fs, free, verbose=verbose, space="linear")
+            res = fit(fs, free, space="linear")
         rows.append({"depth_mm": d, "chi2": res.chi2, "misfit": res.misfit["combined"],
                      "n": res.misfit["n"], "params": res.params()})
-        if verbose:
-            rank0_print(comm, f"[grip depth] {d:g} mm: misfit {rows[-1]['misfit']:.4g} "
-                              f"(chi2 {res.chi2:.5g} over {rows[-1]['n']} data)")
+        rank0(logger, comm, f"[grip depth] {d:g} mm: misfit {rows[-1]['misfit']:.4g} "
+                            f"(chi2 {res.chi2:.5g} over {rows[-1]['n']} data)")
     if len({q["n"] for q in rows}) > 1:
         raise RuntimeError(f"grip depth profile: the depths saw different data counts "
                            f"{[q['n'] for q in rows]}; a point lies outside some mesh")

@@ -14,9 +14,9 @@ import numpy as np
 
 from fabricsurf.datasets import woven_fit
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
-from fabricsurf.experiments.base import Setup
-from fabricsurf.experiments.forming_log import StepLog
-from fabricsurf.experiments.hemisphere import HemisphereForming
+from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import (
     CrossoverFriction,
     FibreStretch,
@@ -93,28 +93,28 @@ meshes must resolve them (h ≤ R/5) for the punch force to converge."""
 
 
 def experiment(R: float, blank: float, h: float, angle: float, model: list, comm,
-               **tooling) -> HemisphereForming:
+               **tooling) -> HemispherePlugin:
     """The plug-in with its default tools (mm) and :data:`HOLDER`, ``tooling`` over them."""
-    opts = HemisphereForming.parse_options(
+    opts = HemispherePlugin.parse_options(
         {"tooling": {"punch_radius": R, **HOLDER, **tooling}}, 1.0, "forming")
-    return HemisphereForming(Setup("hemisphere", blank, blank, (angle, -angle), opts),
+    return HemispherePlugin(PluginSetup("hemisphere", blank, blank, (angle, -angle), opts),
                              model, h, comm)
 
 
-def set_moduli(e: HemisphereForming, values: dict) -> None:
+def set_moduli(e: HemispherePlugin, values: dict) -> None:
     """Set moduli of the experiment's terms ({term: {modulus: value}}; no recompilation)."""
     terms = {t.name: t for t in e.model}
     for name, v in values.items():
         terms[name].set(**v)
 
 
-def reform(e: HemisphereForming, values: dict, stroke: float, steps: int,
-           log=None, label: str = "") -> dict:
-    """Set moduli ({term: {modulus: value}}), form to ``stroke`` (each step's line to ``log``,
+def reform(e: HemispherePlugin, values: dict, stroke: float, steps: int,
+           label: str = "") -> dict:
+    """Set moduli ({term: {modulus: value}}), form to ``stroke`` (each step's line logged,
     prefixed with ``label``); the reduced results."""
     set_moduli(e, values)
     t0 = time.perf_counter()
-    its = e.run(stroke, steps, log=log, label=label)
+    its = e.run(stroke, steps, label=label)
     prof = e.profile(e.diagonal_deg, n=81)
     on = (prof["gap"] < TOUCH_FRACTION * e.R) & (prof["X"] > 0)
     kin = np.degrees(bisector_shear(e.R, prof["X"][on]))
@@ -129,7 +129,7 @@ def reform(e: HemisphereForming, values: dict, stroke: float, steps: int,
 
     return {"stroke_mm": list(e.stroke), "punch_force_N": list(e.force),
             "newton_iterations": list(its), "attempts": list(e.stepper.attempts),
-            "step_log": StepLog.totals(e.steps),
+            "step_log": StrokeLog.totals(e.steps),
             "seconds": time.perf_counter() - t0,
             "max_shear_deg": e.max_shear_deg(), **e.area_fractions(),
             "diagonal_shear_deg": prof["shear_recovered_deg"].tolist(),
@@ -147,7 +147,7 @@ def reform(e: HemisphereForming, values: dict, stroke: float, steps: int,
             "per_element_max_diff_deg": largest(prof["shear_deg"])}
 
 
-def shear_grid(e: HemisphereForming, n: int = 41) -> np.ndarray:
+def shear_grid(e: HemispherePlugin, n: int = 41) -> np.ndarray:
     """γ (deg) on an n × n grid of the quarter's reference points (the same on every rank)."""
     half = 0.5 * e.setup.length
     x = np.linspace(0.0, half, n)

@@ -16,9 +16,12 @@ A residual with a part that no modulus multiplies (the tools' contact) is affine
 ``solver.reset()`` clears it before each run) gets the per-step sensitivities at the step's
 own start (the friction's r_n held fixed), which leave out how the history moves with p: exact
 without friction, approximate with it (docs/forming.md, "In the loop"). :class:`ForwardSet`
-runs several experiments with one set of moduli (the same term objects, bound to each
-experiment's mesh): one material, several tests. The sensitivities are :mod:`.tangent`'s; on
-several ranks a small mesh is solved whole on every rank (:mod:`.local`).
+runs several experiments with one set of moduli (set in each experiment's own terms): one
+material, several tests. Each plug-in builds its forms from its own copies of the terms it is
+given (``Term.copy``); a forward model's :attr:`~ForwardModel.model` is those copies, which
+``set_values`` sets (the forms follow without recompiling), so a fit leaves the terms it was
+given alone, and changing them leaves the forward model alone. The sensitivities are
+:mod:`.tangent`'s; on several ranks a small mesh is solved whole on every rank (:mod:`.local`).
 Both own the plug-ins they build, and with them every PETSc object: ``close()`` (or ``with``)
 destroys them when a fit or diagnosis ends (discretise/resources.py).
 """
@@ -36,10 +39,9 @@ from fabricsurf.discretise.resources import Owner
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
-from fabricsurf.inverse.fitting import local as ranks
-from fabricsurf.inverse.fitting import misfit as mf
-from fabricsurf.inverse.fitting import tangent, warm_start
-from fabricsurf.inverse.fitting.observe import Observers
+from fabricsurf.inverse.forward import misfit as mf
+from fabricsurf.inverse.forward import ranks, tangent, warm_start
+from fabricsurf.inverse.forward.observe import Observers
 from fabricsurf.model.terms import EFFECTS, Term
 
 
@@ -63,19 +65,19 @@ class ForwardModel(Owner):
     """One experiment with a given model (list of vocabulary terms); see the module docstring.
 
     ``params`` lists every modulus of every term in model order; ``names`` "term.param".
+    :attr:`model` is the plug-in's own copy of ``model`` (module docstring).
     :meth:`close` closes its plug-in and its coarse scout.
     """
 
     def __init__(self, exp: Experiment, model: list[Term], h: float | None = None,
-                 comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = False,
-                 local: bool | None = None) -> None:
+                 comm: MPI.Comm = MPI.COMM_WORLD, local: bool | None = None) -> None:
         foreign = [t.name for t in model if t.name not in EFFECTS]
         if foreign:
             raise ValueError(f"compare/fit: terms {foreign} are not in the vocabulary "
                              f"({', '.join(EFFECTS)}); the exact sensitivities assume an "
                              "energy linear in each modulus")
         plugin = get_test(exp.test)
-        self.exp, self.model, self.verbose, self.comm = exp, model, verbose, comm
+        self.exp, self.model, self.comm = exp, model, comm
         self.h = float(h or plugin.default_h(exp.setup))
         self._local_request = local
         cells = ranks.estimated_cells(exp.setup.length, exp.setup.width, self.h)
@@ -92,10 +94,16 @@ class ForwardModel(Owner):
 
         with ranks.one_voice(comm, self.local):
             self.test, self.observers = ranks.rank0_first(comm, self.local, build)
+        self.model = self.test.model  # the plug-in's own terms: set_values sets these
+        energy = getattr(self.test.problem, "energy", None)
+        if energy is not None and {id(t) for t in self.model} - {id(t) for t, _ in energy.bound}:
+            raise ValueError(f"experiment plug-in '{exp.test}' builds its forms from other terms "
+                             "than its own self.model, so a fit would not reach them; build "
+                             "them from self.model (experiments/base.py)")
         self.components = min(exp.u.shape[1], plugin.d)
         self.ignored = (["uz (the planar test cannot predict it)"]
                         if exp.u.shape[1] > plugin.d and exp.has_field else [])
-        self.params = [(t, p) for t in model for p in t.parameters()]
+        self.params = [(t, p) for t in self.model for p in t.parameters()]
         self.names = [f"{t.name}.{p}" for t, p in self.params]
         self.bc_dofs = np.concatenate(
             [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
@@ -112,9 +120,9 @@ class ForwardModel(Owner):
                 owner.close()
 
     def coarse(self, factor: float = 2.0) -> ForwardModel:
-        """The same experiment and moduli (the term objects are shared) on a mesh ``factor``
-        times coarser, built once: a cheap scout for starting values (same forms, so nothing
-        is compiled)."""
+        """The same experiment and moduli (copies of this model's terms, which
+        :meth:`set_values` keeps at this model's values) on a mesh ``factor`` times coarser,
+        built once: a cheap scout for starting values (same forms, so nothing is compiled)."""
         if self._coarse is None:
             self._coarse = ForwardModel(self.exp, self.model, self.h * factor, self.comm,
                                         local=self._local_request)
@@ -135,8 +143,11 @@ class ForwardModel(Owner):
         return np.array([getattr(t, p) for t, p in self.params])
 
     def set_values(self, vals) -> None:
+        """Set the moduli of this model's own terms (and its scout's, if built)."""
         for (t, p), v in zip(self.params, vals):
             t.set(**{p: float(v)})
+        if self._coarse is not None:
+            self._coarse.set_values(vals)
 
     @property
     def experiments(self) -> list[Experiment]:
@@ -237,7 +248,7 @@ class ForwardSet(Owner):
         hs = list(h) if isinstance(h, (list, tuple)) else [h] * len(exps)
         self.models = [ForwardModel(e, model, hk, comm, local=local) for e, hk in zip(exps, hs)]
         first = self.models[0]
-        self.model, self.comm, self.params, self.names = model, comm, first.params, first.names
+        self.comm, self.params, self.names = comm, first.params, first.names
         self._local_request = local
         self._coarse: ForwardSet | None = None
 
@@ -254,6 +265,11 @@ class ForwardSet(Owner):
                                       local=self._local_request)
         return self._coarse
 
+    @property
+    def model(self) -> list[Term]:
+        """The first experiment's own terms (at the moduli last set)."""
+        return self.models[0].model
+
     def meshes(self) -> list[dict]:
         """:meth:`ForwardModel.mesh` of every experiment."""
         return [m.mesh() for m in self.models]
@@ -262,8 +278,11 @@ class ForwardSet(Owner):
         return self.models[0].values()
 
     def set_values(self, vals) -> None:
-        """The terms are shared: setting them once updates every experiment's constants."""
-        self.models[0].set_values(vals)
+        """Set the moduli in every experiment's own terms (and the scouts', if built)."""
+        for m in self.models:
+            m.set_values(vals)
+        if self._coarse is not None:
+            self._coarse.set_values(vals)
 
     @property
     def experiments(self) -> list[Experiment]:
