@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from fabricsurf.verification import drape_map, fishnet, goursat_drape
+from fabricsurf.verification.drapes import drape_map, fishnet, goursat_drape
 
 
 def chebyshev(R: float, u: float, theta0: float) -> float:

@@ -50,7 +50,7 @@ from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.forming.stroke_log import StrokeLog
 from fabricsurf.log import configure, rank0
 from fabricsurf.studies import hemisphere_forming as parts
-from fabricsurf.verification.fishnet import bisector_shear
+from fabricsurf.verification.drapes.fishnet import bisector_shear
 
 logger = logging.getLogger(__name__)
 

@@ -10,8 +10,8 @@ finer mesh and against stiffer fibres), with --lattice for a square on the clipp
 
 Prints one row per case: blank, fibre pair, domain, cells, punch force (N), drape max / RMS over
 the contact (deg), within 0.75 R max (deg), the same against the drape closed from the
-continuum's own fibres through the pole (verification/generator_drape.py), seconds, the mesh's
-note; or where a run stopped
+continuum's own fibres through the pole (verification/drapes/generator_drape.py), seconds,
+the mesh's note; or where a run stopped
 (the last stroke followed and the force there). Against the quarter at the same K: run the
 square with --domain auto (the quarter, h used 4.24 at --h 4), --domain full (its mesh unfolded)
 and --domain full --lattice (the clipped lattice; at --h 4.2426 it is the unfolded quarter's
@@ -35,11 +35,11 @@ from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.geometry.fibre_blank import fibre_blank
 from fabricsurf.log import PROGRESS, configure
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
-from fabricsurf.verification.forming_map import (
+from fabricsurf.verification.drapes.forming_map import (
     compare_with_drapes,
     compare_with_generator_drape,
 )
-from fabricsurf.verification.generator_drape import draw_map
+from fabricsurf.verification.drapes.generator_drape import draw_map
 
 R = 20.0
 TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
-from fabricsurf.constants import FRICTION_ANGLE
 from fabricsurf.datasets import cao2008_plain_weave
+from fabricsurf.defaults import FRICTION_ANGLE
 from fabricsurf.experiments import three_zone as tz
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.model.terms import CrossoverFriction, Shear, ShearLocking, Term

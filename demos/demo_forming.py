@@ -56,8 +56,9 @@ from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.log import rank0, warn
 from fabricsurf.studies import hemisphere_forming as parts
-from fabricsurf.verification import drape_map, wrinkling
-from fabricsurf.verification.forming_map import compare_with_drapes
+from fabricsurf.verification import wrinkling
+from fabricsurf.verification.drapes import drape_map
+from fabricsurf.verification.drapes.forming_map import compare_with_drapes
 
 comm = MPI.COMM_WORLD
 logger = logging.getLogger(__name__)

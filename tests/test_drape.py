@@ -1,6 +1,6 @@
-"""The second kinematic drape (fabricsurf/verification/goursat_drape.py) on its own, the two
+"""The second kinematic drape (fabricsurf/verification/drapes/goursat_drape.py) on its own, the two
 drapes against each other over the whole punch, and the map comparison of a continuum result
-(fabricsurf/verification/drape_map.py).
+(fabricsurf/verification/drapes/drape_map.py).
 
 Checks that can fail independently of each other:
 * on a cylinder and a cone (developable) the net is the flat net rolled onto the surface, in
@@ -24,8 +24,8 @@ import math
 import numpy as np
 import pytest
 
-from fabricsurf.verification import drape_map, goursat_drape
-from fabricsurf.verification.fishnet import chebyshev_shear
+from fabricsurf.verification.drapes import drape_map, goursat_drape
+from fabricsurf.verification.drapes.fishnet import chebyshev_shear
 
 pytestmark = pytest.mark.serial("numpy only: nothing here depends on the ranks")
 R = 20.0

@@ -1,4 +1,4 @@
-"""The kinematic drape reference (fabricsurf/verification/fishnet.py) of a hemisphere.
+"""The kinematic drape reference (fabricsurf/verification/drapes/fishnet.py) of a hemisphere.
 
 Checks that can fail independently of each other:
 * every net edge has length a and every node is on the sphere (the construction's two
@@ -21,7 +21,7 @@ import math
 import numpy as np
 import pytest
 
-from fabricsurf.verification.fishnet import (
+from fabricsurf.verification.drapes.fishnet import (
     chebyshev_shear,
     close_net,
     drape,
@@ -29,7 +29,7 @@ from fabricsurf.verification.fishnet import (
     line_profile,
     node_shear,
 )
-from fabricsurf.verification.generator_drape import chord_nodes
+from fabricsurf.verification.drapes.generator_drape import chord_nodes
 
 R = 100.0
 

@@ -33,7 +33,7 @@ motions removed (experiments/forming/blank.py) on a fibre lattice clipped to the
   the drape closed from the continuum's own generators gives the geodesic drape's numbers on
   the circle;
 * a rectangle with the unbalanced 40/−50 pair against the drape closed from its own
-  generators (verification/generator_drape.py): the difference falls at least at first order
+  generators (verification/drapes/generator_drape.py): the difference falls at least at first order
   in h.
 """
 
@@ -50,8 +50,8 @@ from fabricsurf.experiments.forming import blank as forming_blank
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.geometry.fibre_blank import MERGE, clip_lattice, lattice_triangulation, outline
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
-from fabricsurf.verification.drape_map import summary
-from fabricsurf.verification.forming_map import (
+from fabricsurf.verification.drapes.drape_map import summary
+from fabricsurf.verification.drapes.forming_map import (
     compare_with_drapes,
     compare_with_generator_drape,
 )
@@ -288,7 +288,7 @@ def test_rectangle_unbalanced_pair_against_its_own_generators():
     """A 72 × 60 mm rectangle with the unbalanced 40/−50 pair in the kinematic limit: no mirror
     line of the set-up is a fibre, the draw-in bends the fibres through the pole, and the
     geodesic drapes are no reference (RMS 12° from the continuum). The drape closed from the
-    continuum's own generators (verification/generator_drape.py) is: what is left is the
+    continuum's own generators (verification/drapes/generator_drape.py) is: what is left is the
     discretisation's difference, which must fall at least at first order in h (measured RMS
     2.28°, 1.20°, 0.76° at h = 5.66, 4, 2.83 mm; within 0.75 R max 6.2°, 2.4°, 1.4°)."""
     s = PluginSetup("hemisphere", 72.0, 60.0, (40.0, -50.0), dict(TOOLING, **FRICTION,

@@ -553,10 +553,9 @@ def test_start_failure_names_experiment_step_and_load():
             self.v = np.array(v, float)
 
         def run(self, sens=False):
-            e = LoadStepError("load step 3 (target 0.75) failed: DIVERGED_LINE_SEARCH (-6)",
-                              step=3, target=0.75, last_load=0.5, reason=-6)
-            e.experiment, e.partial = "strip45", "converged"
-            raise e
+            raise LoadStepError("load step 3 (target 0.75) failed: DIVERGED_LINE_SEARCH (-6)",
+                                step=3, target=0.75, last_load=0.5, reason=-6,
+                                partial="converged", experiment="strip45")
 
     with pytest.raises(LoadStepError) as err:
         fit(Diverging(), scale_start=False)
@@ -594,10 +593,8 @@ def test_scanned_start_that_breaks_the_model_falls_back(caplog):
 
         def run(self, sens=False):
             if self.v[0] < self.floor:
-                e = LoadStepError(f"load step 2 (target 0.5) failed at k = {self.v[0]:g}",
-                                  step=2, target=0.5)
-                e.experiment = "strip45"
-                raise e
+                raise LoadStepError(f"load step 2 (target 0.5) failed at k = {self.v[0]:g}",
+                                    step=2, target=0.5, experiment="strip45")
             return self.v.copy()
 
         def residuals(self, pred):

@@ -29,7 +29,7 @@ read that run:
   times smaller and the holder with friction (which tensions the fibres, so that the sheet
   wraps the punch), the same experiment (its moduli and holder changed, no recompilation)
   formed to :data:`DEEP` gives shear angles along the diagonal (the fibres' bisector) within
-  2° of the fishnet drape (fabricsurf/verification/fishnet.py, an independent
+  2° of the fishnet drape (fabricsurf/verification/drapes/fishnet.py, an independent
   construction) wherever the sheet is within :data:`TOUCH` of the punch. The shear of the
   discrete sheet is nearly constant on each element of the aligned mesh and jumps between
   elements (a pin-jointed net of cell size h), so it is compared twice: at the element centres
@@ -60,9 +60,9 @@ from fabricsurf.experiments.forming.stroke_log import StrokeLog
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.log import PROGRESS
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
-from fabricsurf.verification.drape_map import summary
-from fabricsurf.verification.fishnet import bisector_shear
-from fabricsurf.verification.forming_map import compare_with_drapes
+from fabricsurf.verification.drapes.drape_map import summary
+from fabricsurf.verification.drapes.fishnet import bisector_shear
+from fabricsurf.verification.drapes.forming_map import compare_with_drapes
 
 COMM = MPI.COMM_WORLD
 ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",

@@ -18,8 +18,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from test_locking import tangent_zero_eigenvalues
 
-from fabricsurf.experiments.bias_extension import BiasExtension, specimen_mesh
-from fabricsurf.experiments.bias_mesh import check_bias_angles
+from fabricsurf.experiments.bias_extension import BiasExtension
+from fabricsurf.experiments.bias_mesh import check_bias_angles, specimen_mesh
 from fabricsurf.experiments.three_zone import kinematic_force
 from fabricsurf.geometry.aligned import canonical_angles, lattice_divisions, symmetric_angle
 from fabricsurf.geometry.lattice_pair import pair_divisions, pair_triangles

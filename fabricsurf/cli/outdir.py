@@ -1,24 +1,22 @@
 """Output directories of the command line: checked before any computation, written atomically.
 
-Everything a command writes goes to a staging directory beside OUT (``.OUT.partial-…``); only
-when the command ends (successfully, or with the converged part of a failed run) are the files
-moved into OUT, one atomic rename each, after checking that none of them would have to replace
-a directory (or a file by a directory): a publish either moves everything or nothing. A command
-that fails before that leaves OUT untouched; a publish that cannot be done keeps the staging
-directory, renamed ``.OUT.unpublished-…``, and names it.
+Everything a command writes goes to a staging directory beside OUT (``.OUT.partial-…``); only when
+the command ends (successfully, or with the converged part of a failed run) are the files moved
+into OUT, one atomic rename each, after checking that none would replace a directory (or a file by
+a directory): a publish moves everything or nothing. A command that fails before that leaves OUT
+untouched; a publish that cannot be done keeps the staging directory, renamed
+``.OUT.unpublished-…``, and names it.
 
 ``--out`` is checked first: its symbolic links are resolved (a dangling or looping link is
-refused), and it must not be, contain or lie inside any input (a DATA directory, a file it
-names, the --params file), so an input is never overwritten (nor removed as an earlier run's
-result).
+refused), and it must not be, contain or lie inside any input, so an input is never overwritten.
 
-One output directory belongs to one run (:mod:`fabricsurf.cli.ownership`, docs/usage.md
-"Output directories"): a lock beside OUT refuses a concurrent run before it computes; the
-staging directories of a killed run are removed by the next; each publish records its files
-in OUT, and the next one removes those of the earlier run it does not write itself; a file in
-OUT that no run recorded (the user's) and that the run would write is refused, before any
-computation when the command names it in ``files``, else at the publish, which then moves
-nothing; names beside OUT are shortened with a hash when OUT's name is long.
+One output directory belongs to one run (:mod:`fabricsurf.cli.ownership`, docs/usage.md "Output
+directories"): a lock beside OUT refuses a concurrent run before it computes; the staging
+directories of a killed run are removed by the next; each publish records its files in OUT, and the
+next one removes those of the earlier run it does not write itself; a file in OUT that no run
+recorded (the user's) and that the run would write is refused, before any computation when the
+command names it in ``files``, else at the publish, which then moves nothing; names beside OUT are
+shortened with a hash when OUT's name is long.
 """
 
 from __future__ import annotations
@@ -208,8 +206,7 @@ def _publish_whole(stage: Path, out: Path) -> None:
 
 
 INTERRUPT_WAIT = 0.8
-"""Seconds a rank waits for the one cleaning up after an interrupt (``mpirun`` kills every rank
-1 s after its SIGTERM)."""
+"""Seconds a rank waits for the one cleaning up after an interrupt (mpirun kills at 1 s)."""
 _OPEN: list[OutputDir] = []
 """The output directories being written (innermost last), for :func:`interrupted`."""
 

@@ -6,23 +6,21 @@
        − ∫ t·u ds                                                      (dead edge loads)
 
 M = ∂W/∂H is the double-force tensor of the second-gradient terms (Steigmann & dell'Isola 2015 eq.
-82) and
-M_nn = M[:, a, b] n_a n_b the edge double force (eq. 94). At the exact solution the jumps
-vanish, so the method is consistent; it is the symmetric C0-IP of dolfinx's demo_biharmonic
-written as an energy, whose variation gives residual and Jacobian through ``ufl.derivative``.
+82) and M_nn = M[:, a, b] n_a n_b the edge double force (eq. 94). At the exact solution the jumps
+vanish, so the method is consistent; it is the symmetric C0-IP of dolfinx's demo_biharmonic written
+as an energy, whose variation gives residual and Jacobian through ``ufl.derivative``.
 
-The penalty α/h scales with S, the sum of the second-gradient moduli, so the penalty keeps
-its ratio to the physical stiffness when moduli change (no recompilation: S is built from the
-moduli's fem.Constants). S may vary from cell to cell (a term whose moduli depend on the
-state, e.g. the bi-pantographic coefficients, evaluates them on a DG0 field); on an interior
-facet the larger of the two cells' values is taken, so the penalty dominates on both sides.
-The constants belong to the form: an EnergyForm asks each term for its own on its mesh
-(``Term.constants``) and builds every expression from them, so forms on several meshes, of one
-model or several, never share or swap constants. An EnergyForm (and a FabricProblem) binds the
-very term objects it is given, so ``Term.set`` on them reaches it; the tests and forward models
-above it hand it their own copies (docs/usage.md, "Changing moduli").
-α = 8 is the value of dolfinx's P2 biharmonic demo; the tests show
-that results change by less than the discretisation error for α in [4, 64] (test_penalty).
+The penalty α/h scales with S, the sum of the second-gradient moduli, so the penalty keeps its
+ratio to the physical stiffness when moduli change (no recompilation: S is built from the moduli's
+fem.Constants). S may vary from cell to cell (a term whose moduli depend on the state, e.g. the
+bi-pantographic coefficients, evaluates them on a DG0 field); on an interior facet the larger of
+the two cells' values is taken, so the penalty dominates on both sides. The constants belong to the
+form: an EnergyForm asks each term for its own on its mesh (``Term.constants``) and builds every
+expression from them, so forms on several meshes, of one model or several, never share or swap
+constants. An EnergyForm (and a FabricProblem) binds the very term objects it is given, so
+``Term.set`` on them reaches it; the tests and forward models above it hand it their own copies
+(docs/usage.md, "Changing moduli"). α = 8 is the value of dolfinx's P2 biharmonic demo; the tests
+show that results change by less than the discretisation error for α in [4, 64] (test_penalty).
 """
 
 from __future__ import annotations

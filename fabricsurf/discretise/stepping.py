@@ -33,17 +33,30 @@ class LoadStepError(RuntimeError):
 
     Attributes (the same on every rank): ``step`` (1-based, as in the output files),
     ``target``, ``last_load`` (the last converged load), ``reason`` (SNES code of the last
-    attempt), ``attempts`` (the loads tried in this step, with their SNES reason codes) and
-    ``partial`` (what the caller converged before the failure, if it attaches it; else None).
+    attempt), ``attempts`` (the loads tried in this step, with their SNES reason codes),
+    ``partial`` (what the caller converged before the failure, or None) and ``experiment``
+    (the name of the experiment that failed, or None). A caller that knows more raises
+    :meth:`carrying` ``from`` the error instead of changing it.
     """
 
     def __init__(self, message: str, step: int = 0, target: float = float("nan"),
                  last_load: float = float("nan"), reason: int = 0,
-                 attempts: Sequence[tuple[float, int]] = ()) -> None:
+                 attempts: Sequence[tuple[float, int]] = (), partial=None,
+                 experiment: str | None = None) -> None:
         super().__init__(message)
         self.step, self.target, self.last_load = step, target, last_load
         self.reason, self.attempts = reason, list(attempts)
-        self.partial = None
+        self.partial, self.experiment = partial, experiment
+
+    def carrying(self, message: str | None = None, partial=None,
+                 experiment: str | None = None) -> LoadStepError:
+        """The same failure (step, loads, reason, attempts) with a new ``message`` and what the
+        caller adds: the steps it converged (``partial``) and the experiment's name; what is
+        not given is kept."""
+        return LoadStepError(str(self) if message is None else message, self.step, self.target,
+                             self.last_load, self.reason, self.attempts,
+                             self.partial if partial is None else partial,
+                             self.experiment if experiment is None else experiment)
 
     def as_dict(self) -> dict:
         """Where the load path stopped, JSON-ready: step, last_load, reason, message."""

@@ -55,6 +55,22 @@ class PluginSetup:
     options: dict = field(default_factory=dict)
 
 
+@dataclass
+class Variant:
+    """A variant of a test, as a separating experiment (:meth:`ExperimentPlugin.
+    separating_variants`): its key and description, specimen, load path, fibre angles and,
+    when it is another test, that test's name and options."""
+
+    key: str
+    description: str
+    length: float
+    width: float
+    path: np.ndarray
+    angles: tuple[float, float]
+    test: str | None = None
+    options: dict | None = None
+
+
 class ExperimentPlugin(Owner, ABC):
     """Base class of the experiment plug-ins (module docstring).
 
@@ -67,7 +83,11 @@ class ExperimentPlugin(Owner, ABC):
     times c gives the same u and c times the reaction: a displacement-driven test without
     other stiffness; not so against a contact penalty and a holder's pressure), ``weak_terms``
     (effects whose moduli the test hardly determines: a fit's start scan leaves them at their
-    given values instead of moving them by decades into values that break the forward model).
+    given values instead of moving them by decades into values that break the forward model),
+    ``bends`` (what the test is, if its answer needs a bending stiffness: a second-gradient
+    term), ``field_not_compared`` (why a measured displacement field of this test is not yet
+    compared, or None). :meth:`check_data` refuses measured data the test cannot follow and
+    :meth:`separating_variants` names the test's own variants that may separate a tie.
 
     A plug-in owns its problem's PETSc objects: :meth:`close` (or ``with``) destroys them when
     a run ends (discretise/resources.py). It owns its terms too: :attr:`model` holds copies of
@@ -86,6 +106,8 @@ class ExperimentPlugin(Owner, ABC):
     reaction_label: ClassVar[str] = "reaction (N)"
     keys: ClassVar[dict[str, dict[str, str]]] = {}
     weak_terms: ClassVar[tuple[str, ...]] = ()
+    bends: ClassVar[str] = ""
+    field_not_compared: ClassVar[str | None] = None
 
     problem: FabricProblem
     solver: SNESSolver
@@ -119,6 +141,19 @@ class ExperimentPlugin(Owner, ABC):
             raise DataError(f"{where}: step {int(steps[k])}: {cls.path_label} {path[k]:g} is "
                             f"negative; the '{cls.name}' test models extension (the specimen "
                             "pulled, displacements ≥ 0), not compression")
+
+    @classmethod
+    def check_data(cls, setup: PluginSetup, steps, path, where: str) -> None:
+        """Refuse measured load-path values the test cannot follow (a stroke through the die),
+        before any computation; default: none."""
+
+    @classmethod
+    def separating_variants(cls, setup: PluginSetup, path, first_gradient: bool
+                            ) -> list[Variant]:
+        """Variants of this test that may separate two tied effects (docs/diagnosis.md,
+        "Separating a tie"), besides the generic ones (a larger displacement, a measured
+        field); ``first_gradient``: whether the tie is between first-gradient effects."""
+        return []
 
     @classmethod
     def default_h(cls, setup: PluginSetup) -> float:

@@ -36,12 +36,12 @@ from fabricsurf.experiments.bias_mesh import (
     announce,
     check_bias_angles,
     choose_fibre_treatment,
-    tolerated_mismatch_deg,
+    specimen_mesh,
 )
+from fabricsurf.experiments.bias_variants import bias_variants
 from fabricsurf.experiments.followers import step_followers
 from fabricsurf.geometry.aligned import canonical_angles
-from fabricsurf.geometry.fibre_mesh import bias_mesh
-from fabricsurf.geometry.specimen import Specimen, bias_points, check_positive, shift_x
+from fabricsurf.geometry.specimen import Specimen, bias_points, shift_x
 from fabricsurf.log import rank0
 from fabricsurf.model.terms import FibreStretch, GeodesicBending, Shear, Term
 
@@ -53,22 +53,6 @@ def default_model() -> list[Term]:
     """fibre_stretch + shear + geodesic_bending with moduli of a stiff-fibre, soft-pivot fabric
     (N/mm, N/mm, N·mm)."""
     return [FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5), GeodesicBending(A_g=40.0)]
-
-
-def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
-                  comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto",
-                  model: list[Term] | None = None) -> Specimen:
-    """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
-    :data:`fabricsurf.geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
-    :func:`~fabricsurf.geometry.specimen.bias_points`; for ``model``'s fibres, ``auto`` takes no
-    corner-to-corner lattice so far off their angle that they would lock it."""
-    check_positive(length=length, width=width, h=h)
-    if width > length:
-        raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
-                         "has its long side along the load")
-    return bias_mesh(length, width, h, fibre_angles, comm, mesh,
-                     extra_points=bias_points(length, width),
-                     max_mismatch_deg=tolerated_mismatch_deg(model or []))
 
 
 @dataclass
@@ -99,9 +83,8 @@ class BiasExtension:
     carry the ``clamp`` / ``grip`` tags, and ``length``, ``width``, ``h``, ``mesh`` are then
     unused (A and B follow ``specimen.length`` and ``specimen.width``).
 
-    :attr:`model` holds the test's own copies of the terms given (``Term.copy``): changing
-    those given afterwards leaves this test alone; ``test.model[i].set(...)`` changes it
-    (without recompiling).
+    :attr:`model` holds the test's own copies of the terms given (``Term.copy``):
+    ``test.model[i].set(...)`` changes it (without recompiling), the terms given do not.
 
     ``followers`` are called after each converged step of :meth:`run`: by default those the
     model's terms need (:func:`~fabricsurf.experiments.followers.step_followers`, e.g. the
@@ -109,10 +92,8 @@ class BiasExtension:
     change them (an empty list freezes those parameters).
 
     ``fibre_treatment`` (:data:`~fabricsurf.experiments.bias_mesh.TREATMENTS`): ``auto``
-    integrates the fibre terms fully (``reduced``, one point per cell, is measured too soft);
-    the mesh kind and size actually used, the treatment, the fibre angles (as lines, mod 180°)
-    and whether the answer may be locked are logged before computing (a note at PROGRESS, a
-    warning when the answer may be locked: :func:`~fabricsurf.experiments.bias_mesh.announce`)
+    integrates the fibre terms fully. The mesh and treatment used, and whether the answer may
+    be locked, are logged before computing (:func:`~fabricsurf.experiments.bias_mesh.announce`)
     and recorded in :attr:`discretisation` and the result.
     """
 
@@ -216,11 +197,9 @@ class BiasExtension:
         stepper = LoadStepper(self.solver, self.set_load, converged, label="  ")
         try:
             stepper.run(np.linspace(ubar_max / steps, ubar_max, steps))
-        except LoadStepError as e:
-            e.partial = res  # the converged steps
-            if energy.multipliers:
-                e.args = (f"{e}. {EXACT_FIBRES_HINT}",)
-            raise
+        except LoadStepError as e:  # with the converged steps
+            hint = f"{e}. {EXACT_FIBRES_HINT}" if energy.multipliers else None
+            raise e.carrying(hint, partial=res) from e
         finally:
             res.seconds = time.perf_counter() - t0
             if writer:
@@ -263,6 +242,10 @@ class BiasExtensionPlugin(ExperimentPlugin):
     keys = {"loading": {"clamp": "gradient | position (default gradient)",
                         "grip_depth": "depth held by each grip beyond the free length (length "
                         "units, default 0)"}}
+
+    @classmethod
+    def separating_variants(cls, setup: PluginSetup, path, first_gradient: bool) -> list:
+        return bias_variants(setup, path, first_gradient)
 
     def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD) -> None:

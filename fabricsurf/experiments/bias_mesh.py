@@ -23,6 +23,8 @@ from fabricsurf.geometry.aligned import (
     lattice_sizes,
     symmetric_angle,
 )
+from fabricsurf.geometry.fibre_mesh import bias_mesh
+from fabricsurf.geometry.specimen import Specimen, bias_points, check_positive
 from fabricsurf.log import rank0, warn
 from fabricsurf.model.terms import Term
 
@@ -214,3 +216,19 @@ def check_bias_angles(angles: tuple[float, float], length: float, width: float) 
                 f"{length:g} x {width:g} mm specimen (they must make more than "
                 f"atan(W/L) = {steepest:.3g} deg with it): the test degenerates into a tensile "
                 "test of the yarns; cut the specimen on the bias (e.g. +-45 deg) or longer")
+
+
+def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
+                  comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto",
+                  model: list[Term] | None = None) -> Specimen:
+    """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
+    :data:`fabricsurf.geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
+    :func:`~fabricsurf.geometry.specimen.bias_points`; for ``model``'s fibres, ``auto`` takes no
+    corner-to-corner lattice so far off their angle that they would lock it."""
+    check_positive(length=length, width=width, h=h)
+    if width > length:
+        raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
+                         "has its long side along the load")
+    return bias_mesh(length, width, h, fibre_angles, comm, mesh,
+                     extra_points=bias_points(length, width),
+                     max_mismatch_deg=tolerated_mismatch_deg(model or []))

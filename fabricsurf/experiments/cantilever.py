@@ -91,6 +91,7 @@ class CantileverPlugin(ExperimentPlugin):
     has_reaction = False
     path_label = "self-weight factor"
     weak_terms = ("fibre_stretch", "shear", "shear_locking")  # the strip hardly strains in-plane
+    bends = "cantilever"
     keys = {"material": {"areal_density_g_m2": "areal density (g/m²), gravity 9.81 m/s² "
                                                 "along −z (required)"}}
 
@@ -179,4 +180,4 @@ class CantileverPlugin(ExperimentPlugin):
                 np.linspace(t_max / steps, t_max, steps))
         except LoadStepError as e:
             note = self.mechanism_note()
-            raise LoadStepError(f"{e}" + (f"\n{note}" if note else "")) from e
+            raise e.carrying(f"{e}" + (f"\n{note}" if note else "")) from e

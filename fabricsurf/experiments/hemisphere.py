@@ -3,33 +3,18 @@
 A square blank of side B = ``length`` = ``width`` (mm), centred on the punch axis, with fibres
 at ±θ to its sides or along them (0°/90°), lies at z = 0 between a blank holder and a die with
 an opening of radius R_o = R + clearance; a rigid hemispherical punch of radius R, its pole at
-z = s (the stroke, the load path, mm), pushes it up through the opening
-(experiments/forming/tools.py: the signed distances, the penalty contact, the holder friction,
-the punch force as the work conjugate of the stroke).
+z = s (the stroke, the load path, mm), pushes it up through the opening (forming/tools.py:
+signed distances, penalty contact, holder friction, the punch force as the work conjugate of
+the stroke).
 
-The set-up is symmetric about the blank's mid-lines (each maps the pair of fibre families onto
-itself), so one quarter
-[0, B/2]² is solved with mirror conditions on x = 0 and y = 0 (the normal component of u and the
-normal derivatives of the others vanish); these also remove the in-plane rigid motions that
-frictionless tools leave free. Reported forces and energies are those of the whole blank (four
-quarters). The quarter is meshed along the fibres (geometry/aligned.py), which keeps stiff
-fibres free of shear locking, with a cut of the lattice rhombi that makes the mesh symmetric
-about the diagonal at ±45° (geometry.aligned.quarter_blank). Other blanks (rectangles, circles,
-``[tooling] blank``) and fibre pairs without that symmetry are solved on the full blank, meshed by
-a fibre lattice clipped to its outline, with its rigid motions pinned (forming_blank.py; which
-one, on what: :attr:`discretisation`). Each stroke increment starts from
-the path extrapolated through the last two converged states, Newton takes full steps and, if
-that fails, repeats from the same start with PETSc's ``l2`` line search before the increment is
-cut (forming_tools.ContactSolver, docs/forming.md: measured). :meth:`HemispherePlugin.run`
-keeps a step log and logs each step as it converges (forming/stroke_log.py); the options and their
-plausible ranges are checked before any computation (forming_options.py).
-
-Forming outputs: the shear angle γ (and in degrees), the fibre directions l, m, the fibre
-tensions, the normal curvatures K_L, K_M, the contact pressure, the wrinkling indicator (the
-unheld flange strip where the least principal value of the smoothed membrane force exceeds the
-strip's plate-buckling force: wrinkling.Wrinkling, updated after every converged step) with that
-value, and
-the region beyond the locking angle (|γ| > γ_lock).
+A set-up symmetric about the blank's mid-lines is solved on one quarter [0, B/2]² with mirror
+conditions, meshed along the fibres (geometry/aligned.py) so that stiff fibres do not lock;
+other blanks and fibre pairs on the full blank, its rigid motions pinned (forming/blank.py;
+which one: :attr:`discretisation`). Reported forces and energies are the whole blank's. The
+stroke is followed by forming/contact_newton.py; options are checked before any computation
+(forming/options.py); each converged step is logged (forming/stroke_log.py). Outputs: the shear
+angle, fibre directions and tensions, normal curvatures, contact pressure, the wrinkling
+indicator and the region beyond the locking angle (forming/indicators.py; docs/forming.md).
 """
 
 from __future__ import annotations
@@ -51,15 +36,10 @@ from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
-from fabricsurf.experiments.forming import (
-    blank as forming_blank,
-)
-from fabricsurf.experiments.forming import (
-    options as forming_options,
-)
-from fabricsurf.experiments.forming import (
-    profile as forming_profile,
-)
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.experiments.forming import options as forming_options
+from fabricsurf.experiments.forming import profile as forming_profile
+from fabricsurf.experiments.forming.contact_newton import FALLBACK, FULL_STEP_ITERATIONS
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
 from fabricsurf.experiments.forming.stroke_log import StrokeLog
 from fabricsurf.experiments.forming.tools import ContactProblem, Tools
@@ -70,14 +50,6 @@ from fabricsurf.model.terms import Term
 
 logger = logging.getLogger(__name__)
 
-FULL_STEP_ITERATIONS = 40
-"""Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
-and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
-too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
-FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
-"""Newton's options for the repeat of a failed full-step attempt (forming_tools.ContactSolver);
-if it fails too, the load stepper cuts the stroke increment."""
-
 class HemispherePlugin(ExperimentPlugin):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
     stroke s (mm); reaction: the punch force (N)."""
@@ -86,26 +58,8 @@ class HemispherePlugin(ExperimentPlugin):
     d = 3
     path_label = "punch stroke (mm)"
     reaction_label = "punch force (N)"
-    keys = {"tooling": {**forming_blank.KEYS,
-        "punch_radius": "punch radius R (mm, required)",
-        "clearance": "die opening radius minus R (mm, default R/5)",
-        "die_lip": "lip radius of die and holder (mm, default R/5)",
-        "holder_gap": "gap between holder and die (mm, default R/50)",
-        "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
-        "contact_stiffness": "penalty k_c (N/mm³, default 100)",
-        "friction": "Coulomb coefficient between the flange and holder and die's face "
-                    "(default 0)",
-        "punch_friction": "Coulomb coefficient between the sheet and the punch (default 0)",
-        "die_friction": "Coulomb coefficient between the sheet and the die's lip (default 0)",
-        "friction_slip_rate": "slip rate below which friction is regularised (mm of slip per "
-                              "mm of stroke, default 0.01)",
-        "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
-        "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, "
-                           "default 1e-3)",
-        "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 1/R: "
-                             "bent more sharply than the punch)"},
-        "material": {"areal_density_g_m2": "areal density for self-weight (g/m², gravity "
-                                           "9.81 m/s² along −z; default: no self-weight)"}}
+    keys = {"tooling": {**forming_blank.KEYS, **forming_options.TOOL_KEYS},
+            "material": forming_options.MATERIAL_KEYS}
 
     def __init__(self, setup: PluginSetup, model: list[Term], h: float,
                  comm: MPI.Comm = MPI.COMM_WORLD, snes_options: dict | None = None) -> None:
@@ -184,6 +138,21 @@ class HemispherePlugin(ExperimentPlugin):
     def default_h(cls, setup: PluginSetup) -> float:
         return setup.options["punch_radius"] / 6.0
 
+    bends = "hemisphere forming (the sheet bends over the punch and the die's lip)"
+    field_not_compared = ("a displacement field of a formed part is not yet compared (its "
+                          "points would need mapping onto the solved quarter with the mirrored "
+                          "components); compare the punch force (force.csv) and the shear "
+                          "angles at points (shear.csv, docs/contracts.md)")
+
+    @classmethod
+    def check_data(cls, setup: PluginSetup, steps, path, where: str) -> None:
+        """The largest measured stroke within what the die and the blank allow."""
+        i = int(max(range(len(path)), key=lambda j: path[j]))
+        try:
+            forming_blank.check_stroke(setup, float(path[i]))
+        except DataError as err:
+            raise DataError(f"{where}: step {int(steps[i])}: {err}") from None
+
     @classmethod
     def check_path(cls, steps, path, where: str) -> None:
         """No stroke may be negative (the punch touches the flat blank at s = 0)."""
@@ -226,8 +195,7 @@ class HemispherePlugin(ExperimentPlugin):
         return {"wrinkle": self._scalar("wrinkle") / area, "locked": self._scalar("locked") / area}
 
     def max_penetration(self, tool: str = "punch") -> float:
-        """Largest penetration into a tool at the quadrature points of the contact energy (mm),
-        over all ranks."""
+        """Largest penetration into a tool at the contact energy's quadrature points (mm)."""
         expr = (self._pen_q if tool == "punch" else
                 quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE))
         return max_over_cells(expr, self.specimen.mesh)

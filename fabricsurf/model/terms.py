@@ -25,7 +25,7 @@ from typing import ClassVar
 
 import ufl
 
-from fabricsurf.constants import FRICTION_ANGLE
+from fabricsurf.defaults import FRICTION_ANGLE
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.registry import EffectRegistry
 from fabricsurf.model.slip import YarnSlip

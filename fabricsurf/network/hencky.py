@@ -67,7 +67,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fabricsurf.constants import FRICTION_ANGLE
+from fabricsurf.defaults import FRICTION_ANGLE
 from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.equilibrium import Dirichlet
 

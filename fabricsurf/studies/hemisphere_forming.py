@@ -25,7 +25,7 @@ from fabricsurf.model.terms import (
     ShearLocking,
     Twist,
 )
-from fabricsurf.verification.fishnet import bisector_shear
+from fabricsurf.verification.drapes.fishnet import bisector_shear
 
 KINEMATIC = {"shear": {"k_s": 1e-2}, "crossover_friction": {"tau_f": 0.0},
              "shear_locking": {"k4": 0.0, "k6": 0.0},
@@ -34,7 +34,7 @@ KINEMATIC = {"shear": {"k_s": 1e-2}, "crossover_friction": {"tau_f": 0.0},
 less of the fibres' moduli times the punch radius."""
 TOUCH_FRACTION = 0.01
 """Points within this fraction of R of the punch's cap count as on it, as over the contact area
-(verification/forming_map.py). Defined here, not imported: importing forming_map from here
+(verification/drapes/forming_map.py). Defined here, not imported: importing forming_map from here
 changes the order the demo loads its modules in, and with it the demo's results by round-off."""
 
 

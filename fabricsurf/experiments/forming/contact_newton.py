@@ -16,6 +16,14 @@ from petsc4py import PETSc
 
 from fabricsurf.discretise.solver import SOLVER_KEYS, SNESSolver
 
+FULL_STEP_ITERATIONS = 40
+"""Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
+and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
+too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
+FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
+"""Newton's options for the repeat of a failed full-step attempt (:class:`ContactSolver`);
+if it fails too, the load stepper cuts the stroke increment."""
+
 
 class StrokeTools(Protocol):
     """What the solver reads of the tools (:class:`~.tools.Tools`): the stroke now and at the

@@ -20,6 +20,31 @@ from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, number_option
 from fabricsurf.experiments.cantilever import areal_density_option
 
+TOOL_KEYS = {
+    "punch_radius": "punch radius R (mm, required)",
+    "clearance": "die opening radius minus R (mm, default R/5)",
+    "die_lip": "lip radius of die and holder (mm, default R/5)",
+    "holder_gap": "gap between holder and die (mm, default R/50)",
+    "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
+    "contact_stiffness": "penalty k_c (N/mm³, default 100)",
+    "friction": "Coulomb coefficient between the flange and holder and die's face "
+                "(default 0)",
+    "punch_friction": "Coulomb coefficient between the sheet and the punch (default 0)",
+    "die_friction": "Coulomb coefficient between the sheet and the die's lip (default 0)",
+    "friction_slip_rate": "slip rate below which friction is regularised (mm of slip per "
+                          "mm of stroke, default 0.01)",
+    "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
+    "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, "
+                       "default 1e-3)",
+    "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 1/R: "
+                         "bent more sharply than the punch)",
+}
+"""The tools' keys of the ``[tooling]`` table (the blank's: forming/blank.py)."""
+
+MATERIAL_KEYS = {"areal_density_g_m2": "areal density for self-weight (g/m², gravity 9.81 m/s² "
+                                       "along −z; default: no self-weight)"}
+"""The plug-in's keys of the ``[material]`` table."""
+
 DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
 """Tool sizes as fractions of the punch radius R (a mesh must resolve the clearance and the
 lip, h ≤ min of the two, for the punch force to converge: docs/forming.md)."""

@@ -38,12 +38,10 @@ from scipy import stats
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments import get_test
-from fabricsurf.experiments import picture_frame as pf
-from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import Experiment, template
 from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.report import Diagnosis
-from fabricsurf.inverse.fitting.fit import FitResult
+from fabricsurf.inverse.fitting.result import FitResult
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.forward import misfit as mf
 from fabricsurf.inverse.forward.runs import ForwardModel, Prediction
@@ -122,21 +120,9 @@ def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
     L, W, ang, path = e0.length, e0.width, e0.fibre_angles_deg, np.asarray(e0.path, float)
     out = [_like(e0, "larger_displacement", f"the same {e0.test} test to twice the "
                  f"displacement ({2 * path[-1]:.3g} mm)", L, W, 2.0 * path, ang)]
-    if e0.test == "bias_extension":
-        other = (30.0, -30.0) if abs(abs(ang[0]) - 45.0) < 7.5 else (45.0, -45.0)
-        out.append(_like(e0, "other_fibre_angle", f"the same bias test with the fibres at "
-                         f"±{other[0]:g}°", L, W, path, other))
-        out.append(_like(e0, "narrower_specimen", f"the same bias test on a specimen half as "
-                         f"wide ({L:g} × {W / 2:g} mm)", L, W / 2, path, ang))
-    if e0.test == "bias_extension" and first_gradient:
-        gamma = (float(np.nan_to_num(zone_c_shear_angle(path[-1], L, W), nan=math.pi / 2))
-                 if L > W else 0.2)  # beyond the lock: 90°
-        d = pf.frame_displacement(max(gamma, 0.05), W)
-        out.append(_like(e0, "picture_frame", f"a picture-frame test (clamped frame, side "
-                         f"{W:g} mm, fibres along the bars) to the same shear angle "
-                         f"({math.degrees(gamma):.3g}°, crosshead {d:.3g} mm)", W, W,
-                         path / path[-1] * d, (0.0, 90.0), "picture_frame",
-                         {"frame": "clamped"}))
+    for v in get_test(e0.test).separating_variants(e0.setup, path, first_gradient):
+        out.append(_like(e0, v.key, v.description, v.length, v.width, v.path, v.angles,
+                         v.test, v.options))
     if not e0.has_field:
         out.append(_like(e0, "field_data", f"the same {e0.test} test with the displacement "
                          "field measured (the data give forces only)", L, W, path, ang))

@@ -8,7 +8,7 @@ import numpy as np
 
 from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.ties import Tie
-from fabricsurf.inverse.fitting.fit import FitResult, strip_rows
+from fabricsurf.inverse.fitting.result import FitResult, strip_rows
 from fabricsurf.model.terms import EFFECTS
 
 UNCERTAINTY_KEYS = ("moduli", "identifiable_combinations", "weak_directions", "undetermined",

@@ -44,7 +44,7 @@ import numpy as np
 from scipy import stats
 
 from fabricsurf.inverse.diagnosis import significance as sg
-from fabricsurf.inverse.fitting.fit import FitResult
+from fabricsurf.inverse.fitting.result import FitResult
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.uncertainty import statistical as unc
 

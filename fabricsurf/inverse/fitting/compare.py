@@ -29,13 +29,13 @@ from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.fitting.band import force_band, has_covariance
-from fabricsurf.inverse.fitting.fit import strip_rows
 from fabricsurf.inverse.fitting.params import MAX_MODULUS
 from fabricsurf.inverse.fitting.preconditions import (
     check_in_loop,
     check_terms_fit_data,
     terms_label,
 )
+from fabricsurf.inverse.fitting.result import strip_rows
 from fabricsurf.inverse.forward.runs import Prediction
 
 

@@ -23,18 +23,6 @@ NOT_IN_LOOP: dict[str, str] = {}
 """Tests that have a plug-in but are not yet compared with measurements, and why (none now:
 the hemisphere's punch force and shear angles are in the loop, docs/forming.md)."""
 
-FIELD_NOT_IN_LOOP = {"hemisphere": "a displacement field of a formed part is not yet compared "
-                                   "(its points would need mapping onto the solved quarter with "
-                                   "the mirrored components); compare the punch force "
-                                   "(force.csv) and the shear angles at points (shear.csv, "
-                                   "docs/contracts.md)"}
-"""Tests whose forward model takes their force (and shear) data but not a displacement field."""
-
-BENDS = {"cantilever": "cantilever", "hemisphere": "hemisphere forming (the sheet bends over "
-                                                  "the punch and the die's lip)"}
-"""Tests whose answer needs a bending stiffness: a second-gradient term."""
-
-
 def terms_label(model: list) -> str:
     """How the library names a model's terms in a message."""
     return f"terms {[t.name for t in model]}"
@@ -110,24 +98,15 @@ def check_in_loop(exps: list, data: list | None = None) -> None:
         why = NOT_IN_LOOP.get(e.test)
         if why:
             raise InputError(f"{d}/experiment.toml: [loading] test = \"{e.test}\": {why}")
-        why = FIELD_NOT_IN_LOOP.get(e.test) if e.has_field else None
+        plugin = get_test(e.test)
+        why = plugin.field_not_compared if e.has_field else None
         if why:
             raise InputError(f"{d}/experiment.toml: [data] field with [loading] test = "
                              f"\"{e.test}\": {why}")
-        if e.test == "hemisphere":
-            _stroke_within_reach(e, d)
-
-
-def _stroke_within_reach(e, d) -> None:
-    """A measured stroke the die and blank cannot allow is refused before the forward model
-    follows it into a Newton failure (forming_blank.check_stroke)."""
-    from fabricsurf.experiments.forming import blank as forming_blank
-
-    i = int(max(range(len(e.path)), key=lambda j: e.path[j]))
-    try:
-        forming_blank.check_stroke(e.setup, float(e.path[i]))
-    except DataError as err:
-        raise InputError(f"{d}: step {int(e.steps[i])}: {err}") from None
+        try:
+            plugin.check_data(e.setup, e.steps, e.path, d)
+        except DataError as err:
+            raise InputError(str(err)) from None
 
 
 def check_terms_fit_data(exps: list, model: list, spec: str | None = None,
@@ -149,8 +128,9 @@ def check_terms_fit_data(exps: list, model: list, spec: str | None = None,
                              "it has no out-of-plane placement, so its data cannot identify "
                              f"it; remove it from {where} (or use out-of-plane data alone, "
                              "e.g. a cantilever)")
-        if e.test in BENDS and not any(t.order == 2 for t in model):
-            raise InputError(f"{label}: experiment '{e.name}' is a {BENDS[e.test]}, "
+        bends = get_test(e.test).bends
+        if bends and not any(t.order == 2 for t in model):
+            raise InputError(f"{label}: experiment '{e.name}' is a {bends}, "
                              "and no term has a second gradient, so the sheet would have no "
                              "bending stiffness at all (its tangent is singular); add "
                              "normal_bending (and twist)")

@@ -2,28 +2,14 @@
 
 :class:`ForwardModel` runs one experiment's plug-in (:mod:`fabricsurf.experiments`) along the
 recorded load path from the reference state and observes, at every converged step, the
-displacements at the measured points and the measured reaction. With ``sens`` it also returns
-du/dp = −K⁻¹ ∂R/∂p at each step, using the converged Jacobian's factorisation: Π_h (cell energy,
-C0-IP consistency and penalty terms) is linear in the vector of moduli, so ∂R/∂p is the
-assembled residual with that modulus 1 and all others 0; the reaction R·w then has the
-sensitivity (∂R/∂p + K du/dp)·w. A test whose reaction is a functional F(u) of its own
-(``reaction_form``: the hemisphere's punch force through the contact penalty) has the
-sensitivity ∂F/∂p + (∂F/∂u)·du/dp, and measured shear angles at points (``shear.csv``) are the
-test's γ interpolated into DG2 (as the ``shear_deg`` output) with the sensitivity the
-interpolant of (∂γ/∂u)·du/dp: both exact derivatives of what is observed (:class:`Observers`).
-A residual with a part that no modulus multiplies (the tools' contact) is affine in the moduli:
-∂R/∂p_k = R(e_k) − R(0). A test that carries a path history (friction under the holder:
-``solver.reset()`` clears it before each run) gets the per-step sensitivities at the step's
-own start (the friction's r_n held fixed), which leave out how the history moves with p: exact
-without friction, approximate with it (docs/forming.md, "In the loop"). :class:`ForwardSet`
-runs several experiments with one set of moduli (set in each experiment's own terms): one
-material, several tests. Each plug-in builds its forms from its own copies of the terms it is
-given (``Term.copy``); a forward model's :attr:`~ForwardModel.model` is those copies, which
-``set_values`` sets (the forms follow without recompiling), so a fit leaves the terms it was
-given alone, and changing them leaves the forward model alone. The sensitivities are
-:mod:`.tangent`'s; on several ranks a small mesh is solved whole on every rank (:mod:`.local`).
-Both own the plug-ins they build, and with them every PETSc object: ``close()`` (or ``with``)
-destroys them when a fit or diagnosis ends (discretise/resources.py).
+displacements at the measured points, the measured reaction and shear angles; with ``sens`` also
+their exact derivatives with respect to the moduli from the converged Jacobian's factorisation
+(:mod:`.tangent`, :class:`Observers`; the derivation, and why it is exact because Π_h is linear
+(affine with contact) in the moduli: docs/theory.md, "Sensitivities"). :class:`ForwardSet` runs
+several experiments with one set of moduli: one material, several tests. Each plug-in builds its
+forms from its own copies of the terms (``Term.copy``), which ``set_values`` sets without
+recompiling. On several ranks a small mesh is solved whole on every rank (:mod:`.ranks`). Both
+own their plug-ins and every PETSc object: ``close()`` (or ``with``) destroys them.
 """
 
 from __future__ import annotations
@@ -223,8 +209,8 @@ class ForwardModel(Owner):
                 force[done:] = np.nan
             for s in exp.steps[done:]:
                 u[exp.step_rows(s)] = np.nan
-            e.experiment, e.partial = exp.name, Prediction(u, force, shear=shear)
-            raise
+            raise e.carrying(partial=Prediction(u, force, shear=shear),
+                             experiment=exp.name) from e
         self.forward_runs += 1
         return Prediction(u, force, du, dF, int(sum(iters)), time.perf_counter() - t0,
                           shear, dshear)

@@ -13,7 +13,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.fitting.band import force_band, write_band
-from fabricsurf.inverse.fitting.fit import strip_rows
+from fabricsurf.inverse.fitting.result import strip_rows
 from fabricsurf.inverse.plots import figures
 from fabricsurf.inverse.plots import formed_shear as shear
 

@@ -14,8 +14,8 @@ from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, nodal_average
 from fabricsurf.experiments.forming import blank as forming_blank
 from fabricsurf.experiments.hemisphere import HemispherePlugin
-from fabricsurf.verification import generator_drape
-from fabricsurf.verification.drape_map import shear_difference_map
+from fabricsurf.verification.drapes import generator_drape
+from fabricsurf.verification.drapes.drape_map import shear_difference_map
 
 TOUCH_FRACTION = 0.01
 """Points within this fraction of R of the punch's cap count as on it (as along the diagonal,

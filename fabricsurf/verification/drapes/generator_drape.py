@@ -24,8 +24,8 @@ import math
 import numpy as np
 
 from fabricsurf.discretise.evaluation import eval_points
-from fabricsurf.verification import fishnet
-from fabricsurf.verification.drape_map import differences, draw_panels, fishnet_shear_at
+from fabricsurf.verification.drapes import fishnet
+from fabricsurf.verification.drapes.drape_map import differences, draw_panels, fishnet_shear_at
 
 SAMPLES_PER_CHORD = 8
 """Points at which the continuum's fibre line is evaluated per chord of the net."""

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from fabricsurf.verification import fishnet, goursat_drape
+from fabricsurf.verification.drapes import fishnet, goursat_drape
 
 REACH = 0.5 * math.pi
 """Fibre arc length the nets cover from the pole, in punch radii (a quarter great circle: every
