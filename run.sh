@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # fabricsurf set-up and entry point (idempotent).
 #   bash run.sh main [--out DIR]   install what is missing, then run the main job on 2 MPI ranks
-#   bash run.sh test               install what is missing, then ruff check and the whole test suite:
+#   bash run.sh test               install what is missing, then ruff check, ruff format --check
+#                                  and the whole test suite:
 #                                  serial, then on 2 ranks
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -65,8 +66,9 @@ case "$cmd" in
   main)
     mpirun -n 2 "$PY" demos/demo_hidden_effect.py "$@" ;;
   test)
-    echo "[run.sh] ruff check (the rule set of pyproject.toml)"
+    echo "[run.sh] ruff check (the rule set of pyproject.toml) and ruff format --check"
     "$VENV/bin/ruff" check .
+    "$VENV/bin/ruff" format --check .
     echo "[run.sh] test suite, 1 rank"
     run_pytest "$PY" -m pytest -q -ra --durations=15 tests "$@"
     echo "[run.sh] test suite, 2 ranks"

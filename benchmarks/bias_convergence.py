@@ -25,8 +25,9 @@ logger = logging.getLogger(__name__)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--levels", default="2,4,8,16")
     ap.add_argument("--grading", type=float, default=0.6)
     ap.add_argument("--ubar", type=float, default=18.7, help="grip displacement (mm)")
@@ -36,22 +37,36 @@ def main() -> None:
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
     levels = [int(s) for s in a.levels.split(",")]
-    conv = force_convergence(default_model(), levels, a.ubar, a.steps, grading=a.grading,
-                             comm=comm)
+    conv = force_convergence(default_model(), levels, a.ubar, a.steps, grading=a.grading, comm=comm)
     rank0(logger, comm, f"\nū = {a.ubar} mm, grading {a.grading}, {comm.size} rank(s)")
-    rank0(logger, comm, "level  square side (mm)  at the edges (mm)  force (N)     γ_A (deg)  "
-                        "γ_B (deg)")
-    for lev, h, f, (ga, gb) in zip(conv["levels"], conv["h_nominal_mm"], conv["force"],
-                                   conv["angles_AB_deg"]):
-        rank0(logger, comm, f"{lev:5d}  {h:16.3f}  {(1 - a.grading) * h:17.3f}  {f:12.6f}  "
-                            f"{ga:9.4f}  {gb:9.4f}")
+    rank0(
+        logger,
+        comm,
+        "level  square side (mm)  at the edges (mm)  force (N)     γ_A (deg)  γ_B (deg)",
+    )
+    for lev, h, f, (ga, gb) in zip(
+        conv["levels"], conv["h_nominal_mm"], conv["force"], conv["angles_AB_deg"]
+    ):
+        rank0(
+            logger,
+            comm,
+            f"{lev:5d}  {h:16.3f}  {(1 - a.grading) * h:17.3f}  {f:12.6f}  {ga:9.4f}  {gb:9.4f}",
+        )
     rank0(logger, comm, "differences (N): " + ", ".join(f"{d:.4f}" for d in conv["differences"]))
-    rank0(logger, comm, "rates: " + ", ".join("none (oscillating)" if r is None else f"{r:.2f}"
-                                            for r in conv["rates"]))
+    rank0(
+        logger,
+        comm,
+        "rates: "
+        + ", ".join("none (oscillating)" if r is None else f"{r:.2f}" for r in conv["rates"]),
+    )
     if conv["extrapolated_force"] is not None:
-        rank0(logger, comm, f"Richardson limit {conv['extrapolated_force']:.4f} N; finest error "
-                            f"estimate {conv['finest_error_estimate']:.4f} N "
-                            f"({conv['finest_error_estimate'] / abs(conv['force'][-1]):.2e} rel.)")
+        rank0(
+            logger,
+            comm,
+            f"Richardson limit {conv['extrapolated_force']:.4f} N; finest error "
+            f"estimate {conv['finest_error_estimate']:.4f} N "
+            f"({conv['finest_error_estimate'] / abs(conv['force'][-1]):.2e} rel.)",
+        )
     rank0(logger, comm, f"total {time.perf_counter() - t0:.1f} s")
 
 

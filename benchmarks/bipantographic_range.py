@@ -37,24 +37,40 @@ logger = logging.getLogger(__name__)
 
 
 def report(comm, run: dict, loads: list[float]) -> None:
-    rank0(logger, comm, f"\n{run['clamp']} clamps, level {run['level']} ({run['dofs']} DOFs), "
-                        f"set-up {run['setup_seconds']:.1f} s")
+    rank0(
+        logger,
+        comm,
+        f"\n{run['clamp']} clamps, level {run['level']} ({run['dofs']} DOFs), "
+        f"set-up {run['setup_seconds']:.1f} s",
+    )
     if run["failure"]:
         rank0(logger, comm, "  FAILED: " + run["failure"]["message"])
         if "ubar" not in run:
             return
     for row in values_at(run, [u for u in loads if u <= run["ubar"][-1] + 1e-9]):
-        rank0(logger, comm, f"  ū = {row['ubar']:4.0f} mm  F = {row['force']:9.4f} N  "
-                            f"γ_A = {row['angle_A_deg']:6.2f}°  γ_B = {row['angle_B_deg']:6.2f}°")
+        rank0(
+            logger,
+            comm,
+            f"  ū = {row['ubar']:4.0f} mm  F = {row['force']:9.4f} N  "
+            f"γ_A = {row['angle_A_deg']:6.2f}°  γ_B = {row['angle_B_deg']:6.2f}°",
+        )
     s = run["stretch"][-1]
-    rank0(logger, comm, f"  largest stretch at ū = {s['ubar']:.0f} mm: ρ = {s['max_stretch']:.4f}"
-                        f" (ρ cos γ = {s['rho_cos_gamma']:.4f}) at {np.round(s['at'], 1)}")
+    rank0(
+        logger,
+        comm,
+        f"  largest stretch at ū = {s['ubar']:.0f} mm: ρ = {s['max_stretch']:.4f}"
+        f" (ρ cos γ = {s['rho_cos_gamma']:.4f}) at {np.round(s['at'], 1)}",
+    )
     its, st = np.array(run["newton"]), np.array(run["step_seconds"])
-    rank0(logger, comm, f"  {len(its)} load steps, {its.sum()} Newton iterations "
-                        f"({its.min()}–{its.max()} per step), domain errors "
-                        f"{run['domain_errors']}; wall time {run['seconds']:.1f} s: "
-                        f"{st.mean():.2f} s per load step, "
-                        f"{st.sum() / its.sum():.3f} s per Newton iteration")
+    rank0(
+        logger,
+        comm,
+        f"  {len(its)} load steps, {its.sum()} Newton iterations "
+        f"({its.min()}–{its.max()} per step), domain errors "
+        f"{run['domain_errors']}; wall time {run['seconds']:.1f} s: "
+        f"{st.mean():.2f} s per load step, "
+        f"{st.sum() / its.sum():.3f} s per Newton iteration",
+    )
 
 
 def identified_moduli(comm) -> dict:
@@ -64,23 +80,37 @@ def identified_moduli(comm) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--levels", default="2,4,8")
     ap.add_argument("--clamps", default="gradient,position")
     ap.add_argument("--ubar", type=float, default=50.0)
     ap.add_argument("--steps", type=int, default=20)
-    ap.add_argument("--limit-stretch", type=float, default=None,
-                    help="regularise eq. (2) beyond this stretch (default: as printed)")
-    ap.add_argument("--identified", action="store_true",
-                    help="the moduli identified from the Table 3 micro lattice (K_E = 1e6 N·mm) "
-                         "instead of Table 3's macro moduli")
-    ap.add_argument("--local-penalty", action="store_true",
-                    help="interior-penalty stretch followed cell by cell (default: uniform, "
-                         "the largest stretch)")
-    ap.add_argument("--package-defaults", action="store_true",
-                    help="the package's default solver options instead of the domain-aware "
-                         "line search (the plain public API)")
+    ap.add_argument(
+        "--limit-stretch",
+        type=float,
+        default=None,
+        help="regularise eq. (2) beyond this stretch (default: as printed)",
+    )
+    ap.add_argument(
+        "--identified",
+        action="store_true",
+        help="the moduli identified from the Table 3 micro lattice (K_E = 1e6 N·mm) "
+        "instead of Table 3's macro moduli",
+    )
+    ap.add_argument(
+        "--local-penalty",
+        action="store_true",
+        help="interior-penalty stretch followed cell by cell (default: uniform, "
+        "the largest stretch)",
+    )
+    ap.add_argument(
+        "--package-defaults",
+        action="store_true",
+        help="the package's default solver options instead of the domain-aware "
+        "line search (the plain public API)",
+    )
     ap.add_argument("--out", type=Path, default=None, help="write all results as JSON")
     a = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
@@ -90,9 +120,20 @@ def main() -> None:
     loads = [u for u in (10.0, 20.0, 30.0, 40.0, 50.0) if u <= a.ubar]
     results = {}
     for clamp in a.clamps.split(","):
-        runs = [run_range(clamp, int(lev), a.ubar, a.steps, a.limit_stretch, comm=comm,
-                          moduli=moduli, local_penalty=a.local_penalty, snes_options=options)
-                for lev in a.levels.split(",")]
+        runs = [
+            run_range(
+                clamp,
+                int(lev),
+                a.ubar,
+                a.steps,
+                a.limit_stretch,
+                comm=comm,
+                moduli=moduli,
+                local_penalty=a.local_penalty,
+                snes_options=options,
+            )
+            for lev in a.levels.split(",")
+        ]
         for r in runs:
             report(comm, r, loads)
         ok = [r for r in runs if not r["failure"]]
@@ -100,14 +141,19 @@ def main() -> None:
         if conv:
             for u, c in conv.items():
                 rates = ", ".join("none" if x is None else f"{x:.2f}" for x in c["rates"])
-                rank0(logger, comm, f"  {clamp}: force at ū = {u} mm: differences "
-                                    + ", ".join(f"{d:.4f}" for d in c["differences"])
-                                    + f" N, rate(s) {rates}")
+                rank0(
+                    logger,
+                    comm,
+                    f"  {clamp}: force at ū = {u} mm: differences "
+                    + ", ".join(f"{d:.4f}" for d in c["differences"])
+                    + f" N, rate(s) {rates}",
+                )
         results[clamp] = {"runs": runs, "convergence": conv}
     if a.out and comm.rank == 0:
         a.out.write_text(json.dumps(results, indent=1))
-    short = [f"{c} level {r['level']}" for c, v in results.items() for r in v["runs"]
-             if r["failure"]]
+    short = [
+        f"{c} level {r['level']}" for c, v in results.items() for r in v["runs"] if r["failure"]
+    ]
     if short:
         rank0(logger, comm, f"\nNOT REACHED ū = {a.ubar:g} mm: " + ", ".join(short))
         sys.exit(1)

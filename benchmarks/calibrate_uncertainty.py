@@ -67,19 +67,40 @@ CONFIGURATIONS = [  # regime, length, width (mm), lattice spacing (mm), bending 
     (regime, length, width, spacing, l_b)
     for regime in REGIMES
     for (length, width, spacing), l_b in zip(
-        [(60.0, 30.0, 1.0), (48.0, 24.0, 1.0), (60.0, 30.0, 1.5), (72.0, 24.0, 1.5),
-         (54.0, 36.0, 1.0), (66.0, 22.0, 1.0), (45.0, 30.0, 1.5), (80.0, 40.0, 2.0),
-         (40.0, 20.0, 0.8), (64.0, 32.0, 2.0)],
-        (3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 4.5, 6.5, 3.5, 5.5))]
+        [
+            (60.0, 30.0, 1.0),
+            (48.0, 24.0, 1.0),
+            (60.0, 30.0, 1.5),
+            (72.0, 24.0, 1.5),
+            (54.0, 36.0, 1.0),
+            (66.0, 22.0, 1.0),
+            (45.0, 30.0, 1.5),
+            (80.0, 40.0, 2.0),
+            (40.0, 20.0, 0.8),
+            (64.0, 32.0, 2.0),
+        ],
+        (3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 4.5, 6.5, 3.5, 5.5),
+    )
+]
 
 
 def truth(k_l: float, k_s: float, l_b: float) -> dict:
-    return {"fibre_stretch": {"k_l": k_l, "k_m": k_l}, "shear": {"k_s": k_s},
-            "geodesic_bending": {"A_g": k_s * l_b**2}}
+    return {
+        "fibre_stretch": {"k_l": k_l, "k_m": k_l},
+        "shear": {"k_s": k_s},
+        "geodesic_bending": {"A_g": k_s * l_b**2},
+    }
 
 
-def lattice(k_l: float, k_s: float, strain: float, l_b: float, steps: int = 3,
-            size: tuple[float, float] = (LENGTH, WIDTH), spacing: float = 1.0):
+def lattice(
+    k_l: float,
+    k_s: float,
+    strain: float,
+    l_b: float,
+    steps: int = 3,
+    size: tuple[float, float] = (LENGTH, WIDTH),
+    spacing: float = 1.0,
+):
     path = list(np.linspace(strain * size[0] / steps, strain * size[0], steps))
     exp = sy.template(*size, path, np.zeros((0, 2)), name="calibration")
     return sy.lattice_data(exp, spacing, k_l=k_l, k_s=k_s, A_g=k_s * l_b**2, every=2)
@@ -106,8 +127,10 @@ def configuration_cases(a, comm, pairs: bool = False):
         k_l, k_s, strain = REGIMES[regime]
         params = truth(k_l, k_s, l_b)
         try:
-            clean = [lattice(k_l, k_s, strain, l_b, size=(f * length, f * width),
-                             spacing=spacing) for f in scales]
+            clean = [
+                lattice(k_l, k_s, strain, l_b, size=(f * length, f * width), spacing=spacing)
+                for f in scales
+            ]
         except ConvergenceError as e:
             rank0(logger, comm, f"configuration {k}: the lattice generator failed ({e}); left out")
             continue
@@ -117,8 +140,10 @@ def configuration_cases(a, comm, pairs: bool = False):
         e_f = [form_error(c, params, a.h, comm) for c in clean]
         kind = NOISE_KINDS[k % 2]
         base = 3000 if pairs else 2000
-        data = [noisy(c, e, kind, base + len(scales) * (a.seed + k) + j, a.corr)
-                for j, (c, e) in enumerate(zip(clean, e_f))]
+        data = [
+            noisy(c, e, kind, base + len(scales) * (a.seed + k) + j, a.corr)
+            for j, (c, e) in enumerate(zip(clean, e_f))
+        ]
         size = f"{length:g}x{width:g}" + (f" and x{PAIR_SCALE:g}" if pairs else "")
         label = f"{regime} {size} a={spacing:g} l_b={l_b:g}"
         if pairs:
@@ -139,8 +164,15 @@ def cases(a, comm, l_b: float = BENDING_LENGTH):
         clean = lattice(k_l, k_s, strain, l_b)
         e_f = form_error(clean, params, a.h, comm)
         for kind, seed in itertools.product(NOISE_KINDS, range(a.seed, a.seed + a.count)):
-            yield (regime, kind, seed, noisy(clean, e_f, kind, 1000 + seed, a.corr), params, e_f,
-                   clean)
+            yield (
+                regime,
+                kind,
+                seed,
+                noisy(clean, e_f, kind, 1000 + seed, a.corr),
+                params,
+                e_f,
+                clean,
+            )
 
 
 def coverage_row(res, params: dict, best: dict) -> dict:
@@ -157,20 +189,22 @@ def coverage_row(res, params: dict, best: dict) -> dict:
         true = params[t][p]
         m = u[name]
         lo, hi = m["ci95"]
-        out[name] = {"truth": true, "value": m["value"], "identifiable": m["identifiable"],
-                     "covered": bool(lo <= true <= hi),
-                     "z": (m["value"] - true) / max((hi - lo) / 2 / res.statistical.t95(),
-                                                    1e-300),
-                     "best_continuum": best[name],
-                     "covered_best": bool(lo <= best[name] <= hi),
-                     "z_statistical": (m["value"] - best[name]) / max(m["std_statistical"],
-                                                                     1e-300),
-                     "covered_classical": bool(abs(m["value"] - true) <= 1.96 * naive[k]),
-                     "half_width_rel": (hi - lo) / 2 / true,
-                     "half_width_rel_classical": 1.96 * naive[k] / true,
-                     "std_statistical": m["std_statistical"],
-                     "systematic_mesh": m["systematic_mesh"],
-                     "systematic_model": m["systematic_model"]}
+        out[name] = {
+            "truth": true,
+            "value": m["value"],
+            "identifiable": m["identifiable"],
+            "covered": bool(lo <= true <= hi),
+            "z": (m["value"] - true) / max((hi - lo) / 2 / res.statistical.t95(), 1e-300),
+            "best_continuum": best[name],
+            "covered_best": bool(lo <= best[name] <= hi),
+            "z_statistical": (m["value"] - best[name]) / max(m["std_statistical"], 1e-300),
+            "covered_classical": bool(abs(m["value"] - true) <= 1.96 * naive[k]),
+            "half_width_rel": (hi - lo) / 2 / true,
+            "half_width_rel_classical": 1.96 * naive[k] / true,
+            "std_statistical": m["std_statistical"],
+            "systematic_mesh": m["systematic_mesh"],
+            "systematic_model": m["systematic_model"],
+        }
     return out
 
 
@@ -196,14 +230,25 @@ def part_coverage(a, comm, say) -> list[dict]:
         ref = fitted(clean, params, a.h, comm, mesh=False)
         best = dict(zip(ref.names, ref.values))
         st = res.statistical
-        rows.append({"regime": regime, "design": a.design, "noise": kind, "seed": seed,
-                     "noise_mm": e_f,
-                     "moduli": coverage_row(res, params, best), "design_effect": st.design_effect,
-                     "blocks": st.n_blocks, "misfit": res.misfit["combined"],
-                     "seconds": time.perf_counter() - t0})
+        rows.append(
+            {
+                "regime": regime,
+                "design": a.design,
+                "noise": kind,
+                "seed": seed,
+                "noise_mm": e_f,
+                "moduli": coverage_row(res, params, best),
+                "design_effect": st.design_effect,
+                "blocks": st.n_blocks,
+                "misfit": res.misfit["combined"],
+                "seconds": time.perf_counter() - t0,
+            }
+        )
         cov = {n: (m["covered"], m["covered_classical"]) for n, m in rows[-1]["moduli"].items()}
-        say(f"coverage {regime} {kind} {seed}: (new, classical) {cov}; deff "
-            f"{st.design_effect:.2f}; {rows[-1]['seconds']:.0f} s")
+        say(
+            f"coverage {regime} {kind} {seed}: (new, classical) {cov}; deff "
+            f"{st.design_effect:.2f}; {rows[-1]['seconds']:.0f} s"
+        )
     return rows
 
 
@@ -215,11 +260,16 @@ def candidate(d) -> dict:
     gain = d.base_fit.chi2 - row["refit_chi2"] > 0
     share = row["share_of_excess"] >= sg.FRACTION_OF_EXCESS
     wald = row["wald_p"] < 1.0 - sg.LEVEL
-    return {"effect": row["effect"], "wald_p": row["wald_p"],
-            "share_of_excess": row["share_of_excess"], "f_test_passed": row["f_test_passed"],
-            "rule_wald_and_f": bool(gain and wald and row["f_test_passed"]),
-            "rule_wald": bool(gain and wald), "rule_wald_and_share": bool(gain and wald and share),
-            "rule_old": bool(gain and row["f_test_passed"] and share)}
+    return {
+        "effect": row["effect"],
+        "wald_p": row["wald_p"],
+        "share_of_excess": row["share_of_excess"],
+        "f_test_passed": row["f_test_passed"],
+        "rule_wald_and_f": bool(gain and wald and row["f_test_passed"]),
+        "rule_wald": bool(gain and wald),
+        "rule_wald_and_share": bool(gain and wald and share),
+        "rule_old": bool(gain and row["f_test_passed"] and share),
+    }
 
 
 def part_null(a, comm, say) -> list[dict]:
@@ -227,11 +277,26 @@ def part_null(a, comm, say) -> list[dict]:
     for regime, kind, seed, exp, _, e_f, _ in cases(a, comm):
         t0 = time.perf_counter()
         with detail():
-            d = diagnose(exp, COMPLETE, h=a.h, confirm=1, max_effects=1,
-                         check_discretisation=False, comm=comm)
-        rows.append({"regime": regime, "noise": kind, "seed": seed, "noise_mm": e_f,
-                     "verdict": d.verdict, "candidate": candidate(d),
-                     "seconds": time.perf_counter() - t0})
+            d = diagnose(
+                exp,
+                COMPLETE,
+                h=a.h,
+                confirm=1,
+                max_effects=1,
+                check_discretisation=False,
+                comm=comm,
+            )
+        rows.append(
+            {
+                "regime": regime,
+                "noise": kind,
+                "seed": seed,
+                "noise_mm": e_f,
+                "verdict": d.verdict,
+                "candidate": candidate(d),
+                "seconds": time.perf_counter() - t0,
+            }
+        )
         say(f"null {regime} {kind} {seed}: verdict {d.verdict}; {rows[-1]['candidate']}")
     return rows
 
@@ -242,18 +307,35 @@ def part_detect(a, comm, say) -> list[dict]:
         try:
             for regime, kind, seed, exp, params, e_f, _ in cases(a, comm, l_b):
                 with detail():
-                    d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1,
-                                 max_effects=1, check_discretisation=False, comm=comm)
+                    d = diagnose(
+                        exp,
+                        ["fibre_stretch", "shear"],
+                        h=a.h,
+                        confirm=1,
+                        max_effects=1,
+                        check_discretisation=False,
+                        comm=comm,
+                    )
                 fm = ForwardModel(exp, full_model(COMPLETE, params), h=a.h, comm=comm)
                 floor = fm.misfit(fm.run())["combined"]
                 fm.close()
                 base = d.base_fit.misfit["combined"]
                 signal = float(np.sqrt(max(base**2 - floor**2, 0.0)))
-                rows.append({"regime": regime, "noise": kind, "seed": seed, "l_b_mm": l_b,
-                             "signal_over_noise": signal, "verdict": d.verdict,
-                             "candidate": candidate(d)})
-                say(f"detect {regime} {kind} l_b={l_b} {seed}: signal {signal:.2f}, verdict "
-                    f"{d.verdict}; {rows[-1]['candidate']}")
+                rows.append(
+                    {
+                        "regime": regime,
+                        "noise": kind,
+                        "seed": seed,
+                        "l_b_mm": l_b,
+                        "signal_over_noise": signal,
+                        "verdict": d.verdict,
+                        "candidate": candidate(d),
+                    }
+                )
+                say(
+                    f"detect {regime} {kind} l_b={l_b} {seed}: signal {signal:.2f}, verdict "
+                    f"{d.verdict}; {rows[-1]['candidate']}"
+                )
         except ConvergenceError as e:
             say(f"detect l_b={l_b}: the lattice generator failed ({e}); left out")
     return rows
@@ -276,24 +358,44 @@ def summary(data: dict) -> dict:
     for key in ("z", "z_statistical"):
         z = [m[key] for r in cov for m in r["moduli"].values() if m["identifiable"] and key in m]
         out["rms_" + key] = float(np.sqrt(np.mean(np.square(z)))) if z else None
-    best = [m["covered_best"] for r in cov for m in r["moduli"].values()
-            if m["identifiable"] and "covered_best" in m]
+    best = [
+        m["covered_best"]
+        for r in cov
+        for m in r["moduli"].values()
+        if m["identifiable"] and "covered_best" in m
+    ]
     out["covered_best_continuum"] = float(np.mean(best)) if best else None
     for design in ("seeds", "configurations", "pairs"):
-        hits = [m["covered"] for r in cov if r.get("design", "seeds") == design
-                for m in r["moduli"].values() if m["identifiable"]]
+        hits = [
+            m["covered"]
+            for r in cov
+            if r.get("design", "seeds") == design
+            for m in r["moduli"].values()
+            if m["identifiable"]
+        ]
         out[f"covered_{design}"] = float(np.mean(hits)) if hits else None
         out[f"intervals_{design}"] = len(hits)
     null = data.get("null", [])
     for rule in RULES:
-        out["false_alarms_" + rule] = (float(np.mean([bool(r["candidate"].get(rule))
-                                                      for r in null])) if null else None)
+        out["false_alarms_" + rule] = (
+            float(np.mean([bool(r["candidate"].get(rule)) for r in null])) if null else None
+        )
     out["null_sets"] = len(null)
     strong = [r for r in data.get("detect", []) if r["signal_over_noise"] > 3]
     for rule in RULES:
-        out["detection_" + rule] = (float(np.mean([
-            r["candidate"].get("effect") == "geodesic_bending" and bool(r["candidate"].get(rule))
-            for r in strong])) if strong else None)
+        out["detection_" + rule] = (
+            float(
+                np.mean(
+                    [
+                        r["candidate"].get("effect") == "geodesic_bending"
+                        and bool(r["candidate"].get(rule))
+                        for r in strong
+                    ]
+                )
+            )
+            if strong
+            else None
+        )
     out["strong_sets"] = len(strong)
     return out
 
@@ -303,12 +405,17 @@ def main() -> None:
     ap.add_argument("--out", default="out/calibrate_uncertainty")
     ap.add_argument("--part", required=True, choices=("coverage", "null", "detect"))
     ap.add_argument("--count", type=int, default=2, help="noise draws per regime and kind")
-    ap.add_argument("--design", default="seeds", choices=("seeds", "configurations", "pairs"),
-                    help="coverage over noise draws of two configurations, over the "
-                    "configurations of CONFIGURATIONS (one draw each), or over the same "
-                    "as pairs of specimen sizes fitted together")
-    ap.add_argument("--seed", type=int, default=0, help="first noise draw (runs that add to OUT "
-                    "give a new one)")
+    ap.add_argument(
+        "--design",
+        default="seeds",
+        choices=("seeds", "configurations", "pairs"),
+        help="coverage over noise draws of two configurations, over the "
+        "configurations of CONFIGURATIONS (one draw each), or over the same "
+        "as pairs of specimen sizes fitted together",
+    )
+    ap.add_argument(
+        "--seed", type=int, default=0, help="first noise draw (runs that add to OUT give a new one)"
+    )
     ap.add_argument("--h", type=float, default=3.0, help="model element size (mm)")
     ap.add_argument("--corr", type=float, default=3.0, help="DIC noise correlation length")
     ap.add_argument("--bending-lengths", default="2,5,10", help="hidden l_b (mm) of detect")

@@ -40,8 +40,12 @@ def main() -> None:
         hs = [1.0 / n for n in a.meshes]
         for norm in ("L2", "H1", "H2"):
             e = [x[norm] for x in errors]
-            rank0(logger, MPI.COMM_WORLD, f"d = {d} {norm}: errors {[f'{v:.3e}' for v in e]}, "
-                          f"rates {[round(r, 2) for r in rates(e, hs)]}")
+            rank0(
+                logger,
+                MPI.COMM_WORLD,
+                f"d = {d} {norm}: errors {[f'{v:.3e}' for v in e]}, "
+                f"rates {[round(r, 2) for r in rates(e, hs)]}",
+            )
 
 
 if __name__ == "__main__":

@@ -34,8 +34,11 @@ def main() -> None:
     configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
     say = lambda s: rank0(logger, comm, s)  # noqa: E731
-    truth = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-             "geodesic_bending": {"A_g": 20.0}}
+    truth = {
+        "fibre_stretch": {"k_l": 30.0, "k_m": 30.0},
+        "shear": {"k_s": 0.5},
+        "geodesic_bending": {"A_g": 20.0},
+    }
     exp = sy.template(90.0, 45.0, [1.5, 3.0, 4.5, 6.0], sy.grid_points(90.0, 45.0, 14, 7))
     sy.continuum_data(exp, full_model(list(truth), truth), h=0.7 * a.h, comm=comm)
     sy.add_noise(exp, 0.01, 0.02, 7)
@@ -44,17 +47,21 @@ def main() -> None:
         d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=a.confirm, comm=comm)
     total = MPI.Wtime() - t0
     c = d.as_dict()["cost"]
-    say(f"ranks {comm.size}, mesh h = {a.h} mm, {len(exp.steps)} load steps, "
-        f"{len(exp.X)} field rows")
+    say(
+        f"ranks {comm.size}, mesh h = {a.h} mm, {len(exp.steps)} load steps, "
+        f"{len(exp.X)} field rows"
+    )
     say(f"one forward solve:                     {c['forward_seconds']:.3f} s")
     say(f"ranking all {len(d.ranking)} candidates / forward solve: {c['rank_over_forward']:.2f}")
-    say(f"baseline fit: {d.base_fit.forward_runs} forward runs (with tangents), "
-        f"{d.base_fit.iterations} LM iterations")
+    say(
+        f"baseline fit: {d.base_fit.forward_runs} forward runs (with tangents), "
+        f"{d.base_fit.iterations} LM iterations"
+    )
     for name, r in d.refits.items():
-        say(f"refit {name:17s}: {r.forward_runs} forward runs, misfit "
-            f"{r.misfit['combined']:.3f}")
-    say(f"whole diagnosis / forward solve:       {total / c['forward_seconds']:.1f} "
-        f"({total:.1f} s)")
+        say(f"refit {name:17s}: {r.forward_runs} forward runs, misfit {r.misfit['combined']:.3f}")
+    say(
+        f"whole diagnosis / forward solve:       {total / c['forward_seconds']:.1f} ({total:.1f} s)"
+    )
     say(f"verdict {d.verdict}; baseline misfit {d.base_fit.misfit['combined']:.3f}")
 
 

@@ -51,8 +51,14 @@ def lattice(spacing, k_l, k_s, A_g, strain, steps=3):
 
 
 def truth_model(k_l, k_s, A_g):
-    return full_model(COMPLETE, {"fibre_stretch": {"k_l": k_l, "k_m": k_l},
-                                 "shear": {"k_s": k_s}, "geodesic_bending": {"A_g": A_g}})
+    return full_model(
+        COMPLETE,
+        {
+            "fibre_stretch": {"k_l": k_l, "k_m": k_l},
+            "shear": {"k_s": k_s},
+            "geodesic_bending": {"A_g": A_g},
+        },
+    )
 
 
 def form_error(exp, k_l, k_s, A_g, h) -> float:
@@ -75,9 +81,13 @@ def best_candidate(d) -> dict:
     p = sum(nm.split(".")[0] in d.baseline for nm in d.base_fit.names)
     k = sum(nm.split(".")[0] == row["effect"] for nm in d.base_fit.names)
     base, new = d.base_fit.chi2, row["refit_chi2"]
-    return {"effect": row["effect"], "delta_chi2": base - new,
-            "share_of_excess": sg.share_of_excess(base, p, new, n),
-            "F": sg.f_statistic(base, p, new, p + k, n), "significant": row["significant"]}
+    return {
+        "effect": row["effect"],
+        "delta_chi2": base - new,
+        "share_of_excess": sg.share_of_excess(base, p, new, n),
+        "F": sg.f_statistic(base, p, new, p + k, n),
+        "significant": row["significant"],
+    }
 
 
 def null_sets(a, comm, say) -> list[dict]:
@@ -90,13 +100,31 @@ def null_sets(a, comm, say) -> list[dict]:
         e_f = form_error(clean, k_l, k_s, A_g, a.h)
         for ratio, seed in itertools.product((0.5, 1.0, 3.0), range(a.seeds)):
             with detail():
-                d = diagnose(noisy(clean, ratio * e_f, 100 + seed), COMPLETE, h=a.h,
-                             confirm=1, max_effects=1, check_discretisation=False, comm=comm)
-            null.append({"regime": regime, "spacing": spacing, "noise_over_form": ratio,
-                         "form_error_mm": e_f, "verdict": d.verdict, "adequate": d.adequate,
-                         "misfit": d.final_fit.misfit["combined"], "best": best_candidate(d)})
-            say(f"null {regime} eps={spacing} noise/form={ratio}: verdict {d.verdict}, "
-                f"adequate {d.adequate}, misfit {null[-1]['misfit']:.3f}")
+                d = diagnose(
+                    noisy(clean, ratio * e_f, 100 + seed),
+                    COMPLETE,
+                    h=a.h,
+                    confirm=1,
+                    max_effects=1,
+                    check_discretisation=False,
+                    comm=comm,
+                )
+            null.append(
+                {
+                    "regime": regime,
+                    "spacing": spacing,
+                    "noise_over_form": ratio,
+                    "form_error_mm": e_f,
+                    "verdict": d.verdict,
+                    "adequate": d.adequate,
+                    "misfit": d.final_fit.misfit["combined"],
+                    "best": best_candidate(d),
+                }
+            )
+            say(
+                f"null {regime} eps={spacing} noise/form={ratio}: verdict {d.verdict}, "
+                f"adequate {d.adequate}, misfit {null[-1]['misfit']:.3f}"
+            )
     return null
 
 
@@ -104,35 +132,60 @@ def power_sets(a, comm, say) -> list[dict]:
     """Diagnoses with geodesic bending hidden (module docstring)."""
     power = []
     k_l, k_s = REGIMES["stiff"]
-    stiff_noise = form_error(lattice(0.5, k_l, k_s, k_s * 25.0, 0.12), k_l, k_s, k_s * 25.0,
-                             a.h)
+    stiff_noise = form_error(lattice(0.5, k_l, k_s, k_s * 25.0, 0.12), k_l, k_s, k_s * 25.0, a.h)
     lengths = [float(x) for x in a.bending_lengths.split(",")]
     for (regime, (k_l, k_s)), l_b, seed in itertools.product(
-            REGIMES.items(), lengths, range(a.seeds)):
-        spacing, strain, noise = ((1.0, 0.05, 0.01) if regime == "soft"
-                                  else (0.5, 0.12, stiff_noise))
+        REGIMES.items(), lengths, range(a.seeds)
+    ):
+        spacing, strain, noise = (1.0, 0.05, 0.01) if regime == "soft" else (0.5, 0.12, stiff_noise)
         try:
             clean = lattice(spacing, k_l, k_s, k_s * l_b**2, strain)
         except ConvergenceError as e:  # reported, left out of the rates
-            power.append({"regime": regime, "spacing": spacing, "l_b_mm": l_b, "seed": seed,
-                          "lattice_failed": str(e)})
+            power.append(
+                {
+                    "regime": regime,
+                    "spacing": spacing,
+                    "l_b_mm": l_b,
+                    "seed": seed,
+                    "lattice_failed": str(e),
+                }
+            )
             say(f"power {regime} l_b={l_b}: the lattice generator failed ({e})")
             continue
         exp = noisy(clean, noise, 200 + seed)
         with detail():
-            d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=1, max_effects=1,
-                         check_discretisation=False, comm=comm)
+            d = diagnose(
+                exp,
+                ["fibre_stretch", "shear"],
+                h=a.h,
+                confirm=1,
+                max_effects=1,
+                check_discretisation=False,
+                comm=comm,
+            )
         fm = ForwardModel(exp, truth_model(k_l, k_s, k_s * l_b**2), h=a.h, comm=comm)
         floor = fm.misfit(fm.run())["combined"]
         base = d.base_fit.misfit["combined"]
         signal = float(np.sqrt(max(base**2 - floor**2, 0.0)))
-        power.append({"regime": regime, "spacing": spacing, "l_b_mm": l_b, "seed": seed,
-                      "noise_mm": noise,
-                      "signal_over_noise": signal, "baseline_misfit": base,
-                      "floor_misfit": floor, "detected": d.verdict == "geodesic_bending",
-                      "verdict": d.verdict, "best": best_candidate(d)})
-        say(f"power {regime} l_b={l_b} signal/noise {signal:.2f} (baseline {base:.3f}, floor "
-            f"{floor:.3f}): verdict {d.verdict}")
+        power.append(
+            {
+                "regime": regime,
+                "spacing": spacing,
+                "l_b_mm": l_b,
+                "seed": seed,
+                "noise_mm": noise,
+                "signal_over_noise": signal,
+                "baseline_misfit": base,
+                "floor_misfit": floor,
+                "detected": d.verdict == "geodesic_bending",
+                "verdict": d.verdict,
+                "best": best_candidate(d),
+            }
+        )
+        say(
+            f"power {regime} l_b={l_b} signal/noise {signal:.2f} (baseline {base:.3f}, floor "
+            f"{floor:.3f}): verdict {d.verdict}"
+        )
     return power
 
 
@@ -141,14 +194,20 @@ def main() -> None:
     ap.add_argument("--out", default="out/calibration")
     ap.add_argument("--h", type=float, default=2.0, help="model element size (mm)")
     ap.add_argument("--seeds", type=int, default=2, help="noise draws per configuration")
-    ap.add_argument("--parts", default="null,power",
-                    help="null, power or both: each diagnosis leaves 30 MB (soft, 1 mm lattice) "
-                         "to about 1 GB (stiff, 0.5 mm) per rank behind, not freed (cause not "
-                         "found), and one process for everything ran out of 24 GB; the parts "
-                         "(and --bending-lengths) can run as separate processes into one OUT")
-    ap.add_argument("--bending-lengths", default="1,2,4,8,16,32",
-                    help="hidden l_b (mm) of the power part; rows of other lengths already in "
-                         "OUT/calibration.json are kept")
+    ap.add_argument(
+        "--parts",
+        default="null,power",
+        help="null, power or both: each diagnosis leaves 30 MB (soft, 1 mm lattice) "
+        "to about 1 GB (stiff, 0.5 mm) per rank behind, not freed (cause not "
+        "found), and one process for everything ran out of 24 GB; the parts "
+        "(and --bending-lengths) can run as separate processes into one OUT",
+    )
+    ap.add_argument(
+        "--bending-lengths",
+        default="1,2,4,8,16,32",
+        help="hidden l_b (mm) of the power part; rows of other lengths already in "
+        "OUT/calibration.json are kept",
+    )
     a = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
@@ -165,15 +224,19 @@ def main() -> None:
     if "power" in parts:
         new = power_sets(a, comm, say)
         done = {(r["regime"], r["l_b_mm"], r["seed"]) for r in new}
-        power = [r for r in power if "seed" in r and
-                 (r["regime"], r["l_b_mm"], r["seed"]) not in done] + new
+        power = [
+            r for r in power if "seed" in r and (r["regime"], r["l_b_mm"], r["seed"]) not in done
+        ] + new
     fa = float(np.mean([r["verdict"] is not None for r in null])) if null else float("nan")
     strong = [r for r in power if r.get("signal_over_noise", 0.0) > 3]
     det = float(np.mean([r["detected"] for r in strong])) if strong else float("nan")
     say(f"false alarms: {fa:.3f} over {len(null)} null data sets (target ≤ 0.05)")
     say(f"detection where signal > 3 noise: {det:.3f} over {len(strong)} (target ≥ 0.9)")
-    write_json(comm, out / "calibration.json", {"null": null, "power": power,
-                                                "false_alarm_rate": fa, "detection": det})
+    write_json(
+        comm,
+        out / "calibration.json",
+        {"null": null, "power": power, "false_alarm_rate": fa, "detection": det},
+    )
     if comm.rank == 0:
         import matplotlib
 
@@ -183,11 +246,19 @@ def main() -> None:
         fig, ax = plt.subplots(figsize=(5, 3.6))
         for regime, mark in (("soft", "o"), ("stiff", "s")):
             rows = [r for r in power if r["regime"] == regime and "detected" in r]
-            ax.semilogx([max(r["signal_over_noise"], 0.05) for r in rows],
-                        [float(r["detected"]) for r in rows], mark, mfc="none", label=regime)
+            ax.semilogx(
+                [max(r["signal_over_noise"], 0.05) for r in rows],
+                [float(r["detected"]) for r in rows],
+                mark,
+                mfc="none",
+                label=regime,
+            )
         ax.axvline(3.0, color="k", ls="--", label="signal = 3 noise")
-        ax.set(xlabel="signal of the hidden geodesic bending / noise",
-               ylabel="detected", title=f"false alarms {fa:.2f} over {len(null)}")
+        ax.set(
+            xlabel="signal of the hidden geodesic bending / noise",
+            ylabel="detected",
+            title=f"false alarms {fa:.2f} over {len(null)}",
+        )
         ax.legend()
         fig.tight_layout()
         fig.savefig(out / "power.png", dpi=110)

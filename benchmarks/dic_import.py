@@ -41,8 +41,17 @@ print(json.dumps({"points": rep["points_read"], "rows": len(exp.X), "seconds":
 
 def spec(images: list[int], pitch: float | None) -> str:
     files = f"img/DICe_solution_{'*' if len(images) > 1 else '01'}.txt"
-    return spec_text(CAMERA, name="bench", layout="dice", files=files, length=L, width=W,
-                     images=images, path=[5.0 * k for k in images], pitch=pitch)
+    return spec_text(
+        CAMERA,
+        name="bench",
+        layout="dice",
+        files=files,
+        length=L,
+        width=W,
+        images=images,
+        path=[5.0 * k for k in images],
+        pitch=pitch,
+    )
 
 
 def main() -> None:
@@ -53,23 +62,29 @@ def main() -> None:
     xs, ys = np.arange(1, L - 1, args.spacing), np.arange(1, W - 1, args.spacing)
     X = np.array(np.meshgrid(xs, ys, indexing="ij")).reshape(2, -1).T
     rng = np.random.default_rng(0)
-    U = [np.column_stack([t * X[:, 0] / L, 0.001 * t * (X[:, 1] - W / 2)])
-         + rng.normal(0, 0.01, X.shape) for t in (5.0, 10.0)]
+    U = [
+        np.column_stack([t * X[:, 0] / L, 0.001 * t * (X[:, 1] - W / 2)])
+        + rng.normal(0, 0.01, X.shape)
+        for t in (5.0, 10.0)
+    ]
     write_images(args.out / "img", LAYOUTS["dice"], CAMERA, [1, 2], X, U, holes=0.03)
     print(f"{len(X)} points an image ({args.spacing} mm spacing)")
-    for name, images, pitch in (("1 image, 2 mm bins", [1], 2.0),
-                                ("2 images, 2 mm bins", [1, 2], 2.0),
-                                ("2 images, no binning", [1, 2], None)):
+    for name, images, pitch in (
+        ("1 image, 2 mm bins", [1], 2.0),
+        ("2 images, 2 mm bins", [1, 2], 2.0),
+        ("2 images, no binning", [1, 2], None),
+    ):
         toml = args.out / (name.replace(" ", "_").replace(",", "") + ".toml")
         toml.write_text(spec(images, pitch))
-        r = subprocess.run([sys.executable, "-c", RUN, str(toml)], capture_output=True,
-                           text=True)
+        r = subprocess.run([sys.executable, "-c", RUN, str(toml)], capture_output=True, text=True)
         if r.returncode:
             raise SystemExit(f"{name}: {r.stderr}")
         m = json.loads(r.stdout)
-        print(f"{name:22s} {m['points']:9d} points → {m['rows']:8d} rows  {m['seconds']:6.2f} s"
-              f"  peak RSS {m['peak_mb']:5.0f} MB (before {m['before_mb']:.0f} MB)  noise_std "
-              f"{m['noise_std']:.4g} mm")
+        print(
+            f"{name:22s} {m['points']:9d} points → {m['rows']:8d} rows  {m['seconds']:6.2f} s"
+            f"  peak RSS {m['peak_mb']:5.0f} MB (before {m['before_mb']:.0f} MB)  noise_std "
+            f"{m['noise_std']:.4g} mm"
+        )
 
 
 if __name__ == "__main__":

@@ -19,8 +19,10 @@ from fabricsurf.verification.drapes import drape_map, fishnet, goursat_drape
 def chebyshev(R: float, u: float, theta0: float) -> float:
     """γ(u, u) of the Chebyshev net, Richardson-extrapolated from the box scheme at 120 and 240
     steps (second order)."""
-    return (4 * fishnet.chebyshev_shear(R, u, u, 240, theta0)
-            - fishnet.chebyshev_shear(R, u, u, 120, theta0)) / 3
+    return (
+        4 * fishnet.chebyshev_shear(R, u, u, 240, theta0)
+        - fishnet.chebyshev_shear(R, u, u, 120, theta0)
+    ) / 3
 
 
 def main() -> None:
@@ -34,10 +36,14 @@ def main() -> None:
     theta0 = math.acos(float(fishnet.unit(angles[0]) @ fishnet.unit(angles[1])))
     u = 0.6 * R
     ref = chebyshev(R, u, theta0)
-    print(f"R = {R:g} mm, fibres {angles}, {len(pts)} points within {args.polar:g}° of the pole;"
-          f" Chebyshev net at u = v = 0.6 R: {math.degrees(ref):.6f}°")
-    print("| a | max of fishnet − Goursat (deg) | RMS of it (deg) | fishnet − Chebyshev at "
-          "u = v = 0.6 R (deg) | Goursat − Chebyshev (deg) | s |")
+    print(
+        f"R = {R:g} mm, fibres {angles}, {len(pts)} points within {args.polar:g}° of the pole;"
+        f" Chebyshev net at u = v = 0.6 R: {math.degrees(ref):.6f}°"
+    )
+    print(
+        "| a | max of fishnet − Goursat (deg) | RMS of it (deg) | fishnet − Chebyshev at "
+        "u = v = 0.6 R (deg) | Goursat − Chebyshev (deg) | s |"
+    )
     print("|---|---|---|---|---|---|")
     for k in (10, 20, 40, 80):
         a = R / k
@@ -48,9 +54,11 @@ def main() -> None:
         g_f = fishnet.node_shear(fish)[2 * m, 2 * m]
         net = goursat_drape.hemisphere(R, angles, a, u + a)
         g_g = net.shear[net.n + m, net.n + m]
-        print(f"| R/{k} | {agree['max_deg']:.3g} | {agree['rms_deg']:.3g} | "
-              f"{math.degrees(g_f - ref):.3g} | {math.degrees(g_g - ref):.3g} | "
-              f"{time.perf_counter() - t0:.1f} |")
+        print(
+            f"| R/{k} | {agree['max_deg']:.3g} | {agree['rms_deg']:.3g} | "
+            f"{math.degrees(g_f - ref):.3g} | {math.degrees(g_g - ref):.3g} | "
+            f"{time.perf_counter() - t0:.1f} |"
+        )
     largest = np.abs(drape_map.drapes_at(R, pts, angles)["fishnet_deg"]).max()
     print(f"largest shear on the cap {largest:.2f}°")
 

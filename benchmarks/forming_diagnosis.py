@@ -36,34 +36,63 @@ from fabricsurf.model.terms import make_term
 logger = logging.getLogger(__name__)
 
 R, BLANK = 20.0, 60.0
-TOOLS = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
-         "contact_stiffness": 100.0}
-CASES = {
-    "locking": {"tools": {"holder_pressure": 1e-2, "friction": 0.3}, "stroke": 12.0, "steps": 6,
-                "truth": {"fibre_stretch": {"k_l": 1e3, "k_m": 1e3}, "shear": {"k_s": 0.01},
-                          "shear_locking": {"k4": 1.0, "k6": 0.0},
-                          "normal_bending": {"k_b": 1e-3}, "twist": {"k_t": 1e-3}},
-                "baseline": ["fibre_stretch", "shear", "normal_bending", "twist"],
-                "fixed": ["fibre_stretch"]},
-    "bending": {"tools": {"holder_pressure": 1e-3}, "stroke": 4.0, "steps": 4,
-                "truth": {"fibre_stretch": {"k_l": 1e3, "k_m": 1e3}, "shear": {"k_s": 1.0},
-                          "normal_bending": {"k_b": 0.1}, "twist": {"k_t": 0.1}},
-                "baseline": ["fibre_stretch", "shear", "twist"], "fixed": []},
+TOOLS = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "contact_stiffness": 100.0,
 }
-CASES["none"] = dict(CASES["locking"], truth={k: v for k, v in CASES["locking"]["truth"].items()
-                                              if k != "shear_locking"})
+CASES = {
+    "locking": {
+        "tools": {"holder_pressure": 1e-2, "friction": 0.3},
+        "stroke": 12.0,
+        "steps": 6,
+        "truth": {
+            "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
+            "shear": {"k_s": 0.01},
+            "shear_locking": {"k4": 1.0, "k6": 0.0},
+            "normal_bending": {"k_b": 1e-3},
+            "twist": {"k_t": 1e-3},
+        },
+        "baseline": ["fibre_stretch", "shear", "normal_bending", "twist"],
+        "fixed": ["fibre_stretch"],
+    },
+    "bending": {
+        "tools": {"holder_pressure": 1e-3},
+        "stroke": 4.0,
+        "steps": 4,
+        "truth": {
+            "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
+            "shear": {"k_s": 1.0},
+            "normal_bending": {"k_b": 0.1},
+            "twist": {"k_t": 0.1},
+        },
+        "baseline": ["fibre_stretch", "shear", "twist"],
+        "fixed": [],
+    },
+}
+CASES["none"] = dict(
+    CASES["locking"],
+    truth={k: v for k, v in CASES["locking"]["truth"].items() if k != "shear_locking"},
+)
 
 
 def data(case: dict, h: float, force_noise: float, shear_noise: float, comm):
     """The synthetic experiment of ``case`` (noise: a fraction of the largest force, deg)."""
     n = case["steps"]
-    exp = sf.hemisphere_template(BLANK, TOOLS | case["tools"],
-                                 np.linspace(case["stroke"] / n, case["stroke"], n),
-                                 sf.part_points(BLANK, R, 8), shear_steps=[n // 2, n])
+    exp = sf.hemisphere_template(
+        BLANK,
+        TOOLS | case["tools"],
+        np.linspace(case["stroke"] / n, case["stroke"], n),
+        sf.part_points(BLANK, R, 8),
+        shear_steps=[n // 2, n],
+    )
     truth = [make_term(k, **v) for k, v in case["truth"].items()]
     sf.forming_data(exp, truth, h, comm)
-    return sf.add_forming_noise(exp, force_noise * float(np.abs(exp.force).max()), shear_noise,
-                                seed=11)
+    return sf.add_forming_noise(
+        exp, force_noise * float(np.abs(exp.force).max()), shear_noise, seed=11
+    )
 
 
 def main() -> None:
@@ -71,12 +100,20 @@ def main() -> None:
     ap.add_argument("--case", choices=sorted(CASES), default="locking")
     ap.add_argument("--h", type=float, default=4.0, help="element size of the fit (mm)")
     ap.add_argument("--data-h", type=float, default=None, help="element size of the data")
-    ap.add_argument("--force-noise", type=float, default=0.01,
-                    help="force noise as a fraction of the largest force")
+    ap.add_argument(
+        "--force-noise",
+        type=float,
+        default=0.01,
+        help="force noise as a fraction of the largest force",
+    )
     ap.add_argument("--shear-noise", type=float, default=0.5, help="shear noise (deg)")
     ap.add_argument("--candidates", default=None, help="comma-separated (default: all seen)")
-    ap.add_argument("--k4", type=float, default=None,
-                    help="shear locking's k4 of the locking case (N/mm, default 1)")
+    ap.add_argument(
+        "--k4",
+        type=float,
+        default=None,
+        help="shear locking's k4 of the locking case (N/mm, default 1)",
+    )
     a = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
@@ -86,24 +123,38 @@ def main() -> None:
         case["truth"] = case["truth"] | {"shear_locking": {"k4": a.k4, "k6": 0.0}}
     t0 = MPI.Wtime()
     exp = data(case, a.data_h or a.h, a.force_noise, a.shear_noise, comm)
-    say(f"case {a.case}: {len(exp.steps)} strokes to {exp.path[-1]:g} mm, punch force up to "
+    say(
+        f"case {a.case}: {len(exp.steps)} strokes to {exp.path[-1]:g} mm, punch force up to "
         f"{np.abs(exp.force).max():.3g} N (noise {exp.force_noise_std:.3g} N), "
         f"{len(exp.shear)} shear angles up to {np.abs(exp.shear).max():.3g}° (noise "
-        f"{exp.shear_noise_deg:g}°); data in {MPI.Wtime() - t0:.1f} s")
+        f"{exp.shear_noise_deg:g}°); data in {MPI.Wtime() - t0:.1f} s"
+    )
     t1 = MPI.Wtime()
     cands = a.candidates.split(",") if a.candidates else None
     with detail():
-        d = diagnose([exp], case["baseline"], h=a.h, params=case["truth"], comm=comm,
-                     fixed=case["fixed"] or None, candidates=cands,
-                     check_discretisation=False).as_dict()
+        d = diagnose(
+            [exp],
+            case["baseline"],
+            h=a.h,
+            params=case["truth"],
+            comm=comm,
+            fixed=case["fixed"] or None,
+            candidates=cands,
+            check_discretisation=False,
+        ).as_dict()
     say(f"baseline {'+'.join(case['baseline'])}: misfit {d['baseline']['misfit']:.3f}")
     for q in d["ranking"]:
-        say(f"  {q['effect']:18s} score {q['score']:10.4g}  refit misfit "
+        say(
+            f"  {q['effect']:18s} score {q['score']:10.4g}  refit misfit "
             f"{q.get('refit_misfit') or float('nan'):.3f}  significant "
-            f"{q.get('significant')}")
-    say(f"verdict {d['verdict']}; adequate {d['adequate']}; path "
-        + " -> ".join(f"{p.get('added', '+'.join(p.get('terms', [])))} "
-                      f"({p['misfit']:.3f})" for p in d["path"]))
+            f"{q.get('significant')}"
+        )
+    say(
+        f"verdict {d['verdict']}; adequate {d['adequate']}; path "
+        + " -> ".join(
+            f"{p.get('added', '+'.join(p.get('terms', [])))} ({p['misfit']:.3f})" for p in d["path"]
+        )
+    )
     say(f"diagnosis {MPI.Wtime() - t1:.0f} s on {comm.size} rank(s)")
 
 

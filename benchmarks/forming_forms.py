@@ -34,8 +34,11 @@ logger = logging.getLogger(__name__)
 
 comm = MPI.COMM_WORLD
 TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}
-POINTS_CELL = {"cell": basix.CellType.triangle, "interior_facet": basix.CellType.interval,
-               "exterior_facet": basix.CellType.interval}
+POINTS_CELL = {
+    "cell": basix.CellType.triangle,
+    "interior_facet": basix.CellType.interval,
+    "exterior_facet": basix.CellType.interval,
+}
 
 
 def _timed(fn, repeat: int) -> float:
@@ -50,8 +53,7 @@ def _timed(fn, repeat: int) -> float:
 
 def _pieces(form: ufl.Form) -> list[tuple[str, ufl.Form]]:
     """The form split into its integrals (one per type, subdomain and degree)."""
-    return [(f"{i.integral_type()}[{i.subdomain_id()}]", ufl.Form([i]))
-            for i in form.integrals()]
+    return [(f"{i.integral_type()}[{i.subdomain_id()}]", ufl.Form([i])) for i in form.integrals()]
 
 
 def _assembler(form, rank: int, mat_type: str | None = None):
@@ -62,6 +64,7 @@ def _assembler(form, rank: int, mat_type: str | None = None):
             with b.localForm() as local:
                 local.set(0.0)
             fem_petsc.assemble_vector(b, form)
+
         return run
     A = fem_petsc.create_matrix(form, mat_type)
 
@@ -69,6 +72,7 @@ def _assembler(form, rank: int, mat_type: str | None = None):
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, form)
         A.assemble()
+
     return run
 
 
@@ -76,12 +80,17 @@ def report(e, repeat: int, jit: dict, mat_type: str | None = None) -> None:
     p = e.problem
     v, du = ufl.TestFunction(p.V), ufl.TrialFunction(p.V)
     dP = ufl.derivative(p.extra_energy(), p.u, v)
-    forms = {"residual": (p.energy.residual(v) + dP, 1),
-             "Jacobian": (p.energy.jacobian(du, v) + ufl.derivative(dP, p.u, du), 2)}
+    forms = {
+        "residual": (p.energy.residual(v) + dP, 1),
+        "Jacobian": (p.energy.jacobian(du, v) + ufl.derivative(dP, p.u, du), 2),
+    }
     tf, tJ = p.tool_friction()
     forms.update({"tool friction residual": (tf, 1), "tool friction Jacobian": (tJ, 2)})
-    rank0(logger, comm, "form                     integral            explicit  UFL est.  points  "
-                        "ms/assembly")
+    rank0(
+        logger,
+        comm,
+        "form                     integral            explicit  UFL est.  points  ms/assembly",
+    )
     for name, (form, rank) in forms.items():
         for label, piece in _pieces(form):
             itg = piece.integrals()[0]
@@ -89,28 +98,42 @@ def report(e, repeat: int, jit: dict, mat_type: str | None = None) -> None:
             est = estimate_total_polynomial_degree(expand_derivatives(itg.integrand()))
             pts = len(basix.make_quadrature(POINTS_CELL[itg.integral_type()], int(deg))[1])
             t = _timed(_assembler(fem.form(piece, jit_params=jit), rank, mat_type), repeat)
-            rank0(logger, comm, f"{name:24s} {label:20s} {deg!s:>8s} {est:9d} {pts:7d} "
-                                f"{1e3 * t:11.1f}")
+            rank0(
+                logger,
+                comm,
+                f"{name:24s} {label:20s} {deg!s:>8s} {est:9d} {pts:7d} {1e3 * t:11.1f}",
+            )
     s = e.solver
     x = s.b.duplicate()
     with x.localForm() as xl:
         xl.array[:] = p.u.x.array
     b, lift = s.b.duplicate(), s.b.duplicate()
-    calls = {"residual _F (with the friction forms)": lambda: s._F(None, x, b),
-             "Jacobian _J (with the friction forms)": lambda: s._J(None, x, s.A, s.A),
-             "the mirror conditions' lifting alone": lambda: fem_petsc.apply_lifting(
-                 lift, [s.a], bcs=[s.bcs], x0=[x], scale=-1.0)}
+    calls = {
+        "residual _F (with the friction forms)": lambda: s._F(None, x, b),
+        "Jacobian _J (with the friction forms)": lambda: s._J(None, x, s.A, s.A),
+        "the mirror conditions' lifting alone": lambda: fem_petsc.apply_lifting(
+            lift, [s.a], bcs=[s.bcs], x0=[x], scale=-1.0
+        ),
+    }
     rank0(logger, comm, f"\nas the solver assembles them ({s.A.getType()} Jacobian), ms per call:")
     for label, fn in calls.items():
         rank0(logger, comm, f"  {label}: {1e3 * _timed(fn, repeat):.1f}")
     info = s.A.getInfo()
     rank0(logger, comm, f"  Jacobian: {int(comm.allreduce(info['nz_used']))} non-zeros")
-    for solver, pc_type in (("mumps", "lu"), ("mumps", "cholesky"), ("superlu_dist", "lu"),
-                            ("petsc", "lu")):
+    for solver, pc_type in (
+        ("mumps", "lu"),
+        ("mumps", "cholesky"),
+        ("superlu_dist", "lu"),
+        ("petsc", "lu"),
+    ):
         if solver == "petsc" and comm.size > 1:
             continue
-        rank0(logger, comm, f"  {solver} {pc_type} factorisation + solve "
-                            f"{1e3 * _factor_solve(s, b, solver, pc_type, repeat):.1f}")
+        rank0(
+            logger,
+            comm,
+            f"  {solver} {pc_type} factorisation + solve "
+            f"{1e3 * _factor_solve(s, b, solver, pc_type, repeat):.1f}",
+        )
 
 
 def _factor_solve(s, b, solver: str, pc_type: str, repeat: int) -> float:
@@ -144,8 +167,11 @@ def main() -> None:
     ap.add_argument("--h", type=float, default=10.0)
     ap.add_argument("--steps", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--flags", default=None,
-                    help="the kernels' compiler flags in one string, e.g. '-O3 -march=native'")
+    ap.add_argument(
+        "--flags",
+        default=None,
+        help="the kernels' compiler flags in one string, e.g. '-O3 -march=native'",
+    )
     ap.add_argument("--mat-type", default=None, help="PETSc matrix type of the pieces (aij, baij)")
     args = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
@@ -156,8 +182,12 @@ def main() -> None:
         dofs = 3 * e.problem.V.dofmap.index_map.size_global
         cells = e.specimen.mesh.topology.index_map(2).size_global
         its = e.run(0.6 * R * args.steps / 12, args.steps)
-        rank0(logger, comm, f"h = {args.h:g} mm: {cells} cells, {dofs} DOFs, {comm.size} ranks; "
-                            f"state after {args.steps} steps ({list(its)} iterations)")
+        rank0(
+            logger,
+            comm,
+            f"h = {args.h:g} mm: {cells} cells, {dofs} DOFs, {comm.size} ranks; "
+            f"state after {args.steps} steps ({list(its)} iterations)",
+        )
         report(e, args.repeat, jit, args.mat_type)
 
 

@@ -43,8 +43,7 @@ def data(T_s: float, seed: int, sticking: bool = False):
     field."""
     exp = sy.template(LENGTH, WIDTH, path(), np.zeros((0, 2)), name=f"slip{T_s:g}")
     k_l, slip = (K_L + T_s / SLIP_STRAIN, 0.0) if sticking else (K_L, T_s)
-    sy.lattice_data(exp, SPACING, every=6, k_l=k_l, k_s=K_S, A_g=0.0, T_s=slip,
-                    eps_s=SLIP_STRAIN)
+    sy.lattice_data(exp, SPACING, every=6, k_l=k_l, k_s=K_S, A_g=0.0, T_s=slip, eps_s=SLIP_STRAIN)
     sy.add_noise(exp, 0.01, 0.02, seed)
     force_only = copy.deepcopy(exp)
     force_only.field_step = np.zeros(0, dtype=np.int64)
@@ -54,15 +53,20 @@ def data(T_s: float, seed: int, sticking: bool = False):
 
 def report(label: str, d, seconds: float) -> None:
     rows = [r for r in d.ranking if r.get("refit_chi2") is not None]
-    print(f"{label}: verdict {d.verdict}, adequate {d.adequate}, baseline misfit "
-          f"{d.base_fit.misfit['combined']:.3f} -> {d.final_fit.misfit['combined']:.3f} "
-          f"({seconds:.0f} s)", flush=True)
+    print(
+        f"{label}: verdict {d.verdict}, adequate {d.adequate}, baseline misfit "
+        f"{d.base_fit.misfit['combined']:.3f} -> {d.final_fit.misfit['combined']:.3f} "
+        f"({seconds:.0f} s)",
+        flush=True,
+    )
     for r in rows:
         slip = r.get("refit_params", {}).get("T_s")
-        print(f"    {r['effect']:>20}: chi2 {r['refit_chi2']:.4g} (base {d.base_fit.chi2:.4g}), "
-              f"Wald p {r['wald_p']:.2g}, F-test {r['f_test_passed']}, significant "
-              f"{r['significant']}" + (f", T_s {slip:.4g}" if slip is not None else ""),
-              flush=True)
+        print(
+            f"    {r['effect']:>20}: chi2 {r['refit_chi2']:.4g} (base {d.base_fit.chi2:.4g}), "
+            f"Wald p {r['wald_p']:.2g}, F-test {r['f_test_passed']}, significant "
+            f"{r['significant']}" + (f", T_s {slip:.4g}" if slip is not None else ""),
+            flush=True,
+        )
     ties = getattr(d, "ties", None)
     if ties:
         print(f"    ties: {ties}", flush=True)
@@ -74,21 +78,34 @@ def main() -> None:
     ap.add_argument("--h", type=float, default=4.0)
     ap.add_argument("--confirm", type=int, default=2)
     a = ap.parse_args()
-    print(f"zone-C angle at the last step: "
-          f"{np.degrees(tz.zone_c_shear_angle(path()[-1], LENGTH, WIDTH)):.1f} deg", flush=True)
+    print(
+        f"zone-C angle at the last step: "
+        f"{np.degrees(tz.zone_c_shear_angle(path()[-1], LENGTH, WIDTH)):.1f} deg",
+        flush=True,
+    )
     slips = [float(x) for x in a.slip.split(",")]
     for T_s, sticking in [(t, False) for t in slips] + [(slips[0], True)]:
         field, force = data(T_s, seed=7, sticking=sticking)
-        label = f"control (yarns of T_s = {T_s:g} that never slide)" if sticking else \
-            f"T_s = {T_s:g}"
+        label = (
+            f"control (yarns of T_s = {T_s:g} that never slide)" if sticking else f"T_s = {T_s:g}"
+        )
         if not sticking:
             stick, _ = data(T_s, seed=7, sticking=True)
-            print(f"{label}: force at the last step {field.force[-1]:.4g} N, sticking net "
-                  f"{stick.force[-1]:.4g} N", flush=True)
+            print(
+                f"{label}: force at the last step {field.force[-1]:.4g} N, sticking net "
+                f"{stick.force[-1]:.4g} N",
+                flush=True,
+            )
         for kind, exp in (("field + force", field), ("force only", force)):
             t0 = time.perf_counter()
-            d = diagnose(exp, ["fibre_stretch", "shear"], h=a.h, confirm=a.confirm,
-                         max_effects=1, check_discretisation=False)
+            d = diagnose(
+                exp,
+                ["fibre_stretch", "shear"],
+                h=a.h,
+                confirm=a.confirm,
+                max_effects=1,
+                check_discretisation=False,
+            )
             report(f"{label}, {kind}", d, time.perf_counter() - t0)
 
 

@@ -31,8 +31,11 @@ from fabricsurf.log import configure, rank0
 logger = logging.getLogger(__name__)
 
 LENGTH, WIDTH, STEPS, STRAIN = 187.0, 119.0, 12, 0.15
-TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-         "geodesic_bending": {"A_g": 40.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 30.0, "k_m": 30.0},
+    "shear": {"k_s": 0.5},
+    "geodesic_bending": {"A_g": 40.0},
+}
 
 
 def experiment(points_per_step: int = 400):
@@ -58,31 +61,47 @@ def timed_runs(exp, h: float, local: bool, repeat: int, comm: MPI.Comm) -> dict:
             cpus.append(comm.allreduce(time.process_time() - c0, op=MPI.MAX))
             newton = pred.newton
         mesh = fm.mesh()
-    return {"cells": mesh["cells"], "dofs": mesh["dofs"], "newton": newton,
-            "wall": statistics.median(walls), "cpu": statistics.median(cpus)}
+    return {
+        "cells": mesh["cells"],
+        "dofs": mesh["dofs"],
+        "newton": newton,
+        "wall": statistics.median(walls),
+        "cpu": statistics.median(cpus),
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--h", default="23.8,11.9,5.95,3", help="comma-separated element sizes")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--warm", action="store_true",
-                    help="warm-start the repeated runs (default cold: every step's Newton solve "
-                    "from the previous step, as a fit's first runs)")
+    ap.add_argument(
+        "--warm",
+        action="store_true",
+        help="warm-start the repeated runs (default cold: every step's Newton solve "
+        "from the previous step, as a fit's first runs)",
+    )
     args = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
     warm_start.ENABLED = args.warm
     comm = MPI.COMM_WORLD
     exp = experiment()
     rank0(logger, comm, f"{comm.size} ranks; median of {args.repeat} runs with sensitivities")
-    rank0(logger, comm, "h (mm) | cells | DOFs | Newton | distributed wall / CPU s | "
-                  "rank-local wall / CPU s | wall ratio")
+    rank0(
+        logger,
+        comm,
+        "h (mm) | cells | DOFs | Newton | distributed wall / CPU s | "
+        "rank-local wall / CPU s | wall ratio",
+    )
     for h in (float(x) for x in args.h.split(",")):
         d = timed_runs(exp, h, False, args.repeat, comm)
         loc = timed_runs(exp, h, True, args.repeat, comm)
-        rank0(logger, comm, f"{h:g} | {d['cells']} | {d['dofs']} | {d['newton']}/{loc['newton']} | "
-                      f"{d['wall']:.2f} / {d['cpu']:.2f} | {loc['wall']:.2f} / {loc['cpu']:.2f} | "
-                      f"{d['wall'] / loc['wall']:.2f}")
+        rank0(
+            logger,
+            comm,
+            f"{h:g} | {d['cells']} | {d['dofs']} | {d['newton']}/{loc['newton']} | "
+            f"{d['wall']:.2f} / {d['cpu']:.2f} | {loc['wall']:.2f} / {loc['cpu']:.2f} | "
+            f"{d['wall'] / loc['wall']:.2f}",
+        )
 
 
 if __name__ == "__main__":

@@ -57,11 +57,13 @@ def stiff_case(comm: MPI.Comm):
     length, width = 48.0, 24.0
     path = list(np.linspace(0.04 * length, 0.12 * length, 3))
     exp = sy.template(length, width, path, np.zeros((0, 2)), name="stiff")
-    sy.lattice_data(exp, 1.6, k_l=STIFF_K_L, k_s=STIFF_K_S, A_g=STIFF_K_S * STIFF_L_B**2,
-                    every=2)
+    sy.lattice_data(exp, 1.6, k_l=STIFF_K_L, k_s=STIFF_K_S, A_g=STIFF_K_S * STIFF_L_B**2, every=2)
     sy.add_noise(exp, 0.02, 0.02, 5)
-    return exp, {"baseline": ["fibre_stretch", "shear", "geodesic_bending"], "h": 4.0,
-                 "check_discretisation": False}
+    return exp, {
+        "baseline": ["fibre_stretch", "shear", "geodesic_bending"],
+        "h": 4.0,
+        "check_discretisation": False,
+    }
 
 
 CASES = {"bias": bias_case, "stiff": stiff_case}
@@ -82,9 +84,11 @@ def run_case(name: str, count: int, comm: MPI.Comm) -> float:
         rss.append(comm.allreduce(resident_mb(), op=MPI.MAX))
         say(f"  {name} {k + 1:3d}: {rss[-1]:8.1f} MB  ({MPI.Wtime() - t0:5.1f} s, {outcome})")
     growth = (rss[-1] - rss[0]) / (count - 1) if count > 1 else float("nan")
-    say(f"{name}: growth per diagnosis after the first {growth:.3f} MB "
+    say(
+        f"{name}: growth per diagnosis after the first {growth:.3f} MB "
         f"(target < {TARGET_MB:g} MB: {growth / TARGET_MB:.3f} of it, "
-        f"{'met' if growth < TARGET_MB else 'NOT met'})")
+        f"{'met' if growth < TARGET_MB else 'NOT met'})"
+    )
     return growth
 
 
@@ -101,11 +105,15 @@ def main() -> None:
         raise SystemExit(f"--cases {unknown} unknown (use {list(CASES)}) or --count < 2")
     t0 = time.perf_counter()
     growth = {c: run_case(c, a.count, comm) for c in names}
-    rank0(logger, comm, "summary: " + ", ".join(f"{c} {g:.3f} MB/diagnosis" for c, g in
-                                            growth.items())
-                  + f"; target < {TARGET_MB:g} MB "
-                  + ("met" if all(g < TARGET_MB for g in growth.values()) else "NOT met")
-                  + f" ({time.perf_counter() - t0:.0f} s)")
+    rank0(
+        logger,
+        comm,
+        "summary: "
+        + ", ".join(f"{c} {g:.3f} MB/diagnosis" for c, g in growth.items())
+        + f"; target < {TARGET_MB:g} MB "
+        + ("met" if all(g < TARGET_MB for g in growth.values()) else "NOT met")
+        + f" ({time.perf_counter() - t0:.0f} s)",
+    )
 
 
 if __name__ == "__main__":

@@ -36,19 +36,28 @@ from fabricsurf.inverse.synthetic import generate as sy
 COMM = MPI.COMM_WORLD
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 CASES = {
-    "position_40x20": dict(L=40.0, W=20.0, clamp="position", noise=0.004,
-                           hidden={"geodesic_bending": {"A_g": 15.0}}),
-    "gradient_60x30": dict(L=60.0, W=30.0, clamp="gradient", noise=0.002,
-                           hidden={"shear_gradient": {"A_Gamma": 20.0}}),
-    "gradient_40x20_geodesic": dict(L=40.0, W=20.0, clamp="gradient", noise=0.001,
-                                    hidden={"geodesic_bending": {"A_g": 15.0}}),
+    "position_40x20": dict(
+        L=40.0, W=20.0, clamp="position", noise=0.004, hidden={"geodesic_bending": {"A_g": 15.0}}
+    ),
+    "gradient_60x30": dict(
+        L=60.0, W=30.0, clamp="gradient", noise=0.002, hidden={"shear_gradient": {"A_Gamma": 20.0}}
+    ),
+    "gradient_40x20_geodesic": dict(
+        L=40.0, W=20.0, clamp="gradient", noise=0.001, hidden={"geodesic_bending": {"A_g": 15.0}}
+    ),
 }
 
 
 def data(c: dict):
     L, W = c["L"], c["W"]
-    exp = sy.template(L, W, [0.03 * L, 0.06 * L, 0.09 * L], sy.grid_points(L, W, 10, 5),
-                      clamp=c["clamp"], name="held_aside")
+    exp = sy.template(
+        L,
+        W,
+        [0.03 * L, 0.06 * L, 0.09 * L],
+        sy.grid_points(L, W, 10, 5),
+        clamp=c["clamp"],
+        name="held_aside",
+    )
     true = BASE | c["hidden"]
     sy.continuum_data(exp, full_model(list(true), true), h=W / 10 / 2.9)
     return sy.add_noise(exp, c["noise"], 2 * c["noise"], 23)
@@ -56,9 +65,21 @@ def data(c: dict):
 
 def summary(d, seconds: float) -> dict:
     q = level_record(d, seconds)
-    return {k: q[k] for k in ("h", "dofs", "seconds", "chi2_h", "noise_band", "too_coarse",
-                              "verdict", "adequate", "misfit", "moduli")} | {
-        "outcome": d.outcome(), "mesh_selection": d.mesh_selection}
+    return {
+        k: q[k]
+        for k in (
+            "h",
+            "dofs",
+            "seconds",
+            "chi2_h",
+            "noise_band",
+            "too_coarse",
+            "verdict",
+            "adequate",
+            "misfit",
+            "moduli",
+        )
+    } | {"outcome": d.outcome(), "mesh_selection": d.mesh_selection}
 
 
 def main() -> None:
@@ -82,10 +103,13 @@ def main() -> None:
         results[name] = {"without": summary(before, t_before), "with": summary(after, t_after)}
         for mode, r in results[name].items():
             if COMM.rank == 0:
-                print(f"{name} {mode:7s} mesh selection: {r['seconds']:7.1f} s, h {r['h']}, "
-                      f"{r['dofs']:,} unknowns, verdict {r['verdict']}, adequate "
-                      f"{r['adequate']}, chi2_h {r['chi2_h']:.4g} vs band {r['noise_band']:.4g}"
-                      f": {r['outcome']}", flush=True)
+                print(
+                    f"{name} {mode:7s} mesh selection: {r['seconds']:7.1f} s, h {r['h']}, "
+                    f"{r['dofs']:,} unknowns, verdict {r['verdict']}, adequate "
+                    f"{r['adequate']}, chi2_h {r['chi2_h']:.4g} vs band {r['noise_band']:.4g}"
+                    f": {r['outcome']}",
+                    flush=True,
+                )
         write_json(COMM, args.out / "mesh_selection.json", results)
 
 

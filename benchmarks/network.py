@@ -50,19 +50,26 @@ def main() -> None:
     t_floor = time.perf_counter() - t0
     lin.lu = None
     lin.stats = {"factorisations": 0, "krylov_iterations": 0}
-    print(f"nodes {net.n_nodes}, dofs {net.n_dofs}, extensional {len(net.ext)}, "
-          f"rotational {len(net.rot)}, eps {eps:.4f} mm")
-    print(f"build {t_build:.2f} s, Hessian pattern {t_pattern:.2f} s, Hessian {t_hess:.2f} s, "
-          f"ordering {t_order:.2f} s, factorisation+solve (floor) {t_floor:.2f} s")
+    print(
+        f"nodes {net.n_nodes}, dofs {net.n_dofs}, extensional {len(net.ext)}, "
+        f"rotational {len(net.rot)}, eps {eps:.4f} mm"
+    )
+    print(
+        f"build {t_build:.2f} s, Hessian pattern {t_pattern:.2f} s, Hessian {t_hess:.2f} s, "
+        f"ordering {t_order:.2f} s, factorisation+solve (floor) {t_floor:.2f} s"
+    )
     t0 = time.perf_counter()
-    res = solve_steps(net, bcs, n_steps=a.steps, reaction_sets={"grip": lat.grip},
-                      newton_kw={"linear": lin})
+    res = solve_steps(
+        net, bcs, n_steps=a.steps, reaction_sets={"grip": lat.grip}, newton_kw={"linear": lin}
+    )
     total = time.perf_counter() - t0
     for r in res:
         per = r.seconds / max(r.iterations, 1)
-        print(f"step t={r.t:.3f} u={a.u * r.t:.3f} mm: Newton iterations {r.iterations}, "
-              f"{r.seconds:.2f} s ({per:.2f} s/iteration, {per / t_floor:.2f} x floor), "
-              f"grip force {r.reactions['grip'][0]:.4f} N")
+        print(
+            f"step t={r.t:.3f} u={a.u * r.t:.3f} mm: Newton iterations {r.iterations}, "
+            f"{r.seconds:.2f} s ({per:.2f} s/iteration, {per / t_floor:.2f} x floor), "
+            f"grip force {r.reactions['grip'][0]:.4f} N"
+        )
     print(f"total {total:.2f} s for {len(res)} steps; linear solver {lin.stats}")
 
 

@@ -26,9 +26,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "input_errors.md"
 COMMAND = "python benchmarks/regenerate_input_errors.py"
-CASE_MODULES = ("test_hardening", "test_hardening_outputs", "test_hardening_process",
-                "test_hardening_inputs", "test_hardening_bias", "test_hardening_dic",
-                "test_user_effects")
+CASE_MODULES = (
+    "test_hardening",
+    "test_hardening_outputs",
+    "test_hardening_process",
+    "test_hardening_inputs",
+    "test_hardening_bias",
+    "test_hardening_dic",
+    "test_user_effects",
+)
 """The test modules (in tests/) whose ``CASES`` make the table, in its order."""
 
 
@@ -71,34 +77,36 @@ def table_row(case: dict, message: str) -> str:
 
 def errors_table(rows: list[str]) -> str:
     """The whole of docs/input_errors.md around its ``rows``."""
-    return "\n".join([
-        "# Inputs that are rejected, and the message each gives",
-        "",
-        "Generated from the real messages of the cases of the hardening tests",
-        f"(`tests/test_hardening*.py`; regenerate with `{COMMAND}`). Every rejection",
-        "ends with exit status 2 on every MPI rank, prints one message (rank 0), and happens",
-        "before any solve; nothing is written to `--out`. DATA directories hold the",
-        "`experiment.toml`, `field.csv` and `force.csv` of measurement contract 2; `good` is a",
-        "valid one and each other name a copy with one defect.",
-        "",
-        "| input | command | message |",
-        "|---|---|---|",
-        *rows,
-        "",
-        "Accepted as they are (same values as the plain file): a UTF-8 byte-order mark in",
-        "`experiment.toml` or a CSV; UTF-16 CSV files with their byte-order mark; blank lines",
-        "(e.g. a trailing one) in a CSV; CRLF line ends; semicolon-separated CSV with a decimal",
-        "comma or a decimal point. Experiment names in any script (the file prefixes of",
-        "several experiments are ASCII, with a hash of the name when it is not); an `--out`",
-        "name of any length the file system allows.",
-        "",
-        "Refused outside this table (their messages name a process or a path that differs",
-        "from run to run): a second run into an `--out` another run is writing",
-        "(`--out D: another fabricsurf run (PID n on HOST) is writing to this directory; wait",
-        "for it to end, or give another --out`). What an `--out` holds after a run, and what",
-        "an interrupted run keeps: `docs/usage.md`, \"Output directories\".",
-        "",
-    ])
+    return "\n".join(
+        [
+            "# Inputs that are rejected, and the message each gives",
+            "",
+            "Generated from the real messages of the cases of the hardening tests",
+            f"(`tests/test_hardening*.py`; regenerate with `{COMMAND}`). Every rejection",
+            "ends with exit status 2 on every MPI rank, prints one message (rank 0), and happens",
+            "before any solve; nothing is written to `--out`. DATA directories hold the",
+            "`experiment.toml`, `field.csv` and `force.csv` of measurement contract 2; `good` is a",
+            "valid one and each other name a copy with one defect.",
+            "",
+            "| input | command | message |",
+            "|---|---|---|",
+            *rows,
+            "",
+            "Accepted as they are (same values as the plain file): a UTF-8 byte-order mark in",
+            "`experiment.toml` or a CSV; UTF-16 CSV files with their byte-order mark; blank lines",
+            "(e.g. a trailing one) in a CSV; CRLF line ends; semicolon-separated CSV with a",
+            "decimal comma or a decimal point. Experiment names in any script (the file prefixes",
+            "of several experiments are ASCII, with a hash of the name when it is not); an `--out`",
+            "name of any length the file system allows.",
+            "",
+            "Refused outside this table (their messages name a process or a path that differs",
+            "from run to run): a second run into an `--out` another run is writing",
+            "(`--out D: another fabricsurf run (PID n on HOST) is writing to this directory; wait",
+            "for it to end, or give another --out`). What an `--out` holds after a run, and what",
+            'an interrupted run keeps: `docs/usage.md`, "Output directories".',
+            "",
+        ]
+    )
 
 
 def run_cli(argv: list) -> tuple[int, str]:

@@ -63,37 +63,62 @@ from fabricsurf.log import configure, rank0
 logger = logging.getLogger(__name__)
 
 LENGTH, WIDTH, STEPS, STRAIN = 187.0, 119.0, 12, 0.15
-TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-         "geodesic_bending": {"A_g": 40.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 30.0, "k_m": 30.0},
+    "shear": {"k_s": 0.5},
+    "geodesic_bending": {"A_g": 40.0},
+}
 NOISE_MM, NOISE_N = 0.02, 0.05
-STAGES = ("reading", "forward solves", "sensitivities", "evaluation at points", "statistics",
-          "figures", "writing", "other")
+STAGES = (
+    "reading",
+    "forward solves",
+    "sensitivities",
+    "evaluation at points",
+    "statistics",
+    "figures",
+    "writing",
+    "other",
+)
 HOOKS = {  # stage: (module, name), name "Class.method" for a method; missing ones are skipped
     "reading": [("fabricsurf.inverse.contract.data", "load_experiment")],
     "forward solves": [("fabricsurf.inverse.forward.runs", "ForwardModel.run")],
     "sensitivities": [("fabricsurf.inverse.forward.tangent", "sensitivities")],
-    "evaluation at points": [("fabricsurf.discretise.evaluation", "eval_points"),
-                             ("fabricsurf.discretise.evaluation", "PointLocator.__init__"),
-                             ("fabricsurf.discretise.evaluation", "PointLocator.__call__")],
-    "statistics": [("fabricsurf.inverse.forward.misfit", "residuals"),
-                   ("fabricsurf.inverse.forward.misfit", "misfit"),
-                   ("fabricsurf.inverse.uncertainty.statistical", "sandwich"),
-                   ("fabricsurf.inverse.uncertainty.statistical", "blocks"),
-                   ("fabricsurf.inverse.uncertainty.systematic", "model_form"),
-                   ("fabricsurf.inverse.uncertainty.systematic", "mesh_shift"),
-                   ("fabricsurf.inverse.fitting.fit", "undetermined"),
-                   ("fabricsurf.inverse.fitting.fit", "FitResult.uncertainty"),
-                   ("fabricsurf.inverse.diagnosis.diagnose", "scores"),
-                   ("fabricsurf.inverse.diagnosis.diagnose", "gauss_newton_start"),
-                   ("fabricsurf.inverse.forward.linalg", "lstsq"),
-                   ("fabricsurf.inverse.fitting.band", "_half_widths")],
-    "figures": [("fabricsurf.inverse.plots.figures", n) for n in
-                ("error_map", "field_band", "force_curves", "force_band", "error_vs_step",
-                 "misfit_path")],
-    "writing": [("fabricsurf.discretise.output", "write_json"),
-                ("fabricsurf.inverse.plots.outputs", "_per_point"),
-                ("fabricsurf.inverse.plots.outputs", "_field_band_csv"),
-                ("fabricsurf.inverse.fitting.band", "write_band")],
+    "evaluation at points": [
+        ("fabricsurf.discretise.evaluation", "eval_points"),
+        ("fabricsurf.discretise.evaluation", "PointLocator.__init__"),
+        ("fabricsurf.discretise.evaluation", "PointLocator.__call__"),
+    ],
+    "statistics": [
+        ("fabricsurf.inverse.forward.misfit", "residuals"),
+        ("fabricsurf.inverse.forward.misfit", "misfit"),
+        ("fabricsurf.inverse.uncertainty.statistical", "sandwich"),
+        ("fabricsurf.inverse.uncertainty.statistical", "blocks"),
+        ("fabricsurf.inverse.uncertainty.systematic", "model_form"),
+        ("fabricsurf.inverse.uncertainty.systematic", "mesh_shift"),
+        ("fabricsurf.inverse.fitting.fit", "undetermined"),
+        ("fabricsurf.inverse.fitting.fit", "FitResult.uncertainty"),
+        ("fabricsurf.inverse.diagnosis.diagnose", "scores"),
+        ("fabricsurf.inverse.diagnosis.diagnose", "gauss_newton_start"),
+        ("fabricsurf.inverse.forward.linalg", "lstsq"),
+        ("fabricsurf.inverse.fitting.band", "_half_widths"),
+    ],
+    "figures": [
+        ("fabricsurf.inverse.plots.figures", n)
+        for n in (
+            "error_map",
+            "field_band",
+            "force_curves",
+            "force_band",
+            "error_vs_step",
+            "misfit_path",
+        )
+    ],
+    "writing": [
+        ("fabricsurf.discretise.output", "write_json"),
+        ("fabricsurf.inverse.plots.outputs", "_per_point"),
+        ("fabricsurf.inverse.plots.outputs", "_field_band_csv"),
+        ("fabricsurf.inverse.fitting.band", "write_band"),
+    ],
 }
 
 
@@ -123,14 +148,19 @@ class Stages:
 
     def count_run(self, fn):
         """Wrap ForwardModel.run: count the runs per element size and their Newton iterations."""
+
         @functools.wraps(fn)
         def counted(model, *a, **k):
             pred = fn(model, *a, **k)
             key = f"h={model.h:.4g}" + (" +sens" if (a and a[0]) or k.get("sens") else "")
-            for name, v in ((f"runs {key}", 1), (f"newton {key}", pred.newton),
-                            (f"seconds {key}", round(pred.seconds, 1))):
+            for name, v in (
+                (f"runs {key}", 1),
+                (f"newton {key}", pred.newton),
+                (f"seconds {key}", round(pred.seconds, 1)),
+            ):
                 self.counts[name] = self.counts.get(name, 0) + v
             return pred
+
         return counted
 
     def enter(self, stage: str) -> None:
@@ -159,12 +189,14 @@ class Stages:
                 return fn(*a, **k)
             finally:
                 self.leave()
+
         return timed
 
     def install(self) -> None:
         """Wrap every hooked function where it is defined and wherever it was imported (the
         forward runs counted first, inside their timer)."""
         from fabricsurf.inverse.forward.runs import ForwardModel
+
         ForwardModel.run = self.count_run(ForwardModel.run)
         for stage, hooks in HOOKS.items():
             for modname, name in hooks:
@@ -183,23 +215,28 @@ class Stages:
                 setattr(owner, attr, timed)
                 if owner is mod:
                     for m in list(sys.modules.values()):
-                        if getattr(m, "__name__", "").startswith("fabricsurf") and \
-                                getattr(m, attr, None) is fn:
+                        if (
+                            getattr(m, "__name__", "").startswith("fabricsurf")
+                            and getattr(m, attr, None) is fn
+                        ):
                             setattr(m, attr, timed)
 
 
-def make_data(n_points: int, root: Path, comm: MPI.Comm, steps: int = STEPS,
-              h: float | None = None) -> Path:
+def make_data(
+    n_points: int, root: Path, comm: MPI.Comm, steps: int = STEPS, h: float | None = None
+) -> Path:
     """The synthetic data of the module docstring with about ``n_points`` field rows over
     ``steps`` load steps, made on the mesh ``h`` (default: the test's own)."""
     per_step = n_points / steps
     ny = max(2, round(math.sqrt(per_step * WIDTH / LENGTH)))
     nx = max(2, round(per_step / ny))
     path = list(np.linspace(STRAIN * LENGTH / steps, STRAIN * LENGTH, steps))
-    exp = sy.template(LENGTH, WIDTH, path, sy.grid_points(LENGTH, WIDTH, nx, ny),
-                      name=f"bias_{n_points}")
-    sy.continuum_data(exp, full_model(list(TRUTH), TRUTH), h=h or min(LENGTH, WIDTH) / 10.0,
-                      comm=comm)
+    exp = sy.template(
+        LENGTH, WIDTH, path, sy.grid_points(LENGTH, WIDTH, nx, ny), name=f"bias_{n_points}"
+    )
+    sy.continuum_data(
+        exp, full_model(list(TRUTH), TRUTH), h=h or min(LENGTH, WIDTH) / 10.0, comm=comm
+    )
     sy.add_noise(exp, NOISE_MM, NOISE_N, seed=36)
     d = root / f"data_{n_points}"
     if comm.rank == 0:
@@ -211,20 +248,47 @@ def make_data(n_points: int, root: Path, comm: MPI.Comm, steps: int = STEPS,
 
 
 COMMANDS = {
-    "fit": lambda d, o: ["fit", str(d), "--terms", "fibre_stretch,shear,geodesic_bending",
-                         "--out", str(o / "fit")],
-    "compare": lambda d, o: ["compare", str(d), "--params", str(
-        o / "fit" / "fit.json" if (o / "fit" / "fit.json").is_file() else o / "truth.json"),
-        "--out", str(o / "compare")],
-    "diagnose": lambda d, o: ["diagnose", str(d), "--terms", "fibre_stretch,shear",
-                              "--max-effects", "1", "--confirm", "1", "--out",
-                              str(o / "diagnose")],
+    "fit": lambda d, o: [
+        "fit",
+        str(d),
+        "--terms",
+        "fibre_stretch,shear,geodesic_bending",
+        "--out",
+        str(o / "fit"),
+    ],
+    "compare": lambda d, o: [
+        "compare",
+        str(d),
+        "--params",
+        str(o / "fit" / "fit.json" if (o / "fit" / "fit.json").is_file() else o / "truth.json"),
+        "--out",
+        str(o / "compare"),
+    ],
+    "diagnose": lambda d, o: [
+        "diagnose",
+        str(d),
+        "--terms",
+        "fibre_stretch,shear",
+        "--max-effects",
+        "1",
+        "--confirm",
+        "1",
+        "--out",
+        str(o / "diagnose"),
+    ],
 }
 
 
-def run(st: Stages, command: str, data: Path, out: Path, comm: MPI.Comm,
-        h: float | None = None, extra: list[str] | None = None,
-        profile: bool = False) -> dict:
+def run(
+    st: Stages,
+    command: str,
+    data: Path,
+    out: Path,
+    comm: MPI.Comm,
+    h: float | None = None,
+    extra: list[str] | None = None,
+    profile: bool = False,
+) -> dict:
     """One command under the stage timers: {"status", "seconds", "stages": {stage: [s, MB per
     rank]}, "counts"}; its output in ``out``/COMMAND.log and, with ``profile``, rank 0's
     cProfile in ``out``/COMMAND.prof (and the top functions in COMMAND.prof.txt)."""
@@ -260,11 +324,17 @@ def run(st: Stages, command: str, data: Path, out: Path, comm: MPI.Comm,
     times = np.max(comm.allgather([st.t[s] for s in STAGES]), axis=0)
     cpus = np.max(comm.allgather([st.cpu[s] for s in STAGES]), axis=0)
     note = [ln for ln in sink.getvalue().splitlines() if "failed" in ln or "error" in ln]
-    return {"status": status, "note": note[:2], "seconds": comm.allreduce(wall, op=MPI.MAX),
-            "cpu": float(np.sum(cpus)),
-            "stages": {s: [float(times[i]), [p[i] for p in peaks] if peaks else None,
-                           float(cpus[i])] for i, s in enumerate(STAGES)},
-            "counts": dict(sorted(st.counts.items()))}
+    return {
+        "status": status,
+        "note": note[:2],
+        "seconds": comm.allreduce(wall, op=MPI.MAX),
+        "cpu": float(np.sum(cpus)),
+        "stages": {
+            s: [float(times[i]), [p[i] for p in peaks] if peaks else None, float(cpus[i])]
+            for i, s in enumerate(STAGES)
+        },
+        "counts": dict(sorted(st.counts.items())),
+    }
 
 
 def table(results: dict, comm: MPI.Comm) -> None:
@@ -274,25 +344,39 @@ def table(results: dict, comm: MPI.Comm) -> None:
         rows = [(n, results[n].get(command)) for n in sizes if command in results[n]]
         if not rows:
             continue
-        rank0(logger, comm, f"\n{command}: " + "  ".join(
-            f"N={n}: {r['seconds']:.1f} s (CPU {r.get('cpu', 0):.1f} s, the busier rank), "
-            f"status {r['status']}" for n, r in rows))
+        rank0(
+            logger,
+            comm,
+            f"\n{command}: "
+            + "  ".join(
+                f"N={n}: {r['seconds']:.1f} s (CPU {r.get('cpu', 0):.1f} s, the busier rank), "
+                f"status {r['status']}"
+                for n, r in rows
+            ),
+        )
         head = f"{'stage':22s}" + "".join(f"{'N=' + n:>38s}" for n, _ in rows) + "  exponents"
         rank0(logger, comm, head)
         for s in STAGES:
             cells, ts = "", []
             for _, r in rows:
                 t, mb, cpu = (r["stages"][s] + [0.0])[:3]
-                cells += (f"{t:9.2f} s (CPU {cpu:7.2f}) "
-                          f"{'/'.join(f'{m:.0f}' for m in (mb or [])):>11s} MB")
+                cells += (
+                    f"{t:9.2f} s (CPU {cpu:7.2f}) "
+                    f"{'/'.join(f'{m:.0f}' for m in (mb or [])):>11s} MB"
+                )
                 ts.append(t)
             ns = [int(n) for n, _ in rows]
-            exps = [math.log(max(ts[i + 1], 1e-3) / max(ts[i], 1e-3)) / math.log(ns[i + 1] / ns[i])
-                    for i in range(len(ns) - 1)]
+            exps = [
+                math.log(max(ts[i + 1], 1e-3) / max(ts[i], 1e-3)) / math.log(ns[i + 1] / ns[i])
+                for i in range(len(ns) - 1)
+            ]
             rank0(logger, comm, f"{s:22s}{cells}  " + " ".join(f"{e:5.2f}" for e in exps))
         for n, r in rows:
-            rank0(logger, comm, f"N={n} counts: " + ", ".join(
-                f"{k} {v}" for k, v in r.get("counts", {}).items()))
+            rank0(
+                logger,
+                comm,
+                f"N={n} counts: " + ", ".join(f"{k} {v}" for k, v in r.get("counts", {}).items()),
+            )
 
 
 def main_benchmark() -> None:
@@ -300,23 +384,43 @@ def main_benchmark() -> None:
     ap.add_argument("--points", default="1e4,1e5", help="comma-separated field row counts")
     ap.add_argument("--commands", default="fit,compare,diagnose")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--h", type=float, default=None,
-                    help="element size in mm (default: the test's own, 11.9 mm here); the "
-                    "forward solves do not depend on N, a coarser mesh shows the N-dependent "
-                    "stages sooner")
+    ap.add_argument(
+        "--h",
+        type=float,
+        default=None,
+        help="element size in mm (default: the test's own, 11.9 mm here); the "
+        "forward solves do not depend on N, a coarser mesh shows the N-dependent "
+        "stages sooner",
+    )
     ap.add_argument("--steps", type=int, default=STEPS, help="load steps")
-    ap.add_argument("--limit-gb", type=float, default=None,
-                    help="address-space limit per process (RLIMIT_AS), GB")
-    ap.add_argument("--diagnose-args", default="",
-                    help="further options of diagnose, e.g. '--max-dofs 1' (no mesh selection)")
-    ap.add_argument("--cold", action="store_true",
-                    help="no warm start of the forward runs (every load step from the last "
-                    "converged one, as before; inverse/forward/warm_start.py)")
-    ap.add_argument("--distributed", action="store_true",
-                    help="solve every mesh distributed over the ranks (as before the rank-local "
-                    "solves of inverse/forward/ranks.py)")
-    ap.add_argument("--profile", action="store_true",
-                    help="cProfile on rank 0: OUT/out_N/COMMAND.prof and COMMAND.prof.txt")
+    ap.add_argument(
+        "--limit-gb",
+        type=float,
+        default=None,
+        help="address-space limit per process (RLIMIT_AS), GB",
+    )
+    ap.add_argument(
+        "--diagnose-args",
+        default="",
+        help="further options of diagnose, e.g. '--max-dofs 1' (no mesh selection)",
+    )
+    ap.add_argument(
+        "--cold",
+        action="store_true",
+        help="no warm start of the forward runs (every load step from the last "
+        "converged one, as before; inverse/forward/warm_start.py)",
+    )
+    ap.add_argument(
+        "--distributed",
+        action="store_true",
+        help="solve every mesh distributed over the ranks (as before the rank-local "
+        "solves of inverse/forward/ranks.py)",
+    )
+    ap.add_argument(
+        "--profile",
+        action="store_true",
+        help="cProfile on rank 0: OUT/out_N/COMMAND.prof and COMMAND.prof.txt",
+    )
     args = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
@@ -336,10 +440,15 @@ def main_benchmark() -> None:
             resource.setrlimit(resource.RLIMIT_AS, (int(args.limit_gb * 2**30), limit[1]))
         for command in args.commands.split(","):
             extra = args.diagnose_args.split() if command == "diagnose" else []
-            results[str(n)][command] = res = run(st, command, data, root / f"out_{n}", comm,
-                                                 args.h, extra, args.profile)
-            rank0(logger, comm, f"[scale] N = {n} {command}: {res['seconds']:.1f} s, status "
-                          f"{res['status']} {res['note']}")
+            results[str(n)][command] = res = run(
+                st, command, data, root / f"out_{n}", comm, args.h, extra, args.profile
+            )
+            rank0(
+                logger,
+                comm,
+                f"[scale] N = {n} {command}: {res['seconds']:.1f} s, status "
+                f"{res['status']} {res['note']}",
+            )
         if args.limit_gb:
             resource.setrlimit(resource.RLIMIT_AS, limit)
         if comm.rank == 0:

@@ -52,28 +52,41 @@ def main() -> None:
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
     rows = []
-    say(f"{'effect':13s} {'fabric':6s} {'ratio':>5s} {'cover':>6s} {'clean':>6s} "
-        f"{'width %':>8s} {'before':>6s} {'width %':>8s} {'max err %':>9s} {'s':>5s}")
+    say(
+        f"{'effect':13s} {'fabric':6s} {'ratio':>5s} {'cover':>6s} {'clean':>6s} "
+        f"{'width %':>8s} {'before':>6s} {'width %':>8s} {'max err %':>9s} {'s':>5s}"
+    )
     for effect, fabric, ratio in itertools.product(a.effects, fabrics, ratios):
         t0 = time.perf_counter()
         seed = a.seed + 17 * len(rows)
         calib, _ = sizes.curve(*FITTED, fabric, effect, a.steps, seed)
-        other, clean = sizes.curve(ratio * FITTED[0], ratio * FITTED[1], fabric, effect,
-                                   a.steps, seed + 1)
+        other, clean = sizes.curve(
+            ratio * FITTED[0], ratio * FITTED[1], fabric, effect, a.steps, seed + 1
+        )
         row = sizes.pair_coverage(calib, other, fabric, a.h, comm, other_clean=clean.force)
-        row |= {"effect": effect, "fabric": fabric, "ratio": ratio,
-                "seconds": time.perf_counter() - t0}
+        row |= {
+            "effect": effect,
+            "fabric": fabric,
+            "ratio": ratio,
+            "seconds": time.perf_counter() - t0,
+        }
         rows.append(row)
-        say(f"{effect:13s} {fabric:6s} {ratio:5.1f} {row['coverage']:6.2f} "
+        say(
+            f"{effect:13s} {fabric:6s} {ratio:5.1f} {row['coverage']:6.2f} "
             f"{row['coverage_clean']:6.2f} "
             f"{row['mean_half_width_pct']:8.2f} {row['coverage_without_size']:6.2f} "
             f"{row['mean_half_width_without_pct']:8.2f} {row['max_error_pct']:9.2f} "
-            f"{row['seconds']:5.0f}")
+            f"{row['seconds']:5.0f}"
+        )
     n = sum(r["points"] for r in rows)
-    inside, clean, before = (sum(r[k] * r["points"] for r in rows) / n
-                             for k in ("coverage", "coverage_clean", "coverage_without_size"))
-    say(f"all: {inside:.3f} of {n} points inside, {clean:.3f} of the noise-free curve's "
-        f"(without the size part {before:.3f})")
+    inside, clean, before = (
+        sum(r[k] * r["points"] for r in rows) / n
+        for k in ("coverage", "coverage_clean", "coverage_without_size")
+    )
+    say(
+        f"all: {inside:.3f} of {n} points inside, {clean:.3f} of the noise-free curve's "
+        f"(without the size part {before:.3f})"
+    )
     if comm.rank == 0:
         f = out / "size_coverage.json"
         old = json.loads(f.read_text()) if f.exists() else []

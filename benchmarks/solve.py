@@ -22,8 +22,11 @@ from fabricsurf.experiments.bias_extension import BiasExtension
 def quadrature_points() -> dict:
     tri = basix.make_quadrature(basix.CellType.triangle, CELL_QUADRATURE_DEGREE)[0]
     edge = basix.make_quadrature(basix.CellType.interval, FACET_QUADRATURE_DEGREE)[0]
-    return {"cell (energy, dx)": len(tri), "interior facet (C0-IP, dS)": len(edge),
-            "boundary facet (Nitsche, ds)": len(edge)}
+    return {
+        "cell (energy, dx)": len(tri),
+        "interior facet (C0-IP, dS)": len(edge),
+        "boundary facet (Nitsche, ds)": len(edge),
+    }
 
 
 def floor_seconds(test: BiasExtension, repeats: int = 3) -> float:
@@ -58,9 +61,14 @@ def run(comm: MPI.Comm, h: float, ubar: float, steps: int) -> dict:
     t_step = time.perf_counter() - t0
     floor = floor_seconds(test)
     V = test.problem.V
-    return {"dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
-            "newton_per_step": test.solver.snes.getIterationNumber(), "iterations": its,
-            "time_per_iteration": t_step / max(its, 1), "floor": floor, "reason": reason}
+    return {
+        "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
+        "newton_per_step": test.solver.snes.getIterationNumber(),
+        "iterations": its,
+        "time_per_iteration": t_step / max(its, 1),
+        "floor": floor,
+        "reason": reason,
+    }
 
 
 def main() -> None:
@@ -88,13 +96,19 @@ def main() -> None:
     print(f"Newton iterations in the timed step: {par['iterations']} (SNES reason {par['reason']})")
     print(f"time per Newton iteration on {world.size} rank(s): {par['time_per_iteration']:.3f} s")
     print(f"floor (assembly + LU factorisation + solve): {par['floor']:.3f} s")
-    print(f"ratio time per iteration / floor: {par['time_per_iteration'] / par['floor']:.2f}"
-          " (goal <= 1.5)")
+    print(
+        f"ratio time per iteration / floor: {par['time_per_iteration'] / par['floor']:.2f}"
+        " (goal <= 1.5)"
+    )
     if ser is not None:
-        print(f"whole run: 1 rank {t_ser:.2f} s, {world.size} ranks {t_par:.2f} s, "
-              f"speed-up {t_ser / t_par:.2f}")
-        print(f"per Newton iteration: speed-up "
-              f"{ser['time_per_iteration'] / par['time_per_iteration']:.2f}")
+        print(
+            f"whole run: 1 rank {t_ser:.2f} s, {world.size} ranks {t_par:.2f} s, "
+            f"speed-up {t_ser / t_par:.2f}"
+        )
+        print(
+            f"per Newton iteration: speed-up "
+            f"{ser['time_per_iteration'] / par['time_per_iteration']:.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -46,8 +46,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="out/woven_real_yarns")
     ap.add_argument("--k-yarn", type=float, default=6e3, help="yarn stiffness (N/mm), fixed")
-    ap.add_argument("--max-angle", type=float, default=60.0,
-                    help="largest zone-C angle (deg, eq. 13) of the fitted points")
+    ap.add_argument(
+        "--max-angle",
+        type=float,
+        default=60.0,
+        help="largest zone-C angle (deg, eq. 13) of the fitted points",
+    )
     ap.add_argument("--h", type=float, default=11.5, help="coarsest element size (mm)")
     a = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
@@ -65,36 +69,66 @@ def main() -> None:
         allf = ForwardSet([full], model(a.k_yarn, fitted[h]), h=h, comm=comm).run()[0].force
         n_all = len(allf)
         err_all = np.asarray(allf) - full.force[:n_all]
-        rows.append({"h": h, "k_s": fitted[h], "chi2": r.chi2, "misfit": r.misfit["combined"],
-                     "rms_N": float(np.sqrt(np.mean(err**2))),
-                     "rms_all_N": float(np.sqrt(np.mean(err_all**2))), "all_steps": n_all,
-                     "seconds": time.perf_counter() - t0})
-        rank0(logger, comm, f"h = {h:7.4f}: k_s = {fitted[h]:.5f} N/mm  chi2 {r.chi2:8.2f}  "
-                      f"RMS {rows[-1]['rms_N']:.3f} N on {len(exp.path)} points (<= "
-                      f"{a.max_angle:g} deg), {rows[-1]['rms_all_N']:.3f} N on all {n_all}; "
-                      f"{rows[-1]['seconds']:.0f} s")
+        rows.append(
+            {
+                "h": h,
+                "k_s": fitted[h],
+                "chi2": r.chi2,
+                "misfit": r.misfit["combined"],
+                "rms_N": float(np.sqrt(np.mean(err**2))),
+                "rms_all_N": float(np.sqrt(np.mean(err_all**2))),
+                "all_steps": n_all,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
+        rank0(
+            logger,
+            comm,
+            f"h = {h:7.4f}: k_s = {fitted[h]:.5f} N/mm  chi2 {r.chi2:8.2f}  "
+            f"RMS {rows[-1]['rms_N']:.3f} N on {len(exp.path)} points (<= "
+            f"{a.max_angle:g} deg), {rows[-1]['rms_all_N']:.3f} N on all {n_all}; "
+            f"{rows[-1]['seconds']:.0f} s",
+        )
     ks = np.array(list(fitted.values()))
     spread = float((ks.max() - ks.min()) / ks[-1])
     h2 = a.h / 2
     coarse = ForwardSet([exp], model(a.k_yarn, fitted[h2]), h=a.h, comm=comm)
     fine = ForwardSet([exp], model(a.k_yarn, fitted[h2]), h=h2, comm=comm)
     sig = 0.01 * float(np.max(np.abs(exp.force)))
-    chi2_h = float(np.sum(((np.asarray(coarse.run()[0].force)
-                            - np.asarray(fine.run()[0].force)) / sig) ** 2))
-    rank0(logger, comm, f"k_s spread over h, h/2, h/4: {100 * spread:.2f} %; discretisation chi2 "
-                  f"(h vs h/2) {chi2_h:.3g} against the misfit chi2 {rows[1]['chi2']:.3g}")
-    b = BiasExtension(model(a.k_yarn, fitted[a.h / 4]), length=450.0, width=150.0, h=a.h,
-                      clamp=full.setup.options.get("clamp", "gradient"), comm=comm)
+    chi2_h = float(
+        np.sum(((np.asarray(coarse.run()[0].force) - np.asarray(fine.run()[0].force)) / sig) ** 2)
+    )
+    rank0(
+        logger,
+        comm,
+        f"k_s spread over h, h/2, h/4: {100 * spread:.2f} %; discretisation chi2 "
+        f"(h vs h/2) {chi2_h:.3g} against the misfit chi2 {rows[1]['chi2']:.3g}",
+    )
+    b = BiasExtension(
+        model(a.k_yarn, fitted[a.h / 4]),
+        length=450.0,
+        width=150.0,
+        h=a.h,
+        clamp=full.setup.options.get("clamp", "gradient"),
+        comm=comm,
+    )
     with detail():
         pred = b.run(110.0, 11)
     gam = np.degrees(tz.zone_c_shear_angle(np.array(pred.ubar), 450.0, 150.0))
     for d, f, g in zip(pred.ubar, pred.force, gam):
         rank0(logger, comm, f"  150 x 450: d = {d:6.1f} mm  F = {f:8.3f} N  zone-C angle {g:5.1f}")
-    write_json(comm, Path(a.out) / "woven_real_yarns.json",
-               {"rows": rows, "k_s_spread": spread, "chi2_h": chi2_h,
-                "prediction_150x450": {"d": pred.ubar, "force": pred.force,
-                                       "zone_c_deg": gam.tolist()},
-                "k_yarn": a.k_yarn, "max_angle_deg": a.max_angle})
+    write_json(
+        comm,
+        Path(a.out) / "woven_real_yarns.json",
+        {
+            "rows": rows,
+            "k_s_spread": spread,
+            "chi2_h": chi2_h,
+            "prediction_150x450": {"d": pred.ubar, "force": pred.force, "zone_c_deg": gam.tolist()},
+            "k_yarn": a.k_yarn,
+            "max_angle_deg": a.max_angle,
+        },
+    )
 
 
 if __name__ == "__main__":

@@ -130,14 +130,30 @@ ap.add_argument("--steps", type=int, default=10, help="load steps")
 ap.add_argument("--ubar-frac", type=float, default=0.25, help="Hencky: ū_max / length")
 ap.add_argument("--bip-ubar", type=float, default=50.0, help="bi-pantographic: ū_max (mm)")
 ap.add_argument("--bip-steps", type=int, default=20)
-ap.add_argument("--range-levels", type=str, default="2,4,8",
-                help="bi-pantographic whole range: nested graded mesh levels ('' to skip)")
-ap.add_argument("--lattice-k", type=int, default=6,
-                help="Hencky lattice refinement: column pitch w = 8.5 mm / k, ε = √2 w")
-ap.add_argument("--conv-levels", type=str, default="2,4,8",
-                help="force convergence: graded meshes of 11·level × 7·level crossed squares")
-ap.add_argument("--conv-grading", type=float, default=0.6,
-                help="edge grading of the convergence meshes (0: uniform)")
+ap.add_argument(
+    "--range-levels",
+    type=str,
+    default="2,4,8",
+    help="bi-pantographic whole range: nested graded mesh levels ('' to skip)",
+)
+ap.add_argument(
+    "--lattice-k",
+    type=int,
+    default=6,
+    help="Hencky lattice refinement: column pitch w = 8.5 mm / k, ε = √2 w",
+)
+ap.add_argument(
+    "--conv-levels",
+    type=str,
+    default="2,4,8",
+    help="force convergence: graded meshes of 11·level × 7·level crossed squares",
+)
+ap.add_argument(
+    "--conv-grading",
+    type=float,
+    default=0.6,
+    help="edge grading of the convergence meshes (0: uniform)",
+)
 ap.add_argument("--conv-steps", type=int, default=5)
 ap.add_argument("--skip-bip", action="store_true")
 opts = vars(parse(ap))
@@ -177,6 +193,7 @@ t0 = time.perf_counter()
 # (`fabricsurf.verification.bias_convergence.force_convergence`; benchmarks/bias_convergence.py
 # adds level 16).
 
+
 # %%
 def _hencky(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras: dict) -> dict:
     eps = math.sqrt(2) * 8.5 / s.lattice_k
@@ -184,12 +201,24 @@ def _hencky(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras: dict) -
     k = lattice_from_continuum(m["k_l"], m["k_s"], m["A_g"], eps)
     lat = hencky_lattice(LENGTH, WIDTH, eps, (45.0, -45.0), **k)
     results["hencky"], extras["hencky"] = compare(
-        "hencky", hencky_model(), lat, s.ubar_frac * LENGTH, s.steps, s.h, comm,
-        out=s.out / "hencky")
+        "hencky",
+        hencky_model(),
+        lat,
+        s.ubar_frac * LENGTH,
+        s.steps,
+        s.h,
+        comm,
+        out=s.out / "hencky",
+    )
     zones = extras["hencky"]["zones"]
     zones["check"] = zones_at(zones, ZONE_CHECK_FRAC * LENGTH)
-    return {"continuum": HENCKY_MODULI, "lattice": k, "eps_mm": eps,
-            "ubar_max_mm": s.ubar_frac * LENGTH, "lattice_nodes": int(lat.net.n_nodes)}
+    return {
+        "continuum": HENCKY_MODULI,
+        "lattice": k,
+        "eps_mm": eps,
+        "ubar_max_mm": s.ubar_frac * LENGTH,
+        "lattice_nodes": int(lat.net.n_nodes),
+    }
 
 
 def _bipantographic(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras: dict) -> dict:
@@ -199,31 +228,54 @@ def _bipantographic(s: BiasStudySettings, comm: MPI.Comm, results: dict, extras:
     follow = follow_penalty()
     latres = None
     half = {k: 0.5 * v for k, v in TABLE3_MACRO.items()}
-    for name, model in (("bipantographic", bipantographic()),
-                        ("bipantographic_half", bipantographic(**half)),
-                        ("bipantographic_identified", identified_model(ident))):
-        results[name], extras[name] = compare(name, model, blat, s.bip_ubar, s.bip_steps, s.h,
-                                              comm, out=s.out / name, latres=latres,
-                                              snes_options=opts, on_step=follow)
+    for name, model in (
+        ("bipantographic", bipantographic()),
+        ("bipantographic_half", bipantographic(**half)),
+        ("bipantographic_identified", identified_model(ident)),
+    ):
+        results[name], extras[name] = compare(
+            name,
+            model,
+            blat,
+            s.bip_ubar,
+            s.bip_steps,
+            s.h,
+            comm,
+            out=s.out / name,
+            latres=latres,
+            snes_options=opts,
+            on_step=follow,
+        )
         if results[name]["failure"] is None:  # else the lattice steps were cut to its range
             latres = extras[name]["lat"]
         results[name]["max_stretch"] = follow.followers[-1].history
     n = sum(u <= BRACKET_FRAC * LENGTH + 1e-9 for u in latres["ubar"])
     extras["bipantographic_identified"]["clamp_offset"] = clamp_offset_bracket(
-        identified_model(ident), latres, max(n, 1), s.h, comm, snes_options=opts)
-    return {"continuum": {"K_S_N_per_mm": TABLE3_MACRO["K_S"], "K_E_Nmm": TABLE3_MACRO["K_E"],
-                          "K_F_Nmm": TABLE3_MACRO["K_F"], "gamma_rad": math.pi / 6},
-            "lattice": TABLE3, "eps_mm": EPS_EXACT, "ubar_max_mm": s.bip_ubar,
-            "max_fibre_stretch_continuum": extras["bipantographic"]["lam_max"],
-            "identified": identification_summary(ident)}
+        identified_model(ident), latres, max(n, 1), s.h, comm, snes_options=opts
+    )
+    return {
+        "continuum": {
+            "K_S_N_per_mm": TABLE3_MACRO["K_S"],
+            "K_E_Nmm": TABLE3_MACRO["K_E"],
+            "K_F_Nmm": TABLE3_MACRO["K_F"],
+            "gamma_rad": math.pi / 6,
+        },
+        "lattice": TABLE3,
+        "eps_mm": EPS_EXACT,
+        "ubar_max_mm": s.bip_ubar,
+        "max_fibre_stretch_continuum": extras["bipantographic"]["lam_max"],
+        "identified": identification_summary(ident),
+    }
 
 
 def _range(s: BiasStudySettings, comm: MPI.Comm) -> dict:
     loads = [u for u in RANGE_LOADS if u <= s.bip_ubar + 1e-9]
     out = {}
     for clamp in ("gradient", "position"):
-        runs = [run_range(clamp, int(lev), s.bip_ubar, s.bip_steps, comm=comm)
-                for lev in s.range_levels.split(",")]
+        runs = [
+            run_range(clamp, int(lev), s.bip_ubar, s.bip_steps, comm=comm)
+            for lev in s.range_levels.split(",")
+        ]
         done = all(r["failure"] is None for r in runs)
         out[clamp] = {"runs": runs, "convergence": convergence(runs, loads) if done else None}
     return out
@@ -239,26 +291,45 @@ def run_bias_study(s: BiasStudySettings, comm: MPI.Comm = MPI.COMM_WORLD) -> tup
     variants. Returns (JSON summary, extras for figures)."""
     t0 = time.perf_counter()
     results, extras = {}, {}
-    settings = {"length_mm": LENGTH, "width_mm": WIDTH, "h_mm": s.h, "steps": s.steps,
-                "hencky": _hencky(s, comm, results, extras), "bipantographic": None}
+    settings = {
+        "length_mm": LENGTH,
+        "width_mm": WIDTH,
+        "h_mm": s.h,
+        "steps": s.steps,
+        "hencky": _hencky(s, comm, results, extras),
+        "bipantographic": None,
+    }
     if not s.skip_bip:
         settings["bipantographic"] = _bipantographic(s, comm, results, extras)
-    conv = force_convergence(hencky_model(), [int(v) for v in s.conv_levels.split(",")],
-                             s.ubar_frac * LENGTH, s.conv_steps, grading=s.conv_grading,
-                             comm=comm)
+    conv = force_convergence(
+        hencky_model(),
+        [int(v) for v in s.conv_levels.split(",")],
+        s.ubar_frac * LENGTH,
+        s.conv_steps,
+        grading=s.conv_grading,
+        comm=comm,
+    )
     rank0(logger, comm, f"[convergence] differences {conv['differences']}, rates {conv['rates']}")
-    keys = ("force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
-            "position_rms_diff", "curves", "failure")
+    keys = (
+        "force_rel_diff",
+        "angle_A_max_diff_deg",
+        "angle_B_max_diff_deg",
+        "position_rms_diff",
+        "curves",
+        "failure",
+    )
     summary = {nm: {kk: r[kk] for kk in keys} for nm, r in results.items()}
     for nm in ("bipantographic", "bipantographic_half", "bipantographic_identified"):
         if nm in results:
             c = results[nm]["curves"]
             summary[nm]["force_ratio_continuum_to_lattice"] = [
-                fc / fl for fc, fl in zip(c["force_continuum"], c["force_lattice"])]
+                fc / fl for fc, fl in zip(c["force_continuum"], c["force_lattice"])
+            ]
             summary[nm]["max_stretch"] = results[nm]["max_stretch"]
     if "bipantographic_identified" in extras:
-        summary["bipantographic_identified"]["clamp_offset"] = \
-            extras["bipantographic_identified"]["clamp_offset"]
+        summary["bipantographic_identified"]["clamp_offset"] = extras["bipantographic_identified"][
+            "clamp_offset"
+        ]
     summary["three_zones"] = extras["hencky"]["zones"]
     summary["force_convergence"] = conv
     if s.range_levels and not s.skip_bip:
@@ -278,6 +349,7 @@ write_json(comm, out / "summary.json", summary)
 # against lattice nodes), the y-stretch ρ_y, the continuum shear angle over the ideal zones of
 # the bias test, the force convergence under mesh refinement, and the bi-pantographic whole
 # range (Barchiesi et al. 2020, Figs. 9–11); drawn on rank 0.
+
 
 # %%
 def plt_agg():
@@ -308,17 +380,25 @@ def curves_figure(plt, out: Path, results: dict, extras: dict) -> None:
     fig, ax = plt.subplots(len(names), 3, figsize=(14, 3.8 * len(names)), squeeze=False)
     for row, nm in enumerate(names):
         c = results[nm]["curves"]
-        for col, (key, lab) in enumerate([("force", "reaction force (N)"),
-                                          ("angle_A", "shear angle at A (deg)"),
-                                          ("angle_B", "shear angle at B (deg)")]):
+        for col, (key, lab) in enumerate(
+            [
+                ("force", "reaction force (N)"),
+                ("angle_A", "shear angle at A (deg)"),
+                ("angle_B", "shear angle at B (deg)"),
+            ]
+        ):
             suf = "" if key == "force" else "_deg"
             a = ax[row, col]
             a.plot(c["ubar"], c[f"{key}_continuum{suf}"], "o-", label="continuum")
             a.plot(c["ubar"], c[f"{key}_lattice{suf}"], "s--", label="lattice")
             br = extras.get(nm, {}).get("clamp_offset")
             if key == "force" and br:
-                a.plot(br["ubar"], br["force_free_length"], "^:", label="continuum, free length "
-                       f"{br['free_length_mm']:.0f} mm")
+                a.plot(
+                    br["ubar"],
+                    br["force_free_length"],
+                    "^:",
+                    label=f"continuum, free length {br['free_length_mm']:.0f} mm",
+                )
             a.set(xlabel="ū (mm)", ylabel=lab, title=f"{nm}")
             a.legend()
     fig.tight_layout()
@@ -337,8 +417,7 @@ def deformed_figure(plt, out: Path, nm: str, ex: dict) -> None:
         xc = Xn + ex["samples"][k]["u"]
         a.plot(*xl.T, "o", ms=2.5, mfc="none", color="C1", label="lattice p_ij")
         a.plot(*xc.T, "+", ms=3, color="C0", label="continuum χ(x_i, y_j)")
-        a.set(title=f"{nm}: ū = {ex['lat']['ubar'][k]:.1f} mm", xlabel="x (mm)",
-              ylabel="y (mm)")
+        a.set(title=f"{nm}: ū = {ex['lat']['ubar'][k]:.1f} mm", xlabel="x (mm)", ylabel="y (mm)")
         a.set_aspect("equal")
     ax[0, 0].legend(loc="upper left", fontsize=7)
     fig.tight_layout()
@@ -359,12 +438,18 @@ def rho_figure(plt, out: Path, nm: str, ex: dict) -> None:
     vmin = float(np.nanmin([np.nanmin(rho_lat), np.nanmin(rho_c)]))
     vmax = float(np.nanmax([np.nanmax(rho_lat), np.nanmax(rho_c)]))
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.2))
-    for a, pos, val, t in ((ax[0], pos_lat, rho_lat, "lattice (eq. 4)"),
-                           (ax[1], pos_c, rho_c, "continuum μ")):
-        sc = a.scatter(*pos.T, c=val, s=12 if len(pos) > 2000 else 40, cmap="viridis",
-                       vmin=vmin, vmax=vmax)
-        a.set(title=f"{nm}: ρ_y, {t}, ū = {ex['lat']['ubar'][-1]:.1f} mm",
-              xlabel="x (mm)", ylabel="y (mm)")
+    for a, pos, val, t in (
+        (ax[0], pos_lat, rho_lat, "lattice (eq. 4)"),
+        (ax[1], pos_c, rho_c, "continuum μ"),
+    ):
+        sc = a.scatter(
+            *pos.T, c=val, s=12 if len(pos) > 2000 else 40, cmap="viridis", vmin=vmin, vmax=vmax
+        )
+        a.set(
+            title=f"{nm}: ρ_y, {t}, ū = {ex['lat']['ubar'][-1]:.1f} mm",
+            xlabel="x (mm)",
+            ylabel="y (mm)",
+        )
         a.set_aspect("equal")
         fig.colorbar(sc, ax=a, shrink=0.8)
     fig.tight_layout()
@@ -379,14 +464,22 @@ def zones_figure(plt, out: Path, nm: str, ex: dict) -> None:
     gam = np.degrees(ex["samples"][-1]["f"][:, 2])
     sc = a.scatter(*Xn.T, c=gam, s=12 if len(Xn) > 2000 else 40, cmap="magma")
     W, L = WIDTH, LENGTH
-    for xs, ys in (([0, W / 2, 0], [0, W / 2, W]), ([L, L - W / 2, L], [0, W / 2, W]),
-                   ([W / 2, L / 2, L - W / 2, L / 2, W / 2],
-                    [W / 2, W / 2 - (L - W) / 2, W / 2, W / 2 + (L - W) / 2, W / 2])):
+    for xs, ys in (
+        ([0, W / 2, 0], [0, W / 2, W]),
+        ([L, L - W / 2, L], [0, W / 2, W]),
+        (
+            [W / 2, L / 2, L - W / 2, L / 2, W / 2],
+            [W / 2, W / 2 - (L - W) / 2, W / 2, W / 2 + (L - W) / 2, W / 2],
+        ),
+    ):
         a.plot(xs, ys, "w--", lw=1)
     fig.colorbar(sc, ax=a, label="shear angle γ (deg)")
-    a.set(title=f"{nm}: continuum shear angle on the reference, ū = "
-                f"{ex['lat']['ubar'][-1]:.1f} mm (ideal zones dashed)", xlabel="x (mm)",
-          ylabel="y (mm)")
+    a.set(
+        title=f"{nm}: continuum shear angle on the reference, ū = "
+        f"{ex['lat']['ubar'][-1]:.1f} mm (ideal zones dashed)",
+        xlabel="x (mm)",
+        ylabel="y (mm)",
+    )
     a.title.set_fontsize(8)
     a.set_aspect("equal")
     fig.tight_layout()
@@ -402,8 +495,11 @@ def convergence_figure(plt, out: Path, conv: dict) -> None:
     a.loglog(h, d, "o-", label="|F_h − F_{h/2}|")
     for r, ls in ((1, ":"), (2, "--")):
         a.loglog(h, d[-1] * (h / h[-1]) ** r, ls, color="grey", label=f"rate {r}")
-    a.set(xlabel="square side h (mm, graded)", ylabel="force difference (N)",
-          title=f"grip force at ū = {conv['ubar']:.1f} mm, mesh convergence")
+    a.set(
+        xlabel="square side h (mm, graded)",
+        ylabel="force difference (N)",
+        title=f"grip force at ū = {conv['ubar']:.1f} mm, mesh convergence",
+    )
     a.legend()
     fig.tight_layout()
     fig.savefig(out / "force_convergence.png", dpi=110)
@@ -423,10 +519,15 @@ def range_figure(out: Path, rng: dict) -> None:
             ax[row, 0].plot(r["ubar"], r["force"], "-", label=lab)
             ax[row, 1].plot(r["ubar"], r["angle_A_deg"], "-", label=lab)
             ax[row, 2].plot(r["ubar"], r["angle_B_deg"], "-", label=lab)
-            ax[row, 3].plot([h["ubar"] for h in r["stretch"]],
-                            [h["rho_cos_gamma"] for h in r["stretch"]], "-", label=lab)
-        for col, yl in enumerate(("grip force (N)", "γ at A (deg)", "γ at B (deg)",
-                                  "largest ρ cos γ (limit 1)")):
+            ax[row, 3].plot(
+                [h["ubar"] for h in r["stretch"]],
+                [h["rho_cos_gamma"] for h in r["stretch"]],
+                "-",
+                label=lab,
+            )
+        for col, yl in enumerate(
+            ("grip force (N)", "γ at A (deg)", "γ at B (deg)", "largest ρ cos γ (limit 1)")
+        ):
             ax[row, col].set(xlabel="ū (mm)", ylabel=yl, title=f"{clamp} clamps")
         ax[row, 0].legend(fontsize=7)
     fig.tight_layout()
@@ -470,8 +571,14 @@ CHECKS = {
 }
 
 
-COMPARISON_KEYS = {"force_rel_diff", "angle_A_max_diff_deg", "angle_B_max_diff_deg",
-                   "position_rms_diff", "curves", "failure"}
+COMPARISON_KEYS = {
+    "force_rel_diff",
+    "angle_A_max_diff_deg",
+    "angle_B_max_diff_deg",
+    "position_rms_diff",
+    "curves",
+    "failure",
+}
 
 
 def check(summary: dict, settings) -> None:
@@ -497,8 +604,12 @@ def check_quick(summary: dict, settings, out: Path) -> None:
     """The quick run: every comparison ran all its steps and wrote its XDMF; halving every
     modulus of eq. (2) halves the continuum force exactly (the energy is linear in them)."""
     bip = {"force_ratio_continuum_to_lattice", "max_stretch"}
-    extra = {"hencky": set(), "bipantographic": bip, "bipantographic_half": bip,
-             "bipantographic_identified": bip | {"clamp_offset"}}
+    extra = {
+        "hencky": set(),
+        "bipantographic": bip,
+        "bipantographic_half": bip,
+        "bipantographic_identified": bip | {"clamp_offset"},
+    }
     for name, more in extra.items():
         require(set(summary[name]) == COMPARISON_KEYS | more, name)
         steps = settings.steps if name == "hencky" else settings.bip_steps
@@ -506,10 +617,12 @@ def check_quick(summary: dict, settings, out: Path) -> None:
         require(summary[name]["failure"] is None, name)
     require(abs(summary["three_zones"]["check"]["ubar"] - settings.ubar_frac * LENGTH) < 1e-9)
     t3, half = summary["bipantographic"]["curves"], summary["bipantographic_half"]["curves"]
-    require(np.allclose(half["force_continuum"], 0.5 * np.array(t3["force_continuum"]),
-                        rtol=1e-6))
-    for f in ("hencky/bias.xdmf", "bipantographic/bias.xdmf",
-              "bipantographic_identified/bias.xdmf"):
+    require(np.allclose(half["force_continuum"], 0.5 * np.array(t3["force_continuum"]), rtol=1e-6))
+    for f in (
+        "hencky/bias.xdmf",
+        "bipantographic/bias.xdmf",
+        "bipantographic_identified/bias.xdmf",
+    ):
         require((out / f).exists(), f)
 
 
@@ -528,8 +641,10 @@ def _upto(values: list, ubar: list, limit: float) -> list:
 
 def _maxdiff(x: dict, key: str, limit: float) -> float:
     c = x["curves"]
-    return max(abs(a - b) for a, b in zip(_upto(c[f"{key}_continuum_deg"], c["ubar"], limit),
-                                          c[f"{key}_lattice_deg"]))
+    return max(
+        abs(a - b)
+        for a, b in zip(_upto(c[f"{key}_continuum_deg"], c["ubar"], limit), c[f"{key}_lattice_deg"])
+    )
 
 
 def check_bipantographic(summary: dict, limit: float = 0.15 * LENGTH) -> None:
@@ -549,8 +664,10 @@ def check_bipantographic(summary: dict, limit: float = 0.15 * LENGTH) -> None:
     rms = [_upto(x["curves"]["position_rms_diff"], u, limit) for x in (t3, idf)]
     require(max(rms[0]) < 1.2 and max(rms[1]) < 1.2, rms)
     require(min(_upto(t3["force_ratio_continuum_to_lattice"], u, limit)) > 1.5, t3)
-    dev = [max(abs(r - 1) for r in _upto(x["force_ratio_continuum_to_lattice"], u, limit))
-           for x in (t3, idf)]
+    dev = [
+        max(abs(r - 1) for r in _upto(x["force_ratio_continuum_to_lattice"], u, limit))
+        for x in (t3, idf)
+    ]
     require(dev[1] < 0.3 and dev[1] < dev[0] / 3, dev)
     require(_maxdiff(idf, "angle_A", limit) < 1.6 and _maxdiff(idf, "angle_B", limit) < 1.2, idf)
     br = idf["clamp_offset"]

@@ -116,12 +116,18 @@ def chain_modes(comm: MPI.Comm, N: int, D: float, k: float, m: float) -> tuple[d
     w2_fe, modes = {}, {}
     for p in ORDERS:
         w2_fe[p], overlap, _, modes[p] = cont.modes(*dp.gradient_moduli(p, k, D), m / D, N)
-        require(overlap.min() > 0.999,
-                f"order {p}: a computed mode is not a sine ({overlap.min()})")
+        require(
+            overlap.min() > 0.999, f"order {p}: a computed mode is not a sine ({overlap.min()})"
+        )
     low = qd <= 1.5
-    res: dict = {"N": N, "chain_engine_max_rel_err_vs_eq12":
-                 agreed(comm, np.max(np.abs(w2_chain / dp.omega2_chain(qd, k, m) - 1.0))),
-                 "continuum": {}, "departure_qD_vp_1pct": {}}
+    res: dict = {
+        "N": N,
+        "chain_engine_max_rel_err_vs_eq12": agreed(
+            comm, np.max(np.abs(w2_chain / dp.omega2_chain(qd, k, m) - 1.0))
+        ),
+        "continuum": {},
+        "departure_qD_vp_1pct": {},
+    }
     xf = np.linspace(1e-3, np.pi, 20001)
     for p in ORDERS:
         err = np.abs(w2_fe[p] / w2_formula(p, q, k, m, D) - 1.0)
@@ -139,8 +145,10 @@ def chain_modes(comm: MPI.Comm, N: int, D: float, k: float, m: float) -> tuple[d
         }
         x_an = dp.departure_point(xf, np.sqrt(dp.vp2_truncated(xf, p) / dp.vp2_exact(xf)))
         x_num = dp.departure_point(qd, np.sqrt(w2_fe[p] / w2_chain))
-        res["departure_qD_vp_1pct"][str(p)] = {"formula": agreed(comm, x_an),
-                                               "computed": agreed(comm, x_num)}
+        res["departure_qD_vp_1pct"][str(p)] = {
+            "formula": agreed(comm, x_an),
+            "computed": agreed(comm, x_num),
+        }
     return res, {"qd": qd, "w2_chain": w2_chain, "w2_fe": w2_fe, "modes": modes, "cont": cont}
 
 
@@ -155,6 +163,7 @@ res1, arrays1 = chain_modes(comm, N, D, k, m)
 # grows like h⁻⁴ and the growth rate √(-ω²_min) like h⁻²: no limit exists. The ∂⁶ model's
 # smallest eigenvalue stays the first physical mode, ω_1² = c0² q_1² (1 - (q_1D)²/12 + (q_1D)⁴/360).
 
+
 # %%
 def ill_posedness(comm: MPI.Comm, Ns: int, D: float, k: float, m: float) -> dict:
     """Smallest eigenvalue of the ∂⁴ and ∂⁶ continua on a short domain under refinement."""
@@ -163,14 +172,19 @@ def ill_posedness(comm: MPI.Comm, Ns: int, D: float, k: float, m: float) -> dict
         short = dp.GradientContinuum1D(comm, (Ns + 1) * D, cpd * (Ns + 1), degree=5)
         hs.append(D / cpd)
         for p in (4, 6):
-            lmin[p].append(agreed(comm, short.modes(*dp.gradient_moduli(p, k, D), m / D, 1)[2]
-                                  .min()))
+            lmin[p].append(
+                agreed(comm, short.modes(*dp.gradient_moduli(p, k, D), m / D, 1)[2].min())
+            )
     q1 = np.pi / ((Ns + 1) * D)
-    return {"h_over_D": hs, "min_eigenvalue_order4": lmin[4],
-            "min_eigenvalue_order6": lmin[6],
-            "order4_min_eigenvalue_exponent_in_h":
-                agreed(comm, dp.fit_order(np.array(hs), np.array(lmin[4]))),
-            "order6_first_mode_formula": agreed(comm, w2_formula(6, np.array([q1]), k, m, D)[0])}
+    return {
+        "h_over_D": hs,
+        "min_eigenvalue_order4": lmin[4],
+        "min_eigenvalue_order6": lmin[6],
+        "order4_min_eigenvalue_exponent_in_h": agreed(
+            comm, dp.fit_order(np.array(hs), np.array(lmin[4]))
+        ),
+        "order6_first_mode_formula": agreed(comm, w2_formula(6, np.array([q1]), k, m, D)[0]),
+    }
 
 
 res1["ill_posedness"] = ill_posedness(comm, 10, D, k, m)
@@ -215,27 +229,33 @@ res1["ill_posedness"] = ill_posedness(comm, 10, D, k, m)
 # the shear-only continuum, -(qε)²/12 from discreteness and +β(qε)² from the missing bending,
 # cancel: a fortuitous late departure, visible in the β scan.)
 
+
 # %%
-def lattice_bloch(kl: float, ks: float, ag: float, qq: np.ndarray, eps: float, rho: float
-                  ) -> tuple[np.ndarray, ...]:
+def lattice_bloch(
+    kl: float, ks: float, ag: float, qq: np.ndarray, eps: float, rho: float
+) -> tuple[np.ndarray, ...]:
     """Bloch ω² (longitudinal, transverse) of a 5x5 Hencky lattice patch, from its Hessian."""
-    lat = hencky_lattice(4 * eps, 4 * eps, eps, (0.0, 90.0),
-                         **lattice_from_continuum(kl, ks, ag, eps, (0.0, 90.0)))
+    lat = hencky_lattice(
+        4 * eps, 4 * eps, eps, (0.0, 90.0), **lattice_from_continuum(kl, ks, ag, eps, (0.0, 90.0))
+    )
     H = lat.net.hessian(lat.net.X)
     return dp.bloch_omega2(H, lat.net.X, int(lat.grid[2, 2]), qq, lat.L, rho * eps**2)
 
 
-def fe_against_formula(comm: MPI.Comm, cont, qe: np.ndarray, k2: float, A: float, eps: float,
-                       rho: float) -> dict:
+def fe_against_formula(
+    comm: MPI.Comm, cont, qe: np.ndarray, k2: float, A: float, eps: float, rho: float
+) -> dict:
     """The dolfinx modes of ρω² = k2 q² + A q⁴ against the formula at the wavenumbers qε =
     ``qe``. A stiff A makes K ill-conditioned: the low modes are then accurate only to the
     round-off floor eps·max|λ|/ω_1², reported with the errors."""
     q = qe / eps
     w2c, _, lam_all, _ = cont.modes(k2, A, 0.0, rho, len(q))
     rel = np.abs(w2c / dp.fabric_omega2(q, k2, A, rho) - 1)
-    return {"q_eps_le_1.5": agreed(comm, rel[qe <= 1.5].max()), "all": agreed(comm, rel.max()),
-            "roundoff_floor": agreed(comm, np.finfo(float).eps * np.abs(lam_all).max()
-                                     / w2c.min())}
+    return {
+        "q_eps_le_1.5": agreed(comm, rel[qe <= 1.5].max()),
+        "all": agreed(comm, rel.max()),
+        "roundoff_floor": agreed(comm, np.finfo(float).eps * np.abs(lam_all).max() / w2c.min()),
+    }
 
 
 def departure_vs_beta(comm: MPI.Comm, moduli: dict, betas: np.ndarray, xg: np.ndarray) -> dict:
@@ -252,8 +272,9 @@ def departure_vs_beta(comm: MPI.Comm, moduli: dict, betas: np.ndarray, xg: np.nd
     return {"beta": betas.tolist(), **dep}
 
 
-def fabric_waves(comm: MPI.Comm, cont, q: np.ndarray, moduli: dict, betas: np.ndarray
-                 ) -> tuple[dict, dict]:
+def fabric_waves(
+    comm: MPI.Comm, cont, q: np.ndarray, moduli: dict, betas: np.ndarray
+) -> tuple[dict, dict]:
     """Part 2: departure points of the fabric continua from the lattice's Bloch waves, the
     dolfinx modes of two of them against their formulas, and the transverse departure against
     β = A_g/(k_s ε²). ``cont`` and its wavenumbers ``q`` are part 1's mesh and modes."""
@@ -261,11 +282,22 @@ def fabric_waves(comm: MPI.Comm, cont, q: np.ndarray, moduli: dict, betas: np.nd
     xg = np.geomspace(1e-4, np.pi, 4000)  # qε
     qg = xg / eps
     wl, wt = lattice_bloch(k_l, k_s, A_g, qg, eps, rho)
-    res: dict = {"eps_mm": eps, "k_l": k_l, "k_s": k_s, "A_g": A_g, "beta": A_g / (k_s * eps**2),
-                 "bloch_vs_closed_form_max_rel_err": agreed(comm, max(
-                     np.max(np.abs(wl / dp.hencky_omega2(qg, eps, k_l, 0.0, rho) - 1)[xg > 1e-2]),
-                     np.max(np.abs(wt / dp.hencky_omega2(qg, eps, k_s, A_g, rho) - 1)[xg > 1e-2]))),
-                 "departure_qeps_vp_1pct": {}, "fe_max_rel_err_vs_formula": {}}
+    res: dict = {
+        "eps_mm": eps,
+        "k_l": k_l,
+        "k_s": k_s,
+        "A_g": A_g,
+        "beta": A_g / (k_s * eps**2),
+        "bloch_vs_closed_form_max_rel_err": agreed(
+            comm,
+            max(
+                np.max(np.abs(wl / dp.hencky_omega2(qg, eps, k_l, 0.0, rho) - 1)[xg > 1e-2]),
+                np.max(np.abs(wt / dp.hencky_omega2(qg, eps, k_s, A_g, rho) - 1)[xg > 1e-2]),
+            ),
+        ),
+        "departure_qeps_vp_1pct": {},
+        "fe_max_rel_err_vs_formula": {},
+    }
     A_s = k_l * eps**2 / 12.0  # the size of the Taylor coefficient of the lattice
     continua = {
         "longitudinal: fibre_stretch": (k_l, 0.0, wl),
@@ -278,16 +310,26 @@ def fabric_waves(comm: MPI.Comm, cont, q: np.ndarray, moduli: dict, betas: np.nd
     for name, (k2, A, w_lat) in continua.items():
         vp_ratio[name] = np.sqrt(np.maximum(dp.fabric_omega2(qg, k2, A, rho), 0.0) / w_lat)
         res["departure_qeps_vp_1pct"][name] = agreed(comm, dp.departure_point(xg, vp_ratio[name]))
-    for name, (k2, A) in {"longitudinal A_s>0": (k_l, A_s),
-                          "transverse + geodesic_bending": (k_s, A_g)}.items():
-        res["fe_max_rel_err_vs_formula"][name] = fe_against_formula(comm, cont, q * eps, k2, A,
-                                                                    eps, rho)
+    for name, (k2, A) in {
+        "longitudinal A_s>0": (k_l, A_s),
+        "transverse + geodesic_bending": (k_s, A_g),
+    }.items():
+        res["fe_max_rel_err_vs_formula"][name] = fe_against_formula(
+            comm, cont, q * eps, k2, A, eps, rho
+        )
     res["departure_vs_beta"] = departure_vs_beta(comm, moduli, betas, xg)
     dep = res["departure_qeps_vp_1pct"]
     res["geodesic_bending_moves_departure_by_factor"] = (
-        dep["transverse: + geodesic_bending"] / dep["transverse: shear"])
-    return res, {"xg": xg, "qg": qg, "wl": wl, "wt": wt, "continua": list(continua),
-                 "vp_ratio": vp_ratio}
+        dep["transverse: + geodesic_bending"] / dep["transverse: shear"]
+    )
+    return res, {
+        "xg": xg,
+        "qg": qg,
+        "wl": wl,
+        "wt": wt,
+        "continua": list(continua),
+        "vp_ratio": vp_ratio,
+    }
 
 
 moduli = {"eps_mm": 1.0, "rho": 1.0, "k_l": 30.0, "k_s": 0.5, "A_g": 40.0}  # N/mm, N/mm, N mm
@@ -328,13 +370,23 @@ def chain_figure(out: Path, a1: dict, ill: dict) -> None:
     a = ax[0, 1]
     xe = np.geomspace(0.05, np.pi, 200)
     for p, col in zip(ORDERS, COLOURS):
-        a.loglog(qd, np.abs(w2_fe[p] / w2_chain - 1), "o", color=col, ms=3,
-                 label=f"∂^{p}: |v_p²/v_p²(eq.12) - 1|")
+        a.loglog(
+            qd,
+            np.abs(w2_fe[p] / w2_chain - 1),
+            "o",
+            color=col,
+            ms=3,
+            label=f"∂^{p}: |v_p²/v_p²(eq.12) - 1|",
+        )
         a.loglog(xe, np.abs(NEXT[p]) * xe**p, "-", color=col, lw=0.8, label=f"|C_{p}|(qD)^{p}")
     a.axhspan(1e-12, 3e-7, color="0.9", zorder=0)
     a.text(0.06, 1e-9, "round-off floor of the\n∂⁶ eigen-solve", fontsize=7)
-    a.set(xlabel="qD", ylabel="relative error in ω² (modes)", title="Truncation error vs order",
-          ylim=(1e-12, 1))
+    a.set(
+        xlabel="qD",
+        ylabel="relative error in ω² (modes)",
+        title="Truncation error vs order",
+        ylim=(1e-12, 1),
+    )
     a.legend(fontsize=7)
     a = ax[1, 0]
     xl = np.linspace(0, 6, 400)
@@ -343,17 +395,25 @@ def chain_figure(out: Path, a1: dict, ill: dict) -> None:
         a.plot(xl, xl**2 * dp.vp2_truncated(xl, p), "--", color=col, label=f"∂^{p} continuum")
     a.axhline(0, color="gray", lw=0.5)
     a.axvline(math.sqrt(12), color="C1", lw=0.5, ls=":")
-    a.set(xlabel="qD", ylabel="mω²/k", ylim=(-4, 8),
-          title="Sign problem: ∂⁴ gives ω² < 0 for qD > √12")
+    a.set(
+        xlabel="qD",
+        ylabel="mω²/k",
+        ylim=(-4, 8),
+        title="Sign problem: ∂⁴ gives ω² < 0 for qD > √12",
+    )
     a.legend(fontsize=7)
     a = ax[1, 1]
-    hs, l4, l6 = (np.array(ill[k]) for k in ("h_over_D", "min_eigenvalue_order4",
-                                             "min_eigenvalue_order6"))
+    hs, l4, l6 = (
+        np.array(ill[k]) for k in ("h_over_D", "min_eigenvalue_order4", "min_eigenvalue_order6")
+    )
     a.loglog(hs, -l4, "C1o-", label="∂⁴: -min ω² (unstable)")
     a.loglog(hs, l6, "C2s-", label="∂⁶: min ω² (first mode)")
     a.loglog(hs, -l4[0] * (hs / hs[0]) ** -4, "k:", lw=0.8, label="∝ h⁻⁴")
-    a.set(xlabel="mesh size h / D", ylabel="|min eigenvalue| (k/m)",
-          title="Ill-posedness under refinement")
+    a.set(
+        xlabel="mesh size h / D",
+        ylabel="|min eigenvalue| (k/m)",
+        title="Ill-posedness under refinement",
+    )
     a.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / "dispersion_chain.png", dpi=120)
@@ -363,8 +423,7 @@ def chain_figure(out: Path, a1: dict, ill: dict) -> None:
 def fabric_figure(out: Path, res2: dict, a2: dict, rho: float) -> None:
     """Part 2: ``res2`` the summary entries of ``fabric_waves``, ``a2`` its arrays."""
     plt = _plt()
-    xg, qg, wl, wt, names, vp = (a2[k] for k in ("xg", "qg", "wl", "wt", "continua",
-                                                 "vp_ratio"))
+    xg, qg, wl, wt, names, vp = (a2[k] for k in ("xg", "qg", "wl", "wt", "continua", "vp_ratio"))
     dep, beta = res2["departure_qeps_vp_1pct"], res2["beta"]
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
     a = ax[0]
@@ -372,8 +431,9 @@ def fabric_figure(out: Path, res2: dict, a2: dict, rho: float) -> None:
     a.plot(xg, base, "k-", lw=2, label="Hencky lattice (Bloch)")
     for name, col in zip(names[:3], ("C0", "C3", "C1")):
         a.plot(xg, vp[name] * base, "--", color=col, label=name.split(": ")[1])
-    a.set(xlabel="qε", ylabel="v_p / √(k_l/rho)", title="Longitudinal wave along L",
-          xlim=(0, np.pi))
+    a.set(
+        xlabel="qε", ylabel="v_p / √(k_l/rho)", title="Longitudinal wave along L", xlim=(0, np.pi)
+    )
     a.legend(fontsize=7)
     a = ax[1]
     base = np.sqrt(wt) / qg / np.sqrt(res2["k_s"] / rho)
@@ -389,8 +449,11 @@ def fabric_figure(out: Path, res2: dict, a2: dict, rho: float) -> None:
     a.loglog(betas, db["shear"], "C0o-", label="shear only")
     a.loglog(betas, db["shear + geodesic_bending"], "C2s-", label="+ geodesic_bending")
     a.loglog(betas, np.sqrt(0.02 / betas), "k:", lw=0.8, label="√(0.02/β)")
-    a.set(xlabel="β = A_g/(k_s ε²)", ylabel="qε at 1 % phase-velocity departure",
-          title="Transverse departure point")
+    a.set(
+        xlabel="β = A_g/(k_s ε²)",
+        ylabel="qε at 1 % phase-velocity departure",
+        title="Transverse departure point",
+    )
     a.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / "dispersion_fabric.png", dpi=120)
@@ -450,9 +513,14 @@ for v in res2["fe_max_rel_err_vs_formula"].values():
     # low modes: limited by round-off, eps·max|λ|/ω_1² (a stiff A_g makes K ill-conditioned)
     require(v["q_eps_le_1.5"] < max(10 * v["roundoff_floor"], 1e-8), v)
 dep = res2["departure_qeps_vp_1pct"]
-require(abs(dep["transverse: shear"] - math.sqrt(0.02 / res2["beta"])) < 0.1 * dep[
-    "transverse: shear"])
-require(dep["longitudinal: + stretch_gradient A_s=+k_l eps^2/12"] < dep[
-    "longitudinal: fibre_stretch"])
-rank0(logging.getLogger(__name__), comm,
-      f"all checks passed; wrote {out}/summary.json, figures and dispersion_modes.xdmf")
+require(
+    abs(dep["transverse: shear"] - math.sqrt(0.02 / res2["beta"])) < 0.1 * dep["transverse: shear"]
+)
+require(
+    dep["longitudinal: + stretch_gradient A_s=+k_l eps^2/12"] < dep["longitudinal: fibre_stretch"]
+)
+rank0(
+    logging.getLogger(__name__),
+    comm,
+    f"all checks passed; wrote {out}/summary.json, figures and dispersion_modes.xdmf",
+)

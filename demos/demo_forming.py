@@ -63,10 +63,15 @@ from fabricsurf.verification.drapes.forming_map import compare_with_drapes
 comm = MPI.COMM_WORLD
 logger = logging.getLogger(__name__)
 ap = demo_parser("A fitted woven fabric formed over a hemisphere", "out/forming")
-ap.add_argument("--params", type=Path, default=Path("out/woven/woven_params.json"),
-                help="params file of demo_woven_fabric.py")
-ap.add_argument("--effects", action="store_true",
-                help="run the bending and locking variants in quick mode too")
+ap.add_argument(
+    "--params",
+    type=Path,
+    default=Path("out/woven/woven_params.json"),
+    help="params file of demo_woven_fabric.py",
+)
+ap.add_argument(
+    "--effects", action="store_true", help="run the bending and locking variants in quick mode too"
+)
 args = parse(ap)
 out = args.out
 t_start = time.perf_counter()
@@ -82,6 +87,7 @@ rank0(logger, comm, f"model from {source}")
 # Stiff fibres (the fitted 6·10³ N/mm), shear and bending a hundred times softer: the shear
 # angles along the diagonal against the fishnet drape of the same hemisphere.
 
+
 # %%
 def form(name: str, values: dict) -> dict:
     """One forming run, a line per step as it converges; a step that cannot be followed ends
@@ -91,18 +97,26 @@ def form(name: str, values: dict) -> dict:
     except LoadStepError as err:
         report = {"run": name, **err.as_dict(), "converged_steps": e.steps}
         write_json(comm, out / "failure.json", report)
-        rank0(logger, comm, f"{name}: {err}\n{name}: the steps converged before are in "
-                            f"{out / 'failure.json'}", level=logging.ERROR)
+        rank0(
+            logger,
+            comm,
+            f"{name}: {err}\n{name}: the steps converged before are in {out / 'failure.json'}",
+            level=logging.ERROR,
+        )
         sys.exit(1)
 
 
 e = parts.experiment(R, BLANK, H, 45.0, parts.forming_model(params, K_BEND, K_BEND), comm)
 kinematic = form("kinematic", parts.KINEMATIC)
 k = kinematic
-rank0(logger, comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_punch']} points of "
-                    f"the diagonal on the punch {k['diagonal_shear_max_diff_deg']:.2f} deg "
-                    f"(recovered shear), {k['per_element_max_diff_deg']:.2f} deg (per element), "
-                    f"{k['centres_max_diff_deg']:.2f} deg at the element centres")
+rank0(
+    logger,
+    comm,
+    f"kinematic limit: max |shear - fishnet| on {k['points_on_punch']} points of "
+    f"the diagonal on the punch {k['diagonal_shear_max_diff_deg']:.2f} deg "
+    f"(recovered shear), {k['per_element_max_diff_deg']:.2f} deg (per element), "
+    f"{k['centres_max_diff_deg']:.2f} deg at the element centres",
+)
 
 # %% [markdown]
 # The same run over the whole contact area, not only the diagonal: the recovered shear on a
@@ -116,15 +130,25 @@ rank0(logger, comm, f"kinematic limit: max |shear - fishnet| on {k['points_on_pu
 drapes = compare_with_drapes(e)
 radius = np.hypot(*drapes["points"].T)
 inner = radius < 0.75 * radius.max()
-drape_summary = {**drape_map.summary(drapes), "inner_max_diff_deg": float(
-    np.abs(drapes["continuum_deg"] - drapes["fishnet_deg"])[inner].max())}
-rank0(logger, comm, "kinematic limit over the contact area ({points} points): against the "
-                    "fishnet max {f[max_deg]:.2f}, RMS {f[rms_deg]:.2f} deg; against the Goursat "
-                    "net max {g[max_deg]:.2f}, RMS {g[rms_deg]:.2f} deg; inside 3/4 of the "
-                    "contact radius max {i:.2f} deg".format(points=drape_summary["points"],
-                                       f=drape_summary["continuum_vs_fishnet"],
-                                       g=drape_summary["continuum_vs_goursat"],
-                                       i=drape_summary["inner_max_diff_deg"]))
+drape_summary = {
+    **drape_map.summary(drapes),
+    "inner_max_diff_deg": float(
+        np.abs(drapes["continuum_deg"] - drapes["fishnet_deg"])[inner].max()
+    ),
+}
+rank0(
+    logger,
+    comm,
+    "kinematic limit over the contact area ({points} points): against the "
+    "fishnet max {f[max_deg]:.2f}, RMS {f[rms_deg]:.2f} deg; against the Goursat "
+    "net max {g[max_deg]:.2f}, RMS {g[rms_deg]:.2f} deg; inside 3/4 of the "
+    "contact radius max {i:.2f} deg".format(
+        points=drape_summary["points"],
+        f=drape_summary["continuum_vs_fishnet"],
+        g=drape_summary["continuum_vs_goursat"],
+        i=drape_summary["inner_max_diff_deg"],
+    ),
+)
 on_rank0(comm, drape_map.draw_difference_map, out / "shear_difference_map.png", drapes, R)
 
 # %% [markdown]
@@ -148,16 +172,32 @@ grid = parts.shear_grid(e)
 GAP = e.setup.options["holder_gap"]
 wrinkles = wrinkling.compare(e, GAP / 8.0)
 strip = wrinkling.buckling(e)
-wrinkle_summary = {"amplitude_mm": wrinkles["amplitude"], "bound_mm": GAP / 8.0,
-                   "amplitude_per_gap": wrinkles["amplitude"] / GAP,
-                   "holder_gap_mm": GAP, "reference_area": wrinkles["reference_area"],
-                   "indicator": wrinkles["indicator"][0], "hoop_N_mm": strip["hoop"],
-                   "buckling_N_mm": strip["N_cr"], "buckling_ratio": strip["ratio"]}
-rank0(logger, comm, "wrinkling: amplitude {a:.3f} mm (holder gap {g:g} mm), {r:.1%} of the quarter "
-                    "beyond {b:.3g} mm; indicator {i:.2%} of the blank; strip hoop force {n:.3g} "
-                    "N/mm, {q:.2f} of its buckling load".format(
-                      a=wrinkles["amplitude"], g=GAP, r=wrinkles["reference_area"], b=GAP / 8.0,
-                      i=wrinkles["indicator"][0]["area"], n=strip["hoop"], q=strip["ratio"]))
+wrinkle_summary = {
+    "amplitude_mm": wrinkles["amplitude"],
+    "bound_mm": GAP / 8.0,
+    "amplitude_per_gap": wrinkles["amplitude"] / GAP,
+    "holder_gap_mm": GAP,
+    "reference_area": wrinkles["reference_area"],
+    "indicator": wrinkles["indicator"][0],
+    "hoop_N_mm": strip["hoop"],
+    "buckling_N_mm": strip["N_cr"],
+    "buckling_ratio": strip["ratio"],
+}
+rank0(
+    logger,
+    comm,
+    "wrinkling: amplitude {a:.3f} mm (holder gap {g:g} mm), {r:.1%} of the quarter "
+    "beyond {b:.3g} mm; indicator {i:.2%} of the blank; strip hoop force {n:.3g} "
+    "N/mm, {q:.2f} of its buckling load".format(
+        a=wrinkles["amplitude"],
+        g=GAP,
+        r=wrinkles["reference_area"],
+        b=GAP / 8.0,
+        i=wrinkles["indicator"][0]["area"],
+        n=strip["hoop"],
+        q=strip["ratio"],
+    ),
+)
 on_rank0(comm, wrinkling.draw_map, out / "wrinkle_map.png", wrinkles, BLANK, R)
 with e.writer(out / "forming.xdmf") as w:
     w.write(STROKE)
@@ -178,9 +218,11 @@ if args.effects or not args.quick:
             warn(logger, comm, f"{name}: {err}")
 e.close()
 main = cases["fitted"]
-effects = {name: max(abs(a - b) for a, b in zip(c["diagonal_shear_deg"],
-                                                 main["diagonal_shear_deg"]))
-           for name, c in cases.items() if name != "fitted"}
+effects = {
+    name: max(abs(a - b) for a, b in zip(c["diagonal_shear_deg"], main["diagonal_shear_deg"]))
+    for name, c in cases.items()
+    if name != "fitted"
+}
 for name, d in effects.items():
     rank0(logger, comm, f"{name}: the shear along the whole diagonal changes by up to {d:.2f} deg")
 
@@ -188,11 +230,16 @@ for name, d in effects.items():
 def write_outputs() -> None:
     with open(out / "diagonal_shear.csv", "w", newline="") as fh:
         wr = csv.writer(fh)
-        wr.writerow(["arc_length_mm", "shear_deg", "kinematic_shear_deg",
-                     "shear_per_element_deg"])
+        wr.writerow(["arc_length_mm", "shear_deg", "kinematic_shear_deg", "shear_per_element_deg"])
         p = main["profile"]
-        wr.writerows(zip(p["arc_length_mm"], p["shear_deg"], p["kinematic_shear_deg"],
-                         p["shear_per_element_deg"]))
+        wr.writerows(
+            zip(
+                p["arc_length_mm"],
+                p["shear_deg"],
+                p["kinematic_shear_deg"],
+                p["shear_per_element_deg"],
+            )
+        )
     with open(out / "fibre_shear.csv", "w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(["X_mm", "arc_length_mm", "shear_deg", "on_punch"])
@@ -202,21 +249,34 @@ def write_outputs() -> None:
 
 
 on_rank0(comm, write_outputs)
-summary = {"diagonal_shear_max_diff_deg": kinematic["diagonal_shear_max_diff_deg"],
-           "punch_radius_mm": R, "blank_mm": BLANK, "h_mm": H, "fibre_angles_deg": [45.0, -45.0],
-           "stroke_mm": main["stroke_mm"], "punch_force_N": main["punch_force_N"],
-           "max_shear_deg": main["max_shear_deg"], "wrinkle_area_fraction": main["wrinkle"],
-           "locked_area_fraction": main["locked"], "params_source": source,
-           "bending_assumed_N_mm": K_BEND, "holder": parts.HOLDER,
-           "effects_max_change_deg": effects, "effects_failed": failed,
-           "kinematic_points": kinematic["points_on_punch"], "contact_map": drape_summary,
-           "wrinkling": wrinkle_summary,
-           "diagonal_shear_per_element_max_diff_deg": kinematic["per_element_max_diff_deg"],
-           "diagonal_shear_centres_max_diff_deg": kinematic["centres_max_diff_deg"],
-           "fibre_axis_max_shear_deg": max(abs(g) for g in main["fibre_profile"]["shear_deg"]),
-           "step_log": {"kinematic": kinematic["step_log"],
-                        **{name: c["step_log"] for name, c in cases.items()}},
-           "seconds": time.perf_counter() - t_start}
+summary = {
+    "diagonal_shear_max_diff_deg": kinematic["diagonal_shear_max_diff_deg"],
+    "punch_radius_mm": R,
+    "blank_mm": BLANK,
+    "h_mm": H,
+    "fibre_angles_deg": [45.0, -45.0],
+    "stroke_mm": main["stroke_mm"],
+    "punch_force_N": main["punch_force_N"],
+    "max_shear_deg": main["max_shear_deg"],
+    "wrinkle_area_fraction": main["wrinkle"],
+    "locked_area_fraction": main["locked"],
+    "params_source": source,
+    "bending_assumed_N_mm": K_BEND,
+    "holder": parts.HOLDER,
+    "effects_max_change_deg": effects,
+    "effects_failed": failed,
+    "kinematic_points": kinematic["points_on_punch"],
+    "contact_map": drape_summary,
+    "wrinkling": wrinkle_summary,
+    "diagonal_shear_per_element_max_diff_deg": kinematic["per_element_max_diff_deg"],
+    "diagonal_shear_centres_max_diff_deg": kinematic["centres_max_diff_deg"],
+    "fibre_axis_max_shear_deg": max(abs(g) for g in main["fibre_profile"]["shear_deg"]),
+    "step_log": {
+        "kinematic": kinematic["step_log"],
+        **{name: c["step_log"] for name, c in cases.items()},
+    },
+    "seconds": time.perf_counter() - t_start,
+}
 write_json(comm, out / "summary.json", summary)
 
 # %% [markdown]
@@ -239,17 +299,24 @@ write_json(comm, out / "summary.json", summary)
 # point-to-point oscillation.
 
 # %%
-CHECKS = {"diagonal_shear_max_diff_deg": (0.0, 2.0), "kinematic_points": (20, None),
-          "contact_map/continuum_vs_fishnet/rms_deg": (0.0, 1.0),
-          "contact_map/continuum_vs_goursat/rms_deg": (0.0, 1.0),
-          "contact_map/continuum_vs_fishnet/max_deg": (0.0, 3.0),
-          "contact_map/continuum_vs_goursat/max_deg": (0.0, 3.0),
-          "contact_map/inner_max_diff_deg": (0.0, 1.0),
-          "contact_map/fishnet_vs_goursat/max_deg": (0.0, 0.05),
-          "fibre_axis_max_shear_deg": (0.0, 1e-6),
-          "punch_force_N/*": (0.0, None), "max_shear_deg": (1.0, 60.0),
-          "wrinkle_area_fraction": (0.0, 0.02), "seconds": (0.0, None), "stroke_mm": ...,
-          "wrinkling/amplitude_per_gap": (0.0, 1.0), "wrinkling/buckling_ratio": (None, 0.0),
-          "effects_failed": {}}
+CHECKS = {
+    "diagonal_shear_max_diff_deg": (0.0, 2.0),
+    "kinematic_points": (20, None),
+    "contact_map/continuum_vs_fishnet/rms_deg": (0.0, 1.0),
+    "contact_map/continuum_vs_goursat/rms_deg": (0.0, 1.0),
+    "contact_map/continuum_vs_fishnet/max_deg": (0.0, 3.0),
+    "contact_map/continuum_vs_goursat/max_deg": (0.0, 3.0),
+    "contact_map/inner_max_diff_deg": (0.0, 1.0),
+    "contact_map/fishnet_vs_goursat/max_deg": (0.0, 0.05),
+    "fibre_axis_max_shear_deg": (0.0, 1e-6),
+    "punch_force_N/*": (0.0, None),
+    "max_shear_deg": (1.0, 60.0),
+    "wrinkle_area_fraction": (0.0, 0.02),
+    "seconds": (0.0, None),
+    "stroke_mm": ...,
+    "wrinkling/amplitude_per_gap": (0.0, 1.0),
+    "wrinkling/buckling_ratio": (None, 0.0),
+    "effects_failed": {},
+}
 verify(summary, CHECKS)
 rank0(logger, comm, f"done in {summary['seconds']:.1f} s; outputs in {out}")

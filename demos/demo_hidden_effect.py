@@ -49,8 +49,12 @@ logger = logging.getLogger(__name__)
 ap = demo_parser(__doc__, "out/hidden_effect")
 ap.add_argument("--spacing", type=float, default=0.5, help="lattice spacing (mm)")
 ap.add_argument("--noise", type=float, default=0.02, help="displacement noise std (mm)")
-ap.add_argument("--h", type=float, default=None,
-                help="element size of the fitted model (mm; default 3, quick 4)")
+ap.add_argument(
+    "--h",
+    type=float,
+    default=None,
+    help="element size of the fitted model (mm; default 3, quick 4)",
+)
 args = parse(ap)  # --quick: coarser lattice (1 mm), fewer points, one diagnosis round
 if args.quick:
     args.spacing = 1.0
@@ -94,15 +98,38 @@ say(f"data: {len(exp.X)} field rows, {len(exp.steps)} steps, force {np.round(exp
 guess = out / "guess.json"
 write_json(comm, guess, {"fibre_stretch": {"k_l": 20.0, "k_m": 20.0}, "shear": {"k_s": 1.0}})
 comm.barrier()
-cli(["compare", str(data), "--params", str(guess), "--h", str(args.h), "--out",
-     str(out / "compare")])
+cli(
+    [
+        "compare",
+        str(data),
+        "--params",
+        str(guess),
+        "--h",
+        str(args.h),
+        "--out",
+        str(out / "compare"),
+    ]
+)
 
 # %% [markdown]
 # ## 3. Diagnose: fit the baseline, rank the missing effects, confirm, add the best
 
 # %%
-cli(["diagnose", str(data), "--terms", "fibre_stretch,shear", "--h", str(args.h), "--out",
-     str(out / "diagnose"), "--add-best", "--max-effects", "1" if args.quick else "2"])
+cli(
+    [
+        "diagnose",
+        str(data),
+        "--terms",
+        "fibre_stretch,shear",
+        "--h",
+        str(args.h),
+        "--out",
+        str(out / "diagnose"),
+        "--add-best",
+        "--max-effects",
+        "1" if args.quick else "2",
+    ]
+)
 diag = json.loads((out / "diagnose" / "diagnosis.json").read_text()) if comm.rank == 0 else None
 diag = comm.bcast(diag)
 
@@ -117,18 +144,24 @@ with detail():  # its iterations and load steps: detail here (the account below 
     refit = fit(fm, scale_start=False)
     refit.check_mesh(fm)  # the mesh part of the moduli's intervals (one run at h/2)
     BiasExtension(fm.model, exp.length, exp.width, args.h).run(
-        float(exp.path[-1]), len(exp.path), out=out / "final_model")  # XDMF
+        float(exp.path[-1]), len(exp.path), out=out / "final_model"
+    )  # XDMF
 
 # %% [markdown]
 # ## 5. How far is the lattice from the continuum? The complete model at the lattice's moduli
 
 # %%
-exact = {"fibre_stretch": {"k_l": TRUTH["k_l"], "k_m": TRUTH["k_l"]},
-         "shear": {"k_s": TRUTH["k_s"]}, "geodesic_bending": {"A_g": TRUTH["A_g"]}}
+exact = {
+    "fibre_stretch": {"k_l": TRUTH["k_l"], "k_m": TRUTH["k_l"]},
+    "shear": {"k_s": TRUTH["k_s"]},
+    "geodesic_bending": {"A_g": TRUTH["A_g"]},
+}
 fm_true = ForwardModel(exp, parse_terms(",".join(exact), exact), h=args.h)
 form = fm_true.misfit(fm_true.run())["combined"]
-say(f"complete continuum at the lattice's moduli: misfit {form:.3f} (model-form error "
-    f"{np.sqrt(max(form**2 - 1, 0)) * args.noise:.4f} mm RMS)")
+say(
+    f"complete continuum at the lattice's moduli: misfit {form:.3f} (model-form error "
+    f"{np.sqrt(max(form**2 - 1, 0)) * args.noise:.4f} mm RMS)"
+)
 write_json(comm, out / "refit.json", refit.as_dict())
 
 # %%
@@ -136,27 +169,51 @@ b, a = diag["baseline"], refit.misfit
 say("\n=== account ===")
 say(f"baseline fibre_stretch+shear: combined misfit {b['misfit']:.3f} (1 = noise level)")
 for r in diag["ranking"]:
-    say(f"  candidate {r['effect']:17s} score {r['score']:9.1f}  refit misfit "
+    say(
+        f"  candidate {r['effect']:17s} score {r['score']:9.1f}  refit misfit "
         f"{r['refit_misfit'] if r['refit_misfit'] is None else round(r['refit_misfit'], 3)}"
-        f"  significant {r['significant']}")
-say(f"verdict: {verdict}; not identifiable from planar data: "
-    f"{[r['effect'] for r in diag['not_identifiable']]}")
-say(f"after adding {verdict}: combined misfit {a['combined']:.3f}, field RMS "
-    f"{a['field_rms']:.4f} mm (noise {exp.noise_std} mm), force RMS {a['force_rms']:.4f} N")
+        f"  significant {r['significant']}"
+    )
+say(
+    f"verdict: {verdict}; not identifiable from planar data: "
+    f"{[r['effect'] for r in diag['not_identifiable']]}"
+)
+say(
+    f"after adding {verdict}: combined misfit {a['combined']:.3f}, field RMS "
+    f"{a['field_rms']:.4f} mm (noise {exp.noise_std} mm), force RMS {a['force_rms']:.4f} N"
+)
 final = refit.as_dict()
 for line in result_lines(final):  # 95 % intervals with their parts, as the CLI prints them
     say(line)
-say(f"  lattice values: k_l = k_m = {TRUTH['k_l']:g} N/mm, k_s = {TRUTH['k_s']:g} N/mm, "
-    f"A_g = {TRUTH['A_g']:g} N·mm")
-summary = {"truth": TRUTH, "baseline_misfit": b["misfit"], "verdict": verdict,
-           "ranking": [(r["effect"], r["score"], r["refit_misfit"]) for r in diag["ranking"]],
-           "refit_misfit": a["combined"], "refit_params": refit.params(),
-           "refit_std": final["std"], "adequate": diag["adequate"],
-           "final": {k: final[k] for k in ("moduli", "identifiable_combinations",
-                                           "weak_directions", "undetermined", "uncertainty")},
-           "misfit_complete_model_at_truth": form, "spacing": args.spacing, "noise": args.noise,
-           "path": diag["path"],
-           "seconds": time.perf_counter() - t_start}
+say(
+    f"  lattice values: k_l = k_m = {TRUTH['k_l']:g} N/mm, k_s = {TRUTH['k_s']:g} N/mm, "
+    f"A_g = {TRUTH['A_g']:g} N·mm"
+)
+summary = {
+    "truth": TRUTH,
+    "baseline_misfit": b["misfit"],
+    "verdict": verdict,
+    "ranking": [(r["effect"], r["score"], r["refit_misfit"]) for r in diag["ranking"]],
+    "refit_misfit": a["combined"],
+    "refit_params": refit.params(),
+    "refit_std": final["std"],
+    "adequate": diag["adequate"],
+    "final": {
+        k: final[k]
+        for k in (
+            "moduli",
+            "identifiable_combinations",
+            "weak_directions",
+            "undetermined",
+            "uncertainty",
+        )
+    },
+    "misfit_complete_model_at_truth": form,
+    "spacing": args.spacing,
+    "noise": args.noise,
+    "path": diag["path"],
+    "seconds": time.perf_counter() - t_start,
+}
 write_json(comm, out / "summary.json", summary)
 fm.close()
 fm_true.close()
@@ -168,16 +225,25 @@ fm_true.close()
 # tests/test_demos.py; the relations between its entries are asserted below it.
 
 # %%
-CHECKS = {"verdict": "geodesic_bending", "refit_params/geodesic_bending/A_g": (0.0, None),
-          "baseline_misfit": (0.0, None), "refit_misfit": (0.0, None), "adequate": ...,
-          "ranking": ..., "refit_std": ..., "misfit_complete_model_at_truth": (0.0, None),
-          "final/moduli/geodesic_bending.A_g/ci95": ...,
-          "final/moduli/fibre_stretch.k_l/identifiable": True,
-          "final/moduli/shear.k_s/systematic_mesh": (0.0, None)}
+CHECKS = {
+    "verdict": "geodesic_bending",
+    "refit_params/geodesic_bending/A_g": (0.0, None),
+    "baseline_misfit": (0.0, None),
+    "refit_misfit": (0.0, None),
+    "adequate": ...,
+    "ranking": ...,
+    "refit_std": ...,
+    "misfit_complete_model_at_truth": (0.0, None),
+    "final/moduli/geodesic_bending.A_g/ci95": ...,
+    "final/moduli/fibre_stretch.k_l/identifiable": True,
+    "final/moduli/shear.k_s/systematic_mesh": (0.0, None),
+}
 verify(summary, CHECKS)
 require(a["combined"] < b["misfit"] and len(diag["path"]) == 2)
 require(a["combined"] <= form * 1.05, (a["combined"], form))  # the fit is as good as the truth
 if not args.quick:
     require(diag["adequate"] and a["combined"] <= 1.1, (a["combined"], diag["adequate"]))
-say(f"figures in {out}/compare, {out}/diagnose; summary in {out / 'summary.json'} "
-    f"({summary['seconds']:.0f} s)")
+say(
+    f"figures in {out}/compare, {out}/diagnose; summary in {out / 'summary.json'} "
+    f"({summary['seconds']:.0f} s)"
+)

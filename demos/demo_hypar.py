@@ -65,8 +65,13 @@ from fabricsurf.verification.rates import rates
 comm = MPI.COMM_WORLD
 logger = logging.getLogger(__name__)
 parser = demo_parser(__doc__.splitlines()[0] if __doc__ else None, "out/hypar")
-parser.add_argument("--sizes", type=float, nargs="+", default=[0.5, 0.35, 0.25],
-                    help="mesh sizes of the natural-case convergence study (coarse to fine)")
+parser.add_argument(
+    "--sizes",
+    type=float,
+    nargs="+",
+    default=[0.5, 0.35, 0.25],
+    help="mesh sizes of the natural-case convergence study (coarse to fine)",
+)
 args = parse(parser)
 if args.quick:  # the two coarser meshes: one rate
     args.sizes = args.sizes[:2]
@@ -90,8 +95,10 @@ for h in args.sizes:
     rank0(logger, comm, f"natural case h = {h}: L2 error {errors[-1]:.3e}")
 natural_rates = rates(errors, args.sizes)
 corner = computed_corner_forces(p_nat)
-corner_rel = max(np.linalg.norm(f - hyp.corner_force(c)) / np.linalg.norm(hyp.corner_force(c))
-                 for c, f in corner.items())
+corner_rel = max(
+    np.linalg.norm(f - hyp.corner_force(c)) / np.linalg.norm(hyp.corner_force(c))
+    for c, f in corner.items()
+)
 rank0(logger, comm, f"rates {np.round(natural_rates, 2)}; corner force rel. error {corner_rel:.2e}")
 writer = FieldWriter(args.out / "hypar.xdmf", p_nat.u, p_nat.energy.kin)
 writer.write(0.0)
@@ -120,8 +127,9 @@ if comm.rank == 0:
     import matplotlib.pyplot as plt
 
     fig = plt.figure(figsize=(11, 4.6))
-    for k, (u, title) in enumerate(((u_nat, "natural loads, A_Γ = k̄"),
-                                    (u_bad, "same loads, k̄ = 2A_Γ"))):
+    for k, (u, title) in enumerate(
+        ((u_nat, "natural loads, A_Γ = k̄"), (u_bad, "same loads, k̄ = 2A_Γ"))
+    ):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
         r = np.c_[X, np.zeros(len(X))] + u
         ax.plot_trisurf(r[:, 0], r[:, 1], r[:, 2], cmap="viridis", alpha=0.9)
@@ -133,12 +141,17 @@ if comm.rank == 0:
     fig.savefig(args.out / "hypar.png", dpi=120)
     plt.close(fig)
 
-summary = {"dirichlet_max_error": dirichlet_max_error, "natural_l2_errors": errors,
-           "natural_mesh_sizes": args.sizes, "natural_rate": natural_rates[0],
-           "natural_rates": natural_rates, "corner_force_rel_error": corner_rel,
-           "corner_forces": {str(c): list(map(float, f)) for c, f in corner.items()},
-           "corner_signs": {str(c): s for c, s in CORNER_SIGNS.items()},
-           "mismatch_departure": departure}
+summary = {
+    "dirichlet_max_error": dirichlet_max_error,
+    "natural_l2_errors": errors,
+    "natural_mesh_sizes": args.sizes,
+    "natural_rate": natural_rates[0],
+    "natural_rates": natural_rates,
+    "corner_force_rel_error": corner_rel,
+    "corner_forces": {str(c): list(map(float, f)) for c, f in corner.items()},
+    "corner_signs": {str(c): s for c, s in CORNER_SIGNS.items()},
+    "mismatch_departure": departure,
+}
 write_json(comm, args.out / "summary.json", summary)
 
 # %% [markdown]
@@ -153,8 +166,12 @@ write_json(comm, args.out / "summary.json", summary)
 # * The counter-check departs by more than 1e4 times the natural-case error.
 
 # %%
-CHECKS = {"dirichlet_max_error": (0.0, 1e-10), "natural_l2_errors/*": (0.0, 1e-8),
-          "corner_force_rel_error": (0.0, 1e-6), "natural_rates": ...}
+CHECKS = {
+    "dirichlet_max_error": (0.0, 1e-10),
+    "natural_l2_errors/*": (0.0, 1e-8),
+    "corner_force_rel_error": (0.0, 1e-6),
+    "natural_rates": ...,
+}
 verify(summary, CHECKS)
 require(natural_rates[0] > 4.0 or errors[0] < 1e-11, natural_rates)
 require(departure > 1e4 * max(errors), (departure, errors))

@@ -146,8 +146,7 @@ class Configuration:
             from mpi4py import MPI
 
             comm = MPI.COMM_WORLD
-        self.handler: logging.Handler = StdoutHandler() if comm.rank == 0 \
-            else logging.NullHandler()
+        self.handler: logging.Handler = StdoutHandler() if comm.rank == 0 else logging.NullHandler()
         self.handler.setFormatter(TerminalFormatter("%(message)s"))
         self.handler._fabricsurf_terminal = True
         self.saved = []
@@ -186,8 +185,9 @@ class Configuration:
         self.undo()
 
 
-def configure(level: int = PROGRESS, comm=None,
-              names: Iterable[str] = (PACKAGE, "__main__")) -> Configuration:
+def configure(
+    level: int = PROGRESS, comm=None, names: Iterable[str] = (PACKAGE, "__main__")
+) -> Configuration:
     """The terminal output of a program (the command line, a demo, a benchmark): on rank 0 of
     ``comm`` (default ``MPI.COMM_WORLD``) a handler that writes each message of the loggers
     ``names`` (the package's and the running script's) at ``level`` or above to the current
@@ -214,6 +214,6 @@ def rank0_print(comm, *args, level: int = PROGRESS) -> None:
     logger."""
     msg, package = " ".join(str(a) for a in args), logging.getLogger(PACKAGE)
     if msg.startswith("warning: ") and level == PROGRESS:
-        warn(package, comm, msg[len("warning: "):])
+        warn(package, comm, msg[len("warning: ") :])
     else:
         rank0(package, comm, msg, level=level)

@@ -47,8 +47,9 @@ def lattice_angle_deg(length: float, width: float, P: int, Q: int) -> float:
     return math.degrees(math.atan((width / Q) / (length / P)))
 
 
-def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
-                      tol_deg: float = ANGLE_TOLERANCE_DEG) -> tuple[int, int]:
+def lattice_divisions(
+    length: float, width: float, h: float, theta_deg: float, tol_deg: float = ANGLE_TOLERANCE_DEG
+) -> tuple[int, int]:
     """Even numbers (P, Q) of lattice steps along x and y with atan((W/Q)/(L/P)) = θ within
     ``tol_deg``, Q within :data:`SIZE_WINDOW` of the count q0 that fibre edges of length ``h``
     give (so the mesh has about the requested size), and Q as close to q0 as such pairs allow.
@@ -58,8 +59,10 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
     """
     check_positive(length=length, width=width, h=h)
     if not 0.0 < theta_deg < 90.0:
-        raise ValueError(f"geometry: fibre angle ±{theta_deg:g}° must lie strictly between 0° "
-                         "and 90° for a fibre-aligned mesh")
+        raise ValueError(
+            f"geometry: fibre angle ±{theta_deg:g}° must lie strictly between 0° "
+            "and 90° for a fibre-aligned mesh"
+        )
     t = math.radians(theta_deg)
     q0 = width / (h * math.sin(t))
     lo, hi = max(2, math.ceil(q0 / SIZE_WINDOW)), max(2, math.floor(q0 * SIZE_WINDOW))
@@ -73,18 +76,23 @@ def lattice_divisions(length: float, width: float, h: float, theta_deg: float,
             best = (p, q)
     if best is None:
         if nearest is None:
-            raise ValueError(f"geometry: no even number of lattice rows of a {width:g} mm "
-                             f"width lies within {SIZE_WINDOW:g}× of {q0:.1f} (h = {h:g})")
+            raise ValueError(
+                f"geometry: no even number of lattice rows of a {width:g} mm "
+                f"width lies within {SIZE_WINDOW:g}× of {q0:.1f} (h = {h:g})"
+            )
         _, p, q = nearest
         ang = lattice_angle_deg(length, width, p, q)
-        raise ValueError(f"geometry: no fibre-aligned lattice of a {length:g} × {width:g} "
-                         f"rectangle at ±{theta_deg:g}° within {tol_deg:g}° near h = {h:g} "
-                         f"(nearest: ±{ang:.3f}° with {p} × {q} steps)")
+        raise ValueError(
+            f"geometry: no fibre-aligned lattice of a {length:g} × {width:g} "
+            f"rectangle at ±{theta_deg:g}° within {tol_deg:g}° near h = {h:g} "
+            f"(nearest: ±{ang:.3f}° with {p} × {q} steps)"
+        )
     return best
 
 
-def lattice_sizes(length: float, width: float, h: float, theta_deg: float,
-                  tol_deg: float = ANGLE_TOLERANCE_DEG) -> tuple[float | None, float | None]:
+def lattice_sizes(
+    length: float, width: float, h: float, theta_deg: float, tol_deg: float = ANGLE_TOLERANCE_DEG
+) -> tuple[float | None, float | None]:
     """The fibre-edge lengths (the h an aligned mesh reports) of the corner-to-corner lattices
     of the rectangle whose angle is within ``tol_deg`` of θ nearest to ``h``: (the largest not
     above h, the smallest not below h), None where there is none with 2 to 4·q0 rows (q0 of
@@ -104,14 +112,14 @@ def lattice_sizes(length: float, width: float, h: float, theta_deg: float,
     return finer, coarser
 
 
-def lattice_triangles(P: int, Q: int, split_horizontal: bool | Callable[[int, int], bool]
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def lattice_triangles(
+    P: int, Q: int, split_horizontal: bool | Callable[[int, int], bool]
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (p, q) (p + q even, 0 ≤ p ≤ P, 0 ≤ q ≤ Q) and the triangles of the rhombi
     centred at (p, q) with p + q odd, cut along one diagonal: along x where
     ``split_horizontal`` (a bool, or a function of the rhombus centre (p, q)), else along y;
     half rhombi on the boundary are single triangles."""
-    horizontal = split_horizontal if callable(split_horizontal) else (
-        lambda p, q: split_horizontal)
+    horizontal = split_horizontal if callable(split_horizontal) else (lambda p, q: split_horizontal)
     index = {}
     for q in range(Q + 1):
         for p in range(q % 2, P + 1, 2):
@@ -133,10 +141,15 @@ def lattice_triangles(P: int, Q: int, split_horizontal: bool | Callable[[int, in
     return verts, tri
 
 
-def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_deg: float = 45.0,
-                            comm: MPI.Comm = MPI.COMM_WORLD,
-                            extra_points: dict | None = None,
-                            tol_deg: float = ANGLE_TOLERANCE_DEG) -> Specimen:
+def fibre_aligned_rectangle(
+    length: float,
+    width: float,
+    h: float,
+    fibre_angle_deg: float = 45.0,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    extra_points: dict | None = None,
+    tol_deg: float = ANGLE_TOLERANCE_DEG,
+) -> Specimen:
     """The rectangle [0, length] × [0, width] meshed along fibres at ±``fibre_angle_deg`` to x,
     with fibre edges of length ≈ ``h`` and the lattice's angle within ``tol_deg`` of the
     fibres' (see :func:`lattice_divisions`).
@@ -156,11 +169,19 @@ def fibre_aligned_rectangle(length: float, width: float, h: float, fibre_angle_d
     msh.topology.create_connectivity(1, 2)
     angle = lattice_angle_deg(length, width, P, Q)
     mismatch = abs(angle - fibre_angle_deg)
-    return Specimen(msh, ft, float(length), float(width),
-                    points={**corner_points(length, width), **dict(extra_points or {})},
-                    kind="aligned", h=math.hypot(dx, dy), angle_mismatch_deg=mismatch,
-                    note=f"lattice at ±{angle:.4f} deg for fibres at ±{fibre_angle_deg:g} deg"
-                    if mismatch > EXACT_DEG else "")
+    return Specimen(
+        msh,
+        ft,
+        float(length),
+        float(width),
+        points={**corner_points(length, width), **dict(extra_points or {})},
+        kind="aligned",
+        h=math.hypot(dx, dy),
+        angle_mismatch_deg=mismatch,
+        note=f"lattice at ±{angle:.4f} deg for fibres at ±{fibre_angle_deg:g} deg"
+        if mismatch > EXACT_DEG
+        else "",
+    )
 
 
 def fibre_line_angle(angle_deg: float) -> float:
@@ -211,8 +232,9 @@ def square_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
     i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="xy")
     verts = np.column_stack([i.ravel(), j.ravel()]).astype(float)
     a = (np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]).ravel()
-    tri = np.concatenate([np.column_stack([a, a + 1, a + n + 2]),
-                          np.column_stack([a, a + n + 2, a + n + 1])])
+    tri = np.concatenate(
+        [np.column_stack([a, a + 1, a + n + 2]), np.column_stack([a, a + n + 2, a + n + 1])]
+    )
     return verts, tri.astype(np.int64)
 
 
@@ -232,8 +254,9 @@ def quarter_triangles(P: int, Q: int, theta_deg: float) -> tuple[np.ndarray, np.
     return lattice_triangles(P, Q, lambda p, q: p > q)
 
 
-def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
-                  ) -> Specimen:
+def quarter_blank(
+    half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
+) -> Specimen:
     """The quarter [0, half]² of a square blank meshed along its fibres.
 
     Fibres at ±θ (0 < θ < 90°): the rhombic lattice above, each rhombus centred at (p, q) cut
@@ -251,5 +274,12 @@ def quarter_blank(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.
     msh = distributed_mesh(comm, x, tri)
     ft = tag_rectangle_edges(msh, half, half)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ft, float(half), float(half), points=corner_points(half, half),
-                    kind="aligned", h=math.hypot(half / P, half / Q) if theta_deg else half / P)
+    return Specimen(
+        msh,
+        ft,
+        float(half),
+        float(half),
+        points=corner_points(half, half),
+        kind="aligned",
+        h=math.hypot(half / P, half / Q) if theta_deg else half / P,
+    )

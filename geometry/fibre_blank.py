@@ -62,6 +62,7 @@ def outline(shape: str, a: float, b: float) -> Callable:
     def phi(X):
         q = np.abs(X) - [a, b]
         return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+
     return phi
 
 
@@ -73,8 +74,9 @@ def _lattice(L: np.ndarray, M: np.ndarray, d: float, reach: float):
     i, j = (g.ravel() for g in np.meshgrid(k, k, indexing="ij"))
     X = d * (np.outer(i, L) + np.outer(j, M))
     idx = ((i + n) * (2 * n + 1) + (j + n)).reshape(2 * n + 1, 2 * n + 1)
-    quads = np.column_stack([idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(),
-                             idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()])
+    quads = np.column_stack(
+        [idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()]
+    )
     return X, quads
 
 
@@ -94,8 +96,7 @@ def _cut(X: np.ndarray, quads: np.ndarray, phi: Callable) -> np.ndarray:
     along_11 = np.where(tie, radial, d1 < d2)
     crossed = (f[q].min(axis=1) < 0) & (f[q].max(axis=1) > 0)
     e1, e2 = np.abs(f[q[:, 2]] - f[q[:, 0]]), np.abs(f[q[:, 3]] - f[q[:, 1]])
-    along_11 = np.where(crossed & (np.abs(e1 - e2) > 1e-9 * (e1 + e2 + 1e-300)), e1 < e2,
-                        along_11)
+    along_11 = np.where(crossed & (np.abs(e1 - e2) > 1e-9 * (e1 + e2 + 1e-300)), e1 < e2, along_11)
     w = along_11[:, None]
     a = np.column_stack([q[:, 0], q[:, 1], q[:, 2]])
     b = np.column_stack([q[:, 0], q[:, 2], q[:, 3]])
@@ -109,8 +110,9 @@ def _area(X: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return 0.5 * np.cross(q - p, r - p)
 
 
-def _segment_inside(shape: str, a: float, b: float, p: np.ndarray, q: np.ndarray
-                    ) -> tuple[float, float] | None:
+def _segment_inside(
+    shape: str, a: float, b: float, p: np.ndarray, q: np.ndarray
+) -> tuple[float, float] | None:
     """The parameter interval [t0, t1] ⊂ [0, 1] of p + t (q − p) inside the outline, or None
     (a box: Liang–Barsky clipping; a circle: the roots of |p + t v|² = a²)."""
     v = q - p
@@ -133,8 +135,15 @@ def _segment_inside(shape: str, a: float, b: float, p: np.ndarray, q: np.ndarray
     return (t0, t1) if t1 - t0 > 1e-12 else None
 
 
-def _piece(shape: str, a: float, b: float, P: np.ndarray, corners: np.ndarray,
-           inside: np.ndarray, merge: float) -> np.ndarray:
+def _piece(
+    shape: str,
+    a: float,
+    b: float,
+    P: np.ndarray,
+    corners: np.ndarray,
+    inside: np.ndarray,
+    merge: float,
+) -> np.ndarray:
     """The points of the lattice triangle P (3 × 2) ∩ the blank: its corners inside,
     where its sides cross the outline, and the outline's corners inside P; all lie on the
     piece's boundary, which is convex. No sliver is made: a crossing within ``merge`` (mm) of
@@ -190,8 +199,9 @@ def _min_angle(T: np.ndarray) -> float:
     return min(ang)
 
 
-def lattice_triangulation(shape: str, a: float, b: float, angles_deg: tuple[float, float],
-                          d: float) -> tuple[np.ndarray, np.ndarray]:
+def lattice_triangulation(
+    shape: str, a: float, b: float, angles_deg: tuple[float, float], d: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The fibre lattice of edge d at ``angles_deg`` over the blank and its triangles (each
     parallelogram cut by :func:`_cut`): the triangulation whose P1
     deformations include every discrete Chebyshev net of the lattice, in the plane and in 3D
@@ -202,14 +212,16 @@ def lattice_triangulation(shape: str, a: float, b: float, angles_deg: tuple[floa
     return X0, _cut(X0, quads, outline(shape, a, b))
 
 
-def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float], d: float
-                 ) -> tuple[np.ndarray, np.ndarray, dict]:
+def clip_lattice(
+    shape: str, a: float, b: float, angles_deg: tuple[float, float], d: float
+) -> tuple[np.ndarray, np.ndarray, dict]:
     """Vertices and triangles of the fibre lattice clipped to the outline (module docstring),
     and its quality: the smallest triangle's area over a lattice triangle's, the smallest
     angle (deg), and the meshed area over the blank's."""
     phi = outline(shape, a, b)
-    corners = (np.array([[a, b], [-a, b], [-a, -b], [a, -b]]) if shape != "circle"
-               else np.zeros((0, 2)))
+    corners = (
+        np.array([[a, b], [-a, b], [-a, -b], [a, -b]]) if shape != "circle" else np.zeros((0, 2))
+    )
     X0, tri0 = lattice_triangulation(shape, a, b, angles_deg, d)
     f = phi(X0)
     inside = f <= 1e-12 * max(a, b)
@@ -234,9 +246,15 @@ def clip_lattice(shape: str, a: float, b: float, angles_deg: tuple[float, float]
     area = np.abs(_area(X, tri))
     ref = abs(_area(X0, tri0[:1])[0])
     exact = math.pi * a * a if shape == "circle" else 4.0 * a * b
-    return X, tri, {"min_area_fraction": float(area.min() / ref),
-                    "min_angle_deg": math.degrees(min(_min_angle(X[t]) for t in tri)),
-                    "area_fraction": float(area.sum() / exact)}
+    return (
+        X,
+        tri,
+        {
+            "min_area_fraction": float(area.min() / ref),
+            "min_angle_deg": math.degrees(min(_min_angle(X[t]) for t in tri)),
+            "area_fraction": float(area.sum() / exact),
+        },
+    )
 
 
 def _tag_outline(msh):
@@ -247,8 +265,14 @@ def _tag_outline(msh):
     return dmesh.meshtags(msh, 1, facets, np.full(len(facets), EDGE_TAGS["edge"], dtype=np.int32))
 
 
-def fibre_blank(shape: str, a: float, b: float, angles_deg: tuple[float, float], h: float,
-                comm: MPI.Comm = MPI.COMM_WORLD) -> Specimen:
+def fibre_blank(
+    shape: str,
+    a: float,
+    b: float,
+    angles_deg: tuple[float, float],
+    h: float,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> Specimen:
     """The blank (``circle`` of radius a, ``rectangle`` of half-sides a × b) centred at the
     origin, meshed along fibres at ``angles_deg`` to x with fibre edges h (module docstring).
     ``length``, ``width`` of the Specimen are its extents 2a × 2b; ``note`` records the
@@ -261,16 +285,27 @@ def fibre_blank(shape: str, a: float, b: float, angles_deg: tuple[float, float],
     quality = comm.bcast(quality, root=0)
     msh = distributed_mesh(comm, x, tri)
     ft = _tag_outline(msh)
-    return Specimen(msh, ft, 2.0 * a, 2.0 * b, edge_tags=dict(EDGE_TAGS), points={"pole": (0, 0)},
-                    kind="aligned", h=float(h),
-                    note=(f"fibre lattice cut by the {shape}: smallest cut triangle "
-                          f"{quality['min_area_fraction']:.2f} of a lattice triangle, smallest "
-                          f"angle {quality['min_angle_deg']:.1f}°, meshed area "
-                          f"{quality['area_fraction']:.4f} of the blank's"))
+    return Specimen(
+        msh,
+        ft,
+        2.0 * a,
+        2.0 * b,
+        edge_tags=dict(EDGE_TAGS),
+        points={"pole": (0, 0)},
+        kind="aligned",
+        h=float(h),
+        note=(
+            f"fibre lattice cut by the {shape}: smallest cut triangle "
+            f"{quality['min_area_fraction']:.2f} of a lattice triangle, smallest "
+            f"angle {quality['min_angle_deg']:.1f}°, meshed area "
+            f"{quality['area_fraction']:.4f} of the blank's"
+        ),
+    )
 
 
-def mirrored_quarter(half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
-                     ) -> Specimen:
+def mirrored_quarter(
+    half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
+) -> Specimen:
     """The square [−half, half]² as the four mirror images of
     geometry.aligned.quarter_blank(half, h, θ): the quarter's own mesh, unfolded (to check the
     full blank against the quarter with mirror conditions on the same discretisation)."""
@@ -283,8 +318,14 @@ def mirrored_quarter(half: float, h: float, theta_deg: float, comm: MPI.Comm = M
                 for v in verts:
                     k = (int(sx * v[0]), int(sy * v[1]))
                     key.setdefault(k, len(key))
-                ts.append(np.array([[key[(int(sx * verts[n][0]), int(sy * verts[n][1]))]
-                                     for n in t] for t in tri]))
+                ts.append(
+                    np.array(
+                        [
+                            [key[(int(sx * verts[n][0]), int(sy * verts[n][1]))] for n in t]
+                            for t in tri
+                        ]
+                    )
+                )
         ij = np.array(list(key), dtype=float)
         x = np.column_stack([ij[:, 0] * half / P, ij[:, 1] * half / Q])
         tri = np.concatenate(ts).astype(np.int64)
@@ -292,7 +333,14 @@ def mirrored_quarter(half: float, h: float, theta_deg: float, comm: MPI.Comm = M
         x, tri = np.zeros((0, 2)), np.zeros((0, 3), np.int64)
     msh = distributed_mesh(comm, x, tri)
     ft = _tag_outline(msh)
-    return Specimen(msh, ft, 2.0 * half, 2.0 * half, edge_tags=dict(EDGE_TAGS),
-                    points={"pole": (0, 0)}, kind="aligned",
-                    h=math.hypot(half / P, half / Q) if theta_deg else half / P,
-                    note="the aligned quarter's mesh mirrored into the four quadrants")
+    return Specimen(
+        msh,
+        ft,
+        2.0 * half,
+        2.0 * half,
+        edge_tags=dict(EDGE_TAGS),
+        points={"pole": (0, 0)},
+        kind="aligned",
+        h=math.hypot(half / P, half / Q) if theta_deg else half / P,
+        note="the aligned quarter's mesh mirrored into the four quadrants",
+    )

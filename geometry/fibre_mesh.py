@@ -28,10 +28,16 @@ from each grip and a band between); ``zones``: :func:`~.zone_mesh.zone_rectangle
 zone (fibres at ±θ, a specimen longer than about 2W/tan θ), else zones."""
 
 
-def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
-              comm: MPI.Comm = MPI.COMM_WORLD, kind: str = "auto",
-              extra_points: dict | None = None,
-              max_mismatch_deg: float = ANGLE_TOLERANCE_DEG) -> Specimen:
+def bias_mesh(
+    length: float,
+    width: float,
+    h: float,
+    fibre_angles: tuple[float, float],
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    kind: str = "auto",
+    extra_points: dict | None = None,
+    max_mismatch_deg: float = ANGLE_TOLERANCE_DEG,
+) -> Specimen:
     """The mesh of a rectangular specimen of the given ``kind`` (:data:`MESH_KINDS`); the
     specimen's ``kind`` says which was built and its ``note`` how. ``max_mismatch_deg`` bounds
     the angle between an ``auto`` corner-to-corner lattice and the fibres (stiff fibres lock a
@@ -41,8 +47,9 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
         raise ValueError(f"geometry: mesh = {kind!r} must be one of {', '.join(MESH_KINDS)}")
     theta = symmetric_angle(fibre_angles)
     if kind in ("aligned", "lattice_pair") and theta is None:
-        raise ValueError(f"geometry: a fibre-aligned mesh needs fibres at ±θ to x, not at "
-                         f"{tuple(fibre_angles)}°")
+        raise ValueError(
+            f"geometry: a fibre-aligned mesh needs fibres at ±θ to x, not at {tuple(fibre_angles)}°"
+        )
     if kind == "unstructured":
         specimen = rectangle(length, width, h, comm, extra_points=extra_points)
         specimen.note = "mesh = 'unstructured' requested"
@@ -50,17 +57,21 @@ def bias_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, 
     if kind == "aligned":
         return fibre_aligned_rectangle(length, width, h, theta, comm, extra_points)
     tol = max(min(max_mismatch_deg, ANGLE_TOLERANCE_DEG), EXACT_DEG)
-    if kind == "auto" and theta is not None and _fits(lattice_divisions, length, width, h,
-                                                      theta, tol):
+    if (
+        kind == "auto"
+        and theta is not None
+        and _fits(lattice_divisions, length, width, h, theta, tol)
+    ):
         return fibre_aligned_rectangle(length, width, h, theta, comm, extra_points, tol)
-    if kind == "lattice_pair" or (kind == "auto" and theta is not None and _centre_band(
-            length, width, h, theta)):
+    if kind == "lattice_pair" or (
+        kind == "auto" and theta is not None and _centre_band(length, width, h, theta)
+    ):
         specimen = paired_lattice_rectangle(length, width, h, theta, comm, extra_points)
     else:
-        specimen = zone_rectangle(length, width, h, canonical_angles(fibre_angles), comm,
-                                  extra_points)
-    if kind == "auto" and theta is not None and _fits(lattice_divisions, length, width, h,
-                                                      theta):
+        specimen = zone_rectangle(
+            length, width, h, canonical_angles(fibre_angles), comm, extra_points
+        )
+    if kind == "auto" and theta is not None and _fits(lattice_divisions, length, width, h, theta):
         specimen.note += _skipped(length, width, h, theta, tol)
     return specimen
 
@@ -70,10 +81,15 @@ def _skipped(length: float, width: float, h: float, theta: float, tol: float) ->
     taken: its angle is more than ``tol`` off the fibres'."""
     P, Q = lattice_divisions(length, width, h, theta)
     off = abs(lattice_angle_deg(length, width, P, Q) - theta)
-    allowed = ("inextensible fibres allow none" if tol <= EXACT_DEG
-               else f"these fibres allow {tol:.2g} deg")
-    return (f"; the corner-to-corner lattice at this h is {off:.3g} deg off the fibres "
-            f"({allowed}): skipped, it would lock")
+    allowed = (
+        "inextensible fibres allow none"
+        if tol <= EXACT_DEG
+        else f"these fibres allow {tol:.2g} deg"
+    )
+    return (
+        f"; the corner-to-corner lattice at this h is {off:.3g} deg off the fibres "
+        f"({allowed}): skipped, it would lock"
+    )
 
 
 def _fits(divisions, *args) -> bool:

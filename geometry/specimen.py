@@ -58,8 +58,12 @@ def check_positive(**kw: float) -> None:
 
 def corner_points(length: float, width: float) -> dict:
     """The named corner points of [0, length] × [0, width]."""
-    return {"corner_00": (0.0, 0.0), "corner_10": (length, 0.0),
-            "corner_11": (length, width), "corner_01": (0.0, width)}
+    return {
+        "corner_00": (0.0, 0.0),
+        "corner_10": (length, 0.0),
+        "corner_11": (length, width),
+        "corner_01": (0.0, width),
+    }
 
 
 def bias_points(length: float, width: float) -> dict:
@@ -69,8 +73,9 @@ def bias_points(length: float, width: float) -> dict:
     return {"A": (0.5 * width, 0.5 * width), "B": (0.5 * length, 0.5 * width)}
 
 
-def _build_rectangle(length: float, width: float, h: float, extra_points: dict,
-                     structured: bool) -> None:
+def _build_rectangle(
+    length: float, width: float, h: float, extra_points: dict, structured: bool
+) -> None:
     """The gmsh model (rank 0): rectangle, edge groups, embedded points."""
     gmsh.model.add("rectangle")
     occ = gmsh.model.occ
@@ -83,8 +88,15 @@ def _build_rectangle(length: float, width: float, h: float, extra_points: dict,
     gmsh.model.setPhysicalName(2, 1, "specimen")
     for c in gmsh.model.getBoundary([(2, s)], oriented=False):
         x, y, _ = occ.getCenterOfMass(1, c[1])
-        name = ("clamp" if np.isclose(x, 0) else "grip" if np.isclose(x, length)
-                else "bottom" if np.isclose(y, 0) else "top")
+        name = (
+            "clamp"
+            if np.isclose(x, 0)
+            else "grip"
+            if np.isclose(x, length)
+            else "bottom"
+            if np.isclose(y, 0)
+            else "top"
+        )
         gmsh.model.addPhysicalGroup(1, [c[1]], EDGE_TAGS[name])
         gmsh.model.setPhysicalName(1, EDGE_TAGS[name], name)
     for tag, name in enumerate(extra_points, start=100):
@@ -108,8 +120,9 @@ def distributed_mesh(comm: MPI.Comm, x: np.ndarray, cells: np.ndarray) -> dmesh.
     partitioned over ``comm`` with shared-facet ghosts: the interior-penalty terms are integrals
     over every interior facet, and those on a partition boundary need the cells on both
     sides (dolfinx's biharmonic demo sets the same mode)."""
-    return dmesh.create_mesh(comm, cells, x, coordinate_domain(),
-                             ghost_mode=dmesh.GhostMode.shared_facet)
+    return dmesh.create_mesh(
+        comm, cells, x, coordinate_domain(), ghost_mode=dmesh.GhostMode.shared_facet
+    )
 
 
 def coordinate_domain() -> ufl.Mesh:
@@ -125,8 +138,14 @@ def coordinate_domain() -> ufl.Mesh:
     return ufl.Mesh(ufl.VectorElement(p1, dim=2))
 
 
-def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_WORLD,
-              extra_points: dict | None = None, structured: bool = False) -> Specimen:
+def rectangle(
+    length: float,
+    width: float,
+    h: float,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    extra_points: dict | None = None,
+    structured: bool = False,
+) -> Specimen:
     """Mesh the rectangle [0, length] × [0, width] with element size ``h``.
 
     ``extra_points`` (name → (x, y)) are embedded as vertices and named physical points.
@@ -145,24 +164,34 @@ def rectangle(length: float, width: float, h: float, comm: MPI.Comm = MPI.COMM_W
     if error is not None:
         if comm.rank == 0:
             gmsh.finalize()
-        raise RuntimeError(f"geometry: gmsh failed to mesh the {length} × {width} rectangle "
-                           f"(h = {h}) on rank 0: {error}")
+        raise RuntimeError(
+            f"geometry: gmsh failed to mesh the {length} × {width} rectangle "
+            f"(h = {h}) on rank 0: {error}"
+        )
     try:
-        x, cells = _triangulation() if comm.rank == 0 else (np.zeros((0, 2)),
-                                                              np.zeros((0, 3), np.int64))
+        x, cells = (
+            _triangulation() if comm.rank == 0 else (np.zeros((0, 2)), np.zeros((0, 3), np.int64))
+        )
     finally:
         if comm.rank == 0:
             gmsh.finalize()
     msh = distributed_mesh(comm, x, cells)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ft, float(length), float(width),
-                    points={**corner_points(length, width), **extra},
-                    kind="structured" if structured else "unstructured", h=float(h))
+    return Specimen(
+        msh,
+        ft,
+        float(length),
+        float(width),
+        points={**corner_points(length, width), **extra},
+        kind="structured" if structured else "unstructured",
+        h=float(h),
+    )
 
 
-def square(side: float = 1.0, h: float = 0.25, comm: MPI.Comm = MPI.COMM_WORLD,
-           structured: bool = False) -> Specimen:
+def square(
+    side: float = 1.0, h: float = 0.25, comm: MPI.Comm = MPI.COMM_WORLD, structured: bool = False
+) -> Specimen:
     """The square [0, side]²; edges tagged clamp/grip/bottom/top as for the rectangle."""
     return rectangle(side, side, h, comm, structured=structured)
 
@@ -173,8 +202,14 @@ def graded(xi: np.ndarray, grading: float) -> np.ndarray:
     return xi - grading * np.sin(2 * np.pi * xi) / (2 * np.pi)
 
 
-def structured_rectangle(length: float, width: float, nx: int, ny: int,
-                         comm: MPI.Comm = MPI.COMM_WORLD, grading: float = 0.0) -> Specimen:
+def structured_rectangle(
+    length: float,
+    width: float,
+    nx: int,
+    ny: int,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    grading: float = 0.0,
+) -> Specimen:
     """A structured triangulation of [0, length] × [0, width] (dolfinx built-in, no gmsh), with
     the same edge tags as :func:`rectangle`; the vertex sets are nested when nx, ny double
     (convergence studies).
@@ -185,25 +220,40 @@ def structured_rectangle(length: float, width: float, nx: int, ny: int,
     check_positive(length=length, width=width, nx=nx, ny=ny)
     if not 0.0 <= grading < 1.0:
         raise ValueError(f"geometry: grading = {grading!r} must lie in [0, 1)")
-    msh = dmesh.create_rectangle(comm, [np.zeros(2), np.array([length, width])], [nx, ny],
-                                 dmesh.CellType.triangle, diagonal=dmesh.DiagonalType.crossed,
-                                 ghost_mode=dmesh.GhostMode.shared_facet)
+    msh = dmesh.create_rectangle(
+        comm,
+        [np.zeros(2), np.array([length, width])],
+        [nx, ny],
+        dmesh.CellType.triangle,
+        diagonal=dmesh.DiagonalType.crossed,
+        ghost_mode=dmesh.GhostMode.shared_facet,
+    )
     if grading > 0.0:
         x = msh.geometry.x
         x[:, 0] = length * graded(x[:, 0] / length, grading)
         x[:, 1] = width * graded(x[:, 1] / width, grading)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ft, float(length), float(width),
-                    points=corner_points(length, width), kind="structured",
-                    h=float(max(length / nx, width / ny)))
+    return Specimen(
+        msh,
+        ft,
+        float(length),
+        float(width),
+        points=corner_points(length, width),
+        kind="structured",
+        h=float(max(length / nx, width / ny)),
+    )
 
 
 def tag_rectangle_edges(msh, length: float, width: float):
     """Facet tags ``clamp``, ``grip``, ``bottom``, ``top`` (:data:`EDGE_TAGS`) of the rectangle
     [0, length] × [0, width] meshed by ``msh`` (a corner facet is tagged once)."""
-    where = {"clamp": lambda x: np.isclose(x[0], 0.0), "grip": lambda x: np.isclose(x[0], length),
-             "bottom": lambda x: np.isclose(x[1], 0.0), "top": lambda x: np.isclose(x[1], width)}
+    where = {
+        "clamp": lambda x: np.isclose(x[0], 0.0),
+        "grip": lambda x: np.isclose(x[0], length),
+        "bottom": lambda x: np.isclose(x[1], 0.0),
+        "top": lambda x: np.isclose(x[1], width),
+    }
     facets, values = [], []
     for name, marker in where.items():
         f = dmesh.locate_entities_boundary(msh, 1, marker)

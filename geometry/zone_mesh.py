@@ -28,8 +28,9 @@ from .specimen import (
 )
 
 
-def corner_fibre_segments(length: float, width: float, angles_deg: tuple[float, float]
-                          ) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+def corner_fibre_segments(
+    length: float, width: float, angles_deg: tuple[float, float]
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
     """The segments of the fibre lines (both families) from each corner into the rectangle,
     up to where they leave it (lines along a side are the side itself: left out)."""
     segs = []
@@ -41,8 +42,10 @@ def corner_fibre_segments(length: float, width: float, angles_deg: tuple[float, 
                     continue
                 if (dx > 0) != (cx == 0.0) or (dy > 0) != (cy == 0.0):
                     continue
-                t = min((length - cx) / dx if dx > 0 else -cx / dx,
-                        (width - cy) / dy if dy > 0 else -cy / dy)
+                t = min(
+                    (length - cx) / dx if dx > 0 else -cx / dx,
+                    (width - cy) / dy if dy > 0 else -cy / dy,
+                )
                 segs.append(((cx, cy), (cx + t * dx, cy + t * dy)))
     return segs
 
@@ -62,9 +65,14 @@ def _build(length: float, width: float, h: float, segs: list) -> None:
     gmsh.model.mesh.generate(2)
 
 
-def zone_rectangle(length: float, width: float, h: float, angles_deg: tuple[float, float],
-                   comm: MPI.Comm = MPI.COMM_WORLD, extra_points: dict | None = None
-                   ) -> Specimen:
+def zone_rectangle(
+    length: float,
+    width: float,
+    h: float,
+    angles_deg: tuple[float, float],
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    extra_points: dict | None = None,
+) -> Specimen:
     """The rectangle [0, length] × [0, width] meshed by gmsh at size ``h`` with the corner
     fibre lines of :func:`corner_fibre_segments` as edges; ``extra_points`` are recorded in
     ``points`` (they need not be vertices)."""
@@ -83,12 +91,20 @@ def zone_rectangle(length: float, width: float, h: float, angles_deg: tuple[floa
             gmsh.finalize()
     error = comm.bcast(error, root=0)
     if error is not None:
-        raise RuntimeError(f"geometry: gmsh failed to mesh the {length} × {width} rectangle "
-                           f"with its corner fibre lines (h = {h}) on rank 0: {error}")
+        raise RuntimeError(
+            f"geometry: gmsh failed to mesh the {length} × {width} rectangle "
+            f"with its corner fibre lines (h = {h}) on rank 0: {error}"
+        )
     msh = distributed_mesh(comm, x, cells)
     ft = tag_rectangle_edges(msh, length, width)
     msh.topology.create_connectivity(1, 2)
-    return Specimen(msh, ft, float(length), float(width),
-                    points={**corner_points(length, width), **dict(extra_points or {})},
-                    kind="zones", h=float(h),
-                    note=f"gmsh with the {len(segs)} fibre lines through the corners as edges")
+    return Specimen(
+        msh,
+        ft,
+        float(length),
+        float(width),
+        points={**corner_points(length, width), **dict(extra_points or {})},
+        kind="zones",
+        h=float(h),
+        note=f"gmsh with the {len(segs)} fibre lines through the corners as edges",
+    )

@@ -21,18 +21,24 @@ from fabricsurf.model.materials import TABLE3_MACRO, PantographBending, bipantog
 COMM = MPI.COMM_WORLD
 
 
-def bipantographic_density_numpy(rho, dtheta, drho, K_S=TABLE3_MACRO["K_S"],
-                                 K_E=TABLE3_MACRO["K_E"], K_F=TABLE3_MACRO["K_F"],
-                                 gamma=math.pi / 6):
+def bipantographic_density_numpy(
+    rho,
+    dtheta,
+    drho,
+    K_S=TABLE3_MACRO["K_S"],
+    K_E=TABLE3_MACRO["K_E"],
+    K_F=TABLE3_MACRO["K_F"],
+    gamma=math.pi / 6,
+):
     """Barchiesi et al. 2020 eq. (2) for one fibre family in numpy, in the printed acos form:
     the reference the UFL energy (written with asin) is checked against."""
     c = math.cos(gamma)
     x = np.asarray(rho) ** 2 * c**2
     D = K_E - 8 * K_F * c**2
-    return (K_S * (np.arccos(1 - 2 * x) - math.pi + 2 * gamma) ** 2
-            + K_E * K_F * ((x - 1) / (x * D - K_E) * np.asarray(dtheta) ** 2
-                           + x / ((1 - x) * (8 * K_F + np.asarray(rho) ** 2 * D))
-                           * np.asarray(drho) ** 2))
+    return K_S * (np.arccos(1 - 2 * x) - math.pi + 2 * gamma) ** 2 + K_E * K_F * (
+        (x - 1) / (x * D - K_E) * np.asarray(dtheta) ** 2
+        + x / ((1 - x) * (8 * K_F + np.asarray(rho) ** 2 * D)) * np.asarray(drho) ** 2
+    )
 
 
 # ------------------------------------------------------------- eq. (2) energy, exact placements
@@ -87,8 +93,12 @@ def test_bipantographic_bending_and_stretch_gradient(unit_square):
     R = 4.0
     arc = ufl.as_vector([(R - X[1]) * ufl.sin(X[0] / R), R - (R - X[1]) * ufl.cos(X[0] / R)])
     # L = e_x: ρ_L = (R − Y)/R, ∂θ_L/∂L = 1/R, ∂ρ_L/∂L = 0; M = e_y: ρ_M = 1, no gradients
-    exp_arc = gauss(lambda y: bipantographic_density_numpy((R - y) / R, 1 / R, 0.0)
-                    + bipantographic_density_numpy(1.0, 0.0, 0.0))
+    exp_arc = gauss(
+        lambda y: (
+            bipantographic_density_numpy((R - y) / R, 1 / R, 0.0)
+            + bipantographic_density_numpy(1.0, 0.0, 0.0)
+        )
+    )
     assert energy(unit_square, arc) == pytest.approx(exp_arc, rel=1e-8)
     c = 0.03
     quad = ufl.as_vector([X[0] + c * X[0] ** 2, X[1]])
@@ -147,18 +157,20 @@ def test_cellwise_penalty_stretch(unit_square):
     imap = unit_square.topology.index_map(tdim)
     n = imap.size_local + imap.num_ghosts
     mid = dmesh.compute_midpoints(unit_square, tdim, np.arange(n, dtype=np.int32))
-    rho = 1.0 + 0.12 * mid[:, 0]                       # varies from cell to cell
+    rho = 1.0 + 0.12 * mid[:, 0]  # varies from cell to cell
     t.set_penalty_stretch(consts, rho)
     c = math.cos(t.gamma)
     S = sum(_coefficients(rho, t.K_E, t.K_F, c))
     area = 1.0 / (2 * 6 * 6)
-    expected = COMM.allreduce(float(np.sum(S[:imap.size_local])) * area, op=MPI.SUM)
-    got = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale(consts) * ufl.dx)),
-                         op=MPI.SUM)
+    expected = COMM.allreduce(float(np.sum(S[: imap.size_local])) * area, op=MPI.SUM)
+    got = COMM.allreduce(
+        fem.assemble_scalar(fem.form(t.stiffness_scale(consts) * ufl.dx)), op=MPI.SUM
+    )
     assert got == pytest.approx(expected, rel=1e-12)
     t.set(penalty_stretch=1.0)
-    uniform = COMM.allreduce(fem.assemble_scalar(fem.form(t.stiffness_scale(consts) * ufl.dx)),
-                             op=MPI.SUM)
+    uniform = COMM.allreduce(
+        fem.assemble_scalar(fem.form(t.stiffness_scale(consts) * ufl.dx)), op=MPI.SUM
+    )
     assert uniform == pytest.approx(sum(_coefficients(1.0, t.K_E, t.K_F, c)), rel=1e-12)
     with pytest.raises(ValueError, match="cos γ < 1"):
         t.set_penalty_stretch(consts, np.full(n, 1.2))
@@ -183,8 +195,10 @@ def test_stretch_records_one_per_test_even_when_an_id_is_reused():
         follow(test, 1, 5.0)
         follow(test, 2, 10.0)
         del test
-    assert [[h["max_stretch"] for h in f.history] for f in follow.followers] == [[1.1, 1.1],
-                                                                                 [1.2, 1.2]]
+    assert [[h["max_stretch"] for h in f.history] for f in follow.followers] == [
+        [1.1, 1.1],
+        [1.2, 1.2],
+    ]
 
 
 # ------------------------------------------------------------- the shear angles at A and B
@@ -220,8 +234,17 @@ def test_steep_fibres_on_a_mesh_coarser_than_the_grip_zones():
     from fabricsurf.experiments.bias_extension import BiasExtension
     from fabricsurf.model.terms import FibreStretch, Shear
 
-    f = [BiasExtension([FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5)], 40.0, 20.0, h,
-                       fibre_angles=(80.0, -80.0)).run(2.0, 2).force[-1]
-         for h in (4.0, 2.0)]
+    f = [
+        BiasExtension(
+            [FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5)],
+            40.0,
+            20.0,
+            h,
+            fibre_angles=(80.0, -80.0),
+        )
+        .run(2.0, 2)
+        .force[-1]
+        for h in (4.0, 2.0)
+    ]
     print(f)
     assert f[0] == pytest.approx(f[1], rel=1e-3)

@@ -54,8 +54,12 @@ ZERO, BIAS = (0.0, 90.0), (45.0, -45.0)
 
 
 def model(k_t=0.0, k_b=K_B):
-    return [FibreStretch(k_l=30.0, k_m=30.0), Shear(k_s=0.5), NormalBending(k_b=k_b),
-            Twist(k_t=k_t)]
+    return [
+        FibreStretch(k_l=30.0, k_m=30.0),
+        Shear(k_s=0.5),
+        NormalBending(k_b=k_b),
+        Twist(k_t=k_t),
+    ]
 
 
 def strip(length, width, h, angles=ZERO, k_t=0.0):
@@ -152,8 +156,16 @@ def test_loader_and_sensitivities(tmp_path):
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
-    exp = sy.template(30.0, 10.0, [0.5, 1.0], sy.grid_points(30.0, 10.0, 4, 2), angles=BIAS,
-                      test="cantilever", options={"areal_density_g_m2": RHO}, force=False)
+    exp = sy.template(
+        30.0,
+        10.0,
+        [0.5, 1.0],
+        sy.grid_points(30.0, 10.0, 4, 2),
+        angles=BIAS,
+        test="cantilever",
+        options={"areal_density_g_m2": RHO},
+        force=False,
+    )
     sy.continuum_data(exp, model(0.01), h=5.0)
     root = comm.bcast(str(tmp_path) if comm.rank == 0 else None)
     if comm.rank == 0:
@@ -185,7 +197,8 @@ def test_loader_rejects_bad_density(tmp_path):
     (tmp_path / "experiment.toml").write_text(
         'name = "c"\n[units]\nlength = "mm"\nforce = "N"\n[specimen]\nlength = 50.0\n'
         'width = 25.0\nfibre_angles_deg = [0.0, 90.0]\n[loading]\ntest = "cantilever"\n'
-        'path = [1.0]\n[data]\nfield = "field.csv"\n')
+        'path = [1.0]\n[data]\nfield = "field.csv"\n'
+    )
     (tmp_path / "field.csv").write_text("step,X,Y,ux,uy,uz\n1,10.0,5.0,0.0,0.0,-1.0\n")
     with pytest.raises(DataError, match=r"missing key \[material\] areal_density_g_m2"):
         load_experiment(tmp_path)
@@ -203,8 +216,16 @@ def test_start_scan_holds_the_membrane_a_cantilever_hardly_sees():
     mechanism), which is what this asserts does not happen."""
     from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 
-    exp = sy.template(30.0, 10.0, [0.5, 1.0], sy.grid_points(30.0, 10.0, 4, 2), angles=BIAS,
-                      test="cantilever", options={"areal_density_g_m2": RHO}, force=False)
+    exp = sy.template(
+        30.0,
+        10.0,
+        [0.5, 1.0],
+        sy.grid_points(30.0, 10.0, 4, 2),
+        angles=BIAS,
+        test="cantilever",
+        options={"areal_density_g_m2": RHO},
+        force=False,
+    )
     sy.continuum_data(exp, model(0.01), h=5.0)
     sy.add_noise(exp, 0.01, 0.0, seed=5)
     fm = ForwardModel(exp, model(0.01), h=5.0)

@@ -19,16 +19,48 @@ PLANAR = [n for n, cls in dg.EFFECTS.items() if cls.in_plane]
 CASES = [  # (candidates, fixed, confirm, max_effects, library message, command-line message)
     (None, None, 0, 1, r"^confirm 0: must be at least 1$", r"^--confirm 0: must be"),
     (None, None, 1, -1, r"^max_effects -1: must be at least 0$", r"^--max-effects -1: must"),
-    (["sheer"], None, 1, 1, r"^candidates \['sheer'\]: unknown term 'sheer'",
-     r"^--candidates sheer: unknown term 'sheer'"),
-    (["twist"], None, 1, 1, r"^candidates \['twist'\]: these data cannot see twist",
-     r"^--candidates twist: these data cannot see twist"),
-    (["shear"], None, 1, 1, r"every candidate is already in the baseline \(baseline \[",
-     r"every candidate is already in the baseline \(--terms fibre_stretch,shear\)"),
-    (None, ["shear_locking"], 1, 1, r"^fixed \['shear_locking'\]: 'shear_locking' is not a "
-     "baseline term", r"^--fixed shear_locking: 'shear_locking' is not a baseline term"),
-    (None, ["fibre_stretch"], 1, 1, r"fibre_stretch.k_l, fibre_stretch.k_m is not given in "
-     r"params", r"is not given in --params p.json"),
+    (
+        ["sheer"],
+        None,
+        1,
+        1,
+        r"^candidates \['sheer'\]: unknown term 'sheer'",
+        r"^--candidates sheer: unknown term 'sheer'",
+    ),
+    (
+        ["twist"],
+        None,
+        1,
+        1,
+        r"^candidates \['twist'\]: these data cannot see twist",
+        r"^--candidates twist: these data cannot see twist",
+    ),
+    (
+        ["shear"],
+        None,
+        1,
+        1,
+        r"every candidate is already in the baseline \(baseline \[",
+        r"every candidate is already in the baseline \(--terms fibre_stretch,shear\)",
+    ),
+    (
+        None,
+        ["shear_locking"],
+        1,
+        1,
+        r"^fixed \['shear_locking'\]: 'shear_locking' is not a "
+        "baseline term",
+        r"^--fixed shear_locking: 'shear_locking' is not a baseline term",
+    ),
+    (
+        None,
+        ["fibre_stretch"],
+        1,
+        1,
+        r"fibre_stretch.k_l, fibre_stretch.k_m is not given in "
+        r"params",
+        r"is not given in --params p.json",
+    ),
     (None, ["shear", "shear"], 1, 1, r"'shear' is given twice", r"'shear' is given twice"),
 ]
 
@@ -37,12 +69,26 @@ CASES = [  # (candidates, fixed, confirm, max_effects, library message, command-
 def test_library_and_command_line_refuse_alike(case):
     cands, fixed, confirm, max_effects, lib, cli = case
     with pytest.raises(InputError, match=lib):
-        check_choices(BASE, cands, fixed, PARAMS, PLANAR, confirm, max_effects,
-                      library_labels(BASE, cands, fixed))
+        check_choices(
+            BASE,
+            cands,
+            fixed,
+            PARAMS,
+            PLANAR,
+            confirm,
+            max_effects,
+            library_labels(BASE, cands, fixed),
+        )
     spell = ",".join
-    labels = Labels(f"--candidates {spell(cands or [])}", f"--fixed {spell(fixed or [])}",
-                    "--terms fibre_stretch,shear", "--params", "in --params p.json",
-                    "--confirm", "--max-effects")
+    labels = Labels(
+        f"--candidates {spell(cands or [])}",
+        f"--fixed {spell(fixed or [])}",
+        "--terms fibre_stretch,shear",
+        "--params",
+        "in --params p.json",
+        "--confirm",
+        "--max-effects",
+    )
     with pytest.raises(InputError, match=cli):
         check_choices(BASE, cands, fixed, PARAMS, PLANAR, confirm, max_effects, labels)
 

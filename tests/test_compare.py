@@ -14,8 +14,11 @@ from fabricsurf.inverse.forward.misfit import misfit
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
-TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-         "geodesic_bending": {"A_g": 10.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 30.0, "k_m": 30.0},
+    "shear": {"k_s": 0.5},
+    "geodesic_bending": {"A_g": 10.0},
+}
 
 
 def experiment():
@@ -58,8 +61,21 @@ def test_compare_cli(tmp_path):
         write_experiment(root / "data", exp)
         (root / "p.json").write_text(json.dumps(TRUTH))
     comm.barrier()
-    assert main(["compare", str(root / "data"), "--params", str(root / "p.json"),
-                 "--out", str(root / "out"), "--h", "5"]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(root / "data"),
+                "--params",
+                str(root / "p.json"),
+                "--out",
+                str(root / "out"),
+                "--h",
+                "5",
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     m = json.loads((root / "out" / "misfit.json").read_text())
     assert 0.7 < m["combined"] < 1.3 and len(m["experiments"][0]["per_step"]) == 2
@@ -68,5 +84,6 @@ def test_compare_cli(tmp_path):
     assert used["h_requested"] == 5.0 and 0 < used["h_used"] <= 5.0 and used["mesh_kind"]
     for f in ("error_map.png", "force.png", "error_vs_step.png", "per_point.csv"):
         assert (root / "out" / f).is_file()
-    assert main(["compare", str(root / "nodata"), "--terms", "shear", "--out",
-                 str(root / "o2")]) == 2
+    assert (
+        main(["compare", str(root / "nodata"), "--terms", "shear", "--out", str(root / "o2")]) == 2
+    )

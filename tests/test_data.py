@@ -22,8 +22,17 @@ def good_experiment() -> Experiment:
     field_step = np.repeat(steps, len(X))
     u = np.column_stack([np.linspace(0, 1, 6), np.linspace(0, -0.1, 6)])
     setup = PluginSetup("bias_extension", 40.0, 20.0, (45.0, -45.0), {"clamp": "gradient"})
-    return Experiment("t", setup, steps, np.array([1.0, 2.0]), np.array([0.5, 1.1]),
-                      field_step, np.vstack([X, X]), u, noise_std=0.01)
+    return Experiment(
+        "t",
+        setup,
+        steps,
+        np.array([1.0, 2.0]),
+        np.array([0.5, 1.1]),
+        field_step,
+        np.vstack([X, X]),
+        u,
+        noise_std=0.01,
+    )
 
 
 @pytest.fixture

@@ -28,8 +28,10 @@ from fabricsurf.inverse.synthetic import generate as sy
 
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 NOISE_LEVEL = 1.25
-SERIAL = pytest.mark.serial("the diagnosis's parallel path is test_hidden_geodesic_bending_cli's "
-                            "and the hidden-effect demo's (test_demos)")
+SERIAL = pytest.mark.serial(
+    "the diagnosis's parallel path is test_hidden_geodesic_bending_cli's "
+    "and the hidden-effect demo's (test_demos)"
+)
 
 
 def continuum(length, width, hidden, angles=(45.0, -45.0), noise=0.01, seed=0, h=2.2):
@@ -47,8 +49,11 @@ def diagnose(*args, **kw):
 
 def check(d, hidden):
     rows = {r["effect"]: r for r in d.ranking}
-    print(d.as_dict()["baseline"]["misfit"], [(r["effect"], r["score"], r["refit_misfit"])
-                                              for r in d.ranking], d.verdict)
+    print(
+        d.as_dict()["baseline"]["misfit"],
+        [(r["effect"], r["score"], r["refit_misfit"]) for r in d.ranking],
+        d.verdict,
+    )
     assert d.verdict == hidden and d.ranking[0]["effect"] == hidden
     assert rows[hidden]["significant"] and rows[hidden]["refit_misfit"] <= NOISE_LEVEL
     assert d.base_fit.misfit["combined"] > NOISE_LEVEL
@@ -62,16 +67,36 @@ def test_hidden_geodesic_bending_cli(tmp_path):
     if comm.rank == 0:
         write_experiment(root / "data", exp)
     comm.barrier()
-    assert main(["diagnose", str(root / "data"), "--terms", "fibre_stretch,shear",
-                 "--h", "3.5", "--confirm", "1", "--out", str(root / "out"), "--add-best"]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                str(root / "data"),
+                "--terms",
+                "fibre_stretch,shear",
+                "--h",
+                "3.5",
+                "--confirm",
+                "1",
+                "--out",
+                str(root / "out"),
+                "--add-best",
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     d = json.loads((root / "out" / "diagnosis.json").read_text())
     assert d["verdict"] == "geodesic_bending" == d["ranking"][0]["effect"]
     assert d["tie"] is None and d["separating_experiment"] is None  # one refit: nothing to tie
     best = json.loads((root / "out" / "model_best.json").read_text())
     assert best["misfit"]["combined"] <= NOISE_LEVEL < d["baseline"]["misfit"]
-    for f in ("baseline_error_map.png", "before_after_error_map.png",
-              "before_after_error_vs_step.png", "before_after_force.png"):
+    for f in (
+        "baseline_error_map.png",
+        "before_after_error_map.png",
+        "before_after_error_vs_step.png",
+        "before_after_force.png",
+    ):
         assert (root / "out" / f).is_file()
 
 
@@ -88,6 +113,8 @@ def test_hidden_shear():
 def test_complete_model_gives_null():
     exp = continuum(62.0, 31.0, {"geodesic_bending": {"A_g": 15.0}}, seed=15)
     d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.1, confirm=1)
-    print(d.base_fit.misfit["combined"], [(r["effect"], r["refit_misfit"], r["significant"])
-                                          for r in d.ranking])
+    print(
+        d.base_fit.misfit["combined"],
+        [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking],
+    )
     assert d.verdict is None and d.base_fit.misfit["combined"] <= NOISE_LEVEL

@@ -27,8 +27,10 @@ from fabricsurf.inverse.synthetic import generate as sy
 
 K_L, K_S = 1000.0, 0.4
 LENGTH, WIDTH = 48.0, 24.0
-SERIAL = pytest.mark.serial("lattice data are diagnosed on 2 ranks by the hidden-effect demo "
-                            "(test_demos), and the diagnosis CLI by test_diagnose")
+SERIAL = pytest.mark.serial(
+    "lattice data are diagnosed on 2 ranks by the hidden-effect demo "
+    "(test_demos), and the diagnosis CLI by test_diagnose"
+)
 
 
 def lattice(angles, A_g, seed, spacing=1.6, noise=0.02):
@@ -41,10 +43,19 @@ def lattice(angles, A_g, seed, spacing=1.6, noise=0.02):
 @SERIAL
 def test_complete_model_no_false_alarm_in_the_stiff_regime():
     exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=3)
-    d = diagnose(exp, ["fibre_stretch", "shear", "geodesic_bending"], h=3.0, confirm=1,
-                 max_effects=1, check_discretisation=False)
-    print(d.outcome(), d.base_fit.misfit["combined"],
-          [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking])
+    d = diagnose(
+        exp,
+        ["fibre_stretch", "shear", "geodesic_bending"],
+        h=3.0,
+        confirm=1,
+        max_effects=1,
+        check_discretisation=False,
+    )
+    print(
+        d.outcome(),
+        d.base_fit.misfit["combined"],
+        [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking],
+    )
     assert d.verdict is None
     assert d.outcome() in ("nothing missing", "unexplained misfit")
     if not d.adequate:  # the best lead is the refit that came closest, and it failed the rule
@@ -65,8 +76,14 @@ def test_hidden_geodesic_bending_at_40_degrees_in_m_and_kn(tmp_path):
     loaded = load_experiment(root / "data")
     assert np.allclose(loaded.u, exp.u) and np.isclose(loaded.length, LENGTH)
     assert np.allclose(loaded.force, exp.force)
-    d = diagnose(loaded, ["fibre_stretch", "shear"], h=3.0, confirm=1, max_effects=1,
-                 check_discretisation=False)
+    d = diagnose(
+        loaded,
+        ["fibre_stretch", "shear"],
+        h=3.0,
+        confirm=1,
+        max_effects=1,
+        check_discretisation=False,
+    )
     print(d.outcome(), d.path, [(r["effect"], r["refit_misfit"]) for r in d.ranking])
     assert d.verdict == "geodesic_bending" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
@@ -82,10 +99,15 @@ def test_hidden_geodesic_bending_strong_and_weak(l_b):
     the baseline: there the bending is not identifiable and the tool says unexplained misfit
     (the misfits are in docs/verification.md, "Margins of the tests")."""
     exp = lattice((45.0, -45.0), A_g=K_S * l_b**2, seed=8, spacing=1.0)
-    d = diagnose(exp, ["fibre_stretch", "shear"], h=3.0, confirm=1, max_effects=1,
-                 check_discretisation=False)
-    print(l_b, d.outcome(), [round(p["misfit"], 3) for p in d.path],
-          [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking])
+    d = diagnose(
+        exp, ["fibre_stretch", "shear"], h=3.0, confirm=1, max_effects=1, check_discretisation=False
+    )
+    print(
+        l_b,
+        d.outcome(),
+        [round(p["misfit"], 3) for p in d.path],
+        [(r["effect"], r["refit_misfit"], r["significant"]) for r in d.ranking],
+    )
     assert d.verdict == "geodesic_bending" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2
 
@@ -100,8 +122,14 @@ def test_hidden_shear_in_the_stiff_regime():
     pass, the tool reports unexplained misfit with shear as its best lead. It must never name
     another effect; on the full 187 × 119 mm specimen shear is named (docs/diagnosis.md)."""
     exp = lattice((45.0, -45.0), A_g=K_S * 25.0, seed=6)
-    d = diagnose(exp, ["fibre_stretch", "geodesic_bending"], h=3.0, confirm=1, max_effects=1,
-                 check_discretisation=False)
+    d = diagnose(
+        exp,
+        ["fibre_stretch", "geodesic_bending"],
+        h=3.0,
+        confirm=1,
+        max_effects=1,
+        check_discretisation=False,
+    )
     row = d.ranking[0]
     print(d.outcome(), d.path, row["refit_params"], d.unexplained and d.unexplained["best_lead"])
     assert row["effect"] == "shear" and 0.5 * K_S < row["refit_params"]["k_s"] < 2.0 * K_S

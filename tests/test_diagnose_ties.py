@@ -33,14 +33,17 @@ from fabricsurf.model.terms import make_term
 BASE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 HIDDEN = {"shear_gradient": {"A_Gamma": 20.0}}
 PAIR = ["shear_gradient", "stretch_gradient"]
-SERIAL = pytest.mark.serial("the diagnosis's parallel path is test_diagnose's CLI test and "
-                            "the hidden-effect demo's (test_demos); the tie is rank-local "
-                            "arithmetic on reduced residuals")
+SERIAL = pytest.mark.serial(
+    "the diagnosis's parallel path is test_diagnose's CLI test and "
+    "the hidden-effect demo's (test_demos); the tie is rank-local "
+    "arithmetic on reduced residuals"
+)
 
 
 def continuum(angles, seed, nx=10, ny=5):
-    exp = sy.template(66.0, 33.0, [1.2, 2.4, 3.6], sy.grid_points(66.0, 33.0, nx, ny),
-                      angles=angles)
+    exp = sy.template(
+        66.0, 33.0, [1.2, 2.4, 3.6], sy.grid_points(66.0, 33.0, nx, ny), angles=angles
+    )
     params = {**BASE, **HIDDEN}
     sy.continuum_data(exp, full_model(list(params), params), h=2.2)
     return sy.add_noise(exp, 0.01, 0.02, seed)
@@ -49,8 +52,9 @@ def continuum(angles, seed, nx=10, ny=5):
 @SERIAL
 def test_collinear_pair_is_a_tie_and_the_suggested_test_separates_it(tmp_path):
     exp = continuum((45.0, -45.0), seed=14)
-    d = diagnose(exp, ["fibre_stretch", "shear"], h=3.3, confirm=3, max_effects=1,
-                 check_discretisation=False)
+    d = diagnose(
+        exp, ["fibre_stretch", "shear"], h=3.3, confirm=3, max_effects=1, check_discretisation=False
+    )
     tie = d.as_dict()
     print(tie["tie"], tie["tie_test"])
     assert sorted(tie["tie"]) == PAIR and tie["verdict"] in PAIR
@@ -84,12 +88,12 @@ def test_collinear_pair_is_a_tie_and_the_suggested_test_separates_it(tmp_path):
     k = math.sqrt(max(best["data_factor"], 1.0))
     new = continuum((30.0, -30.0), seed=23, nx=math.ceil(10 * k), ny=math.ceil(5 * k))
     refit = {}
-    with ForwardSet([new], [make_term(t, **p) for t, p in d.tie.refits[a].params().items()],
-                    h=3.3) as fs:
+    with ForwardSet(
+        [new], [make_term(t, **p) for t, p in d.tie.refits[a].params().items()], h=3.3
+    ) as fs:
         for c in PAIR:
             fs.set_values(d.tie.refits[c].values)
-            refit[c] = fit(fs, d.tie.refits[c].free, scale_start=False,
-                           space="linear")
+            refit[c] = fit(fs, d.tie.refits[c].free, scale_start=False, space="linear")
         rf_t, rf_o = refit["shear_gradient"], refit["stretch_gradient"]
         vs = compare(fs, rf_t, rf_o, rf_t.free[:-1], rf_t.free[-1:], rf_o.free[-1:])
     print(vs)

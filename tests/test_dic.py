@@ -20,8 +20,10 @@ from fabricsurf.inverse.dic.importer import import_dic
 from fabricsurf.inverse.dic.layouts import LAYOUTS, custom_layout
 
 COMM = MPI.COMM_WORLD
-SERIAL = pytest.mark.serial("numpy on one process, nothing shared between ranks; the 2-rank "
-                            "path is test_command_writes_a_contract_directory's")
+SERIAL = pytest.mark.serial(
+    "numpy on one process, nothing shared between ranks; the 2-rank "
+    "path is test_command_writes_a_contract_directory's"
+)
 L, W = 120.0, 80.0
 PATH = [2.0, 4.0, 6.0]
 SPACING = 1.0  # mm between the DIC points
@@ -35,8 +37,9 @@ def grid(spacing=SPACING, margin=1.0):
 
 def linear(X, t):
     """A field linear in X (binning reproduces it exactly at the bins' mean points)."""
-    return np.column_stack([t * X[:, 0] / L + 0.01 * t * X[:, 1],
-                            -0.003 * t * (X[:, 1] - W / 2) + 0.002 * t * X[:, 0]])
+    return np.column_stack(
+        [t * X[:, 0] / L + 0.01 * t * X[:, 1], -0.003 * t * (X[:, 1] - W / 2) + 0.002 * t * X[:, 0]]
+    )
 
 
 def quadratic(X, t):
@@ -74,13 +77,21 @@ test = "bias_extension"
 """
 
 
-def make(d, layout="dice", frame=PIXELS, field=linear, holes=0.05, points=None, text=None,
-         noise=0.0, images=(1, 2, 3)):
+def make(
+    d,
+    layout="dice",
+    frame=PIXELS,
+    field=linear,
+    holes=0.05,
+    points=None,
+    text=None,
+    noise=0.0,
+    images=(1, 2, 3),
+):
     """Write a synthetic export and its dic.toml in ``d``; returns the spec path and points."""
     X = grid() if points is None else points
     rng = np.random.default_rng(7)
-    Us = [field(X, t) + rng.normal(0, noise, X.shape) if noise else field(X, t)
-          for t in PATH]
+    Us = [field(X, t) + rng.normal(0, noise, X.shape) if noise else field(X, t) for t in PATH]
     lay = LAYOUTS[layout] if isinstance(layout, str) else layout
     write_images(d / "img", lay, frame, list(images), X, Us, holes=holes, seed=3)
     spec = d / "dic.toml"
@@ -89,8 +100,10 @@ def make(d, layout="dice", frame=PIXELS, field=linear, holes=0.05, points=None, 
 
 
 def field_error(exp, field):
-    return max(np.abs(exp.u[exp.step_rows(s)] - field(exp.X[exp.step_rows(s)], t)).max()
-               for s, t in zip(exp.steps, exp.path))
+    return max(
+        np.abs(exp.u[exp.step_rows(s)] - field(exp.X[exp.step_rows(s)], t)).max()
+        for s, t in zip(exp.steps, exp.path)
+    )
 
 
 def lost(path, layout):
@@ -124,11 +137,20 @@ def test_each_layout_round_trip(tmp_path, name):
 @SERIAL
 def test_columns_mapping_and_units_tags(tmp_path):
     """Any other layout through [columns]: names, a validity flag, pixel units."""
-    table = {"x": "px", "y": "py", "u": "du", "v": "dv", "valid": "ok", "invalid": 0,
-             "unit": "pixel"}
+    table = {
+        "x": "px",
+        "y": "py",
+        "u": "du",
+        "v": "dv",
+        "valid": "ok",
+        "invalid": 0,
+        "unit": "pixel",
+    }
     lay = custom_layout(table, "t")
-    extra = "[columns]\n" + "\n".join(f"{k} = {v!r}".replace("'", '"') if isinstance(v, str)
-                                      else f"{k} = {v}" for k, v in table.items())
+    extra = "[columns]\n" + "\n".join(
+        f"{k} = {v!r}".replace("'", '"') if isinstance(v, str) else f"{k} = {v}"
+        for k, v in table.items()
+    )
     spec, _ = make(tmp_path, lay, text=spec_text("columns", extra=extra), holes=0.0)
     exp, _ = import_dic(read_spec(spec))
     assert field_error(exp, linear) < 1e-6
@@ -178,7 +200,8 @@ def test_noise_estimate(tmp_path):
     spec, X = make(tmp_path, "dice", field=quadratic, noise=0.02, holes=0.0)
     exp, rep = import_dic(read_spec(spec))
     assert rep["noise"]["method"].startswith("estimated") and exp.noise_std == pytest.approx(
-        0.02, rel=0.1)
+        0.02, rel=0.1
+    )
     spec.write_text(spec.read_text() + "\n[binning]\npitch = 2.0\n")
     exp, _ = import_dic(read_spec(spec))
     assert exp.noise_std == pytest.approx(0.01, rel=0.1)
@@ -199,8 +222,9 @@ def test_reference_images_give_the_noise(tmp_path):
     Us = [rng.normal(0, 0.01, X.shape)] + [linear(X, t) for t in PATH]
     write_images(tmp_path / "img", LAYOUTS["dice"], PIXELS, [0, 1, 2, 3], X, Us, holes=0.02)
     spec = tmp_path / "dic.toml"
-    spec.write_text(spec_text(steps="reference_images = [0]\nimages = [1, 2, 3]\n"
-                                    "path = [2.0, 4.0, 6.0]"))
+    spec.write_text(
+        spec_text(steps="reference_images = [0]\nimages = [1, 2, 3]\npath = [2.0, 4.0, 6.0]")
+    )
     exp, rep = import_dic(read_spec(spec))
     assert list(exp.steps) == [1, 2, 3] and len(rep["reference"]) == 1
     assert "reference" in rep["noise"]["method"]
@@ -232,8 +256,12 @@ def small(tmp_path):
 @SERIAL
 def test_bad_cells_and_rows(small):
     spec, f = small
-    head = f.read_text().splitlines().index(
-        next(r for r in f.read_text().splitlines() if r.startswith("COORD"))) + 1
+    head = (
+        f.read_text()
+        .splitlines()
+        .index(next(r for r in f.read_text().splitlines() if r.startswith("COORD")))
+        + 1
+    )
     data_line = f.read_text().splitlines()[head + 4]
     cells = data_line.split(",")
     edit_file(f, head + 5, ",".join([cells[0], cells[1], "abc", *cells[3:]]))
@@ -262,10 +290,16 @@ def test_outside_outline(small):
     spec, _f = small
     text = spec.read_text()
     spec.write_text(text.replace("origin = [200.0", "origin = [300.0"))
-    reject(spec, r"DICe_solution_01.txt line \d+: point .* lies at \(X, Y\) = \(-",
-           r"outside the specimen \[0, 120\] x \[0, 80\] mm")
-    spec.write_text(text.replace("origin = [200.0", "origin = [300.0").replace(
-        "[frame]", '[frame]\noutside = "drop"'))
+    reject(
+        spec,
+        r"DICe_solution_01.txt line \d+: point .* lies at \(X, Y\) = \(-",
+        r"outside the specimen \[0, 120\] x \[0, 80\] mm",
+    )
+    spec.write_text(
+        text.replace("origin = [200.0", "origin = [300.0").replace(
+            "[frame]", '[frame]\noutside = "drop"'
+        )
+    )
     exp, rep = import_dic(read_spec(spec))
     assert rep["outside_dropped"] > 0 and exp.X[:, 0].min() >= 0
 
@@ -277,16 +311,22 @@ def test_units_and_frame_keys(small):
     spec.write_text(text.replace("mm_per_pixel = 0.05", ""))
     reject(spec, r"dic.toml: the coordinates are in pixels .* \[units\] mm_per_pixel is missing")
     spec.write_text(text.replace("angle_deg = 2.5", ""))
-    reject(spec, r"DICe_solution_01.txt: the point cloud's long axis lies \+2.5\d° from",
-           r"give \[frame\] angle_deg = 2.5")
+    reject(
+        spec,
+        r"DICe_solution_01.txt: the point cloud's long axis lies \+2.5\d° from",
+        r"give \[frame\] angle_deg = 2.5",
+    )
     spec.write_text(text.replace('grip = "left"', 'grip = "west"'))
     reject(spec, r"\[frame\] grip = 'west' is not one of")
     spec.write_text(text)
     lines = f.read_text().splitlines()
     cells = lines[9].split(",")
     edit_file(f, 10, ",".join([*cells[:2], "1e6", *cells[3:]]))  # pixels, 50 m
-    reject(spec, r"DICe_solution_02.txt line 10: displacement of 5e\+04 mm, more than 10 times "
-           r"the specimen size \(120 mm\): check \[units\]")
+    reject(
+        spec,
+        r"DICe_solution_02.txt line 10: displacement of 5e\+04 mm, more than 10 times "
+        r"the specimen size \(120 mm\): check \[units\]",
+    )
 
 
 @SERIAL
@@ -303,13 +343,19 @@ def test_lost_images_binning_and_scale(small):
     reject(spec, rf"DICe_solution_02.txt: every one of its {len(rows)} rows is a hole")
     f.write_text(original)
     spec.write_text(text + "[binning]\npitch = 8.0\nmin_points = 50\n")
-    reject(spec, r"DICe_solution_01.txt: no bin of \[binning\] pitch = 8 mm holds \[binning\] "
-           r"min_points = 50 points")
+    reject(
+        spec,
+        r"DICe_solution_01.txt: no bin of \[binning\] pitch = 8 mm holds \[binning\] "
+        r"min_points = 50 points",
+    )
     spec.write_text(text + "[binning]\npitch = 45.0\n")
     reject(spec, r"\[binning\] pitch = 45 mm is more than half the specimen's 80 mm side")
     spec.write_text(text.replace("mm_per_pixel = 0.05", "mm_per_pixel = 0.00005"))
-    reject(spec, r"DICe_solution_01.txt: the points span 0.11\d* x 0.07\d* mm of the 120 x 80 mm "
-           r"specimen at 5e-05 mm per pixel")
+    reject(
+        spec,
+        r"DICe_solution_01.txt: the points span 0.11\d* x 0.07\d* mm of the 120 x 80 mm "
+        r"specimen at 5e-05 mm per pixel",
+    )
 
 
 @SERIAL
@@ -320,8 +366,11 @@ def test_mixed_units(tmp_path):
     f.write_text(f.read_text().replace("u [mm]", "u [m]"))
     reject(spec, rf"{f.name} line 4: mixed units in the header \(x in mm, y in mm, u in m")
     f.write_text(f.read_text().replace("[mm]", "[pixel]").replace("u [m]", "u [pixel]"))
-    reject(spec, rf"{f.name} line 4: the x column is in pixel but \[units\] coordinates is "
-           '"mm"')
+    reject(
+        spec,
+        rf"{f.name} line 4: the x column is in pixel but \[units\] coordinates is "
+        '"mm"',
+    )
 
 
 @SERIAL
@@ -330,8 +379,11 @@ def test_steps_and_images(small):
     text = spec.read_text()
     spec.write_text(text.replace("images = [1, 2, 3]", "images = [1, 3, 2]"))
     reject(spec, r"\[steps\] images = \[1, 3, 2\]: steps out of order: step 3 is image 2")
-    spec.write_text(text.replace("images = [1, 2, 3]\npath = [2.0, 4.0, 6.0]",
-                                 "images = [1, 2]\npath = [2.0, 4.0]"))
+    spec.write_text(
+        text.replace(
+            "images = [1, 2, 3]\npath = [2.0, 4.0, 6.0]", "images = [1, 2]\npath = [2.0, 4.0]"
+        )
+    )
     reject(spec, r"DICe_solution_03.txt: image 3 has no matching load step")
     spec.write_text(text.replace("images = [1, 2, 3]", "images = [1, 2, 4]"))
     reject(spec, r"image 3 has no matching load step")
@@ -346,8 +398,11 @@ def test_steps_and_images(small):
         g.rename(g.with_name(f"run-{int(g.stem.split('_')[-1]):04d}_0.txt"))
     spec.write_text(text.replace("images = [1, 2, 3]", "images = [1, 3, 9]"))
     reject(spec, r"run-0003_0.txt and run-0001_0.txt both give image 0 .* image_number")
-    spec.write_text(text.replace("images = [1, 2, 3]", "images = [1, 3, 9]").replace(
-        "[export]", '[export]\nimage_number = "-(\\\\d+)_"'))
+    spec.write_text(
+        text.replace("images = [1, 2, 3]", "images = [1, 3, 9]").replace(
+            "[export]", '[export]\nimage_number = "-(\\\\d+)_"'
+        )
+    )
     assert len(import_dic(read_spec(spec))[0].steps) == 3
 
 
@@ -367,8 +422,10 @@ def test_command_writes_a_contract_directory(tmp_path):
     base = shared(tmp_path)
     if COMM.rank == 0:
         spec, _ = make(base, "dice", points=grid(spacing=2.0), noise=0.01)
-        spec.write_text(spec.read_text().replace("[steps]", "[steps]\nforce = [1.0, 2.0, 2.5]")
-                        + "\n[binning]\npitch = 6.0\n")
+        spec.write_text(
+            spec.read_text().replace("[steps]", "[steps]\nforce = [1.0, 2.0, 2.5]")
+            + "\n[binning]\npitch = 6.0\n"
+        )
     COMM.barrier()
     out = base / "measured"
     assert main(["import-dic", str(base / "dic.toml"), "--out", str(out)]) == 0

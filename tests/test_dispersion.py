@@ -104,8 +104,9 @@ def bloch():
     from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
 
     def run(k_l, k_s, A_g, x):
-        lat = hencky_lattice(4.0, 4.0, 1.0, (0.0, 90.0),
-                             **lattice_from_continuum(k_l, k_s, A_g, 1.0, (0.0, 90.0)))
+        lat = hencky_lattice(
+            4.0, 4.0, 1.0, (0.0, 90.0), **lattice_from_continuum(k_l, k_s, A_g, 1.0, (0.0, 90.0))
+        )
         H = lat.net.hessian(lat.net.X)
         return dp.bloch_omega2(H, lat.net.X, int(lat.grid[2, 2]), x, lat.L, 1.0)
 

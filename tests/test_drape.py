@@ -46,11 +46,18 @@ def cylinder_error(h: float) -> tuple[float, float]:
     """(largest position error, largest |γ|) of the net on a cylinder of radius 30 mm, axis
     along the frame's e2, over |u|, |v| ≤ 24 mm: exact r = (ρ sin(ξ/ρ), η, ρ cos(ξ/ρ))."""
     rho = 30.0
-    net = goursat_drape.drape(goursat_drape.Cylinder(rho), np.array([0.0, 0.0, rho]),
-                              np.eye(3)[:2], ANGLES, h, round(24.0 / h))
+    net = goursat_drape.drape(
+        goursat_drape.Cylinder(rho),
+        np.array([0.0, 0.0, rho]),
+        np.eye(3)[:2],
+        ANGLES,
+        h,
+        round(24.0 / h),
+    )
     X = reference_points(net)
-    exact = np.stack([rho * np.sin(X[..., 0] / rho), X[..., 1], rho * np.cos(X[..., 0] / rho)],
-                     axis=-1)
+    exact = np.stack(
+        [rho * np.sin(X[..., 0] / rho), X[..., 1], rho * np.cos(X[..., 0] / rho)], axis=-1
+    )
     return float(np.abs(net.x - exact).max()), float(np.abs(net.shear).max())
 
 
@@ -59,13 +66,15 @@ def cone_error(h: float) -> tuple[float, float]:
     20 mm: the development's polar coordinates (s, φ) about the apex give the azimuth φ / sin α."""
     al, s0 = math.radians(30.0), 80.0
     e1 = np.array([math.sin(al), 0.0, math.cos(al)])
-    net = goursat_drape.drape(goursat_drape.Cone(al), s0 * e1, np.array([e1, [0.0, 1.0, 0.0]]),
-                              ANGLES, h, round(20.0 / h))
+    net = goursat_drape.drape(
+        goursat_drape.Cone(al), s0 * e1, np.array([e1, [0.0, 1.0, 0.0]]), ANGLES, h, round(20.0 / h)
+    )
     X = reference_points(net)
     d0, d1 = s0 + X[..., 0], X[..., 1]
     s, psi = np.hypot(d0, d1), np.arctan2(d1, d0) / math.sin(al)
-    exact = np.stack([s * math.sin(al) * np.cos(psi), s * math.sin(al) * np.sin(psi),
-                      s * math.cos(al)], axis=-1)
+    exact = np.stack(
+        [s * math.sin(al) * np.cos(psi), s * math.sin(al) * np.sin(psi), s * math.cos(al)], axis=-1
+    )
     return float(np.abs(net.x - exact).max()), float(np.abs(net.shear).max())
 
 
@@ -83,7 +92,7 @@ def test_sphere_generators_are_great_circles():
     errors = []
     for h in (2.0, 1.0):
         net = goursat_drape.hemisphere(R, ANGLES, h, 0.5 * math.pi * R)
-        x = net.x[net.n:, net.n]  # the generator along +L
+        x = net.x[net.n :, net.n]  # the generator along +L
         polar = np.arccos(np.clip(x[:, 2] / R, -1.0, 1.0))
         k = np.arange(len(x))
         errors.append(np.abs(polar - k * h / R).max())

@@ -28,13 +28,24 @@ from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet
 from fabricsurf.inverse.synthetic import generate as sy
 
 CAO = cao2008_plain_weave()
-MATERIAL = {"fibre_stretch": {"k_l": 40.0, "k_m": 40.0}, "shear": {"k_s": 0.4},
-            "shear_locking": {"k4": 0.8, "k6": 0.5}, "geodesic_bending": {"A_g": 5.0}}
+MATERIAL = {
+    "fibre_stretch": {"k_l": 40.0, "k_m": 40.0},
+    "shear": {"k_s": 0.4},
+    "shear_locking": {"k4": 0.8, "k6": 0.5},
+    "geodesic_bending": {"A_g": 5.0},
+}
 
 
 def frame(frame_kind: str, path=(6.0, 12.0, 20.0)):
-    return sy.template(80.0, 80.0, list(path), np.zeros((0, 2)), angles=(0.0, 90.0),
-                       test="picture_frame", options={"frame": frame_kind})
+    return sy.template(
+        80.0,
+        80.0,
+        list(path),
+        np.zeros((0, 2)),
+        angles=(0.0, 90.0),
+        test="picture_frame",
+        options={"frame": frame_kind},
+    )
 
 
 def dW(g):
@@ -78,11 +89,45 @@ def test_cao_force_only_compare_and_fit(tmp_path):
     f = json.loads((root / "fit" / "fit.json").read_text())
     assert f["misfit"]["combined"] < m["combined"]
     assert f["provenance"]["inputs"] == [str(root / "cao")]
-    assert main(["compare", str(root / "cao"), "--params", str(root / "fit" / "fit.json"),
-                 "--h", "28.75", "--out", str(root / "again")]) == 0
-    assert main(["bias", "--terms", "fibre_stretch,shear", "--params",
-                 str(root / "fit" / "fit.json"), "--length", "230", "--width", "115", "--h",
-                 "28.75", "--ubar", "10", "--steps", "1", "--out", str(root / "bias")]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(root / "cao"),
+                "--params",
+                str(root / "fit" / "fit.json"),
+                "--h",
+                "28.75",
+                "--out",
+                str(root / "again"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "bias",
+                "--terms",
+                "fibre_stretch,shear",
+                "--params",
+                str(root / "fit" / "fit.json"),
+                "--length",
+                "230",
+                "--width",
+                "115",
+                "--h",
+                "28.75",
+                "--ubar",
+                "10",
+                "--steps",
+                "1",
+                "--out",
+                str(root / "bias"),
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     again = json.loads((root / "again" / "misfit.json").read_text())
     assert abs(again["chi2"] - f["chi2"]) <= 1e-8 * f["chi2"]
@@ -115,16 +160,49 @@ def test_bias_and_frame_fitted_together(tmp_path):
         write_experiment(root / "bias", bias)
         write_experiment(root / "frame", pf)
     comm.barrier()
-    assert main(["compare", str(root / "bias"), str(root / "frame"), "--terms",
-                 "fibre_stretch,shear", "--h", "4", "--out", str(root / "cmp")]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(root / "bias"),
+                str(root / "frame"),
+                "--terms",
+                "fibre_stretch,shear",
+                "--h",
+                "4",
+                "--out",
+                str(root / "cmp"),
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     assert (root / "cmp" / "frame_force.png").is_file()
     assert (root / "cmp" / "bias_error_map.png").is_file()
     # --max-dofs 1: on the mesh the bias data were made on, without the mesh selection (its
     # h/2 check would refine towards a mesh finer than the data's own; tests/test_mesh_choice)
-    assert main(["diagnose", str(root / "bias"), str(root / "frame"), "--terms",
-                 "fibre_stretch,shear", "--h", "4", "--confirm", "1", "--max-effects", "1",
-                 "--max-dofs", "1", "--out", str(root / "diag")]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                str(root / "bias"),
+                str(root / "frame"),
+                "--terms",
+                "fibre_stretch,shear",
+                "--h",
+                "4",
+                "--confirm",
+                "1",
+                "--max-effects",
+                "1",
+                "--max-dofs",
+                "1",
+                "--out",
+                str(root / "diag"),
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     d = json.loads((root / "diag" / "diagnosis.json").read_text())
     assert [e["experiment"] for e in d["final"]["misfit"]["experiments"]] == ["bias", "frame"]

@@ -98,11 +98,12 @@ def test_a_net_is_closed_from_any_two_of_its_fibres():
         k = c[f] + s * np.arange(m + 1)
         nodes = big.x[k, c[1]] if f == 0 else big.x[c[0], k]
         t = np.linspace(0.0, 1.0, 9)[:-1, None]
-        dense = np.concatenate([(1 - t) * p + t * q for p, q in itertools.pairwise(nodes)]
-                               + [nodes[-1:]])
+        dense = np.concatenate(
+            [(1 - t) * p + t * q for p, q in itertools.pairwise(nodes)] + [nodes[-1:]]
+        )
         return chord_nodes(0.999 * dense, R, a, m)  # below the sphere: projected back
 
     net = close_net(R, a, angles, {(f, s): fibre(f, s) for f in (0, 1) for s in (1, -1)})
-    window = big.x[c[0] - m:c[0] + m + 1, c[1] - m:c[1] + m + 1]
+    window = big.x[c[0] - m : c[0] + m + 1, c[1] - m : c[1] + m + 1]
     assert np.abs(net.x - window).max() < 1e-9 * R
     assert np.abs(node_shear(net)[m - 1]).max() > 0.02  # sheared along a generator

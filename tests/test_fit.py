@@ -17,8 +17,11 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
-TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
-         "geodesic_bending": {"A_g": 12.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 25.0, "k_m": 25.0},
+    "shear": {"k_s": 0.4},
+    "geodesic_bending": {"A_g": 12.0},
+}
 
 
 def noisy(seed):
@@ -29,8 +32,11 @@ def noisy(seed):
 
 def test_fit_recovers_moduli():
     exp = noisy(31)
-    start = {"fibre_stretch": {"k_l": 10.0, "k_m": 10.0}, "shear": {"k_s": 1.0},
-             "geodesic_bending": {"A_g": 3.0}}
+    start = {
+        "fibre_stretch": {"k_l": 10.0, "k_m": 10.0},
+        "shear": {"k_s": 1.0},
+        "geodesic_bending": {"A_g": 3.0},
+    }
     fm = ForwardModel(exp, full_model(list(TRUTH), start), h=4.0)
     idx = [i for i, (t, _) in enumerate(fm.params) if t.name in TRUTH]
     res = fit(fm, idx)
@@ -52,10 +58,27 @@ def test_fit_cli_saves_model_for_compare(tmp_path):
     assert main(["fit", *args, "--out", str(root / "fit")]) == 0
     comm.barrier()
     saved = json.loads((root / "fit" / "fit.json").read_text())
-    assert set(saved["std"]) == {"fibre_stretch.k_l", "fibre_stretch.k_m", "shear.k_s",
-                                 "geodesic_bending.A_g"}
-    assert main(["compare", str(root / "data"), "--params", str(root / "fit" / "fit.json"),
-                 "--h", "4", "--out", str(root / "cmp")]) == 0
+    assert set(saved["std"]) == {
+        "fibre_stretch.k_l",
+        "fibre_stretch.k_m",
+        "shear.k_s",
+        "geodesic_bending.A_g",
+    }
+    assert (
+        main(
+            [
+                "compare",
+                str(root / "data"),
+                "--params",
+                str(root / "fit" / "fit.json"),
+                "--h",
+                "4",
+                "--out",
+                str(root / "cmp"),
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     m = json.loads((root / "cmp" / "misfit.json").read_text())
     assert np.isclose(m["chi2"], saved["chi2"], rtol=1e-6)

@@ -35,8 +35,11 @@ def energy_on(msh, model) -> EnergyForm:
     penalty stretch, contributes) and whose stretches stay inside the bi-pantographic domain."""
     V = fem.VectorFunctionSpace(msh, ("CG", 2), dim=2)
     u = fem.Function(V)
-    u.interpolate(lambda x: np.vstack([0.03 * np.sin(3 * x[0]) * np.cos(2 * x[1]),
-                                       0.03 * np.cos(2 * x[0]) * np.sin(x[1])]))
+    u.interpolate(
+        lambda x: np.vstack(
+            [0.03 * np.sin(3 * x[0]) * np.cos(2 * x[1]), 0.03 * np.cos(2 * x[0]) * np.sin(x[1])]
+        )
+    )
     L, M = fibre_directions(45.0, -45.0, msh=msh)
     return EnergyForm(model, u, L, M)
 
@@ -64,8 +67,9 @@ def test_forms_own_their_constants():
     mesh_b = mark_equispaced(dmesh.create_unit_square(COMM, 3, 5))
     makes = {"bipantographic": bipantographic, "woven": woven}
     models = {k: make() for k, make in makes.items()}
-    energies = {(m, k): energy_on(m, model) for m in (mesh_a, mesh_b)
-                for k, model in models.items()}              # mesh B built last
+    energies = {
+        (m, k): energy_on(m, model) for m in (mesh_a, mesh_b) for k, model in models.items()
+    }  # mesh B built last
     forms = {}
     for (m, k), e in energies.items():
         for part in ("cell_energy", "internal"):

@@ -66,23 +66,34 @@ the punch (RMS 3.97° from the drapes, docs/forming.md)."""
 STROKE, STEPS = 4.0, 4
 DEEP, DEEP_STEPS = 12.0, 12
 TOUCH = 0.01 * R
-TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
-           "holder_pressure": 1e-3, "contact_stiffness": 100.0, "locking_angle_deg": 50.0,
-           "wrinkle_tension": 1e-3, "wrinkle_curvature": 0.1 / R}
+TOOLING = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-3,
+    "contact_stiffness": 100.0,
+    "locking_angle_deg": 50.0,
+    "wrinkle_tension": 1e-3,
+    "wrinkle_curvature": 0.1 / R,
+}
 """tests/test_hemisphere.py's set-up (the same compiled forms)."""
 FRICTION = {"friction": 0.3, "holder_pressure": 1e-2}
 
 
 def model():
-    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1),
-            Twist(k_t=0.1)]
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
 
 
 def soft():
     """The kinematic limit of tests/test_hemisphere.py: stiff fibres, shear and bending a
     hundred times softer."""
-    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1e-2), NormalBending(k_b=0.05),
-            Twist(k_t=0.05)]
+    return [
+        FibreStretch(k_l=1e3, k_m=1e3),
+        Shear(k_s=1e-2),
+        NormalBending(k_b=0.05),
+        Twist(k_t=0.05),
+    ]
 
 
 def setup(blank="square", angles=(45.0, -45.0), size=(BLANK, BLANK), **extra):
@@ -90,9 +101,15 @@ def setup(blank="square", angles=(45.0, -45.0), size=(BLANK, BLANK), **extra):
 
 
 @pytest.mark.serial("numpy only: the lattice is built on one process")
-@pytest.mark.parametrize("shape, a, b, angles", [
-    ("circle", 30.0, 30.0, (30.0, 120.0)), ("circle", 30.0, 30.0, (20.0, -50.0)),
-    ("rectangle", 36.0, 30.0, (40.0, -50.0)), ("rectangle", 36.0, 30.0, (10.0, 70.0))])
+@pytest.mark.parametrize(
+    "shape, a, b, angles",
+    [
+        ("circle", 30.0, 30.0, (30.0, 120.0)),
+        ("circle", 30.0, 30.0, (20.0, -50.0)),
+        ("rectangle", 36.0, 30.0, (40.0, -50.0)),
+        ("rectangle", 36.0, 30.0, (10.0, 70.0)),
+    ],
+)
 def test_clipped_lattice(shape, a, b, angles):
     X, tri, quality = clip_lattice(shape, a, b, angles, H)
     phi = outline(shape, a, b)
@@ -134,9 +151,17 @@ def discrete_net(n: int, L: np.ndarray, M: np.ndarray, rng) -> np.ndarray:
 
     def step(v):
         a = rng.uniform(-0.3, 0.3, 2)
-        w = np.array([*(math.cos(a[0]) * v[0] - math.sin(a[0]) * v[1],
-                        math.sin(a[0]) * v[0] + math.cos(a[0]) * v[1]), 0.0])
+        w = np.array(
+            [
+                *(
+                    math.cos(a[0]) * v[0] - math.sin(a[0]) * v[1],
+                    math.sin(a[0]) * v[0] + math.cos(a[0]) * v[1],
+                ),
+                0.0,
+            ]
+        )
         return H * (math.cos(a[1]) * w + [0.0, 0.0, math.sin(a[1])])
+
     for k in range(1, n + 1):
         for s in (1, -1):
             x[n + s * k, n] = x[n + s * (k - 1), n] + s * step(L)
@@ -157,9 +182,15 @@ def discrete_net(n: int, L: np.ndarray, M: np.ndarray, rng) -> np.ndarray:
 
 
 @pytest.mark.serial("numpy only: the lattice is built on one process")
-@pytest.mark.parametrize("shape, a, b, angles", [
-    ("rectangle", 36.0, 36.0, (45.0, -45.0)), ("circle", 42.0, 42.0, (30.0, 120.0)),
-    ("rectangle", 36.0, 30.0, (40.0, -50.0)), ("circle", 30.0, 30.0, (20.0, -50.0))])
+@pytest.mark.parametrize(
+    "shape, a, b, angles",
+    [
+        ("rectangle", 36.0, 36.0, (45.0, -45.0)),
+        ("circle", 42.0, 42.0, (30.0, 120.0)),
+        ("rectangle", 36.0, 30.0, (40.0, -50.0)),
+        ("circle", 30.0, 30.0, (20.0, -50.0)),
+    ],
+)
 def test_clipped_lattice_holds_every_fibre_net(shape, a, b, angles):
     """Stiff fibres do not lock on the clipped lattice: a discrete Chebyshev net of the lattice
     (fibre edges of length h, each parallelogram a rhombus folded about the diagonal the
@@ -192,11 +223,11 @@ def test_clipped_lattice_holds_every_fibre_net(shape, a, b, angles):
 
 def test_bad_blanks_refused_before_computing():
     with pytest.raises(DataError, match=r"\[tooling\] blank = 'oval'"):
-        HemispherePlugin.parse_options({"tooling": {"punch_radius": R, "blank": "oval"}}, 1.0,
-                                        "t")
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": R, "blank": "oval"}}, 1.0, "t")
     with pytest.raises(DataError, match=r"blank_domain = 'half'"):
-        HemispherePlugin.parse_options({"tooling": {"punch_radius": R,
-                                                     "blank_domain": "half"}}, 1.0, "t")
+        HemispherePlugin.parse_options(
+            {"tooling": {"punch_radius": R, "blank_domain": "half"}}, 1.0, "t"
+        )
     with pytest.raises(DataError, match=r"circle blank 40 × 40 mm .*die opening"):
         HemispherePlugin.check_specimen(setup("circle", size=(40.0, 40.0)), "t")
     with pytest.raises(DataError, match=r"rectangle blank 80 × 44 mm .*die opening"):
@@ -206,8 +237,7 @@ def test_bad_blanks_refused_before_computing():
     with pytest.raises(DataError, match=r"fibre_angles_deg = \[30.0, 50.0\].* 20° apart"):
         HemispherePlugin(setup("circle", (30.0, 50.0)), model(), H, COMM)
     with pytest.raises(DataError, match=r"blank_domain = 'quarter' needs a square"):
-        HemispherePlugin(setup("square", (30.0, 120.0), blank_domain="quarter"), model(), H,
-                          COMM)
+        HemispherePlugin(setup("square", (30.0, 120.0), blank_domain="quarter"), model(), H, COMM)
     with pytest.raises(DataError, match=r"h = 12 mm is more than 0.5 of the punch radius"):
         forming_blank.check_mesh(setup("circle"), 12.0, False)
     narrow = setup("rectangle", (30.0, 120.0), (80.0, 50.0))
@@ -227,16 +257,23 @@ def test_domain_choice():
     assert forming_blank.bisector_deg((20.0, -50.0)) == -15.0
 
 
-def formed(s: PluginSetup, moduli, stroke: float, steps: int, h: float = H
-           ) -> tuple[HemispherePlugin, dict]:
+def formed(
+    s: PluginSetup, moduli, stroke: float, steps: int, h: float = H
+) -> tuple[HemispherePlugin, dict]:
     e = HemispherePlugin(s, moduli, h, COMM)
     e.run(stroke, steps)
-    return e, {"force": np.array(e.force), "shear": e.max_shear_deg(),
-               "pins": e.pin_reactions(), "record": e.discretisation}
+    return e, {
+        "force": np.array(e.force),
+        "shear": e.max_shear_deg(),
+        "pins": e.pin_reactions(),
+        "record": e.discretisation,
+    }
 
 
-@pytest.mark.serial("a rank-independent identity of two discretisations; the full blank on 2 ranks "
-                    "is exercised by test_circle_rotated_pair_against_drapes (CI budget)")
+@pytest.mark.serial(
+    "a rank-independent identity of two discretisations; the full blank on 2 ranks "
+    "is exercised by test_circle_rotated_pair_against_drapes (CI budget)"
+)
 def test_full_square_matches_quarter():
     quarter, q = formed(setup(), model(), STROKE, STEPS)
     quarter.close()
@@ -245,8 +282,10 @@ def test_full_square_matches_quarter():
     assert q["record"]["domain"] == "quarter" and f["record"]["domain"] == "full"
     assert f["record"]["cells"] == 4 * q["record"]["cells"]
     rel = np.abs(f["force"][1:] / q["force"][1:] - 1.0)
-    print(f"full / quarter punch force - 1 per step: {rel}; max shear {f['shear']:.4f} "
-          f"against {q['shear']:.4f} deg; pins {f['pins']}")
+    print(
+        f"full / quarter punch force - 1 per step: {rel}; max shear {f['shear']:.4f} "
+        f"against {q['shear']:.4f} deg; pins {f['pins']}"
+    )
     assert rel[-1] < 3e-3 and rel.max() < 2e-2
     assert abs(f["shear"] - q["shear"]) < 2e-2
     assert set(f["pins"]) == {"pole_x", "pole_y", "rotation_x"}  # frictionless: all three
@@ -257,17 +296,20 @@ def test_circle_rotated_pair_against_drapes():
     """0/90 turned by 30° on a circular blank in the kinematic limit: the drapes with the
     same fibre directions from the pole. With friction the rotation is not pinned; the pole
     pins carry no load."""
-    s = PluginSetup("hemisphere", CIRCLE, CIRCLE, (30.0, 120.0), dict(TOOLING, **FRICTION,
-                                                                  blank="circle"))
+    s = PluginSetup(
+        "hemisphere", CIRCLE, CIRCLE, (30.0, 120.0), dict(TOOLING, **FRICTION, blank="circle")
+    )
     e, out = formed(s, soft(), DEEP, DEEP_STEPS)
     with e:
         m = compare_with_drapes(e, a=R / 40.0)
         g = compare_with_generator_drape(e)
     inner = np.hypot(*m["points"].T) < 0.75 * R
     d = np.abs(m["continuum_deg"] - m["fishnet_deg"])
-    print(f"circle, fibres 30/120: {out['record']}, force {out['force'][-1]:.4f} N, "
-          f"{summary(m)}, within 0.75 R ({inner.sum()} points) max {d[inner].max():.3f} deg, "
-          f"pins {out['pins']}")
+    print(
+        f"circle, fibres 30/120: {out['record']}, force {out['force'][-1]:.4f} N, "
+        f"{summary(m)}, within 0.75 R ({inner.sum()} points) max {d[inner].max():.3f} deg, "
+        f"pins {out['pins']}"
+    )
     assert out["record"]["domain"] == "full" and set(out["pins"]) == {"pole_x", "pole_y"}
     assert len(m["points"]) > 1000 and np.abs(m["fishnet_deg"]).max() > 15.0
     assert m["fishnet_deg"].min() < -15.0  # both signs: across the fibres through the pole
@@ -282,8 +324,10 @@ def test_circle_rotated_pair_against_drapes():
     assert abs(own["rms_deg"] - m["continuum_vs_fishnet"]["rms_deg"]) < 1e-2, own
 
 
-@pytest.mark.serial("two forming runs (CI budget); the generator drape on 2 ranks is "
-                    "test_circle_rotated_pair_against_drapes")
+@pytest.mark.serial(
+    "two forming runs (CI budget); the generator drape on 2 ranks is "
+    "test_circle_rotated_pair_against_drapes"
+)
 def test_rectangle_unbalanced_pair_against_its_own_generators():
     """A 72 × 60 mm rectangle with the unbalanced 40/−50 pair in the kinematic limit: no mirror
     line of the set-up is a fibre, the draw-in bends the fibres through the pole, and the
@@ -291,8 +335,9 @@ def test_rectangle_unbalanced_pair_against_its_own_generators():
     continuum's own generators (verification/drapes/generator_drape.py) is: what is left is the
     discretisation's difference, which must fall at least at first order in h (measured RMS
     2.28°, 1.20°, 0.76° at h = 5.66, 4, 2.83 mm; within 0.75 R max 6.2°, 2.4°, 1.4°)."""
-    s = PluginSetup("hemisphere", 72.0, 60.0, (40.0, -50.0), dict(TOOLING, **FRICTION,
-                                                             blank="rectangle"))
+    s = PluginSetup(
+        "hemisphere", 72.0, 60.0, (40.0, -50.0), dict(TOOLING, **FRICTION, blank="rectangle")
+    )
     rms, inner = [], []
     for h in (4.0 * math.sqrt(2.0), H):
         e, out = formed(s, soft(), DEEP, DEEP_STEPS, h)
@@ -302,10 +347,12 @@ def test_rectangle_unbalanced_pair_against_its_own_generators():
         d = np.abs(g["continuum_deg"] - g["drape_deg"])
         rms.append(g["continuum_vs_generator_drape"]["rms_deg"])
         inner.append(d[np.hypot(*g["points"].T) < 0.75 * R].max())
-        print(f"h = {h:.2f}: {out['record']['cells']} cells, {len(g['points'])} points "
-              f"({g['left_out']} left out), own generators {g['continuum_vs_generator_drape']}, "
-              f"within 0.75 R max {inner[-1]:.3f} deg; geodesic drapes {geodesic}; generators "
-              f"up to {g['generators_largest_gap_mm']:.3f} mm off the cap")
+        print(
+            f"h = {h:.2f}: {out['record']['cells']} cells, {len(g['points'])} points "
+            f"({g['left_out']} left out), own generators {g['continuum_vs_generator_drape']}, "
+            f"within 0.75 R max {inner[-1]:.3f} deg; geodesic drapes {geodesic}; generators "
+            f"up to {g['generators_largest_gap_mm']:.3f} mm off the cap"
+        )
         assert out["record"]["domain"] == "full" and len(g["points"]) > 1000
         assert g["left_out"] < 0.05 * len(g["points"])
         # generator samples lifted off the cap between contact points (0.30, 0.20 mm measured):

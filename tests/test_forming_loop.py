@@ -44,10 +44,20 @@ from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 COMM = MPI.COMM_WORLD
 R, BLANK, H = 20.0, 60.0, 4.0
 """The blank, punch and mesh of tests/test_hemisphere.py (its compiled forms are shared)."""
-TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
-           "holder_pressure": 1e-3, "contact_stiffness": 100.0}
-PARAMS = {"fibre_stretch": {"k_l": 1e3, "k_m": 1e3}, "shear": {"k_s": 1.0},
-          "normal_bending": {"k_b": 0.1}, "twist": {"k_t": 0.1}}
+TOOLING = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-3,
+    "contact_stiffness": 100.0,
+}
+PARAMS = {
+    "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
+    "shear": {"k_s": 1.0},
+    "normal_bending": {"k_b": 0.1},
+    "twist": {"k_t": 0.1},
+}
 SENS_TOL = 5e-3
 """Relative difference of tangent and central-difference sensitivities: measured ≤ 1e-3 (the
 Jacobian of the last Newton iterate); a wrong ∂R/∂p (with the contact residual) or a missing
@@ -55,19 +65,19 @@ Jacobian of the last Newton iterate); a wrong ∂R/∂p (with the contact residu
 
 
 def model():
-    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1),
-            Twist(k_t=0.1)]
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
 
 
 def experiment(strokes=(2.0, 4.0), angles=(45.0, -45.0)):
     pts = sf.part_points(BLANK, R, 6)
-    return sf.hemisphere_template(BLANK, TOOLING, list(strokes), pts, angles,
-                                  shear_steps=[1, 2])
+    return sf.hemisphere_template(BLANK, TOOLING, list(strokes), pts, angles, shear_steps=[1, 2])
 
 
-@pytest.mark.serial("12.6 s on 2 ranks against 2.5 s serial (CI budget); the forming "
-                    "observations' parallel path is test_compare_forming_data_one_rank_equals_two, "
-                    "the tangent solves' is tests/test_compare.py's")
+@pytest.mark.serial(
+    "12.6 s on 2 ranks against 2.5 s serial (CI budget); the forming "
+    "observations' parallel path is test_compare_forming_data_one_rank_equals_two, "
+    "the tangent solves' is tests/test_compare.py's"
+)
 def test_sensitivities_match_central_differences():
     exp = experiment()
     with ForwardModel(exp, model(), H, COMM) as fm:
@@ -125,12 +135,18 @@ def test_shear_file_contract(tmp_path):
     check_in_loop([back], [d])
     assert len(back.force) < 5 <= len(back.force) + len(back.shear)
     enough_data([back], model())  # 5 moduli: the shear angles count as data
-    with pytest.raises(InputError, match=r"is a hemisphere forming .* no term has a second "
-                                         r"gradient"):  # its tangent is singular
+    with pytest.raises(
+        InputError,
+        match=r"is a hemisphere forming .* no term has a second "
+        r"gradient",
+    ):  # its tangent is singular
         check_terms_fit_data([back], model()[:2], "fibre_stretch,shear")
     far = experiment(strokes=(2.0, 40.0))  # the 60 mm blank is drawn off the lip by 35 mm
-    with pytest.raises(InputError, match=r"step 2: hemisphere: "
-                                         r"stroke 40 mm is outside 0 < stroke ≤ 34.99 mm"):
+    with pytest.raises(
+        InputError,
+        match=r"step 2: hemisphere: "
+        r"stroke 40 mm is outside 0 < stroke ≤ 34.99 mm",
+    ):
         check_in_loop([far], [d])
     csv = d / "shear.csv"
     lines = csv.read_text().splitlines()
@@ -150,15 +166,24 @@ def test_shear_file_contract(tmp_path):
     circle.setup.options["blank"] = "circle"
     circle.shear_X[0] = (2.0, 2.0)  # in the circle's square, 9.6 mm beyond its edge
     write_experiment(tmp_path / f"c{COMM.rank}", circle)
-    with pytest.raises(DataError, match=r"shear.csv line 2: point \(X, Y\) = \(2, 2\) mm lies "
-                                        r"9.6 mm outside the circular blank"):
+    with pytest.raises(
+        DataError,
+        match=r"shear.csv line 2: point \(X, Y\) = \(2, 2\) mm lies "
+        r"9.6 mm outside the circular blank",
+    ):
         load_experiment(tmp_path / f"c{COMM.rank}")
-    with pytest.raises(DataError, match=r"\[data\] shear = \"shear.csv\": the "
-                                        r"'bias_extension' test takes no measured shear"):
+    with pytest.raises(
+        DataError,
+        match=r"\[data\] shear = \"shear.csv\": the "
+        r"'bias_extension' test takes no measured shear",
+    ):
         read_shear(back, csv, 1.0, get_test("bias_extension"))
     back.field_step, back.X, back.u = np.array([1]), np.zeros((1, 2)), np.zeros((1, 3))
-    with pytest.raises(InputError, match=r"\[data\] field with \[loading\] test = "
-                                         r"\"hemisphere\""):
+    with pytest.raises(
+        InputError,
+        match=r"\[data\] field with \[loading\] test = "
+        r"\"hemisphere\"",
+    ):
         check_in_loop([back], [d])
 
 
@@ -168,8 +193,21 @@ def test_compare_forming_data_one_rank_equals_two(tmp_path):
     root = _write(tmp_path, exp)
     (root / "p.json").write_text(json.dumps(PARAMS)) if COMM.rank == 0 else None
     COMM.barrier()
-    assert main(["compare", str(root / "data"), "--params", str(root / "p.json"),
-                 "--out", str(root / "out"), "--h", str(H)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(root / "data"),
+                "--params",
+                str(root / "p.json"),
+                "--out",
+                str(root / "out"),
+                "--h",
+                str(H),
+            ]
+        )
+        == 0
+    )
     m = json.loads((root / "out" / "misfit.json").read_text())["experiments"][0]
     with ForwardModel(load_experiment(root / "data"), model(), H, MPI.COMM_SELF) as fm:
         alone = misfit(fm.exp, fm.run())
@@ -178,4 +216,3 @@ def test_compare_forming_data_one_rank_equals_two(tmp_path):
     assert 0.5 < m["combined"] < 1.5  # the noise level: the data's own model and mesh
     for f in ("shear.png", "shear_per_point.csv", "force.png", "error_vs_step.png"):
         assert (root / "out" / f).is_file()
-

@@ -77,11 +77,11 @@ def test_bias_force_is_the_three_zone_force_with_friction():
     (the same discretisation is within 1e-4 for linear shear, tests/test_locking.py)."""
     H, W, k_s = 230.0, 115.0, 0.02
     model = [FibreStretch(inextensible=True), Shear(k_s=k_s), CrossoverFriction(tau_f=TAU_F)]
-    res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(
-        30.0, 3)
+    res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(30.0, 3)
     ratio = np.array(res.force) / kinematic_force(np.array(res.ubar), H, W, model)
-    friction_share = 1.0 - kinematic_force(np.array(res.ubar), H, W,
-                                           [Shear(k_s=k_s)]) / np.array(res.force)
+    friction_share = 1.0 - kinematic_force(np.array(res.ubar), H, W, [Shear(k_s=k_s)]) / np.array(
+        res.force
+    )
     print(ratio, friction_share)
     assert np.all(friction_share > 0.1), "friction must carry a sizeable part of the force"
     assert np.all(np.abs(ratio - 1.0) < 1e-3), ratio
@@ -108,8 +108,9 @@ def test_hidden_friction_in_lattice_data_is_diagnosed(regime, tau_f):
     docs/diagnosis.md, and its refit recovers the lattice's τ_f within 10 % (the rest is the
     lattice-continuum form error that keeps the refit above the noise)."""
     exp, h = _hidden_friction(regime, tau_f)
-    d = diagnose(exp, ["fibre_stretch", "shear"], h=h, confirm=1, max_effects=1,
-                 check_discretisation=False)
+    d = diagnose(
+        exp, ["fibre_stretch", "shear"], h=h, confirm=1, max_effects=1, check_discretisation=False
+    )
     print(d.outcome(), [(r["effect"], r["score"], r["refit_misfit"]) for r in d.ranking])
     assert d.verdict == "crossover_friction" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"] and d.final_fit.chi2 < d.base_fit.chi2

@@ -87,8 +87,9 @@ def test_mesh_coarser_than_asked_is_announced():
 
     def notice(asked, used):
         sp = SimpleNamespace(kind="aligned", h=used, length=187.0, width=119.0, note="")
-        return choose_fibre_treatment("auto", sp, default_model(), asked, (45.0, -45.0),
-                                      (45.0, -45.0))["notice"]
+        return choose_fibre_treatment(
+            "auto", sp, default_model(), asked, (45.0, -45.0), (45.0, -45.0)
+        )["notice"]
 
     text = notice(10.0, 12.020815280171307)
     assert "h = 12.02 mm (asked 10)" in text and "+20 % from the 10 mm asked" in text

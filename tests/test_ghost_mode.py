@@ -36,5 +36,4 @@ def test_interior_facets_on_partition_boundaries_are_kept(name):
     cells = distributed.topology.index_map(2)
     assert MPI.COMM_WORLD.allreduce(cells.size_local) == whole.topology.index_map(2).size_local
     assert MPI.COMM_WORLD.allreduce(cells.num_ghosts) > 0, "no ghost cells at all"
-    assert np.isclose(interior_facet_length(distributed), interior_facet_length(whole),
-                      rtol=1e-12)
+    assert np.isclose(interior_facet_length(distributed), interior_facet_length(whole), rtol=1e-12)

@@ -84,9 +84,11 @@ def run_cli(argv, capsys) -> tuple[int, str]:
 # -- the cases: (id, input class, how to make it, command line, pattern of the message) -------
 def variant(name: str, edit):
     """A copy of ``good`` called ``name`` changed by ``edit(directory)``."""
+
     def make(base: Path) -> None:
         shutil.copytree(base / "good", base / name)
         edit(base / name)
+
     return make
 
 
@@ -96,12 +98,14 @@ def replace(file: str, old, new):
         old_b, new_b = (x.encode() if isinstance(x, str) else x for x in (old, new))
         assert old_b in data, (old, file)
         (d / file).write_bytes(data.replace(old_b, new_b, 1))
+
     return edit
 
 
 def params_file(name: str, content):
     def make(base: Path) -> None:
         (base / name).write_text(content if isinstance(content, str) else json.dumps(content))
+
     return make
 
 
@@ -119,6 +123,7 @@ def edits(*fns):
     def edit(d: Path) -> None:
         for fn in fns:
             fn(d)
+
     return edit
 
 
@@ -126,20 +131,25 @@ def self_link(file: str):
     def edit(d: Path) -> None:
         (d / file).unlink()
         (d / file).symlink_to(file)
+
     return edit
 
 
 def cantilever(path: str):
     """``good`` made a cantilever strip (field only, [loading] path ``path``; no uz)."""
+
     def edit(d: Path) -> None:
         toml = (d / "experiment.toml").read_text()
-        for old, new in (('test = "bias_extension"\nclamp = "gradient"',
-                          f'test = "cantilever"\npath = {path}'),
-                         ('force = "force.csv"\n', ""), ("force_noise_std = 0.01\n", "")):
+        for old, new in (
+            ('test = "bias_extension"\nclamp = "gradient"', f'test = "cantilever"\npath = {path}'),
+            ('force = "force.csv"\n', ""),
+            ("force_noise_std = 0.01\n", ""),
+        ):
             assert old in toml, old
             toml = toml.replace(old, new)
         (d / "experiment.toml").write_text(toml + "[material]\nareal_density_g_m2 = 200.0\n")
         (d / "force.csv").unlink()
+
     return edit
 
 
@@ -156,247 +166,538 @@ def dgn(*extra):
 
 
 CASES = [
-    dict(id="params-typo", klass="`--params` naming a term that does not exist (typo)",
-         make=params_file("typo.json", {"sheer": {"k_s": 0.8}}),
-         argv=cmp("good", "--params", "typo.json"), pattern=r"typo.json: unknown term 'sheer'"),
-    dict(id="params-absent-term", klass="`--params` naming a term that is not in `--terms`",
-         make=params_file("absent.json", {"geodesic_bending": {"A_g": 1.0}}),
-         argv=cmp("good", "--params", "absent.json"),
-         pattern=r"absent.json: term 'geodesic_bending' is not in the model"),
-    dict(id="params-unknown-modulus", klass="`--params` naming a modulus the term lacks",
-         make=params_file("modulus.json", {"shear": {"k_l": 1.0}}),
-         argv=cmp("good", "--params", "modulus.json"),
-         pattern=r"modulus.json: term 'shear' has no parameter 'k_l'"),
-    dict(id="params-list", klass="`--params` that is not a JSON object (a list)",
-         make=params_file("list.json", [0.8]), argv=cmp("good", "--params", "list.json"),
-         pattern=r"list.json: expected \{\"term\": \{\"parameter\": value\}\}, got list"),
-    dict(id="params-flat", klass="`--params` with a number where a table of moduli belongs",
-         make=params_file("flat.json", {"shear": 0.8}), argv=cmp("good", "--params", "flat.json"),
-         pattern=r"flat.json: \"shear\" must map parameters to values"),
-    dict(id="params-negative", klass="`--params` with a negative or non-finite modulus",
-         make=params_file("negative.json", {"shear": {"k_s": -1}}),
-         argv=cmp("good", "--params", "negative.json"),
-         pattern=r"negative.json: shear.k_s = -1 must be a finite number ≥ 0 \(N/mm\)"),
-    dict(id="params-not-json", klass="`--params` that is not valid JSON",
-         make=params_file("broken.json", "{shear: 1"), argv=cmp("good", "--params", "broken.json"),
-         pattern=r"broken.json: not valid JSON"),
-    dict(id="fit-zero-start", klass="`fit`/`diagnose` starting from a zero modulus",
-         make=params_file("zero.json", {"shear": {"k_s": 0.0}}),
-         argv=["fit", "good", "--terms", TERMS, "--params", "zero.json", "--out", "out"],
-         pattern=r"zero.json: shear.k_s = 0: fit and diagnose start from these moduli"),
-    dict(id="terms-duplicate", klass="`--terms` naming a term twice", make=nothing,
-         argv=["compare", "good", "--terms", "shear,shear", "--out", "out"],
-         pattern=r"--terms: 'shear' is given twice"),
-    dict(id="terms-unknown", klass="`--terms` naming a term that does not exist", make=nothing,
-         argv=["compare", "good", "--terms", "shear,sheer", "--out", "out"],
-         pattern=r"--terms: unknown term 'sheer'; valid terms are: fibre_stretch"),
-    dict(id="toml-unknown-key", klass="unknown key in experiment.toml (`noise_sd`)",
-         make=variant("noise_sd", replace("experiment.toml", "noise_std", "noise_sd")),
-         argv=cmp("noise_sd"), pattern=r"experiment.toml: unknown key \[data\] noise_sd"),
-    dict(id="toml-unknown-table", klass="unknown table in experiment.toml",
-         make=variant("table", replace("experiment.toml", "[units]", "[unit]")),
-         argv=cmp("table"), pattern=r"experiment.toml: unknown key or table 'unit'"),
-    dict(id="field-1e300", klass="absurd displacement in field.csv (1e300)",
-         make=variant("huge", replace("field.csv", ",0.01\r\n", ",1e300\r\n")),
-         argv=cmp("huge"), pattern=r"field.csv line 2: displacement of 1e\+300 mm"),
-    dict(id="field-inf", klass="non-finite or empty cell in a CSV",
-         make=variant("inf", replace("force.csv", "\n1,0.8,", "\n1,inf,")),
-         argv=cmp("inf"), pattern=r"force.csv line 2: column displacement = 'inf' is not a "
-         "finite number"),
-    dict(id="force-absurd", klass="absurd force in force.csv",
-         make=variant("bigforce", replace("force.csv", "\n1,0.8,0.0", "\n1,0.8,1e12")),
-         argv=cmp("bigforce"), pattern=r"force.csv line 2: force 1e\+12 N is not plausible"),
-    dict(id="units-m-numbers-mm", klass="`[units] length = \"m\"` with the sizes in mm",
-         make=variant("metres", replace("experiment.toml", 'length = "mm"', 'length = "m"')),
-         argv=cmp("metres"), pattern=r"experiment.toml: \[specimen\] 40000 x 20000 mm is not a "
-         "plausible specimen"),
-    dict(id="field-in-m", klass="field.csv in m with the specimen in mm (points in a corner)",
-         make=variant("fieldm", field_in_metres), argv=cmp("fieldm"),
-         pattern=r"field.csv: all points lie in a 0.036 x 0.018 mm patch of the 40 x 20 mm "
-         "specimen"),
-    dict(id="field-outside", klass="field point outside the specimen",
-         make=variant("outside", replace("field.csv", "\n1,2.0,", "\n1,50.0,")),
-         argv=cmp("outside"), pattern=r"field.csv line 2: point \(X, Y\) = \(50, 1\) mm is "
-         "outside the specimen"),
-    dict(id="noise-absurd", klass="noise level larger than the specimen",
-         make=variant("noise", replace("experiment.toml", "noise_std = 0.01", "noise_std = 1e3")),
-         argv=cmp("noise"), pattern=r"\[data\] noise_std = 1e\+03 mm exceeds the specimen size"),
-    dict(id="latin1", klass="a CSV in Latin-1 (non-UTF-8 byte)",
-         make=variant("latin1", replace("field.csv", "step,X", b"step\xe9,X")),
-         argv=cmp("latin1"), pattern=r"field.csv line 1: byte 0xe9 is not UTF-8 \('é' in "
-         "Windows-1252/Latin-1\\?\\)"),
-    dict(id="decimal-comma", klass="decimal comma in a comma-separated CSV",
-         make=variant("deccomma", replace("force.csv", "\n1,0.8,", '\n1,"0,8",')),
-         argv=cmp("deccomma"), pattern=r"force.csv line 2: column displacement = '0,8' is not a "
-         "finite number \\(a decimal comma"),
-    dict(id="tab-separated", klass="tab-separated CSV",
-         make=variant("tabs", lambda d: (d / "force.csv").write_text(
-             (d / "force.csv").read_text().replace(",", "\t"))),
-         argv=cmp("tabs"), pattern=r"force.csv line 1: tab-separated header"),
-    dict(id="force-link-loop", klass="force.csv a symbolic link to itself",
-         make=variant("forceloop", self_link("force.csv")), argv=cmp("forceloop"),
-         pattern=r"force.csv: a symbolic link that loops \(force.csv -> force.csv\) in "
-         "forceloop, not a file"),
-    dict(id="fibres-near-parallel", klass="fibre families less than 5° apart",
-         make=variant("nearpar", replace("experiment.toml", "[45.0, -45.0]", "[45.0, 45.0001]")),
-         argv=cmp("nearpar"), pattern=r"fibre_angles_deg = \[45.0, 45.0001\]: the two fibre "
-         "families are 0.0001° apart, nearly parallel; they must cross at 5° or more"),
-    dict(id="bias-compression", klass="bias force curve with negative displacements",
-         make=variant("compress", edits(replace("force.csv", "\n1,0.8,0.0", "\n1,-0.8,-0.1"),
-                                        replace("force.csv", "\n2,1.6,0.0", "\n2,-1.6,-0.2"))),
-         argv=cmp("compress"), pattern=r"force.csv: step 1: grip displacement \(mm\) -0.8 is "
-         "negative; the 'bias_extension' test models extension"),
-    dict(id="cantilever-path", klass="cantilever load path outside (0, 1]",
-         make=variant("cantpath", cantilever("[0.5, -1, 3, 1]")),
-         argv=["compare", "cantpath", "--terms", "fibre_stretch,shear,normal_bending", "--out",
-               "out"], pattern=r"experiment.toml: \[loading\] path: step 2: self-weight factor "
-         r"-1 is outside \(0, 1\]"),
-    dict(id="cantilever-no-uz", klass="cantilever field without uz",
-         make=variant("cantnouz", cantilever("[0.5, 1.0]")),
-         argv=["compare", "cantnouz", "--terms", "fibre_stretch,shear,normal_bending", "--out",
-               "out"], pattern=r"field.csv: no column uz; the 'cantilever' test is out of plane"),
-    dict(id="forces-all-zero", klass="forces all 0 without `force_noise_std`",
-         make=variant("zeroforce", replace("experiment.toml", "force_noise_std = 0.01\n", "")),
-         argv=cmp("zeroforce"), pattern=r"force.csv: every force is 0 and \[data\] "
-         "force_noise_std is not given, so the misfit has no force scale"),
-    dict(id="names-collide", klass="experiment names equal as file names (`cao 115`, `cao_115`)",
-         make=lambda base: [variant(n, replace("experiment.toml", '"synthetic"', f'"{v}"'))(base)
-                            for n, v in (("cao1", "cao 115"), ("cao2", "cao_115"))],
-         argv=["compare", "cao1", "cao2", "--terms", TERMS, "--out", "out"],
-         pattern=r"experiments 'cao 115' and 'cao_115' \(experiment.toml: name\) give the same "
-         "file name prefix 'cao_115_' in --out"),
-    dict(id="fit-underdetermined", klass="`fit` of more moduli than measured values",
-         make=variant("onepoint", edits(replace("experiment.toml", 'field = "field.csv"\n', ""),
-                                        replace("experiment.toml", "\nnoise_std = 0.01\n", "\n"),
-                                        replace("force.csv", "\n2,1.6,0.0", ""))),
-         argv=["fit", "onepoint", "--terms", TERMS, "--out", "out"],
-         pattern=r"--terms fibre_stretch,shear: 3 moduli to fit \(fibre_stretch.k_l, "
-         r"fibre_stretch.k_m, shear.k_s\) from 1 measured value \('synthetic': 1 force "
-         r"value\): fewer data than moduli, the fit is under-determined"),
-    dict(id="diagnose-underdetermined", klass="`diagnose` of more free moduli than measured "
-         "values", make=nothing, argv=["diagnose", "onepoint", "--terms", TERMS, "--out", "out"],
-         pattern=r"3 moduli to fit .* from 1 measured value .*\(fewer --terms, or --fixed\)"),
-    dict(id="missing-data", klass="a DATA directory that does not exist", make=nothing,
-         argv=cmp("nodata"), pattern=r"nodata: not a directory"),
-    dict(id="out-is-file", klass="`--out` is an existing file", make=make_file_out,
-         argv=["compare", "good", "--terms", TERMS, "--out", "a_file"],
-         pattern=r"--out a_file: exists and is not a directory"),
-    dict(id="out-under-file", klass="`--out` inside a file", make=nothing,
-         argv=["compare", "good", "--terms", TERMS, "--out", "a_file/sub"],
-         pattern=r"--out a_file/sub: a_file is a file, not a directory"),
-    dict(id="out-is-data", klass="`--out` is a DATA directory (its files would be overwritten)",
-         make=nothing, argv=["compare", "good", "--terms", TERMS, "--out", "good"],
-         pattern=r"--out good: it is the input DATA directory good; outputs must not overwrite"),
-    dict(id="out-inside-data", klass="`--out` inside a DATA directory", make=nothing,
-         argv=["compare", "good", "--terms", TERMS, "--out", "good/results"],
-         pattern=r"--out good/results: it lies inside the input DATA directory good"),
-    dict(id="out-contains-data", klass="`--out` containing a DATA directory", make=nothing,
-         argv=["compare", "good", "--terms", TERMS, "--out", "."],
-         pattern=r"--out \.: it contains the input DATA directory good"),
-    dict(id="out-is-params", klass="`--out` is the `--params` file",
-         make=params_file("outp.json", {"shear": {"k_s": 0.8}}),
-         argv=["bias", "--params", "outp.json", "--out", "outp.json"],
-         pattern=r"--out outp.json: it is the input --params outp.json"),
-    dict(id="out-dangling-link", klass="`--out` a dangling symbolic link",
-         make=lambda base: (base / "dangling").symlink_to("nowhere"),
-         argv=["compare", "good", "--terms", TERMS, "--out", "dangling"],
-         pattern=r"--out dangling: dangling is a symbolic link to nowhere, which does not exist"),
-    dict(id="out-link-loop", klass="`--out` under a symbolic link that loops",
-         make=lambda base: (base / "loop").symlink_to("loop"),
-         argv=["compare", "good", "--terms", TERMS, "--out", "loop/sub"],
-         pattern=r"--out loop/sub: loop is a symbolic link that loops \(-> loop\)"),
-    dict(id="h-zero", klass="`--h 0` (or negative)", make=nothing, argv=cmp("good", "--h", "0"),
-         pattern=r"--h 0: must be a positive element size in mm"),
-    dict(id="h-huge", klass="`--h` larger than half the specimen", make=nothing,
-         argv=cmp("good", "--h", "1e5"),
-         pattern=r"--h 100000: must be a positive element size in mm, at most 10"),
-    dict(id="steps-unknown", klass="`compare --steps` naming a step the data lack", make=nothing,
-         argv=cmp("good", "--steps", "99"),
-         pattern=r"--steps 99: step 99 is not a step of experiment 'synthetic' \(steps 1..2\)"),
-    dict(id="steps-garbage", klass="`compare --steps` that are not numbers", make=nothing,
-         argv=cmp("good", "--steps", "last"),
-         pattern=r"--steps last: expected comma-separated step numbers"),
-    dict(id="confirm-zero", klass="`diagnose --confirm 0`", make=nothing,
-         argv=["diagnose", "good", "--terms", TERMS, "--confirm", "0", "--out", "out"],
-         pattern=r"--confirm 0: must be at least 1"),
-    dict(id="max-effects-negative", klass="`diagnose --max-effects -1`", make=nothing,
-         argv=["diagnose", "good", "--terms", TERMS, "--max-effects", "-1", "--out", "out"],
-         pattern=r"--max-effects -1: must be at least 0"),
-    dict(id="fixed-no-params", klass="`diagnose --fixed` without the moduli of the fixed terms",
-         make=params_file("nofixed.json", {"fibre_stretch": {"k_l": 2.0, "k_m": 2.0}}),
-         argv=dgn("--fixed", "shear", "--params", "nofixed.json"),
-         pattern=r"--fixed shear: a fixed term is held at its moduli from --params, and "
-         r"shear.k_s is not given in --params nofixed.json"),
-    dict(id="fixed-all", klass="`diagnose --fixed` on every baseline term", make=nothing,
-         argv=dgn("--fixed", "shear,fibre_stretch"),
-         pattern=r"--fixed shear,fibre_stretch: every baseline term \(--terms "
-         r"fibre_stretch,shear\) is fixed, so the baseline has no modulus to fit"),
-    dict(id="fixed-not-baseline", klass="`diagnose --fixed` naming a term not in `--terms`",
-         make=nothing, argv=dgn("--fixed", "shear_locking"),
-         pattern=r"--fixed shear_locking: 'shear_locking' is not a baseline term"),
-    dict(id="candidates-in-baseline", klass="`diagnose --candidates` only baseline terms",
-         make=nothing, argv=dgn("--candidates", "shear"),
-         pattern=r"--candidates shear: every candidate is already in the baseline \(--terms "
-         r"fibre_stretch,shear\), so nothing would be tested"),
-    dict(id="candidates-unknown", klass="`diagnose --candidates` naming an unknown term",
-         make=nothing, argv=dgn("--candidates", "sheer_locking"),
-         pattern=r"--candidates sheer_locking: unknown term 'sheer_locking'; valid terms are"),
-    dict(id="candidates-hidden", klass="`diagnose --candidates` the data cannot see",
-         make=nothing, argv=dgn("--candidates", "normal_bending"),
-         pattern=r"--candidates normal_bending: these data cannot see normal_bending"),
-    dict(id="max-dofs-zero", klass="`diagnose --max-dofs 0` (the mesh selection's budget)",
-         make=nothing, argv=dgn("--max-dofs", "0"),
-         pattern=r"--max-dofs 0: must be at least 1 \(displacement unknowns of the finest mesh"),
-    dict(id="time-budget-negative", klass="`diagnose --time-budget -5`", make=nothing,
-         argv=dgn("--time-budget", "-5"),
-         pattern=r"--time-budget -5: must be a finite time in seconds > 0"),
-    dict(id="params-misfit", klass="`--params` given a misfit.json (not a moduli file)",
-         make=params_file("misfit.json", {"combined": 1.8, "chi2": 110.2, "n": 34,
-                                          "experiments": [], "model": "fibre_stretch+shear",
-                                          "provenance": {}}),
-         argv=cmp("good", "--params", "misfit.json"),
-         pattern=r"--params misfit.json: this is a misfit report \(the misfit.json of compare, "
-         r"fit or diagnose\), not a moduli file"),
-    dict(id="bias-h-zero", klass="`bias --h 0`", make=nothing,
-         argv=["bias", "--h", "0", "--out", "out"], pattern=r"--h 0.0: must lie in \(0, 59.5\]"),
-    dict(id="bias-steps", klass="`bias --steps 0`", make=nothing,
-         argv=["bias", "--steps", "0", "--out", "out"], pattern=r"--steps 0: must lie in \[1, "
-         "1000\\]"),
-    dict(id="bias-out-clash", klass="`bias --out D` where D/bias_steps.csv is a directory",
-         make=lambda base: (base / "clash" / "bias_steps.csv").mkdir(parents=True),
-         argv=["bias", "--length", "40", "--width", "20", "--h", "10", "--out", "clash"],
-         pattern=r"--out clash: clash/bias_steps.csv is a directory where a file of the same "
-         "name is to be written"),
-    dict(id="bias-too-many-elements", klass="`bias --h` too fine for the memory (element "
-         "count estimated before meshing)", make=nothing,
-         argv=["bias", "--length", "230", "--width", "115", "--h", "0.05", "--out", "out"],
-         pattern=r"--h 0.05: about 21,160,000 elements \(specimen 230 x 115 mm\), more than "
-         r"--max-elements 400,000; they would take about 1,058 GB of memory"),
-    dict(id="compare-too-many-elements", klass="`--h` too fine for the memory", make=nothing,
-         argv=cmp("good", "--h", "0.01"),
-         pattern=r"--h 0.01: about 16,000,000 elements \('synthetic' 40 x 20 mm\), more than "
-         r"--max-elements 400,000"),
-    dict(id="params-duplicate-key", klass="`--params` naming one modulus twice in a term",
-         make=params_file("twice.json", '{"shear": {"k_s": 0.5, "k_s": 5.0}}'),
-         argv=cmp("good", "--params", "twice.json"),
-         pattern=r"--params twice.json: key 'k_s' is given twice in one object"),
-    dict(id="params-empty-term", klass="`--params` with a term that gives no modulus",
-         make=params_file("emptyterm.json", {"fibre_stretch": {"k_l": 2.0, "k_m": 2.0},
-                                             "shear": {}}),
-         argv=cmp("good", "--params", "emptyterm.json"),
-         pattern=r"--params emptyterm.json: term 'shear' gives no parameter \(it has k_s\)"),
-    dict(id="shear-noise-90", klass="`[data] shear_noise_deg` of 90° or more",
-         make=variant("shearnoise", replace("experiment.toml", "force_noise_std = 0.01",
-                                            "force_noise_std = 0.01\nshear_noise_deg = 95")),
-         argv=cmp("shearnoise"),
-         pattern=r"experiment.toml: \[data\] shear_noise_deg = 95 must be below 90"),
-    dict(id="bias-3d-term", klass="`bias --terms` with an out-of-plane effect", make=nothing,
-         argv=["bias", "--terms", "fibre_stretch,shear,twist", "--out", "out"],
-         pattern=r"--terms fibre_stretch,shear,twist: twist is an out-of-plane effect, and the "
-         r"bias test is planar"),
-    dict(id="usage", klass="a missing argument (usage error)", make=nothing,
-         argv=["fit", "good", "--out", "out"],
-         pattern=r"the following arguments are required: --terms"),
+    dict(
+        id="params-typo",
+        klass="`--params` naming a term that does not exist (typo)",
+        make=params_file("typo.json", {"sheer": {"k_s": 0.8}}),
+        argv=cmp("good", "--params", "typo.json"),
+        pattern=r"typo.json: unknown term 'sheer'",
+    ),
+    dict(
+        id="params-absent-term",
+        klass="`--params` naming a term that is not in `--terms`",
+        make=params_file("absent.json", {"geodesic_bending": {"A_g": 1.0}}),
+        argv=cmp("good", "--params", "absent.json"),
+        pattern=r"absent.json: term 'geodesic_bending' is not in the model",
+    ),
+    dict(
+        id="params-unknown-modulus",
+        klass="`--params` naming a modulus the term lacks",
+        make=params_file("modulus.json", {"shear": {"k_l": 1.0}}),
+        argv=cmp("good", "--params", "modulus.json"),
+        pattern=r"modulus.json: term 'shear' has no parameter 'k_l'",
+    ),
+    dict(
+        id="params-list",
+        klass="`--params` that is not a JSON object (a list)",
+        make=params_file("list.json", [0.8]),
+        argv=cmp("good", "--params", "list.json"),
+        pattern=r"list.json: expected \{\"term\": \{\"parameter\": value\}\}, got list",
+    ),
+    dict(
+        id="params-flat",
+        klass="`--params` with a number where a table of moduli belongs",
+        make=params_file("flat.json", {"shear": 0.8}),
+        argv=cmp("good", "--params", "flat.json"),
+        pattern=r"flat.json: \"shear\" must map parameters to values",
+    ),
+    dict(
+        id="params-negative",
+        klass="`--params` with a negative or non-finite modulus",
+        make=params_file("negative.json", {"shear": {"k_s": -1}}),
+        argv=cmp("good", "--params", "negative.json"),
+        pattern=r"negative.json: shear.k_s = -1 must be a finite number ≥ 0 \(N/mm\)",
+    ),
+    dict(
+        id="params-not-json",
+        klass="`--params` that is not valid JSON",
+        make=params_file("broken.json", "{shear: 1"),
+        argv=cmp("good", "--params", "broken.json"),
+        pattern=r"broken.json: not valid JSON",
+    ),
+    dict(
+        id="fit-zero-start",
+        klass="`fit`/`diagnose` starting from a zero modulus",
+        make=params_file("zero.json", {"shear": {"k_s": 0.0}}),
+        argv=["fit", "good", "--terms", TERMS, "--params", "zero.json", "--out", "out"],
+        pattern=r"zero.json: shear.k_s = 0: fit and diagnose start from these moduli",
+    ),
+    dict(
+        id="terms-duplicate",
+        klass="`--terms` naming a term twice",
+        make=nothing,
+        argv=["compare", "good", "--terms", "shear,shear", "--out", "out"],
+        pattern=r"--terms: 'shear' is given twice",
+    ),
+    dict(
+        id="terms-unknown",
+        klass="`--terms` naming a term that does not exist",
+        make=nothing,
+        argv=["compare", "good", "--terms", "shear,sheer", "--out", "out"],
+        pattern=r"--terms: unknown term 'sheer'; valid terms are: fibre_stretch",
+    ),
+    dict(
+        id="toml-unknown-key",
+        klass="unknown key in experiment.toml (`noise_sd`)",
+        make=variant("noise_sd", replace("experiment.toml", "noise_std", "noise_sd")),
+        argv=cmp("noise_sd"),
+        pattern=r"experiment.toml: unknown key \[data\] noise_sd",
+    ),
+    dict(
+        id="toml-unknown-table",
+        klass="unknown table in experiment.toml",
+        make=variant("table", replace("experiment.toml", "[units]", "[unit]")),
+        argv=cmp("table"),
+        pattern=r"experiment.toml: unknown key or table 'unit'",
+    ),
+    dict(
+        id="field-1e300",
+        klass="absurd displacement in field.csv (1e300)",
+        make=variant("huge", replace("field.csv", ",0.01\r\n", ",1e300\r\n")),
+        argv=cmp("huge"),
+        pattern=r"field.csv line 2: displacement of 1e\+300 mm",
+    ),
+    dict(
+        id="field-inf",
+        klass="non-finite or empty cell in a CSV",
+        make=variant("inf", replace("force.csv", "\n1,0.8,", "\n1,inf,")),
+        argv=cmp("inf"),
+        pattern=r"force.csv line 2: column displacement = 'inf' is not a "
+        "finite number",
+    ),
+    dict(
+        id="force-absurd",
+        klass="absurd force in force.csv",
+        make=variant("bigforce", replace("force.csv", "\n1,0.8,0.0", "\n1,0.8,1e12")),
+        argv=cmp("bigforce"),
+        pattern=r"force.csv line 2: force 1e\+12 N is not plausible",
+    ),
+    dict(
+        id="units-m-numbers-mm",
+        klass='`[units] length = "m"` with the sizes in mm',
+        make=variant("metres", replace("experiment.toml", 'length = "mm"', 'length = "m"')),
+        argv=cmp("metres"),
+        pattern=r"experiment.toml: \[specimen\] 40000 x 20000 mm is not a "
+        "plausible specimen",
+    ),
+    dict(
+        id="field-in-m",
+        klass="field.csv in m with the specimen in mm (points in a corner)",
+        make=variant("fieldm", field_in_metres),
+        argv=cmp("fieldm"),
+        pattern=r"field.csv: all points lie in a 0.036 x 0.018 mm patch of the 40 x 20 mm "
+        "specimen",
+    ),
+    dict(
+        id="field-outside",
+        klass="field point outside the specimen",
+        make=variant("outside", replace("field.csv", "\n1,2.0,", "\n1,50.0,")),
+        argv=cmp("outside"),
+        pattern=r"field.csv line 2: point \(X, Y\) = \(50, 1\) mm is "
+        "outside the specimen",
+    ),
+    dict(
+        id="noise-absurd",
+        klass="noise level larger than the specimen",
+        make=variant("noise", replace("experiment.toml", "noise_std = 0.01", "noise_std = 1e3")),
+        argv=cmp("noise"),
+        pattern=r"\[data\] noise_std = 1e\+03 mm exceeds the specimen size",
+    ),
+    dict(
+        id="latin1",
+        klass="a CSV in Latin-1 (non-UTF-8 byte)",
+        make=variant("latin1", replace("field.csv", "step,X", b"step\xe9,X")),
+        argv=cmp("latin1"),
+        pattern=r"field.csv line 1: byte 0xe9 is not UTF-8 \('é' in "
+        "Windows-1252/Latin-1\\?\\)",
+    ),
+    dict(
+        id="decimal-comma",
+        klass="decimal comma in a comma-separated CSV",
+        make=variant("deccomma", replace("force.csv", "\n1,0.8,", '\n1,"0,8",')),
+        argv=cmp("deccomma"),
+        pattern=r"force.csv line 2: column displacement = '0,8' is not a "
+        "finite number \\(a decimal comma",
+    ),
+    dict(
+        id="tab-separated",
+        klass="tab-separated CSV",
+        make=variant(
+            "tabs",
+            lambda d: (d / "force.csv").write_text(
+                (d / "force.csv").read_text().replace(",", "\t")
+            ),
+        ),
+        argv=cmp("tabs"),
+        pattern=r"force.csv line 1: tab-separated header",
+    ),
+    dict(
+        id="force-link-loop",
+        klass="force.csv a symbolic link to itself",
+        make=variant("forceloop", self_link("force.csv")),
+        argv=cmp("forceloop"),
+        pattern=r"force.csv: a symbolic link that loops \(force.csv -> force.csv\) in "
+        "forceloop, not a file",
+    ),
+    dict(
+        id="fibres-near-parallel",
+        klass="fibre families less than 5° apart",
+        make=variant("nearpar", replace("experiment.toml", "[45.0, -45.0]", "[45.0, 45.0001]")),
+        argv=cmp("nearpar"),
+        pattern=r"fibre_angles_deg = \[45.0, 45.0001\]: the two fibre "
+        "families are 0.0001° apart, nearly parallel; they must cross at 5° or more",
+    ),
+    dict(
+        id="bias-compression",
+        klass="bias force curve with negative displacements",
+        make=variant(
+            "compress",
+            edits(
+                replace("force.csv", "\n1,0.8,0.0", "\n1,-0.8,-0.1"),
+                replace("force.csv", "\n2,1.6,0.0", "\n2,-1.6,-0.2"),
+            ),
+        ),
+        argv=cmp("compress"),
+        pattern=r"force.csv: step 1: grip displacement \(mm\) -0.8 is "
+        "negative; the 'bias_extension' test models extension",
+    ),
+    dict(
+        id="cantilever-path",
+        klass="cantilever load path outside (0, 1]",
+        make=variant("cantpath", cantilever("[0.5, -1, 3, 1]")),
+        argv=[
+            "compare",
+            "cantpath",
+            "--terms",
+            "fibre_stretch,shear,normal_bending",
+            "--out",
+            "out",
+        ],
+        pattern=r"experiment.toml: \[loading\] path: step 2: self-weight factor "
+        r"-1 is outside \(0, 1\]",
+    ),
+    dict(
+        id="cantilever-no-uz",
+        klass="cantilever field without uz",
+        make=variant("cantnouz", cantilever("[0.5, 1.0]")),
+        argv=[
+            "compare",
+            "cantnouz",
+            "--terms",
+            "fibre_stretch,shear,normal_bending",
+            "--out",
+            "out",
+        ],
+        pattern=r"field.csv: no column uz; the 'cantilever' test is out of plane",
+    ),
+    dict(
+        id="forces-all-zero",
+        klass="forces all 0 without `force_noise_std`",
+        make=variant("zeroforce", replace("experiment.toml", "force_noise_std = 0.01\n", "")),
+        argv=cmp("zeroforce"),
+        pattern=r"force.csv: every force is 0 and \[data\] "
+        "force_noise_std is not given, so the misfit has no force scale",
+    ),
+    dict(
+        id="names-collide",
+        klass="experiment names equal as file names (`cao 115`, `cao_115`)",
+        make=lambda base: [
+            variant(n, replace("experiment.toml", '"synthetic"', f'"{v}"'))(base)
+            for n, v in (("cao1", "cao 115"), ("cao2", "cao_115"))
+        ],
+        argv=["compare", "cao1", "cao2", "--terms", TERMS, "--out", "out"],
+        pattern=r"experiments 'cao 115' and 'cao_115' \(experiment.toml: name\) give the same "
+        "file name prefix 'cao_115_' in --out",
+    ),
+    dict(
+        id="fit-underdetermined",
+        klass="`fit` of more moduli than measured values",
+        make=variant(
+            "onepoint",
+            edits(
+                replace("experiment.toml", 'field = "field.csv"\n', ""),
+                replace("experiment.toml", "\nnoise_std = 0.01\n", "\n"),
+                replace("force.csv", "\n2,1.6,0.0", ""),
+            ),
+        ),
+        argv=["fit", "onepoint", "--terms", TERMS, "--out", "out"],
+        pattern=r"--terms fibre_stretch,shear: 3 moduli to fit \(fibre_stretch.k_l, "
+        r"fibre_stretch.k_m, shear.k_s\) from 1 measured value \('synthetic': 1 force "
+        r"value\): fewer data than moduli, the fit is under-determined",
+    ),
+    dict(
+        id="diagnose-underdetermined",
+        klass="`diagnose` of more free moduli than measured values",
+        make=nothing,
+        argv=["diagnose", "onepoint", "--terms", TERMS, "--out", "out"],
+        pattern=r"3 moduli to fit .* from 1 measured value .*\(fewer --terms, or --fixed\)",
+    ),
+    dict(
+        id="missing-data",
+        klass="a DATA directory that does not exist",
+        make=nothing,
+        argv=cmp("nodata"),
+        pattern=r"nodata: not a directory",
+    ),
+    dict(
+        id="out-is-file",
+        klass="`--out` is an existing file",
+        make=make_file_out,
+        argv=["compare", "good", "--terms", TERMS, "--out", "a_file"],
+        pattern=r"--out a_file: exists and is not a directory",
+    ),
+    dict(
+        id="out-under-file",
+        klass="`--out` inside a file",
+        make=nothing,
+        argv=["compare", "good", "--terms", TERMS, "--out", "a_file/sub"],
+        pattern=r"--out a_file/sub: a_file is a file, not a directory",
+    ),
+    dict(
+        id="out-is-data",
+        klass="`--out` is a DATA directory (its files would be overwritten)",
+        make=nothing,
+        argv=["compare", "good", "--terms", TERMS, "--out", "good"],
+        pattern=r"--out good: it is the input DATA directory good; outputs must not overwrite",
+    ),
+    dict(
+        id="out-inside-data",
+        klass="`--out` inside a DATA directory",
+        make=nothing,
+        argv=["compare", "good", "--terms", TERMS, "--out", "good/results"],
+        pattern=r"--out good/results: it lies inside the input DATA directory good",
+    ),
+    dict(
+        id="out-contains-data",
+        klass="`--out` containing a DATA directory",
+        make=nothing,
+        argv=["compare", "good", "--terms", TERMS, "--out", "."],
+        pattern=r"--out \.: it contains the input DATA directory good",
+    ),
+    dict(
+        id="out-is-params",
+        klass="`--out` is the `--params` file",
+        make=params_file("outp.json", {"shear": {"k_s": 0.8}}),
+        argv=["bias", "--params", "outp.json", "--out", "outp.json"],
+        pattern=r"--out outp.json: it is the input --params outp.json",
+    ),
+    dict(
+        id="out-dangling-link",
+        klass="`--out` a dangling symbolic link",
+        make=lambda base: (base / "dangling").symlink_to("nowhere"),
+        argv=["compare", "good", "--terms", TERMS, "--out", "dangling"],
+        pattern=r"--out dangling: dangling is a symbolic link to nowhere, which does not exist",
+    ),
+    dict(
+        id="out-link-loop",
+        klass="`--out` under a symbolic link that loops",
+        make=lambda base: (base / "loop").symlink_to("loop"),
+        argv=["compare", "good", "--terms", TERMS, "--out", "loop/sub"],
+        pattern=r"--out loop/sub: loop is a symbolic link that loops \(-> loop\)",
+    ),
+    dict(
+        id="h-zero",
+        klass="`--h 0` (or negative)",
+        make=nothing,
+        argv=cmp("good", "--h", "0"),
+        pattern=r"--h 0: must be a positive element size in mm",
+    ),
+    dict(
+        id="h-huge",
+        klass="`--h` larger than half the specimen",
+        make=nothing,
+        argv=cmp("good", "--h", "1e5"),
+        pattern=r"--h 100000: must be a positive element size in mm, at most 10",
+    ),
+    dict(
+        id="steps-unknown",
+        klass="`compare --steps` naming a step the data lack",
+        make=nothing,
+        argv=cmp("good", "--steps", "99"),
+        pattern=r"--steps 99: step 99 is not a step of experiment 'synthetic' \(steps 1..2\)",
+    ),
+    dict(
+        id="steps-garbage",
+        klass="`compare --steps` that are not numbers",
+        make=nothing,
+        argv=cmp("good", "--steps", "last"),
+        pattern=r"--steps last: expected comma-separated step numbers",
+    ),
+    dict(
+        id="confirm-zero",
+        klass="`diagnose --confirm 0`",
+        make=nothing,
+        argv=["diagnose", "good", "--terms", TERMS, "--confirm", "0", "--out", "out"],
+        pattern=r"--confirm 0: must be at least 1",
+    ),
+    dict(
+        id="max-effects-negative",
+        klass="`diagnose --max-effects -1`",
+        make=nothing,
+        argv=["diagnose", "good", "--terms", TERMS, "--max-effects", "-1", "--out", "out"],
+        pattern=r"--max-effects -1: must be at least 0",
+    ),
+    dict(
+        id="fixed-no-params",
+        klass="`diagnose --fixed` without the moduli of the fixed terms",
+        make=params_file("nofixed.json", {"fibre_stretch": {"k_l": 2.0, "k_m": 2.0}}),
+        argv=dgn("--fixed", "shear", "--params", "nofixed.json"),
+        pattern=r"--fixed shear: a fixed term is held at its moduli from --params, and "
+        r"shear.k_s is not given in --params nofixed.json",
+    ),
+    dict(
+        id="fixed-all",
+        klass="`diagnose --fixed` on every baseline term",
+        make=nothing,
+        argv=dgn("--fixed", "shear,fibre_stretch"),
+        pattern=r"--fixed shear,fibre_stretch: every baseline term \(--terms "
+        r"fibre_stretch,shear\) is fixed, so the baseline has no modulus to fit",
+    ),
+    dict(
+        id="fixed-not-baseline",
+        klass="`diagnose --fixed` naming a term not in `--terms`",
+        make=nothing,
+        argv=dgn("--fixed", "shear_locking"),
+        pattern=r"--fixed shear_locking: 'shear_locking' is not a baseline term",
+    ),
+    dict(
+        id="candidates-in-baseline",
+        klass="`diagnose --candidates` only baseline terms",
+        make=nothing,
+        argv=dgn("--candidates", "shear"),
+        pattern=r"--candidates shear: every candidate is already in the baseline \(--terms "
+        r"fibre_stretch,shear\), so nothing would be tested",
+    ),
+    dict(
+        id="candidates-unknown",
+        klass="`diagnose --candidates` naming an unknown term",
+        make=nothing,
+        argv=dgn("--candidates", "sheer_locking"),
+        pattern=r"--candidates sheer_locking: unknown term 'sheer_locking'; valid terms are",
+    ),
+    dict(
+        id="candidates-hidden",
+        klass="`diagnose --candidates` the data cannot see",
+        make=nothing,
+        argv=dgn("--candidates", "normal_bending"),
+        pattern=r"--candidates normal_bending: these data cannot see normal_bending",
+    ),
+    dict(
+        id="max-dofs-zero",
+        klass="`diagnose --max-dofs 0` (the mesh selection's budget)",
+        make=nothing,
+        argv=dgn("--max-dofs", "0"),
+        pattern=r"--max-dofs 0: must be at least 1 \(displacement unknowns of the finest mesh",
+    ),
+    dict(
+        id="time-budget-negative",
+        klass="`diagnose --time-budget -5`",
+        make=nothing,
+        argv=dgn("--time-budget", "-5"),
+        pattern=r"--time-budget -5: must be a finite time in seconds > 0",
+    ),
+    dict(
+        id="params-misfit",
+        klass="`--params` given a misfit.json (not a moduli file)",
+        make=params_file(
+            "misfit.json",
+            {
+                "combined": 1.8,
+                "chi2": 110.2,
+                "n": 34,
+                "experiments": [],
+                "model": "fibre_stretch+shear",
+                "provenance": {},
+            },
+        ),
+        argv=cmp("good", "--params", "misfit.json"),
+        pattern=r"--params misfit.json: this is a misfit report \(the misfit.json of compare, "
+        r"fit or diagnose\), not a moduli file",
+    ),
+    dict(
+        id="bias-h-zero",
+        klass="`bias --h 0`",
+        make=nothing,
+        argv=["bias", "--h", "0", "--out", "out"],
+        pattern=r"--h 0.0: must lie in \(0, 59.5\]",
+    ),
+    dict(
+        id="bias-steps",
+        klass="`bias --steps 0`",
+        make=nothing,
+        argv=["bias", "--steps", "0", "--out", "out"],
+        pattern=r"--steps 0: must lie in \[1, "
+        "1000\\]",
+    ),
+    dict(
+        id="bias-out-clash",
+        klass="`bias --out D` where D/bias_steps.csv is a directory",
+        make=lambda base: (base / "clash" / "bias_steps.csv").mkdir(parents=True),
+        argv=["bias", "--length", "40", "--width", "20", "--h", "10", "--out", "clash"],
+        pattern=r"--out clash: clash/bias_steps.csv is a directory where a file of the same "
+        "name is to be written",
+    ),
+    dict(
+        id="bias-too-many-elements",
+        klass="`bias --h` too fine for the memory (element count estimated before meshing)",
+        make=nothing,
+        argv=["bias", "--length", "230", "--width", "115", "--h", "0.05", "--out", "out"],
+        pattern=r"--h 0.05: about 21,160,000 elements \(specimen 230 x 115 mm\), more than "
+        r"--max-elements 400,000; they would take about 1,058 GB of memory",
+    ),
+    dict(
+        id="compare-too-many-elements",
+        klass="`--h` too fine for the memory",
+        make=nothing,
+        argv=cmp("good", "--h", "0.01"),
+        pattern=r"--h 0.01: about 16,000,000 elements \('synthetic' 40 x 20 mm\), more than "
+        r"--max-elements 400,000",
+    ),
+    dict(
+        id="params-duplicate-key",
+        klass="`--params` naming one modulus twice in a term",
+        make=params_file("twice.json", '{"shear": {"k_s": 0.5, "k_s": 5.0}}'),
+        argv=cmp("good", "--params", "twice.json"),
+        pattern=r"--params twice.json: key 'k_s' is given twice in one object",
+    ),
+    dict(
+        id="params-empty-term",
+        klass="`--params` with a term that gives no modulus",
+        make=params_file(
+            "emptyterm.json", {"fibre_stretch": {"k_l": 2.0, "k_m": 2.0}, "shear": {}}
+        ),
+        argv=cmp("good", "--params", "emptyterm.json"),
+        pattern=r"--params emptyterm.json: term 'shear' gives no parameter \(it has k_s\)",
+    ),
+    dict(
+        id="shear-noise-90",
+        klass="`[data] shear_noise_deg` of 90° or more",
+        make=variant(
+            "shearnoise",
+            replace(
+                "experiment.toml",
+                "force_noise_std = 0.01",
+                "force_noise_std = 0.01\nshear_noise_deg = 95",
+            ),
+        ),
+        argv=cmp("shearnoise"),
+        pattern=r"experiment.toml: \[data\] shear_noise_deg = 95 must be below 90",
+    ),
+    dict(
+        id="bias-3d-term",
+        klass="`bias --terms` with an out-of-plane effect",
+        make=nothing,
+        argv=["bias", "--terms", "fibre_stretch,shear,twist", "--out", "out"],
+        pattern=r"--terms fibre_stretch,shear,twist: twist is an out-of-plane effect, and the "
+        r"bias test is planar",
+    ),
+    dict(
+        id="usage",
+        klass="a missing argument (usage error)",
+        make=nothing,
+        argv=["fit", "good", "--out", "out"],
+        pattern=r"the following arguments are required: --terms",
+    ),
 ]
 
 
@@ -444,22 +745,25 @@ def test_dialects_and_encodings_accepted(tmp_path):
     edits = {
         "blank": lambda d: (d / "field.csv").write_text((d / "field.csv").read_text() + "\n\n"),
         "bom": lambda d: (d / "experiment.toml").write_bytes(
-            b"\xef\xbb\xbf" + (d / "experiment.toml").read_bytes()),
+            b"\xef\xbb\xbf" + (d / "experiment.toml").read_bytes()
+        ),
         "utf16": lambda d: (d / "field.csv").write_bytes(
-            (d / "field.csv").read_text().encode("utf-16")),
+            (d / "field.csv").read_text().encode("utf-16")
+        ),
         "crlf": lambda d: (d / "force.csv").write_bytes(
-            (d / "force.csv").read_bytes().replace(b"\n", b"\r\n")),
-        "semicolon": lambda d: [(d / f).write_text((d / f).read_text().replace(",", ";")
-                                                   .replace(".", ","))
-                                for f in ("field.csv", "force.csv")],
+            (d / "force.csv").read_bytes().replace(b"\n", b"\r\n")
+        ),
+        "semicolon": lambda d: [
+            (d / f).write_text((d / f).read_text().replace(",", ";").replace(".", ","))
+            for f in ("field.csv", "force.csv")
+        ],
     }
     for name, edit in edits.items():
         d = tmp_path / f"{name}{COMM.rank}"
         shutil.copytree(d0, d)
         edit(d)
         exp = load_experiment(d)
-        for a, b in ((exp.X, ref.X), (exp.u, ref.u), (exp.force, ref.force),
-                     (exp.path, ref.path)):
+        for a, b in ((exp.X, ref.X), (exp.u, ref.u), (exp.force, ref.force), (exp.path, ref.path)):
             assert np.array_equal(a, b), name
 
 
@@ -495,11 +799,25 @@ def test_misfit_records_what_was_used(in_root, capsys):
     """A compare run records terms, the exact moduli of --params, mesh size, inputs and
     versions; OUT gets the user's umask, not 0700."""
     if COMM.rank == 0:
-        (in_root / "used.json").write_text(json.dumps(
-            {"fibre_stretch": {"k_l": 1.0, "k_m": 1.0}, "shear": {"k_s": 0.8}}))
+        (in_root / "used.json").write_text(
+            json.dumps({"fibre_stretch": {"k_l": 1.0, "k_m": 1.0}, "shear": {"k_s": 0.8}})
+        )
     COMM.barrier()
-    rc, msg = run_cli(["compare", "good", "--terms", TERMS, "--params", "used.json", "--h", "10",
-                       "--out", "used"], capsys)
+    rc, msg = run_cli(
+        [
+            "compare",
+            "good",
+            "--terms",
+            TERMS,
+            "--params",
+            "used.json",
+            "--h",
+            "10",
+            "--out",
+            "used",
+        ],
+        capsys,
+    )
     assert rc == 0, msg
     m = json.loads((in_root / "used" / "misfit.json").read_text())
     prov = m["provenance"]
@@ -518,20 +836,37 @@ def test_solver_failure_reports_step_from_1(in_root, capsys):
     files do), gives the SNES reason in words, and failure.json is published with what was
     used; no misfit.json."""
     if COMM.rank == 0:
-        (in_root / "soft.json").write_text(json.dumps(
-            {"fibre_stretch": {"k_l": 0.0, "k_m": 0.0}, "shear": {"k_s": 0.0}}))
+        (in_root / "soft.json").write_text(
+            json.dumps({"fibre_stretch": {"k_l": 0.0, "k_m": 0.0}, "shear": {"k_s": 0.0}})
+        )
     COMM.barrier()
-    rc, msg = run_cli(["compare", "good", "--terms", TERMS, "--params", "soft.json", "--h", "10",
-                       "--out", "failed"], capsys)
+    rc, msg = run_cli(
+        [
+            "compare",
+            "good",
+            "--terms",
+            TERMS,
+            "--params",
+            "soft.json",
+            "--h",
+            "10",
+            "--out",
+            "failed",
+        ],
+        capsys,
+    )
     assert rc == 2
-    assert re.search(r"failed: load step 1 \(target 0.8\) failed: .*DIVERGED_[A-Z_]+ \(-\d+\)",
-                     msg), msg
+    assert re.search(
+        r"failed: load step 1 \(target 0.8\) failed: .*DIVERGED_[A-Z_]+ \(-\d+\)", msg
+    ), msg
     assert msg.endswith("the failure report is in failed/failure.json")
     report = json.loads((in_root / "failed" / "failure.json").read_text())
     assert report["error"] in msg and report["provenance"]["params"]["shear"] == {"k_s": 0.0}
     assert report["converged_steps"] == [] and report["experiment"]
-    assert sorted(p.name for p in (in_root / "failed").iterdir()) == [".fabricsurf-run.json",
-                                                                      "failure.json"]
+    assert sorted(p.name for p in (in_root / "failed").iterdir()) == [
+        ".fabricsurf-run.json",
+        "failure.json",
+    ]
 
 
 def test_start_failure_names_experiment_step_and_load():
@@ -553,15 +888,23 @@ def test_start_failure_names_experiment_step_and_load():
             self.v = np.array(v, float)
 
         def run(self, sens=False):
-            raise LoadStepError("load step 3 (target 0.75) failed: DIVERGED_LINE_SEARCH (-6)",
-                                step=3, target=0.75, last_load=0.5, reason=-6,
-                                partial="converged", experiment="strip45")
+            raise LoadStepError(
+                "load step 3 (target 0.75) failed: DIVERGED_LINE_SEARCH (-6)",
+                step=3,
+                target=0.75,
+                last_load=0.5,
+                reason=-6,
+                partial="converged",
+                experiment="strip45",
+            )
 
     with pytest.raises(LoadStepError) as err:
         fit(Diverging(), scale_start=False)
-    assert str(err.value) == ("fit: the initial model (normal_bending.k_b = 0.0001) does not "
-                              "follow the load path of experiment 'strip45': load step 3 "
-                              "(target 0.75) failed: DIVERGED_LINE_SEARCH (-6)")
+    assert str(err.value) == (
+        "fit: the initial model (normal_bending.k_b = 0.0001) does not "
+        "follow the load path of experiment 'strip45': load step 3 "
+        "(target 0.75) failed: DIVERGED_LINE_SEARCH (-6)"
+    )
     e = err.value
     assert (e.experiment, e.step, e.target, e.partial) == ("strip45", 3, 0.75, "converged")
 
@@ -593,8 +936,12 @@ def test_scanned_start_that_breaks_the_model_falls_back(caplog):
 
         def run(self, sens=False):
             if self.v[0] < self.floor:
-                raise LoadStepError(f"load step 2 (target 0.5) failed at k = {self.v[0]:g}",
-                                    step=2, target=0.5, experiment="strip45")
+                raise LoadStepError(
+                    f"load step 2 (target 0.5) failed at k = {self.v[0]:g}",
+                    step=2,
+                    target=0.5,
+                    experiment="strip45",
+                )
             return self.v.copy()
 
         def residuals(self, pred):
@@ -611,9 +958,11 @@ def test_scanned_start_that_breaks_the_model_falls_back(caplog):
     assert np.isclose(res.values[0], 0.05, rtol=1e-4)
     if COMM.rank == 0:
         assert "start after the scale scan: a.k = 0.0001" in out
-        assert ("the scanned start fails (fit: the initial model (a.k = 0.0001) does not "
-                "follow the load path of experiment 'strip45': load step 2 (target 0.5) "
-                "failed at k = 0.0001); starting from the given moduli instead") in out
+        assert (
+            "the scanned start fails (fit: the initial model (a.k = 0.0001) does not "
+            "follow the load path of experiment 'strip45': load step 2 (target 0.5) "
+            "failed at k = 0.0001); starting from the given moduli instead"
+        ) in out
 
 
 def test_undetermined_moduli_named_not_given_a_plus_minus():
@@ -665,10 +1014,13 @@ def test_undetermined_moduli_named_not_given_a_plus_minus():
     lines = result_lines(u)
     assert lines[:2] == [
         f"  a.k_l = {res.values[0]:.5g} (not determined by the data on its own)",
-        f"  a.k_m = {res.values[1]:.5g} (not determined by the data on its own)"]
+        f"  a.k_m = {res.values[1]:.5g} (not determined by the data on its own)",
+    ]
     assert lines[2].startswith("  determined combination: a.k_l^0.5 · a.k_m^0.5 = 2.4495")
-    assert lines[3] == ("  not determined by the data (rank-deficient Fisher matrix): 0.71 log "
-                        "a.k_l - 0.71 log a.k_m")
+    assert lines[3] == (
+        "  not determined by the data (rank-deficient Fisher matrix): 0.71 log "
+        "a.k_l - 0.71 log a.k_m"
+    )
     assert not any("±" in ln for ln in lines)
 
 
@@ -693,8 +1045,9 @@ def test_publish_all_or_nothing_and_collective(tmp_path):
 def test_max_elements_overrides_the_size_guard():
     """--max-elements raises the limit (the estimate is 2 per h × h square);
     a limit below 1 is refused naming the option."""
-    args = cli.build_parser().parse_args(["bias", "--length", "230", "--width", "115", "--h",
-                                          "0.05", "--max-elements", "30000000"])
+    args = cli.build_parser().parse_args(
+        ["bias", "--length", "230", "--width", "115", "--h", "0.05", "--max-elements", "30000000"]
+    )
     assert bias_cli._check(args) == 0.25 * 230
     args.max_elements = 0
     with pytest.raises(InputError, match=r"--max-elements 0: must be at least 1"):
@@ -757,23 +1110,42 @@ def test_rank0_only_failure_under_mpirun(command, tmp_path):
     write_experiment(tmp_path / "good", good_experiment())
     clash = {"bias": "bias_steps.csv", "compare": "error_map.png"}[command]
     (tmp_path / "D" / clash).mkdir(parents=True)
-    args = {"bias": ["bias", "--length", "40", "--width", "20", "--h", "10", "--steps", "1",
-                     "--terms", TERMS],
-            "compare": ["compare", "good", "--terms", TERMS, "--h", "10"]}[command]
+    args = {
+        "bias": [
+            "bias",
+            "--length",
+            "40",
+            "--width",
+            "20",
+            "--h",
+            "10",
+            "--steps",
+            "1",
+            "--terms",
+            TERMS,
+        ],
+        "compare": ["compare", "good", "--terms", TERMS, "--h", "10"],
+    }[command]
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     t0 = time.perf_counter()
-    p = subprocess.run(["mpirun", "-n", "2", sys.executable, "-m", "fabricsurf", *args,
-                        "--out", "D"], cwd=tmp_path, env=env, capture_output=True, text=True,
-                       timeout=240)
+    p = subprocess.run(
+        ["mpirun", "-n", "2", sys.executable, "-m", "fabricsurf", *args, "--out", "D"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
     seconds = time.perf_counter() - t0
     lines = [ln for ln in (p.stdout + p.stderr).splitlines() if "error:" in ln]
     assert p.returncode == 2, p.stdout + p.stderr
-    expected = (f"fabricsurf {command}: error: --out D: D/{clash} is a directory where a file "
-                "of the same name is to be written")
+    expected = (
+        f"fabricsurf {command}: error: --out D: D/{clash} is a directory where a file "
+        "of the same name is to be written"
+    )
     assert len(lines) == 1 and lines[0].startswith(expected), lines
     if command == "compare":  # after the solve: the results are kept and named
-        assert re.search(r"nothing was published, the results are in \.D\.unpublished-",
-                         lines[0])
+        assert re.search(r"nothing was published, the results are in \.D\.unpublished-", lines[0])
     assert sorted(q.name for q in (tmp_path / "D").iterdir()) == [clash]
     print(f"mpirun -n 2 {command}: exit {p.returncode} after {seconds:.1f} s")
     assert seconds < 120
@@ -795,12 +1167,16 @@ def test_interrupt_cleanup_by_one_rank_without_mpi(tmp_path):
         msgs[name] = COMM.allgather(outdir.interrupted("SIGTERM"))
         outdir._OPEN.remove(od)
         COMM.barrier()
-    assert [m for m in msgs["a"] if m] == ["interrupted by SIGTERM; nothing was published to "
-                                           f"{base / 'a'}"]
+    assert [m for m in msgs["a"] if m] == [
+        f"interrupted by SIGTERM; nothing was published to {base / 'a'}"
+    ]
     assert [m for m in msgs["b"] if m] == ["interrupted by SIGTERM; see failure.json"]
     assert sorted(p.name for p in base.iterdir()) == ["b"]
-    assert sorted(p.name for p in (base / "b").iterdir()) == [".fabricsurf-run.json",
-                                                              "failure.json", "x.json"]
+    assert sorted(p.name for p in (base / "b").iterdir()) == [
+        ".fabricsurf-run.json",
+        "failure.json",
+        "x.json",
+    ]
 
 
 def _interrupt(args: list[str], ranks: int, cwd: Path, after: str) -> tuple[int, str]:
@@ -814,8 +1190,13 @@ def _interrupt(args: list[str], ranks: int, cwd: Path, after: str) -> tuple[int,
     cmd = [sys.executable, "-m", "fabricsurf", *args]
     out, err = cwd / "out.txt", cwd / "err.txt"
     with open(out, "w") as fo, open(err, "w") as fe:
-        p = subprocess.Popen(["mpirun", "-n", str(ranks), *cmd] if ranks > 1 else cmd,
-                             cwd=cwd, env=env, stdout=fo, stderr=fe)
+        p = subprocess.Popen(
+            ["mpirun", "-n", str(ranks), *cmd] if ranks > 1 else cmd,
+            cwd=cwd,
+            env=env,
+            stdout=fo,
+            stderr=fe,
+        )
         t0 = time.perf_counter()
         while after not in out.read_text() and p.poll() is None:
             assert time.perf_counter() - t0 < 180, out.read_text() + err.read_text()
@@ -837,17 +1218,43 @@ def test_interrupted_bias_publishes_converged_steps(ranks, tmp_path):
     says "interrupted at step k" are published, the fields (an HDF5 file cut open, which h5py
     could not read) are not, and no staging directory or lock is left. Exit status 130
     serially; under mpirun, mpirun's own (Open MPI 4.1 returns 1 when it is interrupted)."""
-    rc, out = _interrupt(["bias", "--length", "40", "--width", "20", "--h", "2", "--steps",
-                          "400", "--ubar", "20", "--terms", TERMS, "--out", "D"], ranks,
-                         tmp_path, "step 3/400")
+    rc, out = _interrupt(
+        [
+            "bias",
+            "--length",
+            "40",
+            "--width",
+            "20",
+            "--h",
+            "2",
+            "--steps",
+            "400",
+            "--ubar",
+            "20",
+            "--terms",
+            TERMS,
+            "--out",
+            "D",
+        ],
+        ranks,
+        tmp_path,
+        "step 3/400",
+    )
     lines = [ln for ln in out.splitlines() if "interrupted" in ln]
     assert (rc == 130 if ranks == 1 else rc != 0) and len(lines) == 1, (rc, out)
-    m = re.fullmatch(r"fabricsurf bias: interrupted by SIG(INT|TERM) at step (\d+) of 400; the "
-                     r"step log of the (\d+) converged steps \(bias_steps.csv, .json\) and "
-                     r"failure.json are in D; the fields \(bias.xdmf, bias.h5\) are not kept: "
-                     r"an interrupted HDF5 file cannot be read back", lines[0])
+    m = re.fullmatch(
+        r"fabricsurf bias: interrupted by SIG(INT|TERM) at step (\d+) of 400; the "
+        r"step log of the (\d+) converged steps \(bias_steps.csv, .json\) and "
+        r"failure.json are in D; the fields \(bias.xdmf, bias.h5\) are not kept: "
+        r"an interrupted HDF5 file cannot be read back",
+        lines[0],
+    )
     assert sorted(p.name for p in (tmp_path / "D").iterdir()) == [
-        ".fabricsurf-run.json", "bias_steps.csv", "bias_steps.json", "failure.json"]
+        ".fabricsurf-run.json",
+        "bias_steps.csv",
+        "bias_steps.json",
+        "failure.json",
+    ]
     assert m and int(m[2]) == int(m[3]) + 1 and int(m[3]) >= 3, lines
     report = json.loads((tmp_path / "D" / "failure.json").read_text())
     assert report["error"] == f"interrupted at step {m[2]}"
@@ -862,11 +1269,16 @@ def test_interrupted_fit_under_mpirun_leaves_nothing(tmp_path):
     """SIGINT to ``mpirun -n 2 … fit``: one message on every way out, no
     output and no staging directory."""
     write_experiment(tmp_path / "good", good_experiment())
-    rc, out = _interrupt(["fit", "good", "--terms", TERMS, "--h", "0.5", "--out", "D"], 2,
-                         tmp_path, "fit iteration 1")
+    rc, out = _interrupt(
+        ["fit", "good", "--terms", TERMS, "--h", "0.5", "--out", "D"],
+        2,
+        tmp_path,
+        "fit iteration 1",
+    )
     lines = [ln for ln in out.splitlines() if "interrupted" in ln]
-    assert rc != 0 and lines == ["fabricsurf fit: interrupted by SIGTERM; nothing was published "
-                                 "to D"], out
+    assert rc != 0 and lines == [
+        "fabricsurf fit: interrupted by SIGTERM; nothing was published to D"
+    ], out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good"]
 
 

@@ -53,7 +53,8 @@ def test_steep_fibres_at_the_default_h_are_computed(root, capsys, monkeypatch):
     monkeypatch.chdir(root)
     text = (root / "steep" / "experiment.toml").read_text()
     assert re.search(r"fibre_angles_deg = \[80\.0, -80\.0\]", text), text
-    rc, out = run_cli(["compare", "steep", "--terms", "fibre_stretch,shear", "--out", "out"],
-                      capsys)
+    rc, out = run_cli(
+        ["compare", "steep", "--terms", "fibre_stretch,shear", "--out", "out"], capsys
+    )
     assert rc == 0, out
     assert "Traceback" not in out and "combined misfit" in out, out

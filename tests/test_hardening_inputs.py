@@ -40,62 +40,101 @@ TERMS = th.TERMS
 
 def zero_field(steps=None):
     """An edit of field.csv setting ux, uy to 0 at ``steps`` (None: every step)."""
+
     def edit(d: Path) -> None:
         rows = list(csv.reader((d / "field.csv").open()))
-        body = [r[:3] + ["0", "0"] if steps is None or int(r[0]) in steps else r
-                for r in rows[1:]]
+        body = [r[:3] + ["0", "0"] if steps is None or int(r[0]) in steps else r for r in rows[1:]]
         (d / "field.csv").write_text("\n".join(",".join(r) for r in [rows[0], *body]) + "\n")
+
     return edit
 
 
-SAVED_FIT = {"terms": ["fibre_stretch", "shear"],
-             "params": {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}},
-             "std": {"fibre_stretch.k_l": 1.0, "fibre_stretch.k_m": 1.0, "shear.k_s": 0.01}}
+SAVED_FIT = {
+    "terms": ["fibre_stretch", "shear"],
+    "params": {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}},
+    "std": {"fibre_stretch.k_l": 1.0, "fibre_stretch.k_m": 1.0, "shear.k_s": 0.01},
+}
 
 CASES = [
-    dict(id="params-modulus-huge", klass="`--params` with a modulus beyond any sheet "
-         "(`k_l = 1e308`)",
-         make=th.params_file("kl_1e308.json", {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0},
-                                               "shear": {"k_s": 1.0}}),
-         argv=th.cmp("good", "--params", "kl_1e308.json"),
-         pattern=r"--params kl_1e308.json: fibre_stretch.k_l = 1e\+308 N/mm is beyond any "
-         r"sheet \(at most 1e\+12 N/mm.*check the value and its unit"),
-    dict(id="compare-params-incomplete", klass="`compare --params` lacking moduli of `--terms`",
-         make=th.params_file("shear_only.json", {"shear": {"k_s": 0.8}}),
-         argv=th.cmp("good", "--params", "shear_only.json"),
-         pattern=r"--params shear_only.json: gives no value for fibre_stretch.k_l, "
-         r"fibre_stretch.k_m of --terms fibre_stretch,shear, so compare would use the defaults "
-         r"\(fibre_stretch.k_l = 1 N/mm, fibre_stretch.k_m = 1 N/mm\), nobody's estimate; add "
-         r"them to shear_only.json, or drop the term from --terms"),
-    dict(id="compare-fit-lacks-term", klass="`compare --params fit.json` lacking a term of "
-         "`--terms`", make=th.params_file("fit_no_Ag.json", SAVED_FIT),
-         argv=["compare", "good", "--terms", TERMS + ",geodesic_bending", "--params",
-               "fit_no_Ag.json", "--out", "out"],
-         pattern=r"--params fit_no_Ag.json: gives no value for geodesic_bending.A_g .*default "
-         r"\(geodesic_bending.A_g = 1 N·mm\).*leave --terms out to compare the fit's own model"),
-    dict(id="test-tensile", klass="`[loading] test = \"tensile\"` (fibres at 0/90°)",
-         make=th.variant("tensile_0_90", th.edits(
-             th.replace("experiment.toml", 'test = "bias_extension"', 'test = "tensile"'),
-             th.replace("experiment.toml", "[45.0, -45.0]", "[0.0, 90.0]"))),
-         argv=th.cmp("tensile_0_90"),
-         pattern=r"experiment.toml: \[loading\] test = 'tensile': a tensile test \(the yarns "
-         r"pulled along the load, fibres at 0/90 deg\) is not modelled.*write test = "
-         r"\"bias_extension\""),
-    dict(id="field-still", klass="field.csv all zero while the grip moves",
-         make=th.variant("field_still", zero_field()),
-         argv=["diagnose", "field_still", "--terms", TERMS, "--out", "out"],
-         pattern=r"field.csv: every displacement of steps 1, 2 \(all its steps\) is 0 while the "
-         r"grip displacement \(mm\) is 0.8, 1.6: nothing moved in the data"),
-    dict(id="field-still-step", klass="field.csv all zero at one step while the grip moves",
-         make=th.variant("field_still_2", zero_field({2})), argv=th.cmp("field_still_2"),
-         pattern=r"field.csv: every displacement of step 2 is 0 while the grip displacement "
-         r"\(mm\) is 1.6"),
-    dict(id="force-negative", klass="force.csv of a bias test with negative (compressive) forces",
-         make=th.variant("force_negative", th.replace("force.csv", "1,0.8,0.0\r\n2,1.6,0.0",
-                                                      "1,0.8,-2.0\r\n2,1.6,-4.5")),
-         argv=th.cmp("force_negative"),
-         pattern=r"force.csv: step 1 \(numbered 1\): force -2 N is negative \(2 of 2 steps "
-         r"are\); the 'bias_extension' test pulls the specimen.*flip the sign"),
+    dict(
+        id="params-modulus-huge",
+        klass="`--params` with a modulus beyond any sheet (`k_l = 1e308`)",
+        make=th.params_file(
+            "kl_1e308.json", {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0}, "shear": {"k_s": 1.0}}
+        ),
+        argv=th.cmp("good", "--params", "kl_1e308.json"),
+        pattern=r"--params kl_1e308.json: fibre_stretch.k_l = 1e\+308 N/mm is beyond any "
+        r"sheet \(at most 1e\+12 N/mm.*check the value and its unit",
+    ),
+    dict(
+        id="compare-params-incomplete",
+        klass="`compare --params` lacking moduli of `--terms`",
+        make=th.params_file("shear_only.json", {"shear": {"k_s": 0.8}}),
+        argv=th.cmp("good", "--params", "shear_only.json"),
+        pattern=r"--params shear_only.json: gives no value for fibre_stretch.k_l, "
+        r"fibre_stretch.k_m of --terms fibre_stretch,shear, so compare would use the defaults "
+        r"\(fibre_stretch.k_l = 1 N/mm, fibre_stretch.k_m = 1 N/mm\), nobody's estimate; add "
+        r"them to shear_only.json, or drop the term from --terms",
+    ),
+    dict(
+        id="compare-fit-lacks-term",
+        klass="`compare --params fit.json` lacking a term of `--terms`",
+        make=th.params_file("fit_no_Ag.json", SAVED_FIT),
+        argv=[
+            "compare",
+            "good",
+            "--terms",
+            TERMS + ",geodesic_bending",
+            "--params",
+            "fit_no_Ag.json",
+            "--out",
+            "out",
+        ],
+        pattern=r"--params fit_no_Ag.json: gives no value for geodesic_bending.A_g .*default "
+        r"\(geodesic_bending.A_g = 1 N·mm\).*leave --terms out to compare the fit's own model",
+    ),
+    dict(
+        id="test-tensile",
+        klass='`[loading] test = "tensile"` (fibres at 0/90°)',
+        make=th.variant(
+            "tensile_0_90",
+            th.edits(
+                th.replace("experiment.toml", 'test = "bias_extension"', 'test = "tensile"'),
+                th.replace("experiment.toml", "[45.0, -45.0]", "[0.0, 90.0]"),
+            ),
+        ),
+        argv=th.cmp("tensile_0_90"),
+        pattern=r"experiment.toml: \[loading\] test = 'tensile': a tensile test \(the yarns "
+        r"pulled along the load, fibres at 0/90 deg\) is not modelled.*write test = "
+        r"\"bias_extension\"",
+    ),
+    dict(
+        id="field-still",
+        klass="field.csv all zero while the grip moves",
+        make=th.variant("field_still", zero_field()),
+        argv=["diagnose", "field_still", "--terms", TERMS, "--out", "out"],
+        pattern=r"field.csv: every displacement of steps 1, 2 \(all its steps\) is 0 while the "
+        r"grip displacement \(mm\) is 0.8, 1.6: nothing moved in the data",
+    ),
+    dict(
+        id="field-still-step",
+        klass="field.csv all zero at one step while the grip moves",
+        make=th.variant("field_still_2", zero_field({2})),
+        argv=th.cmp("field_still_2"),
+        pattern=r"field.csv: every displacement of step 2 is 0 while the grip displacement "
+        r"\(mm\) is 1.6",
+    ),
+    dict(
+        id="force-negative",
+        klass="force.csv of a bias test with negative (compressive) forces",
+        make=th.variant(
+            "force_negative",
+            th.replace("force.csv", "1,0.8,0.0\r\n2,1.6,0.0", "1,0.8,-2.0\r\n2,1.6,-4.5"),
+        ),
+        argv=th.cmp("force_negative"),
+        pattern=r"force.csv: step 1 \(numbered 1\): force -2 N is negative \(2 of 2 steps "
+        r"are\); the 'bias_extension' test pulls the specimen.*flip the sign",
+    ),
 ]
 
 
@@ -127,8 +166,11 @@ def test_stiff_yarns_pass_and_the_bound_is_per_unit(tmp_path):
     p.write_text(json.dumps(ok))
     assert load_params(p) == ok
     p.write_text(json.dumps({"geodesic_bending": {"A_g": 2 * MAX_MODULUS}}))
-    with pytest.raises(InputError, match=r"geodesic_bending.A_g = 2e\+12 N·mm is beyond any "
-                                         r"sheet \(at most 1e\+12 N·mm"):
+    with pytest.raises(
+        InputError,
+        match=r"geodesic_bending.A_g = 2e\+12 N·mm is beyond any "
+        r"sheet \(at most 1e\+12 N·mm",
+    ):
         load_params(p)
 
 
@@ -138,13 +180,17 @@ def test_compare_without_params_says_the_defaults(in_root, capsys):
     a complete --params file runs without a note."""
     rc, msg = th.run_cli(th.cmp("good", "--h", "10", "--out", "defaults"), capsys)
     assert rc == 0, msg
-    assert ("note: no --params given: every modulus takes its default (fibre_stretch.k_l = 1 "
-            "N/mm, fibre_stretch.k_m = 1 N/mm, shear.k_s = 1 N/mm)") in msg
+    assert (
+        "note: no --params given: every modulus takes its default (fibre_stretch.k_l = 1 "
+        "N/mm, fibre_stretch.k_m = 1 N/mm, shear.k_s = 1 N/mm)"
+    ) in msg
     if COMM.rank == 0:
         (in_root / "complete.json").write_text(json.dumps(SAVED_FIT))
     COMM.barrier()
-    rc, msg = th.run_cli(th.cmp("good", "--h", "10", "--params", "complete.json", "--no-band",
-                                "--out", "given"), capsys)
+    rc, msg = th.run_cli(
+        th.cmp("good", "--h", "10", "--params", "complete.json", "--no-band", "--out", "given"),
+        capsys,
+    )
     assert rc == 0 and "note: no --params" not in msg, msg
     used = json.loads((in_root / "given" / "misfit.json").read_text())["provenance"]["params"]
     assert used == SAVED_FIT["params"]
@@ -156,20 +202,44 @@ def test_bias_with_a_partial_params_file_names_the_defaults(in_root, capsys):
     if COMM.rank == 0:
         (in_root / "partial.json").write_text(json.dumps({"shear": {"k_s": 0.8}}))
     COMM.barrier()
-    rc, msg = th.run_cli(["bias", "--length", "40", "--width", "20", "--h", "10", "--steps", "1",
-                          "--ubar", "1", "--terms", TERMS, "--params", "partial.json", "--out",
-                          "partial"], capsys)
+    rc, msg = th.run_cli(
+        [
+            "bias",
+            "--length",
+            "40",
+            "--width",
+            "20",
+            "--h",
+            "10",
+            "--steps",
+            "1",
+            "--ubar",
+            "1",
+            "--terms",
+            TERMS,
+            "--params",
+            "partial.json",
+            "--out",
+            "partial",
+        ],
+        capsys,
+    )
     assert rc == 0, msg
-    assert ("note: --params partial.json gives no value for fibre_stretch.k_l = 1 N/mm, "
-            "fibre_stretch.k_m = 1 N/mm: the term's default is used") in msg
+    assert (
+        "note: --params partial.json gives no value for fibre_stretch.k_l = 1 N/mm, "
+        "fibre_stretch.k_m = 1 N/mm: the term's default is used"
+    ) in msg
 
 
 # -- 3. "tensile" ------------------------------------------------------------------------------
 def test_tensile_is_refused_whatever_the_angles():
     """Not an alias any more (with ±45° fibres it was a bias test under another name): the
     name itself is refused, saying what to write instead."""
-    with pytest.raises(DataError, match=r"test = 'tensile': a tensile test .* write test = "
-                                        r"\"bias_extension\""):
+    with pytest.raises(
+        DataError,
+        match=r"test = 'tensile': a tensile test .* write test = "
+        r"\"bias_extension\"",
+    ):
         get_test("tensile")
     assert get_test("bias_extension").name == "bias_extension"
 
@@ -192,8 +262,21 @@ def symmetric_fit(leak: float) -> FitResult:
     names = ["fibre_stretch.k_l", "fibre_stretch.k_m", "shear.k_s"]
     std = np.sqrt(np.diag(cov))
     und = undetermined(names, J * vals)
-    return FitResult(names, vals, std, 40.0, {}, None, 1, 1, undetermined=und,
-                     free=[0, 1, 2], J=J, r=rng.normal(size=40), statistical=stat)
+    return FitResult(
+        names,
+        vals,
+        std,
+        40.0,
+        {},
+        None,
+        1,
+        1,
+        undetermined=und,
+        free=[0, 1, 2],
+        J=J,
+        r=rng.normal(size=40),
+        statistical=stat,
+    )
 
 
 def test_no_interval_along_an_undetermined_direction():
@@ -224,8 +307,9 @@ def test_determined_directions_are_untouched():
     R = np.array([[1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2)
     cov = R @ np.diag([2.0, 5e3]) @ R.T
     a = intervals.combinations(["a", "b"], p, cov, 2.0, None, None, [0, 1])
-    b = intervals.combinations(["a", "b"], p, cov, 2.0, None, None, [0, 1],
-                               intervals.null_directions(J))
+    b = intervals.combinations(
+        ["a", "b"], p, cov, 2.0, None, None, [0, 1], intervals.null_directions(J)
+    )
     assert a == b and len(a) == 1
 
 
@@ -239,8 +323,11 @@ def test_still_field_refused_by_the_python_diagnose(monkeypatch):
     monkeypatch.setattr(dg, "ForwardSet", lambda *a, **k: built.append(a))
     exp = sy.template(40.0, 20.0, [0.8, 1.6], sy.grid_points(40.0, 20.0, 4, 2))
     exp.noise_std = 0.01
-    with pytest.raises(DataError, match=r"the field of experiment 'synthetic': every "
-                                        r"displacement of steps 1, 2 \(all its steps\) is 0"):
+    with pytest.raises(
+        DataError,
+        match=r"the field of experiment 'synthetic': every "
+        r"displacement of steps 1, 2 \(all its steps\) is 0",
+    ):
         dg.diagnose(exp, ["fibre_stretch", "shear"])
     assert not built
     exp.path = np.array([0.0, 1.6])

@@ -49,8 +49,9 @@ def force_only(d: Path) -> None:
 def with_uz(d: Path) -> None:
     """field.csv with a third displacement column (out-of-plane data)."""
     rows = (d / "field.csv").read_text().splitlines()
-    (d / "field.csv").write_text("\n".join([rows[0] + ",uz"] + [r + ",-0.5" for r in rows[1:]
-                                                                 if r]) + "\n")
+    (d / "field.csv").write_text(
+        "\n".join([rows[0] + ",uz"] + [r + ",-0.5" for r in rows[1:] if r]) + "\n"
+    )
 
 
 def utf16_without_bom(d: Path) -> None:
@@ -63,83 +64,172 @@ def fifo(d: Path) -> None:
 
 
 CASES = [
-    dict(id="compare-default-h-too-fine", klass="`compare` of a 3000 × 1 mm specimen without "
-         "`--h` (the default element size, min(length, width)/10, is checked as a given one)",
-         make=th.variant("long", th.edits(force_only, toml_edits(
-             ("length = 40.0", "length = 3000.0"), ("width = 20.0", "width = 1.0")))),
-         argv=th.cmp("long"), pattern=r"no --h given: the tests' default element sizes \('"
-         r"synthetic' 3000 x 1 mm at h = 0.1 mm\) give about 600,000 elements, more than "
-         r"--max-elements 400,000"),
-    dict(id="fit-h-half-too-fine", klass="`fit` whose mesh check at h/2 would exceed "
-         "`--max-elements` (the guard counts the finest mesh a command builds)", make=th.nothing,
-         argv=["fit", "good", "--terms", TERMS, "--h", "1", "--max-elements", "3000", "--out",
-               "out"], pattern=r"--h 1: about 6,400 elements \('synthetic' 40 x 20 mm; at h/2 = "
-         r"0.5 mm \(fit and diagnose also solve there: the mesh check\)\), more than "
-         r"--max-elements 3,000"),
-    dict(id="compare-hemisphere-field", klass="`compare` of a `test = \"hemisphere\"` "
-         "directory with a displacement field (a formed part's field is not yet in the loop; "
-         "its force and shear angles are)",
-         make=th.variant("dome", th.edits(with_uz, toml_edits(
-             ("width = 20.0", "width = 40.0"),
-             ('test = "bias_extension"\nclamp = "gradient"',
-              'test = "hemisphere"\n[tooling]\npunch_radius = 5.0')))),
-         argv=th.cmp("dome"), pattern=r"dome/experiment.toml: \[data\] field with \[loading\] "
-         r"test = \"hemisphere\": a displacement field of a formed part is not yet compared"),
-    dict(id="twist-planar", klass="twist or normal bending in `--terms` with planar data",
-         make=th.nothing, argv=["fit", "good", "--terms", TERMS + ",twist", "--out", "out"],
-         pattern=r"--terms fibre_stretch,shear,twist: twist is an out-of-plane effect, and "
-         r"experiment 'synthetic' \(test 'bias_extension'\) is planar"),
-    dict(id="cantilever-no-bending", klass="cantilever data with planar terms only (no "
-         "bending stiffness)", make=th.variant("cantflat", th.edits(
-             th.cantilever("[0.5, 1.0]"), with_uz)),
-         argv=["compare", "cantflat", "--terms", TERMS, "--out", "out"],
-         pattern=r"--terms fibre_stretch,shear: experiment 'synthetic' is a cantilever, and no "
-         r"term has a second gradient"),
-    dict(id="diagnose-mixed-candidates", klass="`diagnose` of planar and cantilever data "
-         "together, default candidates (they include twist and normal bending)",
-         make=th.variant("strip", th.edits(th.cantilever("[0.5, 1.0]"), with_uz, toml_edits(
-             ('name = "synthetic"', 'name = "strip"')))),
-         argv=["diagnose", "good", "strip", "--terms", TERMS + ",geodesic_bending", "--out",
-               "out"], pattern=r"no --candidates given: the default candidates include: "
-         r"normal_bending, twist cannot be tried on planar experiment"),
-    dict(id="toml-string-angle", klass="a string where a number belongs in a TOML array "
-         "(fibre angles)", make=th.variant("strangle", toml_edits(
-             ("[45.0, -45.0]", "['45', -45.0]"))),
-         argv=th.cmp("strangle"), pattern=r"experiment.toml: \[specimen\] fibre_angles_deg\[0\] = "
-         r"'45' must be a finite number \(written without quotes\)"),
-    dict(id="toml-string-path", klass="a string where a number belongs in a TOML array "
-         "(load path)", make=th.variant("strpath", th.edits(
-             th.cantilever('[0.5, "1"]'), with_uz)),
-         argv=["compare", "strpath", "--terms", TERMS + ",normal_bending", "--out", "out"],
-         pattern=r"experiment.toml: \[loading\] path\[1\] = '1' must be a finite number"),
-    dict(id="utf16-no-bom", klass="a CSV in UTF-16 without its byte-order mark (NUL bytes)",
-         make=th.variant("utf16", utf16_without_bom), argv=th.cmp("utf16"),
-         pattern=r"field.csv line 1: NUL bytes \(UTF-16 without its byte-order mark\?\): save "
-         "the file as UTF-8"),
-    dict(id="fifo", klass="force.csv a named pipe (FIFO)", make=th.variant("fifo", fifo),
-         argv=th.cmp("fifo"), pattern=r"force.csv: a named pipe \(FIFO\), not a regular file"),
-    dict(id="data-file-number", klass="`[data] field = 5` (a number where a file name "
-         "belongs)", make=th.variant("fieldnum", toml_edits(('field = "field.csv"', "field = 5"))),
-         argv=th.cmp("fieldnum"), pattern=r"experiment.toml: \[data\] field = 5 must be a file "
-         r"name in quotes"),
-    dict(id="params-fifo", klass="`--params` a named pipe (FIFO; reading it would block)",
-         make=lambda base: os.mkfifo(base / "pipe.json"),
-         argv=th.cmp("good", "--params", "pipe.json"),
-         pattern=r"--params pipe.json: a named pipe \(FIFO\), not a regular file"),
-    dict(id="out-root", klass="`--out /` (the results would be spread over the root)",
-         make=th.nothing, argv=["bias", "--out", "/"],
-         pattern=r"--out /: the root of the file system"),
-    dict(id="bias-width-gt-length", klass="`bias --width` larger than `--length`",
-         make=th.nothing, argv=["bias", "--width", "150", "--length", "100", "--out", "out"],
-         pattern=r"--width 150 exceeds --length 100: the bias specimen has its long side along "
-         r"the load \(x\); swap them"),
-    dict(id="h-denormal", klass="`--h` so small the element count overflows (5e-324)",
-         make=th.nothing, argv=th.cmp("good", "--h", "5e-324"),
-         pattern=r"--h 4.94066e-324: far too small an element size for 'synthetic' 40 x 20 mm "
-         r"\(the element count overflows\); give a larger --h"),
-    dict(id="bias-length-inf", klass="`bias --length inf`", make=th.nothing,
-         argv=["bias", "--length", "inf", "--out", "out"],
-         pattern=r"--length inf: must be a finite number \(mm\)"),
+    dict(
+        id="compare-default-h-too-fine",
+        klass="`compare` of a 3000 × 1 mm specimen without "
+        "`--h` (the default element size, min(length, width)/10, is checked as a given one)",
+        make=th.variant(
+            "long",
+            th.edits(
+                force_only,
+                toml_edits(("length = 40.0", "length = 3000.0"), ("width = 20.0", "width = 1.0")),
+            ),
+        ),
+        argv=th.cmp("long"),
+        pattern=r"no --h given: the tests' default element sizes \('"
+        r"synthetic' 3000 x 1 mm at h = 0.1 mm\) give about 600,000 elements, more than "
+        r"--max-elements 400,000",
+    ),
+    dict(
+        id="fit-h-half-too-fine",
+        klass="`fit` whose mesh check at h/2 would exceed "
+        "`--max-elements` (the guard counts the finest mesh a command builds)",
+        make=th.nothing,
+        argv=[
+            "fit",
+            "good",
+            "--terms",
+            TERMS,
+            "--h",
+            "1",
+            "--max-elements",
+            "3000",
+            "--out",
+            "out",
+        ],
+        pattern=r"--h 1: about 6,400 elements \('synthetic' 40 x 20 mm; at h/2 = "
+        r"0.5 mm \(fit and diagnose also solve there: the mesh check\)\), more than "
+        r"--max-elements 3,000",
+    ),
+    dict(
+        id="compare-hemisphere-field",
+        klass='`compare` of a `test = "hemisphere"` '
+        "directory with a displacement field (a formed part's field is not yet in the loop; "
+        "its force and shear angles are)",
+        make=th.variant(
+            "dome",
+            th.edits(
+                with_uz,
+                toml_edits(
+                    ("width = 20.0", "width = 40.0"),
+                    (
+                        'test = "bias_extension"\nclamp = "gradient"',
+                        'test = "hemisphere"\n[tooling]\npunch_radius = 5.0',
+                    ),
+                ),
+            ),
+        ),
+        argv=th.cmp("dome"),
+        pattern=r"dome/experiment.toml: \[data\] field with \[loading\] "
+        r"test = \"hemisphere\": a displacement field of a formed part is not yet compared",
+    ),
+    dict(
+        id="twist-planar",
+        klass="twist or normal bending in `--terms` with planar data",
+        make=th.nothing,
+        argv=["fit", "good", "--terms", TERMS + ",twist", "--out", "out"],
+        pattern=r"--terms fibre_stretch,shear,twist: twist is an out-of-plane effect, and "
+        r"experiment 'synthetic' \(test 'bias_extension'\) is planar",
+    ),
+    dict(
+        id="cantilever-no-bending",
+        klass="cantilever data with planar terms only (no bending stiffness)",
+        make=th.variant("cantflat", th.edits(th.cantilever("[0.5, 1.0]"), with_uz)),
+        argv=["compare", "cantflat", "--terms", TERMS, "--out", "out"],
+        pattern=r"--terms fibre_stretch,shear: experiment 'synthetic' is a cantilever, and no "
+        r"term has a second gradient",
+    ),
+    dict(
+        id="diagnose-mixed-candidates",
+        klass="`diagnose` of planar and cantilever data "
+        "together, default candidates (they include twist and normal bending)",
+        make=th.variant(
+            "strip",
+            th.edits(
+                th.cantilever("[0.5, 1.0]"),
+                with_uz,
+                toml_edits(('name = "synthetic"', 'name = "strip"')),
+            ),
+        ),
+        argv=["diagnose", "good", "strip", "--terms", TERMS + ",geodesic_bending", "--out", "out"],
+        pattern=r"no --candidates given: the default candidates include: "
+        r"normal_bending, twist cannot be tried on planar experiment",
+    ),
+    dict(
+        id="toml-string-angle",
+        klass="a string where a number belongs in a TOML array (fibre angles)",
+        make=th.variant("strangle", toml_edits(("[45.0, -45.0]", "['45', -45.0]"))),
+        argv=th.cmp("strangle"),
+        pattern=r"experiment.toml: \[specimen\] fibre_angles_deg\[0\] = "
+        r"'45' must be a finite number \(written without quotes\)",
+    ),
+    dict(
+        id="toml-string-path",
+        klass="a string where a number belongs in a TOML array (load path)",
+        make=th.variant("strpath", th.edits(th.cantilever('[0.5, "1"]'), with_uz)),
+        argv=["compare", "strpath", "--terms", TERMS + ",normal_bending", "--out", "out"],
+        pattern=r"experiment.toml: \[loading\] path\[1\] = '1' must be a finite number",
+    ),
+    dict(
+        id="utf16-no-bom",
+        klass="a CSV in UTF-16 without its byte-order mark (NUL bytes)",
+        make=th.variant("utf16", utf16_without_bom),
+        argv=th.cmp("utf16"),
+        pattern=r"field.csv line 1: NUL bytes \(UTF-16 without its byte-order mark\?\): save "
+        "the file as UTF-8",
+    ),
+    dict(
+        id="fifo",
+        klass="force.csv a named pipe (FIFO)",
+        make=th.variant("fifo", fifo),
+        argv=th.cmp("fifo"),
+        pattern=r"force.csv: a named pipe \(FIFO\), not a regular file",
+    ),
+    dict(
+        id="data-file-number",
+        klass="`[data] field = 5` (a number where a file name belongs)",
+        make=th.variant("fieldnum", toml_edits(('field = "field.csv"', "field = 5"))),
+        argv=th.cmp("fieldnum"),
+        pattern=r"experiment.toml: \[data\] field = 5 must be a file "
+        r"name in quotes",
+    ),
+    dict(
+        id="params-fifo",
+        klass="`--params` a named pipe (FIFO; reading it would block)",
+        make=lambda base: os.mkfifo(base / "pipe.json"),
+        argv=th.cmp("good", "--params", "pipe.json"),
+        pattern=r"--params pipe.json: a named pipe \(FIFO\), not a regular file",
+    ),
+    dict(
+        id="out-root",
+        klass="`--out /` (the results would be spread over the root)",
+        make=th.nothing,
+        argv=["bias", "--out", "/"],
+        pattern=r"--out /: the root of the file system",
+    ),
+    dict(
+        id="bias-width-gt-length",
+        klass="`bias --width` larger than `--length`",
+        make=th.nothing,
+        argv=["bias", "--width", "150", "--length", "100", "--out", "out"],
+        pattern=r"--width 150 exceeds --length 100: the bias specimen has its long side along "
+        r"the load \(x\); swap them",
+    ),
+    dict(
+        id="h-denormal",
+        klass="`--h` so small the element count overflows (5e-324)",
+        make=th.nothing,
+        argv=th.cmp("good", "--h", "5e-324"),
+        pattern=r"--h 4.94066e-324: far too small an element size for 'synthetic' 40 x 20 mm "
+        r"\(the element count overflows\); give a larger --h",
+    ),
+    dict(
+        id="bias-length-inf",
+        klass="`bias --length inf`",
+        make=th.nothing,
+        argv=["bias", "--length", "inf", "--out", "out"],
+        pattern=r"--length inf: must be a finite number \(mm\)",
+    ),
 ]
 
 
@@ -176,7 +266,8 @@ def test_errors_table_is_up_to_date(in_root, capsys):
         assert rc == 2, (c["id"], msg)
         rows.append(table_row(c, msg))
     assert DOC.read_text() == errors_table(rows), (
-        "docs/input_errors.md is stale: run python benchmarks/regenerate_input_errors.py")
+        "docs/input_errors.md is stale: run python benchmarks/regenerate_input_errors.py"
+    )
 
 
 # -- one output directory, one run ---------------------------------------------------------
@@ -194,8 +285,11 @@ def test_concurrent_run_refused(tmp_path):
     base = shared(tmp_path)
     first = OutputDir(base / "D", COMM)
     holder = COMM.bcast(os.getpid())  # rank 0 checks --out and holds the lock
-    with pytest.raises(InputError, match=rf"--out {re.escape(str(base / 'D'))}: another "
-                       rf"fabricsurf run \(PID {holder} on .+\) is writing to this directory"):
+    with pytest.raises(
+        InputError,
+        match=rf"--out {re.escape(str(base / 'D'))}: another "
+        rf"fabricsurf run \(PID {holder} on .+\) is writing to this directory",
+    ):
         OutputDir(base / "D", COMM)
     with first as stage:
         write_json(COMM, stage / "a.json", {})
@@ -276,11 +370,13 @@ def test_empty_out_refused(tmp_path, monkeypatch, capsys):
     """``--out ""`` (an unset shell variable) would publish into the working directory: it is
     a usage error."""
     monkeypatch.chdir(shared(tmp_path))
-    rc, msg = th.run_cli(["bias", "--length", "40", "--width", "20", "--h", "10", "--out", ""],
-                         capsys)
+    rc, msg = th.run_cli(
+        ["bias", "--length", "40", "--width", "20", "--h", "10", "--out", ""], capsys
+    )
     assert rc == 2 and msg.splitlines()[-1] == (
         "fabricsurf bias: error: argument --out: '' is empty (an unset variable?); give the "
-        "output directory by name")
+        "output directory by name"
+    )
     assert listing(Path.cwd()) == []
 
 
@@ -316,8 +412,9 @@ def test_two_non_latin_names_accepted(tmp_path):
             exp.name = n
             write_experiment(base / d, exp)
     COMM.barrier()
-    args = cli.build_parser().parse_args(["compare", str(base / "a"), str(base / "b"),
-                                          "--terms", TERMS, "--out", str(base / "o")])
+    args = cli.build_parser().parse_args(
+        ["compare", str(base / "a"), str(base / "b"), "--terms", TERMS, "--out", str(base / "o")]
+    )
     exps, _, _ = measure_cli._setup(args)
     assert [e.name for e in exps] == ["试验一", "试验二"]
 
@@ -330,17 +427,21 @@ def test_per_point_in_mm_whatever_the_input_units(tmp_path):
         write_experiment(base / "mm", th.good_experiment())
         shutil.copytree(base / "mm", base / "m")
         toml = (base / "m" / "experiment.toml").read_text()
-        toml = toml.replace('length = "mm"', 'length = "m"').replace('force = "N"',
-                                                                       'force = "kN"')
-        toml = toml.replace("length = 40.0", "length = 0.04").replace("width = 20.0",
-                                                                      "width = 0.02")
-        (base / "m" / "experiment.toml").write_text(toml.replace("noise_std = 0.01",
-                                                                 "noise_std = 1e-5"))
+        toml = toml.replace('length = "mm"', 'length = "m"').replace('force = "N"', 'force = "kN"')
+        toml = toml.replace("length = 40.0", "length = 0.04").replace(
+            "width = 20.0", "width = 0.02"
+        )
+        (base / "m" / "experiment.toml").write_text(
+            toml.replace("noise_std = 0.01", "noise_std = 1e-5")
+        )
         for f in ("field.csv", "force.csv"):
             rows = (base / "m" / f).read_text().splitlines()
             scale = 1e-3  # mm -> m; N -> kN: the same factor
-            body = [r.split(",")[:1] + [repr(float(v) * scale) for v in r.split(",")[1:]]
-                    for r in rows[1:] if r]
+            body = [
+                r.split(",")[:1] + [repr(float(v) * scale) for v in r.split(",")[1:]]
+                for r in rows[1:]
+                if r
+            ]
             (base / "m" / f).write_text("\n".join([rows[0]] + [",".join(b) for b in body]))
     COMM.barrier()
     tables = []

@@ -37,10 +37,12 @@ BIAS = ["bias", "--length", "40", "--width", "20", "--h", "10", "--steps", "1", 
 
 def users_files(name: str, *files: str):
     """A directory ``name`` holding files of the user's (no run recorded them)."""
+
     def make(base: Path) -> None:
         (base / name).mkdir()
         for f in files:
             (base / name / f).write_text("mine\n")
+
     return make
 
 
@@ -49,34 +51,54 @@ def a_file(base: Path) -> None:
 
 
 CASES = [
-    dict(id="grip-depths-negative", klass="`--grip-depths` with a negative depth (a value that "
-         "begins with '-' is the option's value, not another option)", make=th.nothing,
-         argv=th.dgn("--grip-depths", "-1,0"),
-         pattern=r"--grip-depths -1,0: grip depths \[-1.0, 0.0\] must be one or more finite "
-         r"depths ≥ 0 mm"),
-    dict(id="h-negative-exponent", klass="`--h` a negative number in exponent notation",
-         make=th.nothing, argv=th.cmp("good", "--h", "-1e-3"),
-         pattern=r"--h -0.001: must be a positive element size in mm"),
-    dict(id="out-users-files", klass="`--out` holding files of the user's that the run would "
-         "write (no run recorded them)", make=users_files("mine", "summary.json", "force.png"),
-         argv=[*BIAS, "--out", "mine"],
-         pattern=r"--out mine: mine/force.png \(and 1 more: summary.json\) is not the result of "
-         r"a fabricsurf run \(the record \.fabricsurf-run\.json does not list it\) and this run "
-         r"writes a file of that name; move it elsewhere or give another --out"),
+    dict(
+        id="grip-depths-negative",
+        klass="`--grip-depths` with a negative depth (a value that "
+        "begins with '-' is the option's value, not another option)",
+        make=th.nothing,
+        argv=th.dgn("--grip-depths", "-1,0"),
+        pattern=r"--grip-depths -1,0: grip depths \[-1.0, 0.0\] must be one or more finite "
+        r"depths ≥ 0 mm",
+    ),
+    dict(
+        id="h-negative-exponent",
+        klass="`--h` a negative number in exponent notation",
+        make=th.nothing,
+        argv=th.cmp("good", "--h", "-1e-3"),
+        pattern=r"--h -0.001: must be a positive element size in mm",
+    ),
+    dict(
+        id="out-users-files",
+        klass="`--out` holding files of the user's that the run would write (no run recorded them)",
+        make=users_files("mine", "summary.json", "force.png"),
+        argv=[*BIAS, "--out", "mine"],
+        pattern=r"--out mine: mine/force.png \(and 1 more: summary.json\) is not the result of "
+        r"a fabricsurf run \(the record \.fabricsurf-run\.json does not list it\) and this run "
+        r"writes a file of that name; move it elsewhere or give another --out",
+    ),
 ]
 
 ENV_CASES = [
-    dict(id="local-cells-not-a-number", klass="`FABRICSURF_LOCAL_CELLS` not a number",
-         make=th.nothing, env={"FABRICSURF_LOCAL_CELLS": "abc"}, argv=th.cmp("good"),
-         pattern=r"environment variable FABRICSURF_LOCAL_CELLS='abc': give a number of cells "
-         r">= 0 \(0: solve every mesh distributed over the ranks; unset: 1000\)"),
-    dict(id="home-under-a-file", klass="`HOME` under a regular file", make=a_file,
-         env={"HOME": "afile/x", "XDG_CACHE_HOME": None, "XDG_CONFIG_HOME": None},
-         argv=th.cmp("good"),
-         pattern=r"HOME=afile/x: afile is a file, not a directory, so the JIT compiler can "
-         r"neither create its cache of compiled forms afile/x/\.cache/fenics nor read its "
-         r"settings file afile/x/\.config/ffcx/ffcx_parameters\.json; set HOME to a directory "
-         r"you can write to \(or XDG_CACHE_HOME and XDG_CONFIG_HOME\)"),
+    dict(
+        id="local-cells-not-a-number",
+        klass="`FABRICSURF_LOCAL_CELLS` not a number",
+        make=th.nothing,
+        env={"FABRICSURF_LOCAL_CELLS": "abc"},
+        argv=th.cmp("good"),
+        pattern=r"environment variable FABRICSURF_LOCAL_CELLS='abc': give a number of cells "
+        r">= 0 \(0: solve every mesh distributed over the ranks; unset: 1000\)",
+    ),
+    dict(
+        id="home-under-a-file",
+        klass="`HOME` under a regular file",
+        make=a_file,
+        env={"HOME": "afile/x", "XDG_CACHE_HOME": None, "XDG_CONFIG_HOME": None},
+        argv=th.cmp("good"),
+        pattern=r"HOME=afile/x: afile is a file, not a directory, so the JIT compiler can "
+        r"neither create its cache of compiled forms afile/x/\.cache/fenics nor read its "
+        r"settings file afile/x/\.config/ffcx/ffcx_parameters\.json; set HOME to a directory "
+        r"you can write to \(or XDG_CACHE_HOME and XDG_CONFIG_HOME\)",
+    ),
 ]
 
 
@@ -122,11 +144,37 @@ def test_number_lists_joined_to_their_option():
     """Only values that are numbers or lists of them, after an option that takes a value; an
     option without a value, a non-number and anything after "--" are left alone."""
     ap = cli.build_parser()
-    argv = ["diagnose", "d", "--grip-depths", "-1,0", "--h", "-inf", "--steps", "-1, 2",
-            "--out", "-x", "-q", "-1", "--", "--h", "-2"]
+    argv = [
+        "diagnose",
+        "d",
+        "--grip-depths",
+        "-1,0",
+        "--h",
+        "-inf",
+        "--steps",
+        "-1, 2",
+        "--out",
+        "-x",
+        "-q",
+        "-1",
+        "--",
+        "--h",
+        "-2",
+    ]
     assert cli.numbers_joined(ap, argv) == [
-        "diagnose", "d", "--grip-depths=-1,0", "--h=-inf", "--steps=-1, 2", "--out", "-x", "-q",
-        "-1", "--", "--h", "-2"]
+        "diagnose",
+        "d",
+        "--grip-depths=-1,0",
+        "--h=-inf",
+        "--steps=-1, 2",
+        "--out",
+        "-x",
+        "-q",
+        "-1",
+        "--",
+        "--h",
+        "-2",
+    ]
 
 
 # -- a file of the user's in --out ----------------------------------------------------------
@@ -140,9 +188,12 @@ def test_users_file_refused_before_computing(tmp_path):
         out.mkdir()
         (out / "summary.json").write_text("mine")
     COMM.barrier()
-    with pytest.raises(InputError, match=rf"--out {re.escape(str(out))}: {re.escape(str(out))}"
-                       r"/summary.json is not the result of a fabricsurf run .* move it "
-                       "elsewhere or give another --out"):
+    with pytest.raises(
+        InputError,
+        match=rf"--out {re.escape(str(out))}: {re.escape(str(out))}"
+        r"/summary.json is not the result of a fabricsurf run .* move it "
+        "elsewhere or give another --out",
+    ):
         OutputDir(out, COMM, files=("summary.json", "bias.h5"))
     assert sorted(p.name for p in base.iterdir()) == ["D"]
     assert (out / "summary.json").read_text() == "mine"
@@ -167,8 +218,11 @@ def test_users_file_not_named_in_advance_kept_at_publish(tmp_path):
         out.mkdir()
         (out / "force.png").write_text("mine")
     COMM.barrier()
-    with pytest.raises(InputError, match=r"D/force.png is not the result of a fabricsurf run .*"
-                       r"nothing was published, the results are in .*\.D\.unpublished-"):
+    with pytest.raises(
+        InputError,
+        match=r"D/force.png is not the result of a fabricsurf run .*"
+        r"nothing was published, the results are in .*\.D\.unpublished-",
+    ):
         with OutputDir(out, COMM) as stage:
             write_json(COMM, stage / "force.png", {"run": 1})
             write_json(COMM, stage / "misfit.json", {"run": 1})
@@ -177,7 +231,9 @@ def test_users_file_not_named_in_advance_kept_at_publish(tmp_path):
     assert (out / "force.png").read_text() == "mine" and not (out / MANIFEST).exists()
     kept = [p for p in base.iterdir() if p.name.startswith(".D.unpublished-")]
     assert len(kept) == 1 and sorted(p.name for p in kept[0].iterdir()) == [
-        "force.png", "misfit.json"]
+        "force.png",
+        "misfit.json",
+    ]
 
 
 # -- warnings -----------------------------------------------------------------------------
@@ -234,9 +290,14 @@ def test_serial_interrupt_after_a_gmsh_mesh_one_line(tmp_path):
     one line, status 130, no KeyboardInterrupt traceback, nothing published. (Before: about
     80 lines of traceback and no clean-up.)"""
     th.variant("zones", th.replace("experiment.toml", "[45.0, -45.0]", "[30.0, -60.0]"))(
-        _good(tmp_path))
-    rc, out = th._interrupt(["fit", "zones", "--terms", TERMS, "--h", "0.5", "--out", "D"], 1,
-                            tmp_path, "fit iteration 1")
+        _good(tmp_path)
+    )
+    rc, out = th._interrupt(
+        ["fit", "zones", "--terms", TERMS, "--h", "0.5", "--out", "D"],
+        1,
+        tmp_path,
+        "fit iteration 1",
+    )
     assert rc == 130 and "Traceback" not in out and "KeyboardInterrupt" not in out, out
     lines = [ln for ln in out.splitlines() if "interrupted" in ln]
     assert lines == ["fabricsurf fit: interrupted by SIGINT; nothing was published to D"], out
@@ -258,12 +319,19 @@ def test_home_under_a_file_refused_before_computing(tmp_path):
     (tmp_path / "afile").write_text("x")
     home = tmp_path / "afile" / "x"
     env = {k: v for k, v in os.environ.items() if not k.startswith("XDG_")} | {"HOME": str(home)}
-    p = subprocess.run([sys.executable, "-m", "fabricsurf", "compare", "good", "--terms", TERMS,
-                        "--out", "D"], cwd=tmp_path, env=env, capture_output=True, text=True,
-                       timeout=120)
+    p = subprocess.run(
+        [sys.executable, "-m", "fabricsurf", "compare", "good", "--terms", TERMS, "--out", "D"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     out = (p.stdout + p.stderr).strip()
     assert p.returncode == 2 and len(out.splitlines()) == 1, out
-    assert out.startswith(f"fabricsurf compare: error: HOME={home}: {tmp_path / 'afile'} is a "
-                          "file, not a directory, so the JIT compiler can neither create its "
-                          f"cache of compiled forms {home}/.cache/fenics"), out
+    assert out.startswith(
+        f"fabricsurf compare: error: HOME={home}: {tmp_path / 'afile'} is a "
+        "file, not a directory, so the JIT compiler can neither create its "
+        f"cache of compiled forms {home}/.cache/fenics"
+    ), out
     assert sorted(q.name for q in tmp_path.iterdir()) == ["afile", "good"]

@@ -65,8 +65,12 @@ from fabricsurf.verification.drapes.fishnet import bisector_shear
 from fabricsurf.verification.drapes.forming_map import compare_with_drapes
 
 COMM = MPI.COMM_WORLD
-ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-       "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
+ENV = {
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+    "OMPI_MCA_rmaps_base_oversubscribe": "1",
+    "OMP_NUM_THREADS": "1",
+}
 R, BLANK, H = 20.0, 60.0, 4.0
 STROKE, STEPS = 4.0, 4
 PENETRATION_TOL = 5e-3
@@ -79,26 +83,40 @@ CONVERGENCE_BLANK, CONVERGENCE_STROKE = 72.0, 8.0
 CONVERGENCE_TOOLS = {"clearance": 4.0, "die_lip": 4.0}
 TOUCH = 0.01 * R
 """mm: points this close to the punch's cap count as on it."""
-TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
-           "holder_pressure": 1e-3, "contact_stiffness": 100.0, "locking_angle_deg": 50.0,
-           "wrinkle_tension": 1e-3, "wrinkle_curvature": 0.1 / R}
+TOOLING = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-3,
+    "contact_stiffness": 100.0,
+    "locking_angle_deg": 50.0,
+    "wrinkle_tension": 1e-3,
+    "wrinkle_curvature": 0.1 / R,
+}
 
 
 def model():
-    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1),
-            Twist(k_t=0.1)]
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
 
 
 def form(comm) -> tuple[HemispherePlugin, dict]:
     """The experiment formed to STROKE, with its reduced numbers."""
-    e = HemispherePlugin(PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING)),
-                          model(), H, comm)
+    e = HemispherePlugin(
+        PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), dict(TOOLING)), model(), H, comm
+    )
     e.set_load(0.0)
     start = sum(e.energies())
     e.run(STROKE, STEPS)
     stored, tools = e.energies()
-    return e, {"force": list(e.force), "stroke": list(e.stroke), "stored": stored,
-               "tools": tools, "start": start, "penetration": e.max_penetration()}
+    return e, {
+        "force": list(e.force),
+        "stroke": list(e.stroke),
+        "stored": stored,
+        "tools": tools,
+        "start": start,
+        "penetration": e.max_penetration(),
+    }
 
 
 @pytest.fixture(scope="module")
@@ -114,11 +132,13 @@ def test_registered():
 
 def test_rejects_bad_set_up():
     with pytest.raises(DataError, match="fibre_angles_deg"):  # 20° apart: slivers
-        HemispherePlugin.check_specimen(PluginSetup("hemisphere", BLANK, BLANK, (70.0, 90.0),
-                                               dict(TOOLING)), "t")
+        HemispherePlugin.check_specimen(
+            PluginSetup("hemisphere", BLANK, BLANK, (70.0, 90.0), dict(TOOLING)), "t"
+        )
     with pytest.raises(DataError, match="square wider"):
-        HemispherePlugin.check_specimen(PluginSetup("hemisphere", 40.0, 40.0, (45.0, -45.0),
-                                               dict(TOOLING)), "t")
+        HemispherePlugin.check_specimen(
+            PluginSetup("hemisphere", 40.0, 40.0, (45.0, -45.0), dict(TOOLING)), "t"
+        )
 
 
 def test_options():
@@ -128,36 +148,43 @@ def test_options():
     with pytest.raises(DataError, match=r"\[tooling\] punch_radius"):
         HemispherePlugin.parse_options({"tooling": {}}, 1.0, "t")
     with pytest.raises(DataError, match="holder_gap = -1"):
-        HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0, "holder_gap": -1}},
-                                        1.0, "t")
+        HemispherePlugin.parse_options(
+            {"tooling": {"punch_radius": 5.0, "holder_gap": -1}}, 1.0, "t"
+        )
     assert opts["friction"] == 0.0 and opts["friction_slip_rate"] == 0.01
     assert opts["areal_density_g_m2"] == 0.0
     with pytest.raises(DataError, match=r"friction = -0\.2"):
-        HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0, "friction": -0.2}},
-                                        1.0, "t")
+        HemispherePlugin.parse_options(
+            {"tooling": {"punch_radius": 5.0, "friction": -0.2}}, 1.0, "t"
+        )
     with pytest.raises(DataError, match=r"areal_density_g_m2 = 0\.2"):
-        HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0},
-                                         "material": {"areal_density_g_m2": 0.2}}, 1.0, "t")
-    heavy = HemispherePlugin.parse_options({"tooling": {"punch_radius": 5.0},
-                                             "material": {"areal_density_g_m2": 300}}, 1.0, "t")
+        HemispherePlugin.parse_options(
+            {"tooling": {"punch_radius": 5.0}, "material": {"areal_density_g_m2": 0.2}}, 1.0, "t"
+        )
+    heavy = HemispherePlugin.parse_options(
+        {"tooling": {"punch_radius": 5.0}, "material": {"areal_density_g_m2": 300}}, 1.0, "t"
+    )
     assert heavy["areal_density_g_m2"] == 300.0
 
 
-@pytest.mark.parametrize("key, value, words", [
-    ("locking_angle_deg", 500, r"locking_angle_deg = 500 .*0 < locking_angle_deg ≤ 90"),
-    ("friction", 1e6, r"friction = 1e\+06 .*0 ≤ friction ≤ 2"),
-    ("friction", -0.2, r"friction = -0\.2 .*0 ≤ friction ≤ 2"),
-    ("holder_gap", 1000, r"holder_gap = 1000 .*holder_gap ≤ die_lip"),
-    ("contact_stiffness", 1e-12, r"contact_stiffness = 1e-12 .*plausible range"),
-    ("holder_pressure", -0.01, r"holder_pressure = -0\.01"),
-    ("clearance", 50, r"clearance = 50 .*clearance ≤ 1 R"),
-    ("die_lip", -1, r"die_lip = -1")])
+@pytest.mark.parametrize(
+    "key, value, words",
+    [
+        ("locking_angle_deg", 500, r"locking_angle_deg = 500 .*0 < locking_angle_deg ≤ 90"),
+        ("friction", 1e6, r"friction = 1e\+06 .*0 ≤ friction ≤ 2"),
+        ("friction", -0.2, r"friction = -0\.2 .*0 ≤ friction ≤ 2"),
+        ("holder_gap", 1000, r"holder_gap = 1000 .*holder_gap ≤ die_lip"),
+        ("contact_stiffness", 1e-12, r"contact_stiffness = 1e-12 .*plausible range"),
+        ("holder_pressure", -0.01, r"holder_pressure = -0\.01"),
+        ("clearance", 50, r"clearance = 50 .*clearance ≤ 1 R"),
+        ("die_lip", -1, r"die_lip = -1"),
+    ],
+)
 def test_options_out_of_range(key, value, words):
     """Each option outside its plausible range is refused before any computation, naming the
     key, its value and the range (issues 40 and 41: these were accepted)."""
     with pytest.raises(DataError, match=words):
-        HemispherePlugin.parse_options({"tooling": {"punch_radius": 20.0, key: value}}, 1.0,
-                                        "t")
+        HemispherePlugin.parse_options({"tooling": {"punch_radius": 20.0, key: value}}, 1.0, "t")
 
 
 def test_size_and_stroke_guards():
@@ -173,8 +200,9 @@ def test_size_and_stroke_guards():
         forming_options.check_mesh(big, 0.05, False)
     forming_options.check_mesh(big, 5.0, True)
     with pytest.raises(DataError, match=r"blank 40 × 40 mm .*wider than the die"):
-        HemispherePlugin.check_specimen(PluginSetup("hemisphere", 40.0, 40.0, (45.0, -45.0),
-                                               dict(TOOLING)), "t")
+        HemispherePlugin.check_specimen(
+            PluginSetup("hemisphere", 40.0, 40.0, (45.0, -45.0), dict(TOOLING)), "t"
+        )
     top = forming_options.max_stroke(TOOLING, BLANK)
     assert top == pytest.approx((0.5 * BLANK**2 - 24.0**2) ** 0.5)
     forming_options.check_stroke(TOOLING, BLANK, DEEP)
@@ -212,8 +240,10 @@ def test_step_log_lines(caplog):
     assert len(lines) == (2 if COMM.rank == 0 else 0)
     assert all(r.levelno == PROGRESS for r in caplog.records)
     if COMM.rank == 0:
-        assert lines[0].startswith("run: step 1/2: stroke 1 mm, force 0.5 N, 12 Newton "
-                                   f"iterations, 1 cuts, 1 l2 repeats, {n} contact changes")
+        assert lines[0].startswith(
+            "run: step 1/2: stroke 1 mm, force 0.5 N, 12 Newton "
+            f"iterations, 1 cuts, 1 l2 repeats, {n} contact changes"
+        )
     total = StrokeLog.totals(book.records)
     assert (total["newton_iterations"], total["cuts"], total["fallbacks"]) == (19, 1, 1)
 
@@ -229,8 +259,10 @@ def test_work_balance(formed):
     fine, coarse = trapezoid(s, F, 1) - change, trapezoid(s, F, 2) - change
     rate = np.log2(abs(coarse) / abs(fine))
     richardson = (4 * trapezoid(s, F, 1) - trapezoid(s, F, 2)) / 3 - change
-    print(f"work {trapezoid(s, F, 1):.6g}, energy change {change:.6g}, errors {coarse:.3g} "
-          f"(2Δs), {fine:.3g} (Δs), rate {rate:.2f}, Richardson {richardson:.3g}")
+    print(
+        f"work {trapezoid(s, F, 1):.6g}, energy change {change:.6g}, errors {coarse:.3g} "
+        f"(2Δs), {fine:.3g} (Δs), rate {rate:.2f}, Richardson {richardson:.3g}"
+    )
     assert F[-1] > 0 and change > 0
     assert rate > 1.7
     assert abs(richardson) < 0.25 * abs(fine)
@@ -250,13 +282,19 @@ def friction_balance(comm) -> dict:
     """The experiment with friction under the holder formed twice, in STEPS and 2 STEPS steps:
     balance errors, punch work and dissipation (of the finer run)."""
     opts = dict(TOOLING, **FRICTION)
-    with HemispherePlugin(PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model(), H,
-                           comm) as e:
+    with HemispherePlugin(
+        PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model(), H, comm
+    ) as e:
         coarse, _, _ = balance_error(e, STEPS)
         fine, work, dissipated = balance_error(e, 2 * STEPS)
         force = list(e.force)
-    return {"coarse": coarse, "fine": fine, "work": work, "dissipated": dissipated,
-            "friction_force": force}
+    return {
+        "coarse": coarse,
+        "fine": fine,
+        "work": work,
+        "dissipated": dissipated,
+        "friction_force": force,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -266,8 +304,10 @@ def frictional():
 
 def test_work_balance_with_friction(frictional):
     f = frictional
-    print(f"friction: work {f['work']:.5g}, dissipated {f['dissipated']:.5g}, balance errors "
-          f"{f['coarse']:.3g} ({STEPS} steps), {f['fine']:.3g} ({2 * STEPS} steps)")
+    print(
+        f"friction: work {f['work']:.5g}, dissipated {f['dissipated']:.5g}, balance errors "
+        f"{f['coarse']:.3g} ({STEPS} steps), {f['fine']:.3g} ({2 * STEPS} steps)"
+    )
     assert f["dissipated"] > 0.2 * f["work"]
     assert abs(f["fine"]) < 0.5 * abs(f["coarse"])
     assert abs(f["fine"]) < 5e-3 * f["work"]
@@ -309,9 +349,13 @@ def test_serial_matches_two_ranks(formed, frictional, tmp_path):
     out = tmp_path / "two_ranks.json"
     research = str(Path(__file__).resolve().parents[1] / "benchmarks")
     path = os.pathsep.join(filter(None, [research, os.environ.get("PYTHONPATH")]))
-    p = subprocess.run(["mpirun", "-n", "2", sys.executable, __file__, str(out)],
-                       env=dict(os.environ, **ENV, PYTHONPATH=path), capture_output=True,
-                       text=True, timeout=600)
+    p = subprocess.run(
+        ["mpirun", "-n", "2", sys.executable, __file__, str(out)],
+        env=dict(os.environ, **ENV, PYTHONPATH=path),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     two = json.loads(out.read_text())
     assert two["ranks"] == 2
@@ -342,9 +386,11 @@ def test_kinematic_limit_matches_fishnet(formed):
     on = (line["gap"] < TOUCH) & (line["X"] > 0)
     kinematic = np.degrees(bisector_shear(R, line["X"][on]))
     recovered = np.abs(line["shear_recovered_deg"][on] - kinematic)
-    print(f"recovered shear on {on.sum()} points of the diagonal on the punch (X up to "
-          f"{line['X'][on].max():.2f} mm): largest difference {recovered.max():.3f} deg; "
-          f"per element {np.abs(line['shear_deg'][on] - kinematic).max():.3f} deg")
+    print(
+        f"recovered shear on {on.sum()} points of the diagonal on the punch (X up to "
+        f"{line['X'][on].max():.2f} mm): largest difference {recovered.max():.3f} deg; "
+        f"per element {np.abs(line['shear_deg'][on] - kinematic).max():.3f} deg"
+    )
     assert on.sum() >= 20 and kinematic.max() > 15.0
     assert recovered.max() < 2.0
     m = check_contact_map(e, 300)
@@ -365,8 +411,10 @@ def check_contact_map(e: HemispherePlugin, points: int) -> dict:
     m = compare_with_drapes(e, a=R / 40.0)
     inner = np.hypot(*m["points"].T) < 0.75 * R
     inner_max = np.abs(m["continuum_deg"] - m["fishnet_deg"])[inner].max()
-    print(f"contact map, {len(m['points'])} points: {summary(m)}; within 0.75 R of the pole "
-          f"({inner.sum()} points) max {inner_max:.3f} deg")
+    print(
+        f"contact map, {len(m['points'])} points: {summary(m)}; within 0.75 R of the pole "
+        f"({inner.sum()} points) max {inner_max:.3f} deg"
+    )
     assert len(m["points"]) > points and inner.sum() > 0.5 * points
     assert np.abs(m["fishnet_deg"]).max() > 15.0
     for key in ("continuum_vs_fishnet", "continuum_vs_goursat"):
@@ -380,8 +428,12 @@ def test_fibres_along_the_sides():
     diagonal x = y to the Newton tolerance, and in the kinematic limit the recovered shear along
     the diagonal, now the ray at 45°, is within 2° of the same fishnet drape where the sheet is
     on the punch: near the pole the drape does not depend on how the blank is cut."""
-    soft = [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1e-2), NormalBending(k_b=0.05),
-            Twist(k_t=0.05)]
+    soft = [
+        FibreStretch(k_l=1e3, k_m=1e3),
+        Shear(k_s=1e-2),
+        NormalBending(k_b=0.05),
+        Twist(k_t=0.05),
+    ]
     setup = PluginSetup("hemisphere", BLANK, BLANK, (0.0, 90.0), dict(TOOLING, **FRICTION))
     with HemispherePlugin(setup, soft, H, COMM) as e:
         assert e.diagonal_deg == 45.0
@@ -396,8 +448,10 @@ def test_fibres_along_the_sides():
     on = (line["gap"] < TOUCH) & (line["X"] > 0)
     kinematic = np.degrees(bisector_shear(R, line["X"][on]))
     diff = np.abs(line["shear_recovered_deg"][on] - kinematic)
-    print(f"0/90: recovered shear on {on.sum()} points of the 45° ray on the punch (X up to "
-          f"{line['X'][on].max():.2f} mm): largest difference {diff.max():.3f} deg")
+    print(
+        f"0/90: recovered shear on {on.sum()} points of the 45° ray on the punch (X up to "
+        f"{line['X'][on].max():.2f} mm): largest difference {diff.max():.3f} deg"
+    )
     assert on.sum() >= 20 and kinematic.max() > 15.0
     assert diff.max() < 2.0
 

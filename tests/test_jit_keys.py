@@ -43,8 +43,7 @@ def _key_before_and_after_analysis(msh) -> tuple[str, str]:
         return ufl.inner(ufl.grad(u), ufl.grad(u)) * ufl.dx
 
     before = form().signature()
-    ffcx.analysis.analyze_ufl_objects([ufl.inner(u, u) * ufl.dx],
-                                      ffcx.parameters.get_parameters())
+    ffcx.analysis.analyze_ufl_objects([ufl.inner(u, u) * ufl.dx], ffcx.parameters.get_parameters())
     return before, form().signature()
 
 
@@ -80,8 +79,12 @@ def _residual_key(count: int) -> str:
     saved = ufl.Constant._globalcount
     ufl.Constant._globalcount = count
     try:
-        model = [FibreStretch(k_l=10.0, k_m=10.0), ShearGradient(A_Gamma=1.0),
-                 GeodesicBending(A_g=0.5), StretchGradient(A_s=0.5)]
+        model = [
+            FibreStretch(k_l=10.0, k_m=10.0),
+            ShearGradient(A_Gamma=1.0),
+            GeodesicBending(A_g=0.5),
+            StretchGradient(A_s=0.5),
+        ]
         p = FabricProblem(square(1.0, 0.5, COMM), model)
         e = EnergyForm(p.model, p.u, p.L, p.M, p.specimen.facet_tags)
         return e.residual(ufl.TestFunction(p.V)).signature()

@@ -82,8 +82,11 @@ def test_in_plane_bending_and_stretch_gradient(msh):
     """Ring map r = (R+y)(sin(x/R), cos(x/R)): λ²η_l = p·r_LL = −(R+y)/R², ∂_Lλ = 0;
     r = (x + c x²/2, y): ∂_Lλ = c, λ²η_l = 0."""
     R = 3.0
-    ring = kin_of(msh, lambda x: (R + x[1]) * ufl.as_vector((ufl.sin(x[0] / R),
-                                                            ufl.cos(x[0] / R))), (0.0, 90.0))
+    ring = kin_of(
+        msh,
+        lambda x: (R + x[1]) * ufl.as_vector((ufl.sin(x[0] / R), ufl.cos(x[0] / R))),
+        (0.0, 90.0),
+    )
     check(msh, ring.lam, lambda x, y: (R + y) / R)
     check(msh, ring.geodesic_l, lambda x, y: -(R + y) / R**2)
     check(msh, ring.dlam_dL, lambda x, y: 0.0)
@@ -128,12 +131,20 @@ def test_hyperbolic_paraboloid(msh):
     c,
     r_LL = r_MM = 0 so K_L = K_M = 0 and g_l = g_m = 0; Γ + T n = a; λμ sin γ from eq. 100."""
     a, b, c = np.array([0.2, -0.1, 0.5]), np.array([1.1, 0.1, 0.0]), np.array([0.05, 0.9, 0.1])
-    k = kin_of(msh, lambda x: ufl.as_vector(a) * x[0] * x[1] + ufl.as_vector(b) * x[0]
-               + ufl.as_vector(c) * x[1], (0.0, 90.0))
+    k = kin_of(
+        msh,
+        lambda x: (
+            ufl.as_vector(a) * x[0] * x[1] + ufl.as_vector(b) * x[0] + ufl.as_vector(c) * x[1]
+        ),
+        (0.0, 90.0),
+    )
     check(msh, k.lam, lambda x, y: np.linalg.norm(a * y + b))
     check(msh, k.mu, lambda x, y: np.linalg.norm(a * x + c))
-    check(msh, k.lam * k.mu * kn.sin_gamma(k.F, k.L, k.M),
-          lambda x, y: a @ a * x * y + a @ b * x + a @ c * y + b @ c)
+    check(
+        msh,
+        k.lam * k.mu * kn.sin_gamma(k.F, k.L, k.M),
+        lambda x, y: a @ a * x * y + a @ b * x + a @ c * y + b @ c,
+    )
     check(msh, k.K_L, lambda x, y: 0.0)
     check(msh, k.K_M, lambda x, y: 0.0)
     for v in (k.g_l, k.g_m):
@@ -173,8 +184,11 @@ def test_stretch_along_a_skew_fibre(msh):
     a = 1.3
     k = kin_of(msh, lambda x: ufl.as_vector((a * x[0], x[1])), (0.0, 60.0))
     fm = np.array([a / 2, np.sqrt(3) / 2])
-    check(msh, fibre_quantities(k), lambda x, y: [a, np.linalg.norm(fm),
-                                                  np.pi / 3 - np.arctan2(fm[1], fm[0]), a])
+    check(
+        msh,
+        fibre_quantities(k),
+        lambda x, y: [a, np.linalg.norm(fm), np.pi / 3 - np.arctan2(fm[1], fm[0]), a],
+    )
 
 
 def test_simple_shear_of_skew_fibres(msh):

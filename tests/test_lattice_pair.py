@@ -30,15 +30,22 @@ K_S = 0.022
 
 
 def bias(length, width, ratio, **kw):
-    return BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S), Shear(k_s=K_S)],
-                         length=length, width=width, h=width / 10, clamp="position", **kw)
+    return BiasExtension(
+        [FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S), Shear(k_s=K_S)],
+        length=length,
+        width=width,
+        h=width / 10,
+        clamp="position",
+        **kw,
+    )
 
 
 def force_ratio(b, steps=3) -> float:
     L, W = b.specimen.length, b.specimen.width
     res = b.run(0.13 * L, steps)
-    return res.force[-1] / float(kinematic_force(np.array(res.ubar[-1:]), L, W,
-                                                 [Shear(k_s=K_S)])[0])
+    return res.force[-1] / float(
+        kinematic_force(np.array(res.ubar[-1:]), L, W, [Shear(k_s=K_S)])[0]
+    )
 
 
 @pytest.mark.parametrize("length, width", [(250.0, 115.0), (320.0, 100.0)])
@@ -55,12 +62,16 @@ def test_lattice_pair_tiles_the_rectangle_with_fibre_edges(length, width):
     assert math.isclose(area.sum(), length * width, rel_tol=1e-12)
     assert area.min() > 0.25 * (width / Q) ** 2
     xc = x[cells][:, :, 0]
-    outside = (np.all(xc <= P * width / Q + 1e-9, axis=1)
-               | np.all(xc >= length - P * width / Q - 1e-9, axis=1))
+    outside = np.all(xc <= P * width / Q + 1e-9, axis=1) | np.all(
+        xc >= length - P * width / Q - 1e-9, axis=1
+    )
     assert np.count_nonzero(~outside) == 2 * B * Q // 2  # the band: B columns of Q/2 cells
     ang = np.degrees(np.arctan2(e[outside][..., 1], e[outside][..., 0])) % 90.0
-    assert np.all(np.isclose(ang, 0.0, atol=1e-9) | np.isclose(ang, 45.0, atol=1e-9)
-                  | np.isclose(ang, 90.0, atol=1e-9))
+    assert np.all(
+        np.isclose(ang, 0.0, atol=1e-9)
+        | np.isclose(ang, 45.0, atol=1e-9)
+        | np.isclose(ang, 90.0, atol=1e-9)
+    )
 
 
 def test_bias_force_without_locking_off_the_corner_lattice():
@@ -87,9 +98,14 @@ def test_fibre_pair_spellings_are_one_pair(caplog):
     caplog.set_level(PROGRESS, logger="fabricsurf")
     res = {}
     for angles in [(45.0, -45.0), (45.0, 135.0)]:
-        b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
-                          length=230.0, width=115.0, h=11.5, clamp="position",
-                          fibre_angles=angles)
+        b = BiasExtension(
+            [FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+            length=230.0,
+            width=115.0,
+            h=11.5,
+            clamp="position",
+            fibre_angles=angles,
+        )
         assert b.discretisation["mesh_kind"] == "aligned"
         r = b.run(10.0, 1)
         res[angles] = (r.force[-1], r.angle_A_deg[-1], r.discretisation)
@@ -103,8 +119,20 @@ def test_fibre_pair_spellings_are_one_pair(caplog):
             assert f"fibre angles {list(angles)} deg are the fibre lines [45.0, -45.0]" in out
 
 
-FAMILY = ((250, 115), (320, 100), (350, 120), (245, 110), (270, 95), (300, 130), (215, 70),
-          (380, 110), (290, 85), (260, 75), (400, 105), (230, 103))
+FAMILY = (
+    (250, 115),
+    (320, 100),
+    (350, 120),
+    (245, 110),
+    (270, 95),
+    (300, 130),
+    (215, 70),
+    (380, 110),
+    (290, 85),
+    (260, 75),
+    (400, 105),
+    (230, 103),
+)
 """benchmarks/locking.py's twelve sizes: aspect 2.2 to 3.8, no corner-to-corner lattice at
 W/10."""
 
@@ -146,16 +174,21 @@ def test_fallback_and_lattice_pair_are_announced_and_recorded(caplog):
     assert len(said[logging.WARNING]) == 1
     assert warned.startswith("mesh: unstructured (mesh = 'unstructured' requested)")
     assert "K/k_s = 1e+06" in warned and "LOCKED" in warned and "Remedy" in warned
-    assert any(m.startswith("note: mesh: lattice_pair (two fibre lattices of 14 × 14 steps")
-               for m in said[PROGRESS])
+    assert any(
+        m.startswith("note: mesh: lattice_pair (two fibre lattices of 14 × 14 steps")
+        for m in said[PROGRESS]
+    )
 
 
-@pytest.mark.parametrize("angles, match", [
-    ((0.0, 90.0), "run from clamp to grip"),
-    ((20.0, -20.0), "run from clamp to grip"),
-    ((45.0, 47.0), "2 deg apart"),
-    ((45.0, -135.0), "0 deg apart"),
-])
+@pytest.mark.parametrize(
+    "angles, match",
+    [
+        ((0.0, 90.0), "run from clamp to grip"),
+        ((20.0, -20.0), "run from clamp to grip"),
+        ((45.0, 47.0), "2 deg apart"),
+        ((45.0, -135.0), "0 deg apart"),
+    ],
+)
 def test_degenerate_fibre_pairs_are_refused_before_computing(angles, match):
     """Fibres near 0° (some run from clamp to grip: a tensile test) or nearly parallel as
     lines: a clear error naming the value, before any mesh is built."""
@@ -166,16 +199,27 @@ def test_degenerate_fibre_pairs_are_refused_before_computing(angles, match):
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="dense eigenvalues of the whole tangent")
-@pytest.mark.parametrize("mesh, length, width, h", [("lattice_pair", 60.0, 20.0, 5.0),
-                                                    ("lattice_pair", 47.0, 17.0, 4.0),
-                                                    ("zones", 40.0, 25.0, 5.0)])
+@pytest.mark.parametrize(
+    "mesh, length, width, h",
+    [
+        ("lattice_pair", 60.0, 20.0, 5.0),
+        ("lattice_pair", 47.0, 17.0, 4.0),
+        ("zones", 40.0, 25.0, 5.0),
+    ],
+)
 def test_tangent_null_space_on_the_new_meshes_is_the_continuum_one(mesh, length, width, h):
     """No spurious zero-energy modes on the lattice pair and the corner-line mesh: at the
     reference state the tangent (K/k_s = 10⁶) has exactly the 3 rigid motions of the plane
     without clamps, none with."""
-    b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
-                      length=length, width=width, h=h, clamp="position", mesh=mesh,
-                      comm=MPI.COMM_SELF)
+    b = BiasExtension(
+        [FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+        length=length,
+        width=width,
+        h=h,
+        clamp="position",
+        mesh=mesh,
+        comm=MPI.COMM_SELF,
+    )
     assert b.discretisation["mesh_kind"] == mesh
     assert tangent_zero_eigenvalues(b, with_bcs=False) == 3
     assert tangent_zero_eigenvalues(b, with_bcs=True) == 0
@@ -188,11 +232,16 @@ def test_degenerate_fibre_pair_in_the_data_is_refused_by_key():
     from fabricsurf.experiments.bias_extension import BiasExtensionPlugin
 
     setup = PluginSetup("bias_extension", 230.0, 115.0, (0.0, 90.0), {"clamp": "position"})
-    with pytest.raises(DataError, match=r"experiment.toml: \[specimen\] fibre_angles_deg = "
-                       r"\[0.0, 90.0\]: bias test: fibres at 0 deg to the load run from clamp"):
+    with pytest.raises(
+        DataError,
+        match=r"experiment.toml: \[specimen\] fibre_angles_deg = "
+        r"\[0.0, 90.0\]: bias test: fibres at 0 deg to the load run from clamp",
+    ):
         BiasExtensionPlugin.check_specimen(setup, "experiment.toml")
-    BiasExtensionPlugin.check_specimen(PluginSetup("bias_extension", 230.0, 115.0, (45.0, 135.0),
-                                           {"clamp": "position"}), "experiment.toml")
+    BiasExtensionPlugin.check_specimen(
+        PluginSetup("bias_extension", 230.0, 115.0, (45.0, 135.0), {"clamp": "position"}),
+        "experiment.toml",
+    )
 
 
 def test_short_specimen_gets_the_corner_lines_and_does_not_lock():
@@ -200,9 +249,15 @@ def test_short_specimen_gets_the_corner_lines_and_does_not_lock():
     band to lie in the centre zone): the mesh has the fibre lines through the corners as edges
     (kind "zones") and at K/k_s = 10⁶ its force equals that of the aligned mesh at h = 15 within
     0.1 % (the old gmsh fallback: 127 times it, benchmarks/locking.py --zones)."""
+
     def force(h):
-        b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
-                          length=187.0, width=119.0, h=h, clamp="position")
+        b = BiasExtension(
+            [FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+            length=187.0,
+            width=119.0,
+            h=h,
+            clamp="position",
+        )
         return b.discretisation["mesh_kind"], b.run(20.0, 2).force[-1]
 
     (kind_a, f_a), (kind_z, f_z) = force(15.0), force(17.0)
@@ -217,10 +272,19 @@ def test_aligned_lattice_off_the_fibre_angle_is_announced(ratio, warned):
     force grows with K (measured: 0.3 % above the limit at K/k_s = 10⁶, 57 % at 10⁹; silent
     before). Asked for by name (``auto`` skips it: next test), K/k_s · δ² above 1 is warned as
     may-lock, with the mismatch in the record."""
-    fibres = (FibreStretch(inextensible=True) if math.isinf(ratio)
-              else FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S))
-    b = BiasExtension([fibres, Shear(k_s=K_S)], length=250.0, width=115.0, h=5.75,
-                      clamp="position", mesh="aligned")
+    fibres = (
+        FibreStretch(inextensible=True)
+        if math.isinf(ratio)
+        else FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S)
+    )
+    b = BiasExtension(
+        [fibres, Shear(k_s=K_S)],
+        length=250.0,
+        width=115.0,
+        h=5.75,
+        clamp="position",
+        mesh="aligned",
+    )
     d = b.discretisation
     assert d["mesh_kind"] == "aligned"
     assert d["angle_mismatch_deg"] == pytest.approx(0.0337, abs=1e-4)
@@ -235,17 +299,30 @@ def test_auto_skips_a_lattice_off_the_fibre_angle_that_would_lock(ratio, kind):
     so. At K/k_s = 10⁹ the force on the skipped lattice was 1.573 × the three-zone force; on
     the lattice pair it is within 1e-4 of it (measured 0.99998), and 0.3 % above at 10⁶ on the
     lattice kept (K/k_s · δ² = 0.35)."""
-    b = BiasExtension([FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S), Shear(k_s=K_S)],
-                      length=250.0, width=115.0, h=5.75, clamp="position")
+    b = BiasExtension(
+        [FibreStretch(k_l=ratio * K_S, k_m=ratio * K_S), Shear(k_s=K_S)],
+        length=250.0,
+        width=115.0,
+        h=5.75,
+        clamp="position",
+    )
     d = b.discretisation
     assert d["mesh_kind"] == kind and not d["may_lock"]
     assert ("0.0337 deg off the fibres" in d["notice"]) is (kind == "lattice_pair")
     assert 0.99 < force_ratio(b) < (1.004 if kind == "aligned" else 1.0001)
 
 
-@pytest.mark.parametrize("length, width, kind", [
-    (250.0, 115.0, "lattice_pair"), (320.0, 100.0, "lattice_pair"), (215.0, 70.0, "lattice_pair"),
-    (400.0, 105.0, "lattice_pair"), (345.0, 115.0, "aligned"), (460.0, 115.0, "aligned")])
+@pytest.mark.parametrize(
+    "length, width, kind",
+    [
+        (250.0, 115.0, "lattice_pair"),
+        (320.0, 100.0, "lattice_pair"),
+        (215.0, 70.0, "lattice_pair"),
+        (400.0, 105.0, "lattice_pair"),
+        (345.0, 115.0, "aligned"),
+        (460.0, 115.0, "aligned"),
+    ],
+)
 def test_exact_inextensibility_holds_on_the_fibre_aligned_meshes(length, width, kind):
     """The exact constraint at h = W/10, on specimens with a centre zone (L > 2W), on the lattice
     pair and on a corner-to-corner lattice. Before the bow penalty (discretise/energy.py) the
@@ -254,8 +331,13 @@ def test_exact_inextensibility_holds_on_the_fibre_aligned_meshes(length, width, 
     quadrature point keeps |λ − 1| ≤ 1e-9, the force lies within 0.7 % below the three-zone
     idealisation (as the elastic fibres' force at K/k_s = 10⁹ does on these sizes), and
     nothing warns."""
-    b = BiasExtension([FibreStretch(inextensible=True), Shear(k_s=K_S)], length=length,
-                      width=width, h=width / 10, clamp="position")
+    b = BiasExtension(
+        [FibreStretch(inextensible=True), Shear(k_s=K_S)],
+        length=length,
+        width=width,
+        h=width / 10,
+        clamp="position",
+    )
     d = b.discretisation
     assert d["mesh_kind"] == kind and not d["may_lock"] and "WARNING" not in d["notice"]
     assert 0.993 < force_ratio(b, steps=6) < 1.0 + 1e-6
@@ -268,9 +350,11 @@ def test_bow_penalty_vanishes_at_the_exact_solution():
     carries nothing: below 1e-7 of the cell energy (measured 1.0e-8 at β = 1e3, 1.0e-9 at
     β = 1e4), and the force is the limit of elastic fibres (K/k_s = 10⁹ on the same mesh:
     1.2e-5 apart, the elastic fibres' own stretch)."""
+
     def run(fibres):
-        b = BiasExtension([fibres, Shear(k_s=K_S)], length=345.0, width=115.0, h=11.5,
-                          clamp="position")
+        b = BiasExtension(
+            [fibres, Shear(k_s=K_S)], length=345.0, width=115.0, h=11.5, clamp="position"
+        )
         return b, b.run(0.13 * 345.0, 6).force[-1]
 
     b, exact = run(FibreStretch(inextensible=True))
@@ -283,8 +367,9 @@ def test_bow_penalty_vanishes_at_the_exact_solution():
     assert abs(exact / elastic - 1.0) < 1e-4
 
 
-@pytest.mark.parametrize("length, width, theta, frac", [
-    (250.0, 115.0, 60.0, 0.13), (380.0, 100.0, 30.0, 0.04)])
+@pytest.mark.parametrize(
+    "length, width, theta, frac", [(250.0, 115.0, 60.0, 0.13), (380.0, 100.0, 30.0, 0.04)]
+)
 def test_exact_inextensibility_at_other_fibre_angles(length, width, theta, frac):
     """The exact constraint at ±60° and ±30° on the default mesh at W/10 (the lattice pair) is
     the limit of elastic fibres, K/k_s = 10⁹ on the same mesh (their own stretch is ~1e-9).
@@ -292,9 +377,16 @@ def test_exact_inextensibility_at_other_fibre_angles(length, width, theta, frac)
     multiplier update measured their tolerance from the step's first residual
     (discretise/solver.py): the stiffened augmentation's rounding floor (6e-10) lay above the
     1e-13 their own initial residual asked for."""
+
     def run(fibres):
-        b = BiasExtension([fibres, Shear(k_s=K_S)], length=length, width=width,
-                          h=width / 10, clamp="position", fibre_angles=(theta, -theta))
+        b = BiasExtension(
+            [fibres, Shear(k_s=K_S)],
+            length=length,
+            width=width,
+            h=width / 10,
+            clamp="position",
+            fibre_angles=(theta, -theta),
+        )
         return b, b.run(frac * length, 4).force[-1]
 
     b, exact = run(FibreStretch(inextensible=True))
@@ -305,10 +397,13 @@ def test_exact_inextensibility_at_other_fibre_angles(length, width, theta, frac)
     assert abs(exact / elastic - 1.0) < 1e-4, (exact, elastic)
 
 
-@pytest.mark.parametrize("length, width, theta, frac, h_ref", [
-    (250.0, 115.0, 60.0, 0.13, 3.9), (380.0, 100.0, 30.0, 0.04, 3.0)])
-def test_other_fibre_angles_against_the_converged_aligned_lattice(length, width, theta, frac,
-                                                                  h_ref):
+@pytest.mark.parametrize(
+    "length, width, theta, frac, h_ref",
+    [(250.0, 115.0, 60.0, 0.13, 3.9), (380.0, 100.0, 30.0, 0.04, 3.0)],
+)
+def test_other_fibre_angles_against_the_converged_aligned_lattice(
+    length, width, theta, frac, h_ref
+):
     """Fibres at ±60° and ±30° (the three-zone formula is for ±45°): the default mesh at W/10
     (the lattice pair: no corner-to-corner lattice fits there) against the corner-to-corner
     lattice at about W/30 (within 0.005° of the fibres: K/k_s · δ² ≤ 0.006), K/k_s = 10⁶.
@@ -316,10 +411,17 @@ def test_other_fibre_angles_against_the_converged_aligned_lattice(length, width,
     reference's own uncertainty, not a tolerance of the lattice pair (measured 1.0001 at ±60°,
     1.0006 at ±30°); gmsh's mesh at W/10 gave 2.49 and 4.09 times the reference. ±30° stays
     below ū = 0.04·L, short of the net's kinematic limit."""
+
     def force(h, mesh):
-        b = BiasExtension([FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
-                          length=length, width=width, h=h, clamp="position",
-                          fibre_angles=(theta, -theta), mesh=mesh)
+        b = BiasExtension(
+            [FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), Shear(k_s=K_S)],
+            length=length,
+            width=width,
+            h=h,
+            clamp="position",
+            fibre_angles=(theta, -theta),
+            mesh=mesh,
+        )
         return b.discretisation, b.run(frac * length, 4).force[-1]
 
     (d, f), (d_ref, f_ref) = force(width / 10, "auto"), force(h_ref, "aligned")

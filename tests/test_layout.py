@@ -14,8 +14,21 @@ PKG = ROOT / "fabricsurf"
 HEAVY = ("dolfinx", "petsc4py", "ufl", "ffcx", "basix")
 
 # the layers, bottom first: a module may import its own layer and the layers below it
-LAYERS = ["errors", "defaults", "log", "geometry", "datasets", "model", "discretise",
-          "experiments", "verification", "studies", "inverse", "cli", "fabricsurf"]
+LAYERS = [
+    "errors",
+    "defaults",
+    "log",
+    "geometry",
+    "datasets",
+    "model",
+    "discretise",
+    "experiments",
+    "verification",
+    "studies",
+    "inverse",
+    "cli",
+    "fabricsurf",
+]
 # what a demo and its benchmark share sits on the reference solutions, but no layer of the
 # library imports it: the physics, the inverse problem and the command line work without it
 STUDIES_USERS = {"studies"}
@@ -35,15 +48,20 @@ INVERSE = {
 }
 
 
-@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="starts a process of its own, which cannot "
-                    "initialise MPI inside an mpirun rank (serial session only)")
+@pytest.mark.skipif(
+    MPI.COMM_WORLD.size > 1,
+    reason="starts a process of its own, which cannot "
+    "initialise MPI inside an mpirun rank (serial session only)",
+)
 def test_light_root():
     """``import fabricsurf, fabricsurf.network`` loads no FEniCSx module, nor does
     ``fabricsurf.cli.demo`` (tests/test_demos.py reads the demos' checks with it)."""
-    code = ("import sys, fabricsurf, fabricsurf.network, fabricsurf.cli.demo\n"
-            f"heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))\n"
-            "assert not heavy, heavy\n"
-            "assert fabricsurf.__version__ and 'fit' in fabricsurf.__all__\n")
+    code = (
+        "import sys, fabricsurf, fabricsurf.network, fabricsurf.cli.demo\n"
+        f"heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))\n"
+        "assert not heavy, heavy\n"
+        "assert fabricsurf.__version__ and 'fit' in fabricsurf.__all__\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
 
@@ -106,21 +124,33 @@ def violation(source: str, target: str) -> str | None:
     if top in ("research", "benchmarks"):
         return "research code is not part of the package"
     if source.startswith("fabricsurf.geometry"):
-        return None if top != "fabricsurf" or target.startswith("fabricsurf.geometry") else \
-            "the gmsh builders (geometry/) import no other part of fabricsurf"
+        return (
+            None
+            if top != "fabricsurf" or target.startswith("fabricsurf.geometry")
+            else "the gmsh builders (geometry/) import no other part of fabricsurf"
+        )
     if top != "fabricsurf":
         return None
     if target.startswith("fabricsurf:"):  # from fabricsurf import <name>
-        return None if target == "fabricsurf:__version__" else \
-            "the curated root is for users; inside the package import from the layer"
+        return (
+            None
+            if target == "fabricsurf:__version__"
+            else "the curated root is for users; inside the package import from the layer"
+        )
     src, src_sub = layer_of(source)
     dst, dst_sub = layer_of(target)
     if src == "network":
-        return None if dst in NETWORK_IMPORTS else \
-            "network imports only network, errors, defaults and log"
+        return (
+            None
+            if dst in NETWORK_IMPORTS
+            else "network imports only network, errors, defaults and log"
+        )
     if dst == "network":
-        return None if (src, src_sub) in NETWORK_USERS else \
-            "the physics layers do not depend on the lattice reference"
+        return (
+            None
+            if (src, src_sub) in NETWORK_USERS
+            else "the physics layers do not depend on the lattice reference"
+        )
     if dst == "studies" and src not in STUDIES_USERS:
         return "only the demos and benchmarks import the studies, never the library"
     if LAYERS.index(dst) > LAYERS.index(src):
@@ -143,8 +173,11 @@ def test_every_package_module_has_a_layer():
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_imports_point_one_way(path):
     source = module_name(path)
-    bad = [f"{path.relative_to(ROOT)}:{line}: {target}: {why}"
-           for line, target in imported(path) if (why := violation(source, target))]
+    bad = [
+        f"{path.relative_to(ROOT)}:{line}: {target}: {why}"
+        for line, target in imported(path)
+        if (why := violation(source, target))
+    ]
     assert not bad, "\n".join(bad)
 
 
@@ -155,8 +188,13 @@ def test_studies_stand_apart():
     study = "fabricsurf.studies.hemisphere_forming"
     assert violation(study, "fabricsurf.verification.drapes.fishnet") is None
     assert violation(study, "fabricsurf.experiments.hemisphere") is None
-    for lower in ("fabricsurf.verification.drapes.fishnet", "fabricsurf.experiments.hemisphere",
-                  "fabricsurf.inverse.diagnosis.report", "fabricsurf.cli.demo", "fabricsurf"):
+    for lower in (
+        "fabricsurf.verification.drapes.fishnet",
+        "fabricsurf.experiments.hemisphere",
+        "fabricsurf.inverse.diagnosis.report",
+        "fabricsurf.cli.demo",
+        "fabricsurf",
+    ):
         assert violation(lower, "fabricsurf.studies.hemisphere_forming"), lower
     for higher in ("fabricsurf.inverse.diagnosis.report", "fabricsurf.cli.demo"):
         assert violation("fabricsurf.studies.woven", higher), higher
@@ -216,8 +254,10 @@ def test_installed_packages_listed():
     import tomllib
 
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-    folders = {module_name(p) for p in [*PKG.rglob("__init__.py"),
-                                        *(ROOT / "geometry").rglob("__init__.py")]}
+    folders = {
+        module_name(p)
+        for p in [*PKG.rglob("__init__.py"), *(ROOT / "geometry").rglob("__init__.py")]
+    }
     assert sorted(config["packages"]) == sorted(folders)
     assert config["package-dir"] == {"fabricsurf.geometry": "geometry"}
 
@@ -226,9 +266,11 @@ def test_installed_packages_listed():
 LOGGING_SET_UP = {"fabricsurf/log.py", "fabricsurf/cli/__init__.py"}
 """Where a handler or a level may be set and the flags -v/-q become levels: log.configure, and
 the command line's quieting of the JIT compiler's loggers (compiler_messages)."""
-VERBOSE_LEFT = {("fabricsurf/inverse/fitting/fit.py", "fit"),
-                ("fabricsurf/inverse/diagnosis/diagnose.py", "diagnose"),
-                ("fabricsurf/inverse/diagnosis/beyond.py", "search_beyond")}
+VERBOSE_LEFT = {
+    ("fabricsurf/inverse/fitting/fit.py", "fit"),
+    ("fabricsurf/inverse/diagnosis/diagnose.py", "diagnose"),
+    ("fabricsurf/inverse/diagnosis/beyond.py", "search_beyond"),
+}
 """Public functions that still take ``verbose``, for callers not yet converted (cli/measure.py,
 the bending and woven-fabric demos, beyond.py); to be emptied."""
 SET_UP_CALLS = {"basicConfig", "addHandler", "setLevel", "captureWarnings", "disable"}
@@ -243,27 +285,36 @@ def message_faults(path: Path) -> list[str]:
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), rel)):
         if isinstance(node, ast.Call):
             f = node.func
-            name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) \
-                else ""
-            owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
-                else ""
+            name = (
+                f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+            )
+            owner = (
+                f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
+            )
             if name == "print" and isinstance(f, ast.Name):
                 bad.append(f"{rel}:{node.lineno}: print (log.rank0 instead)")
             elif owner == "warnings" and name.startswith("warn"):
                 bad.append(f"{rel}:{node.lineno}: warnings.{name} (log.warn instead)")
             elif name in SET_UP_CALLS and rel not in LOGGING_SET_UP:
                 bad.append(f"{rel}:{node.lineno}: {name}: the library configures no logging")
-        elif isinstance(node, ast.Assign) and rel not in LOGGING_SET_UP and any(
-                isinstance(t, ast.Attribute) and t.attr == "propagate" for t in node.targets):
+        elif (
+            isinstance(node, ast.Assign)
+            and rel not in LOGGING_SET_UP
+            and any(isinstance(t, ast.Attribute) and t.attr == "propagate" for t in node.targets)
+        ):
             bad.append(f"{rel}:{node.lineno}: propagate: the package's messages propagate")
-        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and \
-                not node.name.startswith("_") and (rel, node.name) not in VERBOSE_LEFT and \
-                rel not in LOGGING_SET_UP:
-            args = [a.arg for a in (*node.args.posonlyargs, *node.args.args,
-                                    *node.args.kwonlyargs)]
+        elif (
+            isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+            and not node.name.startswith("_")
+            and (rel, node.name) not in VERBOSE_LEFT
+            and rel not in LOGGING_SET_UP
+        ):
+            args = [a.arg for a in (*node.args.posonlyargs, *node.args.args, *node.args.kwonlyargs)]
             if "verbose" in args:
-                bad.append(f"{rel}:{node.lineno}: {node.name}(verbose=...): use the levels "
-                           "(progress at log.PROGRESS, detail at DEBUG)")
+                bad.append(
+                    f"{rel}:{node.lineno}: {node.name}(verbose=...): use the levels "
+                    "(progress at log.PROGRESS, detail at DEBUG)"
+                )
     return sorted(bad, key=lambda b: int(b.split(":")[1]))
 
 
@@ -279,13 +330,22 @@ def test_messages_go_through_the_logger(path):
 def test_message_rule_catches_a_print(tmp_path, monkeypatch):
     """The rule itself, on a made-up module."""
     module = ROOT / "fabricsurf" / "_made_up.py"
-    monkeypatch.setattr(Path, "read_text", lambda self, encoding=None: (
-        "import logging, warnings\n"
-        "def f(x, verbose=False):\n    print(x)\n    warnings.warn('w')\n"
-        "logging.getLogger('fabricsurf').addHandler(logging.StreamHandler())\n"))
+    monkeypatch.setattr(
+        Path,
+        "read_text",
+        lambda self, encoding=None: (
+            "import logging, warnings\n"
+            "def f(x, verbose=False):\n    print(x)\n    warnings.warn('w')\n"
+            "logging.getLogger('fabricsurf').addHandler(logging.StreamHandler())\n"
+        ),
+    )
     bad = message_faults(module)
     assert [b.split(":")[2].split()[0] for b in bad] == [
-        "f(verbose=...)", "print", "warnings.warn", "addHandler"], bad
+        "f(verbose=...)",
+        "print",
+        "warnings.warn",
+        "addHandler",
+    ], bad
 
 
 MAX_LINES = 300
@@ -297,9 +357,15 @@ MAX_MODULES = 12
 def test_modules_and_folders_stay_small():
     """No module of the package (or of geometry/) over MAX_LINES lines, no folder over
     MAX_MODULES modules (``__init__.py`` not counted)."""
-    long = [f"{p.relative_to(ROOT)}: {n} lines" for p in MODULES
-            if (n := len(p.read_text().splitlines())) > MAX_LINES]
+    long = [
+        f"{p.relative_to(ROOT)}: {n} lines"
+        for p in MODULES
+        if (n := len(p.read_text().splitlines())) > MAX_LINES
+    ]
     folders = {p.parent for p in MODULES}
-    bags = [f"{d.relative_to(ROOT)}: {n} modules" for d in sorted(folders)
-            if (n := len([p for p in d.glob("*.py") if p.name != "__init__.py"])) > MAX_MODULES]
+    bags = [
+        f"{d.relative_to(ROOT)}: {n} modules"
+        for d in sorted(folders)
+        if (n := len([p for p in d.glob("*.py") if p.name != "__init__.py"])) > MAX_MODULES
+    ]
     assert long == [] and bags == []

@@ -28,21 +28,30 @@ def zero_params(base: Path) -> None:
     (base / "zero.json").write_text(json.dumps({"shear": {"k_s": 0.0}}))
 
 
-ONEPOINT = variant("onepoint", edits(replace("experiment.toml", 'field = "field.csv"\n', ""),
-                                     replace("experiment.toml", "\nnoise_std = 0.01\n", "\n"),
-                                     replace("force.csv", "\n2,1.6,0.0", "")))
+ONEPOINT = variant(
+    "onepoint",
+    edits(
+        replace("experiment.toml", 'field = "field.csv"\n', ""),
+        replace("experiment.toml", "\nnoise_std = 0.01\n", "\n"),
+        replace("force.csv", "\n2,1.6,0.0", ""),
+    ),
+)
 CASES = [  # id, DATA, --terms, --params, what the message says
     ("underdetermined", "onepoint", TERMS, None, r"fewer data than moduli"),
     ("zero-start", "good", TERMS, "zero.json", r"shear\.k_s = 0: fit and diagnose start"),
-    ("planar-out-of-plane", "good", TERMS + ",twist", None,
-     r"twist is an out-of-plane effect, and experiment 'synthetic'"),
+    (
+        "planar-out-of-plane",
+        "good",
+        TERMS + ",twist",
+        None,
+        r"twist is an out-of-plane effect, and experiment 'synthetic'",
+    ),
 ]
 
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    return shared_root(tmp_path_factory, "libchecks", [dict(make=ONEPOINT),
-                                                       dict(make=zero_params)])
+    return shared_root(tmp_path_factory, "libchecks", [dict(make=ONEPOINT), dict(make=zero_params)])
 
 
 def neutral(msg: str, terms: str, params: str | None) -> str:
@@ -81,7 +90,8 @@ class Recorder:
 def cli_message(command, root, data, terms, params, capsys, monkeypatch) -> str:
     monkeypatch.chdir(root)
     argv = [command, data, "--terms", terms, "--out", "out"] + (
-        ["--params", params] if params else [])
+        ["--params", params] if params else []
+    )
     rc, msg = run_cli(argv, capsys)
     assert rc == 2, msg
     assert not (root / "out").exists()

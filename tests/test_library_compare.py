@@ -32,30 +32,44 @@ COMM = MPI.COMM_WORLD
 TERMS = "fibre_stretch,shear"
 GIVEN = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5}}
 NAMES = ["fibre_stretch.k_l", "fibre_stretch.k_m", "shear.k_s"]
-SAVED = {"terms": TERMS.split(","), "params": GIVEN,  # a saved fit with its covariance
-         "uncertainty": {"covariance": {"names": NAMES,
-                                        "statistical": np.diag([1.0, 1.0, 1e-4]).tolist()},
-                         "statistics": {"t95": 2.0}},
-         "moduli": {n: {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0} for n in NAMES}}
+SAVED = {
+    "terms": TERMS.split(","),
+    "params": GIVEN,  # a saved fit with its covariance
+    "uncertainty": {
+        "covariance": {"names": NAMES, "statistical": np.diag([1.0, 1.0, 1e-4]).tolist()},
+        "statistics": {"t95": 2.0},
+    },
+    "moduli": {n: {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0} for n in NAMES},
+}
 
 
 def cantilever(base: Path) -> None:
     """A 3D cantilever field (uz measured, nothing solved) called ``cantilever``."""
     from fabricsurf.inverse.synthetic import generate as sy
 
-    exp = sy.template(30.0, 10.0, [0.5, 1.0], sy.grid_points(30.0, 10.0, 4, 2),
-                      test="cantilever", options={"areal_density_g_m2": 200.0}, force=False)
+    exp = sy.template(
+        30.0,
+        10.0,
+        [0.5, 1.0],
+        sy.grid_points(30.0, 10.0, 4, 2),
+        test="cantilever",
+        options={"areal_density_g_m2": 200.0},
+        force=False,
+    )
     x = exp.X[:, 0] / 30.0
     exp.u = np.column_stack([0.0 * x, 0.0 * x, -2.0 * x**2 * exp.field_step])
     exp.noise_std = 0.01
     write_experiment(base / "cantilever", exp)
 
 
-MAKE = [variant("twin", lambda d: None), cantilever,
-        params_file("given.json", GIVEN), params_file("saved.json", SAVED),
-        params_file("shear_only.json", {"shear": {"k_s": 0.8}}),
-        params_file("huge.json", {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0},
-                                  "shear": {"k_s": 1.0}})]
+MAKE = [
+    variant("twin", lambda d: None),
+    cantilever,
+    params_file("given.json", GIVEN),
+    params_file("saved.json", SAVED),
+    params_file("shear_only.json", {"shear": {"k_s": 0.8}}),
+    params_file("huge.json", {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0}, "shear": {"k_s": 1.0}}),
+]
 
 
 @pytest.fixture(scope="module")
@@ -71,31 +85,85 @@ def terms(spec: str, params: dict | None = None) -> list:
 # the substance both messages hold (a pattern); whether the library's message is the command
 # line's with the names replaced (``neutral``) word for word
 CASES = [
-    ("planar-out-of-plane", ["good"], TERMS + ",twist", [], {},
-     r"twist is an out-of-plane effect, and experiment 'synthetic' \(test 'bias_extension'\) "
-     r"is planar", True),
-    ("bending-test-without-bending", ["cantilever"], TERMS, ["--params", "given.json"], {},
-     r"experiment 'synthetic' is a cantilever, and no term has a second gradient, so the sheet "
-     r"would have no bending stiffness", True),
-    ("h-too-large", ["good"], TERMS, ["--h", "1e5"], {"h": 1e5},
-     r"100000: must be a positive element size in mm, at most 10 \(two elements across the "
-     r"narrowest specimen\)", True),
-    ("h-zero", ["good"], TERMS, ["--h", "0"], {"h": 0.0},
-     r"0: must be a positive element size in mm", False),
-    ("params-incomplete", ["good"], TERMS, ["--params", "shear_only.json"],
-     {"params": {"shear": {"k_s": 0.8}}},
-     r"gives no value for fibre_stretch.k_l, fibre_stretch.k_m of .*, so compare would use the "
-     r"defaults \(fibre_stretch.k_l = 1 N/mm, fibre_stretch.k_m = 1 N/mm\), nobody's estimate",
-     False),
-    ("modulus-huge", ["good"], TERMS, ["--params", "huge.json"],
-     {"model": GIVEN | {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0}}},
-     r"fibre_stretch.k_l = 1e\+308 N/mm is beyond any sheet \(at most 1e\+12 N/mm", False),
-    ("modulus-huge-params", ["good"], TERMS, ["--params", "huge.json"],
-     {"model": {}, "params": {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0},
-                              "shear": {"k_s": 1.0}}},
-     r"fibre_stretch.k_l = 1e\+308 N/mm is beyond any sheet \(at most 1e\+12 N/mm", True),
-    ("names-twice", ["good", "twin"], TERMS, [], {},
-     r"experiments must have distinct names \(.*\), got \['synthetic', 'synthetic'\]", False),
+    (
+        "planar-out-of-plane",
+        ["good"],
+        TERMS + ",twist",
+        [],
+        {},
+        r"twist is an out-of-plane effect, and experiment 'synthetic' \(test 'bias_extension'\) "
+        r"is planar",
+        True,
+    ),
+    (
+        "bending-test-without-bending",
+        ["cantilever"],
+        TERMS,
+        ["--params", "given.json"],
+        {},
+        r"experiment 'synthetic' is a cantilever, and no term has a second gradient, so the sheet "
+        r"would have no bending stiffness",
+        True,
+    ),
+    (
+        "h-too-large",
+        ["good"],
+        TERMS,
+        ["--h", "1e5"],
+        {"h": 1e5},
+        r"100000: must be a positive element size in mm, at most 10 \(two elements across the "
+        r"narrowest specimen\)",
+        True,
+    ),
+    (
+        "h-zero",
+        ["good"],
+        TERMS,
+        ["--h", "0"],
+        {"h": 0.0},
+        r"0: must be a positive element size in mm",
+        False,
+    ),
+    (
+        "params-incomplete",
+        ["good"],
+        TERMS,
+        ["--params", "shear_only.json"],
+        {"params": {"shear": {"k_s": 0.8}}},
+        r"gives no value for fibre_stretch.k_l, fibre_stretch.k_m of .*, so compare would use the "
+        r"defaults \(fibre_stretch.k_l = 1 N/mm, fibre_stretch.k_m = 1 N/mm\), nobody's estimate",
+        False,
+    ),
+    (
+        "modulus-huge",
+        ["good"],
+        TERMS,
+        ["--params", "huge.json"],
+        {"model": GIVEN | {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0}}},
+        r"fibre_stretch.k_l = 1e\+308 N/mm is beyond any sheet \(at most 1e\+12 N/mm",
+        False,
+    ),
+    (
+        "modulus-huge-params",
+        ["good"],
+        TERMS,
+        ["--params", "huge.json"],
+        {
+            "model": {},
+            "params": {"fibre_stretch": {"k_l": 1e308, "k_m": 1.0}, "shear": {"k_s": 1.0}},
+        },
+        r"fibre_stretch.k_l = 1e\+308 N/mm is beyond any sheet \(at most 1e\+12 N/mm",
+        True,
+    ),
+    (
+        "names-twice",
+        ["good", "twin"],
+        TERMS,
+        [],
+        {},
+        r"experiments must have distinct names \(.*\), got \['synthetic', 'synthetic'\]",
+        False,
+    ),
     ("term-twice", ["good"], "shear,shear", [], {}, r"'shear' is given twice", False),
 ]
 
@@ -156,23 +224,47 @@ def test_compare_takes_signed_moduli_fit_refuses():
         fit_preconditions([exp], model)
     with pytest.raises(InputError, match=r"band: the saved fit has no covariance"):
         compare_preconditions([exp], model, band={"params": GIVEN})
-    with pytest.raises(InputError, match=r"band: the saved fit's moduli \['twist.k_t'\] are "
-                                         r"not in the model"):
-        compare_preconditions([exp], terms(TERMS), band=SAVED | {"uncertainty": {
-            "covariance": {"names": ["twist.k_t"], "statistical": [[1.0]]}}})
+    with pytest.raises(
+        InputError,
+        match=r"band: the saved fit's moduli \['twist.k_t'\] are "
+        r"not in the model",
+    ):
+        compare_preconditions(
+            [exp],
+            terms(TERMS),
+            band=SAVED
+            | {"uncertainty": {"covariance": {"names": ["twist.k_t"], "statistical": [[1.0]]}}},
+        )
 
 
 def test_compare_numbers_are_the_clis(root, capsys):
     """``compare()`` at a saved fit's moduli with its band: the misfit (every per-step entry),
     the meshes and the band the command line writes, to the last digit."""
-    rc, msg = run_cli(["compare", str(root / "good"), "--params", str(root / "saved.json"),
-                       "--h", "10", "--out", str(root / "cmp")], capsys)
+    rc, msg = run_cli(
+        [
+            "compare",
+            str(root / "good"),
+            "--params",
+            str(root / "saved.json"),
+            "--h",
+            "10",
+            "--out",
+            str(root / "cmp"),
+        ],
+        capsys,
+    )
     assert rc == 0, msg
     written = json.loads((root / "cmp" / "misfit.json").read_text())
     given = terms(TERMS)
     before = [t.values() for t in given]
-    res = compare(load_experiment(root / "good"), given, h=10.0, params=GIVEN,
-                  band=root / "saved.json", comm=COMM)
+    res = compare(
+        load_experiment(root / "good"),
+        given,
+        h=10.0,
+        params=GIVEN,
+        band=root / "saved.json",
+        comm=COMM,
+    )
     assert isinstance(res, Comparison) and res.label == "fibre_stretch+shear"
     assert [t.values() for t in given] == before  # params set on copies
     ours = json.loads(json.dumps(res.as_dict()))
@@ -183,8 +275,9 @@ def test_compare_numbers_are_the_clis(root, capsys):
     assert written["provenance"]["discretisation"] == json.loads(json.dumps(res.discretisation))
     band = np.loadtxt(root / "cmp" / "force_band.csv", delimiter=",", skiprows=1)
     mine = res.bands["synthetic"]
-    np.testing.assert_allclose(band[:, 1:], np.column_stack(
-        [mine["force"], mine["lower"], mine["upper"]]), rtol=1e-5)  # the CSV's %.6g
+    np.testing.assert_allclose(
+        band[:, 1:], np.column_stack([mine["force"], mine["lower"], mine["upper"]]), rtol=1e-5
+    )  # the CSV's %.6g
     assert len(res.predictions) == 1 and res.predictions[0].force.shape == (2,)
     # the same through the curated root, the model's own moduli (no params)
     again = fabricsurf.compare([load_experiment(root / "good")], terms(TERMS, GIVEN), h=10.0)
@@ -200,10 +293,22 @@ def test_separate_tie_returns_a_copy(monkeypatch):
     from fabricsurf.inverse.diagnosis import discrimination as dc
     from fabricsurf.inverse.diagnosis.report import Diagnosis
 
-    d = Diagnosis(baseline=["shear"], base_fit=None, final_fit=None, terms=["shear"],
-                  ranking=[], rounds=[], verdict=None, adequate=True, path=[],
-                  not_identifiable=[], discretisation_chi2=None, unexplained=None,
-                  fit_seconds=0.0, noise_known=True)
+    d = Diagnosis(
+        baseline=["shear"],
+        base_fit=None,
+        final_fit=None,
+        terms=["shear"],
+        ranking=[],
+        rounds=[],
+        verdict=None,
+        adequate=True,
+        path=[],
+        not_identifiable=[],
+        discretisation_chi2=None,
+        unexplained=None,
+        fit_seconds=0.0,
+        noise_known=True,
+    )
     assert dc.separate_tie(d, []) == (d, None)
     tie = SimpleNamespace(tied=True, members=["a", "b"], refits={"a": "ra", "b": "rb"})
     d.tie = tie
@@ -231,8 +336,7 @@ def test_dic_import_round_trip_is_exact(tmp_path):
     base = shared(tmp_path)
     if COMM.rank == 0:
         spec, _ = make(base, "dice", points=grid(spacing=4.0), noise=0.013)
-        spec.write_text(spec.read_text().replace("[steps]",
-                                                 "[steps]\nforce = [1.1, 2.3, 2.9]"))
+        spec.write_text(spec.read_text().replace("[steps]", "[steps]\nforce = [1.1, 2.3, 2.9]"))
     COMM.barrier()
     out = base / "measured"
     assert main(["import-dic", str(base / "dic.toml"), "--out", str(out)]) == 0

@@ -81,9 +81,12 @@ def test_failure_in_second_step_keeps_the_first():
     s.solve = lambda: solve() if s.t_try <= 1.5 else (-6, 4)
     done = []
     stepper = LoadStepper(s, s.set, lambda k, t, its: done.append((k, t)), min_fraction=1e-3)
-    with pytest.raises(LoadStepError, match=r"^load step 2 \(target 2\) failed: .*"
-                                            r"DIVERGED_LINE_SEARCH \(-6\).*"
-                                            r"last converged load 1.5$") as info:
+    with pytest.raises(
+        LoadStepError,
+        match=r"^load step 2 \(target 2\) failed: .*"
+        r"DIVERGED_LINE_SEARCH \(-6\).*"
+        r"last converged load 1.5$",
+    ) as info:
         stepper.run([1.0, 2.0])
     assert done == [(0, 1.0)] and info.value.step == 2
 
@@ -131,7 +134,7 @@ def test_domain_error_with_full_steps_is_a_clean_failure():
 
 def test_options_removed_from_the_global_database():
     opts = PETSc.Options()
-    opts["fabricsurf_opt_test_snes_max_it"] = 7   # e.g. given on the command line
+    opts["fabricsurf_opt_test_snes_max_it"] = 7  # e.g. given on the command line
     before = set(opts.getAll())
     s, _ = sqrt_problem({"snes_rtol": 1e-9}, prefix="fabricsurf_opt_test_")
     assert set(opts.getAll()) == before

@@ -23,8 +23,11 @@ from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
 COMM = MPI.COMM_WORLD
-TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
-         "geodesic_bending": {"A_g": 12.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 25.0, "k_m": 25.0},
+    "shear": {"k_s": 0.4},
+    "geodesic_bending": {"A_g": 12.0},
+}
 START = {"fibre_stretch": {"k_l": 10.0, "k_m": 10.0}, "shear": {"k_s": 1.0}}
 parallel = pytest.mark.skipif(COMM.size == 1, reason="needs several ranks")
 
@@ -48,8 +51,7 @@ def test_small_meshes_are_solved_whole_on_every_rank():
     with ForwardModel(exp, full_model(["fibre_stretch", "shear"], START), h=4.0) as fm:
         assert fm.local == (COMM.size > 1)
         assert fm.test.problem.msh.comm.size == 1
-    with ForwardModel(exp, full_model(["fibre_stretch", "shear"], START), h=4.0,
-                      local=False) as fm:
+    with ForwardModel(exp, full_model(["fibre_stretch", "shear"], START), h=4.0, local=False) as fm:
         assert not fm.local and fm.test.problem.msh.comm.size == COMM.size
     cells = local.estimated_cells(exp.setup.length, exp.setup.width, 0.5)
     assert cells > local.LOCAL_CELLS  # the default decides by the estimate
@@ -63,8 +65,11 @@ def test_the_threshold_can_be_set_in_the_environment(monkeypatch):
     monkeypatch.setenv(local.ENVIRONMENT, "1e9")
     assert local.solve_comm(COMM, 1e6) is (MPI.COMM_SELF if COMM.size > 1 else COMM)
     monkeypatch.setenv(local.ENVIRONMENT, "many")
-    with pytest.raises(ValueError, match="FABRICSURF_LOCAL_CELLS='many'") if COMM.size > 1 \
-            else contextlib.nullcontext():
+    with (
+        pytest.raises(ValueError, match="FABRICSURF_LOCAL_CELLS='many'")
+        if COMM.size > 1
+        else contextlib.nullcontext()
+    ):
         local.solve_comm(COMM, small)
 
 
@@ -73,9 +78,12 @@ def test_rank_local_fit_equals_the_distributed_fit_and_repeats_bit_for_bit():
     exp = data()
     out = []
     for mode in (False, True, True):
-        with ForwardModel(exp, full_model(list(TRUTH), START | {"geodesic_bending":
-                                                                {"A_g": 3.0}}),
-                          h=4.0, local=mode) as fm:
+        with ForwardModel(
+            exp,
+            full_model(list(TRUTH), START | {"geodesic_bending": {"A_g": 3.0}}),
+            h=4.0,
+            local=mode,
+        ) as fm:
             before = local.differed
             res = fit(fm, free_of(fm, TRUTH))
             out.append((res.values, res.misfit["chi2"], res.iterations, local.differed - before))
@@ -110,8 +118,9 @@ def test_a_value_computed_differently_is_rank_0s_everywhere():
 @parallel
 def test_spread_trials_choose_the_start_the_serial_loop_chooses():
     exp = data()
-    with ForwardModel(exp, full_model(list(TRUTH), START | {"geodesic_bending":
-                                                            {"A_g": 1e-9}}), h=4.0) as fm:
+    with ForwardModel(
+        exp, full_model(list(TRUTH), START | {"geodesic_bending": {"A_g": 1e-9}}), h=4.0
+    ) as fm:
         cur = fm.values()
         idx = free_of(fm, ["geodesic_bending"])
         free = free_of(fm, START)
@@ -130,8 +139,10 @@ def test_spread_trials_choose_the_start_the_serial_loop_chooses():
 def test_other_ranks_say_nothing_while_a_rank_local_model_builds():
     exp = sy.template(48.0, 24.0, [1.0], sy.grid_points(48.0, 24.0, 4, 2), angles=(45.0, 135.0))
     buf = io.StringIO()
-    with redirect_stdout(buf), ForwardModel(exp, full_model(["fibre_stretch", "shear"], START),
-                                            h=4.0) as fm:
+    with (
+        redirect_stdout(buf),
+        ForwardModel(exp, full_model(["fibre_stretch", "shear"], START), h=4.0) as fm,
+    ):
         assert fm.local
         fm.run()
     said = COMM.allgather(buf.getvalue())

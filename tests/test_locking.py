@@ -38,8 +38,9 @@ def fibres(ratio):
 
 
 def bias(ratio, h, mesh="auto"):
-    return BiasExtension([fibres(ratio), Shear(k_s=K_S)], length=H, width=W, h=h,
-                         clamp="position", mesh=mesh)
+    return BiasExtension(
+        [fibres(ratio), Shear(k_s=K_S)], length=H, width=W, h=h, clamp="position", mesh=mesh
+    )
 
 
 def force_ratios(ratio, h) -> np.ndarray:
@@ -73,8 +74,12 @@ def test_zone_angles_follow_eq13(tmp_path):
     pts = np.array([[W / 6, W / 2], [W / 2, W / 6], [H / 2, W / 2]])
     angles = []
     out = Path(MPI.COMM_WORLD.bcast(str(tmp_path), root=0))
-    res = b.run(UBAR[-1], len(UBAR), out=out,
-                on_step=lambda k, u: angles.append(np.degrees(b.fibre_fields_at(pts)[:, 2])))
+    res = b.run(
+        UBAR[-1],
+        len(UBAR),
+        out=out,
+        on_step=lambda k, u: angles.append(np.degrees(b.fibre_fields_at(pts)[:, 2])),
+    )
     assert np.all(np.diff(res.tension_max) > 0) and res.tension_max[0] > 0
     MPI.COMM_WORLD.barrier()
     assert "tension_l" in (out / "bias.xdmf").read_text()
@@ -90,8 +95,7 @@ def tangent_zero_eigenvalues(b: BiasExtension, with_bcs: bool) -> int:
     """Zero eigenvalues (relative 1e-10) of the tangent at the reference state, serial."""
     p = b.problem
     v, du = ufl.TestFunction(p.V), ufl.TrialFunction(p.V)
-    A = fem_petsc.assemble_matrix(fem.form(p.energy.jacobian(du, v)),
-                                  bcs=p.bcs if with_bcs else [])
+    A = fem_petsc.assemble_matrix(fem.form(p.energy.jacobian(du, v)), bcs=p.bcs if with_bcs else [])
     A.assemble()
     dense = A.convert("dense").getDenseArray().copy()
     A.destroy()
@@ -106,8 +110,15 @@ def test_tangent_null_space_is_the_continuum_one(ratio, mesh):
     """No spurious zero-energy modes: at the reference state the tangent of fibre_stretch +
     shear has exactly the 3 rigid motions of the plane as its null space without clamps, and
     none with them, on both meshes (small specimen), elastic or exactly inextensible."""
-    small = BiasExtension([fibres(ratio), Shear(k_s=K_S)], length=40.0, width=20.0, h=5.0,
-                          clamp="position", mesh=mesh, comm=MPI.COMM_SELF)
+    small = BiasExtension(
+        [fibres(ratio), Shear(k_s=K_S)],
+        length=40.0,
+        width=20.0,
+        h=5.0,
+        clamp="position",
+        mesh=mesh,
+        comm=MPI.COMM_SELF,
+    )
     assert tangent_zero_eigenvalues(small, with_bcs=False) == 3
     assert tangent_zero_eigenvalues(small, with_bcs=True) == 0
 
@@ -131,8 +142,9 @@ def test_stiff_fibres_with_geodesic_bending_keep_the_c0ip_rates():
 
     model = [FibreStretch(k_l=1e6, k_m=1e6), Shear(k_s=1.0), GeodesicBending(A_g=1.0)]
     meshes = (4, 8, 16)
-    errors = [manufactured_solve(model, chebyshev_net, n, 2, angles=(45.0, -45.0))[0]
-              for n in meshes]
+    errors = [
+        manufactured_solve(model, chebyshev_net, n, 2, angles=(45.0, -45.0))[0] for n in meshes
+    ]
     for norm, expected in {"L2": 2.0, "H1": 2.0, "H2": 1.0}.items():
         r = rates([e[norm] for e in errors], [1.0 / n for n in meshes])
         print(f"K/k_s = 1e6: {norm} errors {[e[norm] for e in errors]}, rates {r}")
@@ -148,8 +160,15 @@ def test_picture_frame_exact_at_any_fibre_stiffness(k):
     from fabricsurf.inverse.forward.runs import ForwardModel
     from fabricsurf.inverse.synthetic import generate as sy
 
-    exp = sy.template(80.0, 80.0, [6.0, 12.0, 20.0], np.zeros((0, 2)), angles=(0.0, 90.0),
-                      test="picture_frame", options={"frame": "clamped"})
+    exp = sy.template(
+        80.0,
+        80.0,
+        [6.0, 12.0, 20.0],
+        np.zeros((0, 2)),
+        angles=(0.0, 90.0),
+        test="picture_frame",
+        options={"frame": "clamped"},
+    )
     pred = ForwardModel(exp, [FibreStretch(k_l=k, k_m=k), Shear(k_s=0.4)], h=20.0).run()
     exact = [frame_force_exact(d, 80.0, lambda g: 0.4 * g) for d in exp.path]
     assert np.allclose(pred.force, exact, rtol=1e-6), (pred.force, exact)

@@ -37,8 +37,11 @@ from fabricsurf.log import (
 COMM = MPI.COMM_WORLD
 ROOT = Path(__file__).resolve().parents[1]
 log = logging.getLogger("fabricsurf.tests")
-serial = pytest.mark.skipif(COMM.size > 1, reason="starts a process of its own, which cannot "
-                            "initialise MPI inside an mpirun rank (serial session only)")
+serial = pytest.mark.skipif(
+    COMM.size > 1,
+    reason="starts a process of its own, which cannot "
+    "initialise MPI inside an mpirun rank (serial session only)",
+)
 
 
 def every_module() -> list[str]:
@@ -46,17 +49,30 @@ def every_module() -> list[str]:
     ``fabricsurf.__main__`` (which runs the command line)."""
     names = []
     for pkg, prefix in ((fabricsurf, "fabricsurf."), (fabricsurf.geometry, "fabricsurf.geometry.")):
-        names += [m.name for m in pkgutil.walk_packages(pkg.__path__, prefix)
-                  if not m.name.endswith("__main__")]
+        names += [
+            m.name
+            for m in pkgutil.walk_packages(pkg.__path__, prefix)
+            if not m.name.endswith("__main__")
+        ]
     return names
 
 
 def configured(names=("fabricsurf", "__main__")) -> list:
     """Every package logger's handlers, level and propagation (and the script's logger's)."""
-    loggers = [n for n, lg in logging.root.manager.loggerDict.items()
-               if isinstance(lg, logging.Logger) and n.split(".")[0] == "fabricsurf"]
-    return [(n, list(logging.getLogger(n).handlers), logging.getLogger(n).level,
-             logging.getLogger(n).propagate) for n in sorted({*names, *loggers})]
+    loggers = [
+        n
+        for n, lg in logging.root.manager.loggerDict.items()
+        if isinstance(lg, logging.Logger) and n.split(".")[0] == "fabricsurf"
+    ]
+    return [
+        (
+            n,
+            list(logging.getLogger(n).handlers),
+            logging.getLogger(n).level,
+            logging.getLogger(n).propagate,
+        )
+        for n in sorted({*names, *loggers})
+    ]
 
 
 def test_no_handler_no_level_after_importing_every_module():
@@ -119,8 +135,15 @@ def test_an_application_s_logging_sees_the_messages():
         logging.root.removeHandler(handler)
         logging.root.setLevel(level)
     lines = stream.getvalue().splitlines()
-    assert lines == (["step 1/2", "experiment.toml: [data] noise_std is given but [data] field "
-                      "is not: the noise level is not used"] if COMM.rank == 0 else []), lines
+    assert lines == (
+        [
+            "step 1/2",
+            "experiment.toml: [data] noise_std is given but [data] field "
+            "is not: the noise level is not used",
+        ]
+        if COMM.rank == 0
+        else []
+    ), lines
 
 
 def test_a_warning_once_on_rank_0(capsys):
@@ -132,8 +155,11 @@ def test_a_warning_once_on_rank_0(capsys):
         warn(log, COMM, "first line\nsecond line")
     out = capsys.readouterr()
     assert out.err == ""
-    assert out.out == ("warning: the mesh may lock\nwarning: first line\nwarning: second line\n"
-                       if COMM.rank == 0 else "")
+    assert out.out == (
+        "warning: the mesh may lock\nwarning: first line\nwarning: second line\n"
+        if COMM.rank == 0
+        else ""
+    )
     assert sum(o.count("the mesh may lock") for o in COMM.allgather(out.out)) == 1
 
 
@@ -149,8 +175,7 @@ def test_configure_replaces_and_undo_restores(capsys):
         assert len(logging.getLogger("fabricsurf").handlers) == 1
         rank0(log, COMM, "progress again")
     assert configured() == before
-    assert capsys.readouterr().out == ("warning: shown\nprogress again\n" if COMM.rank == 0
-                                       else "")
+    assert capsys.readouterr().out == ("warning: shown\nprogress again\n" if COMM.rank == 0 else "")
 
 
 def test_detail_and_muted_change_no_level(caplog):
@@ -169,8 +194,11 @@ def test_detail_and_muted_change_no_level(caplog):
         assert logging.getLogger("fabricsurf").level == logging.DEBUG
         rank0(log, COMM, "one voice")
     got = [(r.levelno, r.getMessage()) for r in caplog.records]
-    want = [(logging.DEBUG, "a load step"), (logging.WARNING, "still a warning"),
-            (PROGRESS, "one voice")]
+    want = [
+        (logging.DEBUG, "a load step"),
+        (logging.WARNING, "still a warning"),
+        (PROGRESS, "one voice"),
+    ]
     assert got == (want if COMM.rank == 0 else []), got
 
 
@@ -180,15 +208,17 @@ def test_rank0_print_kept_for_the_modules_to_convert(caplog):
     rank0_print(COMM, "step", 1, "of", 3)
     rank0_print(COMM, "warning: a path that unloads")
     got = [(r.levelno, r.getMessage()) for r in caplog.records]
-    assert got == ([(PROGRESS, "step 1 of 3"), (logging.WARNING, "a path that unloads")]
-                   if COMM.rank == 0 else [])
+    assert got == (
+        [(PROGRESS, "step 1 of 3"), (logging.WARNING, "a path that unloads")]
+        if COMM.rank == 0
+        else []
+    )
 
 
 # -- the command line ----------------------------------------------------------------------
 def _says(args) -> int:
     rank0(logging.getLogger("fabricsurf.experiments.bias_extension"), COMM, "a load step")
-    rank0(logging.getLogger("fabricsurf.discretise.stepping"), COMM, "a cut",
-          level=logging.DEBUG)
+    rank0(logging.getLogger("fabricsurf.discretise.stepping"), COMM, "a cut", level=logging.DEBUG)
     warn(logging.getLogger("fabricsurf.experiments.hemisphere"), COMM, "a coarse mesh")
     return 0
 
@@ -206,11 +236,15 @@ def run(argv, capsys) -> tuple[int, str]:
     return rc, out.out
 
 
-@pytest.mark.parametrize("flags, want", [
-    ([], "a load step\nwarning: a coarse mesh\n"),
-    (["-q"], "warning: a coarse mesh\n"),
-    (["-v"], "a load step\na cut\nwarning: a coarse mesh\n"),
-    (["--quiet"], "warning: a coarse mesh\n")])
+@pytest.mark.parametrize(
+    "flags, want",
+    [
+        ([], "a load step\nwarning: a coarse mesh\n"),
+        (["-q"], "warning: a coarse mesh\n"),
+        (["-v"], "a load step\na cut\nwarning: a coarse mesh\n"),
+        (["--quiet"], "warning: a coarse mesh\n"),
+    ],
+)
 def test_quiet_hides_progress_never_warnings(flags, want, capsys, monkeypatch):
     monkeypatch.setattr(cli, "cmd_terms", _says)
     rc, out = run([*flags, "terms"], capsys)
@@ -225,13 +259,14 @@ def test_main_leaves_no_configuration(capsys, monkeypatch):
     before = configured(), logging.root.manager.disable
     monkeypatch.setattr(cli, "cmd_terms", _says)
     for _ in range(3):
-        assert run(["terms"], capsys) == (0, "a load step\nwarning: a coarse mesh\n"
-                                          if COMM.rank == 0 else "")
+        assert run(["terms"], capsys) == (
+            0,
+            "a load step\nwarning: a coarse mesh\n" if COMM.rank == 0 else "",
+        )
         assert (configured(), logging.root.manager.disable) == before
     monkeypatch.setattr(cli, "cmd_terms", _fails)
     rc, out = run(["-q", "terms"], capsys)
-    assert rc == 2 and out == ("fabricsurf terms: error: no such file\n" if COMM.rank == 0
-                               else "")
+    assert rc == 2 and out == ("fabricsurf terms: error: no such file\n" if COMM.rank == 0 else "")
     assert (configured(), logging.root.manager.disable) == before
 
 
@@ -249,8 +284,7 @@ def test_each_message_once_beside_a_root_handler(capsys, monkeypatch):
         warn(log, COMM, "after the command")
     finally:
         logging.root.removeHandler(root)
-    assert rc == 0 and out == ("a load step\nwarning: a coarse mesh\n" if COMM.rank == 0
-                               else "")
+    assert rc == 0 and out == ("a load step\nwarning: a coarse mesh\n" if COMM.rank == 0 else "")
     assert stream.getvalue() == ("after the command\n" if COMM.rank == 0 else "")
 
 
@@ -269,16 +303,21 @@ DEMO = textwrap.dedent("""
 
 
 @serial
-@pytest.mark.parametrize("flags, want", [
-    ([], "the demo's result\nfit iteration 1\nwarning: a mechanism\n"),
-    (["-q"], "warning: a mechanism\n")])
+@pytest.mark.parametrize(
+    "flags, want",
+    [
+        ([], "the demo's result\nfit iteration 1\nwarning: a mechanism\n"),
+        (["-q"], "warning: a mechanism\n"),
+    ],
+)
 def test_a_demo_configures_through_parse(flags, want, tmp_path):
     """A demo's own messages (its ``__main__`` logger) and the package's reach standard output
     through parse(); --quiet keeps the warnings."""
     script = tmp_path / "demo_x.py"
     script.write_text(DEMO)
-    r = subprocess.run([sys.executable, str(script), *flags], cwd=ROOT, capture_output=True,
-                       text=True)
+    r = subprocess.run(
+        [sys.executable, str(script), *flags], cwd=ROOT, capture_output=True, text=True
+    )
     assert r.returncode == 0 and r.stdout == want and r.stderr == "", r
 
 
@@ -286,10 +325,12 @@ def test_a_demo_configures_through_parse(flags, want, tmp_path):
 def test_each_message_is_flushed_through_a_pipe():
     """A message is readable from the pipe while the process still runs (block-buffered
     stdout would hold it until exit, as the forming demo's did under mpirun)."""
-    code = ("import logging, time\nfrom mpi4py import MPI\n"
-            "from fabricsurf.log import configure, rank0\nconfigure()\n"
-            "rank0(logging.getLogger('fabricsurf.x'), MPI.COMM_SELF, 'first step done')\n"
-            "time.sleep(60)\n")
+    code = (
+        "import logging, time\nfrom mpi4py import MPI\n"
+        "from fabricsurf.log import configure, rank0\nconfigure()\n"
+        "rank0(logging.getLogger('fabricsurf.x'), MPI.COMM_SELF, 'first step done')\n"
+        "time.sleep(60)\n"
+    )
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     try:
         t0 = time.perf_counter()

@@ -55,30 +55,47 @@ def test_refinement_keeps_the_fibre_aligned_mesh():
         seen[k] += 1
         finer = _kind(length, width, h / 2, theta)
         assert finer == "aligned" if k == "aligned" else finer != "zones", (
-            length, width, theta, h, k, finer)
+            length,
+            width,
+            theta,
+            h,
+            k,
+            finer,
+        )
     assert min(seen.values()) > 100, seen  # both kinds were exercised
 
 
 def test_budget_is_checked_and_names_the_limit_reached():
-    for bad in (dict(max_dofs=0), dict(max_cells=-1), dict(seconds=0.0),
-                dict(seconds=math.inf), dict(max_dofs=1.5)):
+    for bad in (
+        dict(max_dofs=0),
+        dict(max_cells=-1),
+        dict(seconds=0.0),
+        dict(seconds=math.inf),
+        dict(max_dofs=1.5),
+    ):
         with pytest.raises(ValueError, match="mesh budget: "):
             Budget(**bad)
     level = {"h": [2.0], "dofs": 6000, "cells": 1500, "seconds": 100.0}
     assert _why_not(level, 150.0, 100.0, Budget(24_000, 24_000, 550.0)) is None
-    assert "max_dofs = 23,999 (--max-dofs)" in _why_not(level, 150.0, 100.0,
-                                                        Budget(23_999, 24_000, 550.0))
-    assert "max_cells = 23,999 (--max-elements)" in _why_not(level, 150.0, 100.0,
-                                                             Budget(24_000, 23_999, 550.0))
-    assert "beyond 549 s (--time-budget)" in _why_not(level, 150.0, 100.0,
-                                                     Budget(24_000, 24_000, 549.0))
+    assert "max_dofs = 23,999 (--max-dofs)" in _why_not(
+        level, 150.0, 100.0, Budget(23_999, 24_000, 550.0)
+    )
+    assert "max_cells = 23,999 (--max-elements)" in _why_not(
+        level, 150.0, 100.0, Budget(24_000, 23_999, 550.0)
+    )
+    assert "beyond 549 s (--time-budget)" in _why_not(
+        level, 150.0, 100.0, Budget(24_000, 24_000, 549.0)
+    )
     assert _why_not(level, 1e9, 100.0, Budget(24_000, 24_000, None)) is None
 
 
 LENGTH, WIDTH, H0 = 25.0, 20.0, 4.0
 """A coarse start, h = W/5 (the default W/10 costs four times more per level)."""
-TRUE = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-        "geodesic_bending": {"A_g": 15.0}}
+TRUE = {
+    "fibre_stretch": {"k_l": 30.0, "k_m": 30.0},
+    "shear": {"k_s": 0.5},
+    "geodesic_bending": {"A_g": 15.0},
+}
 NOISE = 0.014
 """mm (N: twice it): the h/2 check of the 4 mm mesh is above the noise band, that of the 2 mm
 mesh below it (rate ~1 in h: χ²_h falls by about 4 per halving; at 0.007 mm noise the 2 mm
@@ -92,16 +109,23 @@ def too_coarse_data():
     from fabricsurf.inverse.diagnosis.diagnose import full_model
     from fabricsurf.inverse.synthetic import generate as sy
 
-    exp = sy.template(LENGTH, WIDTH, [1.0, 2.0], sy.grid_points(LENGTH, WIDTH, 6, 5),
-                      clamp="position", name="meshsel")
+    exp = sy.template(
+        LENGTH,
+        WIDTH,
+        [1.0, 2.0],
+        sy.grid_points(LENGTH, WIDTH, 6, 5),
+        clamp="position",
+        name="meshsel",
+    )
     sy.continuum_data(exp, full_model(list(TRUE), TRUE), h=0.7)
     return sy.add_noise(exp, NOISE, 2 * NOISE, 5)
 
 
-
-@pytest.mark.serial("the refinement loop's decisions on 2 ranks are "
-                    "test_refinement_loop_stops_at_the_budget_on_every_rank's, the diagnosis "
-                    "command line's on 2 ranks test_diagnose's")
+@pytest.mark.serial(
+    "the refinement loop's decisions on 2 ranks are "
+    "test_refinement_loop_stops_at_the_budget_on_every_rank's, the diagnosis "
+    "command line's on 2 ranks test_diagnose's"
+)
 def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
     """The command line at the default h: the h/2 check says the mesh is too coarse (the code
     before mesh selection ended "refine h" here), the diagnosis refines once on its own, stays
@@ -114,9 +138,25 @@ def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
     if comm.rank == 0:
         write_experiment(root / "data", exp)
     comm.barrier()
-    assert main(["diagnose", str(root / "data"), "--terms", "fibre_stretch,shear", "--h",
-                 str(H0), "--confirm", "1", "--max-effects", "1", "--out",
-                 str(root / "out")]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                str(root / "data"),
+                "--terms",
+                "fibre_stretch,shear",
+                "--h",
+                str(H0),
+                "--confirm",
+                "1",
+                "--max-effects",
+                "1",
+                "--out",
+                str(root / "out"),
+            ]
+        )
+        == 0
+    )
     d = json.loads((root / "out" / "diagnosis.json").read_text())
     print(d["outcome"], d["discretisation"])
     assert not d["discretisation"]["too_coarse"] and "refine h" not in d["outcome"]
@@ -127,13 +167,19 @@ def test_diagnosis_refines_its_mesh_until_fine_enough(tmp_path):
     assert levels[0]["chi2_h"] > levels[0]["noise_band"] > levels[1]["chi2_h"]
     assert [q["mesh_kind"] for q in levels] == [["aligned"]] * 2
     assert levels[1]["dofs"] > 3.5 * levels[0]["dofs"]
-    assert d["provenance"]["h_mm"] == [H0 / 2] == [m["h"] for m in
-                                                       d["discretisation"]["meshes"]]
+    assert d["provenance"]["h_mm"] == [H0 / 2] == [m["h"] for m in d["discretisation"]["meshes"]]
     from fabricsurf.inverse.diagnosis.diagnose import diagnose
 
-    finer = diagnose(exp, ["fibre_stretch", "shear"], h=H0 / 4, confirm=1, max_effects=1,
-                     params={t: d["baseline"]["params"][t] for t in ("fibre_stretch", "shear")},
-                     warm_start=d["final"]["params"], check_discretisation=False)
+    finer = diagnose(
+        exp,
+        ["fibre_stretch", "shear"],
+        h=H0 / 4,
+        confirm=1,
+        max_effects=1,
+        params={t: d["baseline"]["params"][t] for t in ("fibre_stretch", "shear")},
+        warm_start=d["final"]["params"],
+        check_discretisation=False,
+    )
     assert finer.verdict == d["verdict"]
     for name, m in d["final"]["moduli"].items():
         t, p = name.split(".")
@@ -147,12 +193,22 @@ class _Level:
     def __init__(self, hs, chi2_h, calls):
         from fabricsurf.inverse.fitting.fit import FitResult
 
-        self.meshes = [{"h": h, "cells": int(800 / h**2), "dofs": int(3300 / h**2),
-                        "mesh_kind": "aligned"} for h in hs]
+        self.meshes = [
+            {"h": h, "cells": int(800 / h**2), "dofs": int(3300 / h**2), "mesh_kind": "aligned"}
+            for h in hs
+        ]
         self.discretisation_chi2, self.verdict, self.terms = chi2_h, "geodesic_bending", []
         self.adequate, self.grip_depth, self.mesh_selection, self.baseline = True, None, None, []
-        self.final_fit = FitResult(["shear.k_s"], np.array([0.5]), np.zeros(1), 100.0,
-                                   {"n": 122, "combined": 1.0}, None, 1, 1)
+        self.final_fit = FitResult(
+            ["shear.k_s"],
+            np.array([0.5]),
+            np.zeros(1),
+            100.0,
+            {"n": 122, "combined": 1.0},
+            None,
+            1,
+            1,
+        )
         self.base_fit = self.final_fit
         calls.append(hs)
 
@@ -177,13 +233,17 @@ def test_refinement_loop_stops_at_the_budget_on_every_rank(monkeypatch):
     checks = iter([400.0, 100.0])
     d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(max_dofs=3300))
     assert calls == [[2.0], [1.0]]
-    assert "refine h): the mesh budget is spent: h = 0.5 mm would have about 13,200 " \
-           "unknowns, more than max_dofs = 3,300 (--max-dofs)" in d.mesh_note()
+    assert (
+        "refine h): the mesh budget is spent: h = 0.5 mm would have about 13,200 "
+        "unknowns, more than max_dofs = 3,300 (--max-dofs)" in d.mesh_note()
+    )
     calls.clear()
     checks = iter([400.0, 100.0])
     clock = iter(np.arange(0.0, 1e4, 100.0) * (1 + 0.01 * MPI.COMM_WORLD.rank))
     monkeypatch.setattr(mc.MPI, "Wtime", lambda: float(next(clock)))
     d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(seconds=900.0))
     assert len(calls) == 2 and "the time budget is spent" in d.mesh_selection["stopped"]
-    assert MPI.COMM_WORLD.allgather(d.mesh_selection["stopped"]) == \
-        [d.mesh_selection["stopped"]] * MPI.COMM_WORLD.size
+    assert (
+        MPI.COMM_WORLD.allgather(d.mesh_selection["stopped"])
+        == [d.mesh_selection["stopped"]] * MPI.COMM_WORLD.size
+    )

@@ -19,12 +19,22 @@ def random_network(seed=0, n=12, locking=False):
     rng = np.random.default_rng(seed)
     X = rng.uniform(0, 10, (n, 2))
     ext = np.array([(i, (i + 1) % n) for i in range(n)] + [(i, (i + 5) % n) for i in range(n)])
-    rot = np.array([(i, (i + 1) % n, (i + 2) % n) for i in range(n)]
-                   + [(i, (i + 3) % n, (i + 7) % n) for i in range(n)])
-    k4, k6, mf = (rng.uniform(1, 3, (3, len(rot))) if locking else (0.0, 0.0, 0.0))
-    net = SpringNetwork(X, ext, rng.uniform(1, 3, len(ext)), rot=rot,
-                        k_rot=rng.uniform(1, 3, len(rot)), k_rot4=k4, k_rot6=k6,
-                        m_fric=mf, phi_f=0.3)
+    rot = np.array(
+        [(i, (i + 1) % n, (i + 2) % n) for i in range(n)]
+        + [(i, (i + 3) % n, (i + 7) % n) for i in range(n)]
+    )
+    k4, k6, mf = rng.uniform(1, 3, (3, len(rot))) if locking else (0.0, 0.0, 0.0)
+    net = SpringNetwork(
+        X,
+        ext,
+        rng.uniform(1, 3, len(ext)),
+        rot=rot,
+        k_rot=rng.uniform(1, 3, len(rot)),
+        k_rot4=k4,
+        k_rot6=k6,
+        m_fric=mf,
+        phi_f=0.3,
+    )
     # rest state different from reference: springs are pre-stressed
     net.l0 *= rng.uniform(0.8, 1.2, len(ext))
     net.phi0 = rng.uniform(-np.pi, np.pi, len(rot))
@@ -91,14 +101,14 @@ def test_nonlinear_rotational_spring_energy_is_the_polynomial():
     (lever arm 1 mm: the force on the free node is E' in N)."""
     k, k4, k6, d = 2.0, 3.0, 5.0, 0.6
     X = np.array([[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]])
-    net = SpringNetwork(X, np.zeros((0, 2)), 1.0, rot=[[0, 1, 2]], k_rot=k, k_rot4=k4,
-                        k_rot6=k6)
+    net = SpringNetwork(X, np.zeros((0, 2)), 1.0, rot=[[0, 1, 2]], k_rot=k, k_rot4=k4, k_rot6=k6)
     x = X.copy()
     x[2] = [np.cos(d), np.sin(d)]
     assert abs(net.energy(x) - (k * d**2 / 2 + k4 * d**4 / 4 + k6 * d**6 / 6)) < 1e-14
     f = net.gradient(x)[2]  # dE/dx_k = E'(d) (perpendicular to the arm, |arm| = 1)
-    assert np.allclose(f, (k * d + k4 * d**3 + k6 * d**5) * np.array([-np.sin(d), np.cos(d)]),
-                       rtol=1e-13, atol=0)
+    assert np.allclose(
+        f, (k * d + k4 * d**3 + k6 * d**5) * np.array([-np.sin(d), np.cos(d)]), rtol=1e-13, atol=0
+    )
 
 
 def test_friction_spring_energy_and_moment_saturate():
@@ -112,8 +122,9 @@ def test_friction_spring_energy_and_moment_saturate():
         x[2] = [np.cos(d), np.sin(d)]
         assert abs(net.energy(x) - m * phi * np.log(np.cosh(d / phi))) < 1e-13
         f = net.gradient(x)[2]
-        assert np.allclose(f, m * np.tanh(d / phi) * np.array([-np.sin(d), np.cos(d)]),
-                           rtol=1e-13, atol=0)
+        assert np.allclose(
+            f, m * np.tanh(d / phi) * np.array([-np.sin(d), np.cos(d)]), rtol=1e-13, atol=0
+        )
     assert abs(np.linalg.norm(f) - m) < 1e-12
     H = net.hessian(X).toarray()  # at d = 0: k_eff = m/φ on the free node's normal direction
     assert abs(H[5, 5] - m / phi) < 1e-9 * m / phi
@@ -131,14 +142,17 @@ def test_homogeneous_stretch_gives_analytic_force():
     nx, ny, h, k = 6, 4, 2.0, 3.0
     X = np.array([(i * h, j * h) for j in range(ny) for i in range(nx)], float)
     nid = np.arange(nx * ny).reshape(ny, nx)
-    ext = np.concatenate([np.stack([nid[:, :-1].ravel(), nid[:, 1:].ravel()], 1),
-                          np.stack([nid[:-1].ravel(), nid[1:].ravel()], 1)])
+    ext = np.concatenate(
+        [
+            np.stack([nid[:, :-1].ravel(), nid[:, 1:].ravel()], 1),
+            np.stack([nid[:-1].ravel(), nid[1:].ravel()], 1),
+        ]
+    )
     # shear springs (right, node, up) keep the grid from being a mechanism; no shear here
     rot = np.stack([nid[:-1, 1:].ravel(), nid[:-1, :-1].ravel(), nid[1:, :-1].ravel()], 1)
     net = SpringNetwork(X, ext, k, rot=rot, k_rot=5.0)
     lam = 1.3
-    bcs = [Dirichlet(nid[:, 0], [0.0, 0.0]),
-           Dirichlet(nid[:, -1], [(lam - 1) * (nx - 1) * h, 0.0])]
+    bcs = [Dirichlet(nid[:, 0], [0.0, 0.0]), Dirichlet(nid[:, -1], [(lam - 1) * (nx - 1) * h, 0.0])]
     res = solve_steps(net, bcs, n_steps=2, reaction_sets={"grip": nid[:, -1]})
     F = res[-1].reactions["grip"]
     assert np.allclose(res[-1].x[:, 0], lam * X[:, 0]), "stretch must be homogeneous"

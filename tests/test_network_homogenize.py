@@ -74,7 +74,8 @@ def test_chain_length_independence():
     sees none: 24 and 48 rhombi give the same moduli."""
     short, long_ = pantographic_chain(24), pantographic_chain(48)
     assert a_theta_from_chain(short, 0.1 / EPS) == pytest.approx(
-        a_theta_from_chain(long_, 0.1 / EPS), rel=1e-9)
+        a_theta_from_chain(long_, 0.1 / EPS), rel=1e-9
+    )
     assert k_s_from_chain(short) == pytest.approx(k_s_from_chain(long_), rel=1e-9)
 
 

@@ -31,8 +31,12 @@ TAU_F, GAMMA_F = 0.05, 0.03  # crossover_friction: saturated stress (N/mm), shap
 # ------------------------------------------------------------ smooth periodic placement
 P = 10.0  # period (mm) in both skew fibre coordinates (s, t), X = s L + t M
 F0 = np.array([[1.05, 0.08], [-0.03, 0.97]])
-MODES = [((1, 0), (0.30, 0.10), 0.4), ((0, 1), (-0.10, 0.25), -0.7),
-         ((1, 1), (0.12, -0.15), 1.1), ((1, -2), (0.05, 0.06), 0.2)]
+MODES = [
+    ((1, 0), (0.30, 0.10), 0.4),
+    ((0, 1), (-0.10, 0.25), -0.7),
+    ((1, 1), (0.12, -0.15), 1.1),
+    ((1, -2), (0.05, 0.06), 0.2),
+]
 
 
 def placement(s, t, L, M):
@@ -63,8 +67,13 @@ def continuum_density(rl, rm, rll, rmm, lattice_limit, L, M):
     bl, bm = np.einsum("ij,ij->i", p, rll), np.einsum("ij,ij->i", q, rmm)
     if lattice_limit:
         bl, bm = bl / lam, bm / mu
-    return (0.5 * K_L * ((lam - 1) ** 2 + (mu - 1) ** 2) + 0.5 * K_S * gam**2
-            + 0.25 * K4 * gam**4 + K6 / 6 * gam**6 + 0.5 * A_G * (bl**2 + bm**2))
+    return (
+        0.5 * K_L * ((lam - 1) ** 2 + (mu - 1) ** 2)
+        + 0.5 * K_S * gam**2
+        + 0.25 * K4 * gam**4
+        + K6 / 6 * gam**6
+        + 0.5 * A_G * (bl**2 + bm**2)
+    )
 
 
 def continuum_mean(lattice_limit, L, M, nq=256):
@@ -107,8 +116,10 @@ def test_energy_density_of_smooth_placements_converges_as_eps_squared(angles):
     w_lim, w_con = continuum_mean(True, L, M), continuum_mean(False, L, M)
     err = np.abs([v[0] - w_lim for v in vals])
     r = rates(P / np.array(ns), err)
-    print(f"\n{angles}: energy density: lattice {[f'{v[0]:.6e}' for v in vals]}, limit "
-          f"{w_lim:.6e}, continuum terms {w_con:.6e}\n  errors {err}, rates {r}")
+    print(
+        f"\n{angles}: energy density: lattice {[f'{v[0]:.6e}' for v in vals]}, limit "
+        f"{w_lim:.6e}, continuum terms {w_con:.6e}\n  errors {err}, rates {r}"
+    )
     assert np.all(r > 1.8), f"lattice energy density must converge as eps^2 (rates {r})"
     assert err[-1] / w_lim < 2e-3, "relative error at eps = P/64"
     # caveat of the bending identification: O(lam - 1), not O(eps)
@@ -122,25 +133,32 @@ def test_large_homogeneous_shear_matches_continuum_shear_and_locking(angles):
     fibre_stretch + shear + shear_locking + crossover_friction (the UFL terms, γ = θ0 − θ)
     times the node area eps² sin θ0, exactly."""
     eps, F = 0.5, np.array([[1.5, 0.0], [0.0, 0.6]])  # pure shear plus fibre stretch
-    k = lattice_from_continuum(K_L, K_S, A_G, eps, angles, k4=K4, k6=K6, tau_f=TAU_F,
-                               gamma_f=GAMMA_F)
+    k = lattice_from_continuum(
+        K_L, K_S, A_G, eps, angles, k4=K4, k6=K6, tau_f=TAU_F, gamma_f=GAMMA_F
+    )
     back = continuum_from_lattice(spacing=eps, angles_deg=angles, **k)
-    assert np.allclose([back[n] for n in ("k_l", "k_s", "A_g", "k4", "k6", "tau_f", "gamma_f")],
-                       [K_L, K_S, A_G, K4, K6, TAU_F, GAMMA_F], rtol=1e-14), \
-        "identification round trip"
+    assert np.allclose(
+        [back[n] for n in ("k_l", "k_s", "A_g", "k4", "k6", "tau_f", "gamma_f")],
+        [K_L, K_S, A_G, K4, K6, TAU_F, GAMMA_F],
+        rtol=1e-14,
+    ), "identification round trip"
     lat = hencky_lattice(8.0, 6.0, eps, angles, **k)
     net = lat.net
     ee, er = net.spring_energies(net.X @ F.T)
     inner = _interior(lat.grid)
-    node_energy = (np.bincount(net.ext[:, 0], ee, net.n_nodes)
-                   + np.bincount(net.rot[:, 1], er, net.n_nodes))[inner]
+    node_energy = (
+        np.bincount(net.ext[:, 0], ee, net.n_nodes) + np.bincount(net.rot[:, 1], er, net.n_nodes)
+    )[inner]
 
     msh = dmesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
     x = ufl.SpatialCoordinate(msh)
-    kin = Kinematics(ufl.grad(ufl.as_matrix(F.tolist()) * x), None,
-                     *kn.fibre_directions(*angles))
-    model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), ShearLocking(k4=K4, k6=K6),
-             CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)]
+    kin = Kinematics(ufl.grad(ufl.as_matrix(F.tolist()) * x), None, *kn.fibre_directions(*angles))
+    model = [
+        FibreStretch(k_l=K_L, k_m=K_L),
+        Shear(k_s=K_S),
+        ShearLocking(k4=K4, k6=K6),
+        CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F),
+    ]
     W = sum(t.density(kin, t.values()) for t in model)
     dens = fem.Expression(ufl.as_vector([kin.gamma, W]), np.array([[1 / 3, 1 / 3]]))
     gam, w = dens.eval(np.arange(msh.topology.index_map(2).size_local, dtype=np.int32))[0]
@@ -164,8 +182,15 @@ def strip_solution(x, delta, ks=1.0):
         c, s = np.cosh(z / ELL), np.sinh(z / ELL)
         return [np.ones_like(z), z, c, s] if d == 0 else [0 * z, 1 + 0 * z, s / ELL, c / ELL]
 
-    Mtx = np.array([basis(np.array(0.0), 0), basis(np.array(0.0), 1),
-                    basis(np.array(LX), 0), basis(np.array(LX), 1)], float)
+    Mtx = np.array(
+        [
+            basis(np.array(0.0), 0),
+            basis(np.array(0.0), 1),
+            basis(np.array(LX), 0),
+            basis(np.array(LX), 1),
+        ],
+        float,
+    )
     c = np.linalg.solve(Mtx, [0, 0, delta, 0])
     v = sum(ci * bi for ci, bi in zip(c, basis(x, 0), strict=True))
     force = WY * ks * c[1]  # k_s v' - A v''' = k_s c1 (the cosh/sinh parts cancel)
@@ -197,8 +222,10 @@ def test_strip_shear_bending_converges_to_continuum():
     e_man = np.array([strip_error(e, False) for e in epss])
     e_t1 = np.array([strip_error(e, True) for e in epss])
     r_man, r_t1 = rates(epss, e_man), rates(epss, e_t1)
-    print(f"\nstrip: exact boundary layers: errors {e_man}, rates {r_man}"
-          f"\n       Table-1 clamp layers:  errors {e_t1}, rates {r_t1}")
+    print(
+        f"\nstrip: exact boundary layers: errors {e_man}, rates {r_man}"
+        f"\n       Table-1 clamp layers:  errors {e_t1}, rates {r_t1}"
+    )
     assert np.all(r_man > 1.7), "interior response with exact boundary data must be O(eps^2)"
     assert np.all(r_t1 > 0.8), "two held layers = gradient clamp up to an O(eps) offset"
 
@@ -272,7 +299,7 @@ def _interior(grid):
     ok = grid >= 0
     for da in range(-2, 3):
         for db in range(-2, 3):
-            ok &= pad[2 + da:na + 2 + da, 2 + db:nb + 2 + db] >= 0
+            ok &= pad[2 + da : na + 2 + da, 2 + db : nb + 2 + db] >= 0
     return grid[ok]
 
 

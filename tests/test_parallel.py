@@ -25,8 +25,12 @@ from mpi4py import MPI
 from fabricsurf.experiments.bias_extension import BiasExtension
 
 COMM = MPI.COMM_WORLD
-ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-       "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
+ENV = {
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+    "OMPI_MCA_rmaps_base_oversubscribe": "1",
+    "OMP_NUM_THREADS": "1",
+}
 
 
 def solve(comm) -> np.ndarray:
@@ -42,8 +46,13 @@ def solve(comm) -> np.ndarray:
 @pytest.mark.skipif(COMM.size > 1, reason="starts mpirun -n 2 itself (serial session only)")
 def test_serial_matches_two_ranks(tmp_path):
     out = tmp_path / "two_ranks.json"
-    p = subprocess.run(["mpirun", "-n", "2", sys.executable, __file__, str(out)],
-                       env=dict(os.environ, **ENV), capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        ["mpirun", "-n", "2", sys.executable, __file__, str(out)],
+        env=dict(os.environ, **ENV),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     two = json.loads(out.read_text())
     assert two["ranks"] == 2

@@ -26,8 +26,13 @@ residual (re-solved until it stagnates; 200 × 119 mm, h = 2 mm, K/k_s = 1e9: 70
 
 
 def final_force(h: float, steps: int, step_rtol: float) -> tuple[float, str]:
-    b = BiasExtension([FibreStretch(k_l=RATIO * K_S, k_m=RATIO * K_S), Shear(k_s=K_S)],
-                      L, W, h, snes_options={"step_rtol": step_rtol})
+    b = BiasExtension(
+        [FibreStretch(k_l=RATIO * K_S, k_m=RATIO * K_S), Shear(k_s=K_S)],
+        L,
+        W,
+        h,
+        snes_options={"step_rtol": step_rtol},
+    )
     res = b.run(UBAR, steps)
     return res.force[-1], b.discretisation["mesh_kind"]
 

@@ -26,8 +26,7 @@ def field(V):
 def test_basis_values_equal_eval(element, monkeypatch):
     msh = dmesh.create_rectangle(MPI.COMM_WORLD, [[0.0, 0.0], [187.0, 119.0]], [8, 5])
     kind, family, degree = element
-    V = (fem.VectorFunctionSpace if kind == "vector" else fem.FunctionSpace)(
-        msh, (family, degree))
+    V = (fem.VectorFunctionSpace if kind == "vector" else fem.FunctionSpace)(msh, (family, degree))
     f = field(V)
     x, y = np.meshgrid(np.linspace(0.0, 187.0, 41), np.linspace(0.0, 119.0, 23))
     pts = np.vstack([np.column_stack([x.ravel(), y.ravel()]), [[200.0, 50.0]]])
@@ -37,8 +36,7 @@ def test_basis_values_equal_eval(element, monkeypatch):
     at = PointLocator(msh, pts)
     calls = []
     eval_ = fem.Function.eval
-    monkeypatch.setattr(fem.Function, "eval", lambda self, *a: calls.append(1) or
-                        eval_(self, *a))
+    monkeypatch.setattr(fem.Function, "eval", lambda self, *a: calls.append(1) or eval_(self, *a))
     got = at(f)
     assert not calls
     assert np.isnan(got[-1]).all() and np.isfinite(got[:-1]).all()

@@ -29,8 +29,9 @@ def test_oscillation_and_stagnation_give_no_rate():
     assert richardson_summary([1, 2], [1.0, 0.5])["finest_error_estimate"] is None
 
 
-@pytest.mark.parametrize("levels, values", [([2, 4, 6], [1, 2, 3]), ([2, 4], [1]),
-                                            ([4, 2], [1, 2]), ([2], [1])])
+@pytest.mark.parametrize(
+    "levels, values", [([2, 4, 6], [1, 2, 3]), ([2, 4], [1]), ([4, 2], [1, 2]), ([2], [1])]
+)
 def test_bad_levels_rejected(levels, values):
     with pytest.raises(ValueError, match="richardson_summary"):
         richardson_summary(levels, values)

@@ -32,8 +32,11 @@ from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
-TRUTH = {"fibre_stretch": {"k_l": 30.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-         "geodesic_bending": {"A_g": 10.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 30.0, "k_m": 30.0},
+    "shear": {"k_s": 0.5},
+    "geodesic_bending": {"A_g": 10.0},
+}
 BUDGET = 1 << 30
 """Bytes of address space a test may add (module docstring)."""
 NOISE = 0.002
@@ -94,8 +97,10 @@ def test_fit_of_1e5_residuals(big):
             assert abs(m["value"] - v) < 4 * m["std_statistical"], (t, p, m)
 
 
-@pytest.mark.serial("its parallel path at this size, the point evaluation and the statistics, "
-                    "is test_fit_of_1e5_residuals's; the CLI's is test_diagnose's")
+@pytest.mark.serial(
+    "its parallel path at this size, the point evaluation and the statistics, "
+    "is test_fit_of_1e5_residuals's; the CLI's is test_diagnose's"
+)
 def test_diagnose_then_compare_with_bands_of_1e5_residuals(big):
     """Under the limit: a one-effect diagnosis (the baseline fit, every visible candidate
     ranked by its sensitivities, one refit, the Wald test, the moduli's intervals, the h/2
@@ -110,8 +115,21 @@ def test_diagnose_then_compare_with_bands_of_1e5_residuals(big):
         d = diagnose(exp, list(base), h=5.0, params=base, confirm=1, max_effects=1)
         final = d.as_dict()["final"]
         write_json(comm, root / "model_best.json", d.final_fit.as_dict())
-        assert main(["compare", str(root / "data"), "--params", str(root / "model_best.json"),
-                     "--h", "5", "--out", str(root / "cmp")]) == 0
+        assert (
+            main(
+                [
+                    "compare",
+                    str(root / "data"),
+                    "--params",
+                    str(root / "model_best.json"),
+                    "--h",
+                    "5",
+                    "--out",
+                    str(root / "cmp"),
+                ]
+            )
+            == 0
+        )
     assert d.verdict == "geodesic_bending" and d.adequate
     n = final["misfit"]["n"]
     assert n > 10**5 and final["undetermined"] == []
@@ -142,11 +160,15 @@ def test_a_failed_lapack_call_raises(monkeypatch):
     result and no exception: such a result raises, naming the computation."""
     J = np.random.default_rng(1).normal(size=(1000, 3))
     real_qr = np.linalg.qr
-    monkeypatch.setattr(np.linalg, "qr", lambda A, mode="reduced": np.zeros_like(
-        real_qr(A, mode=mode)) if mode == "r" else real_qr(A, mode))
+    monkeypatch.setattr(
+        np.linalg,
+        "qr",
+        lambda A, mode="reduced": (
+            np.zeros_like(real_qr(A, mode=mode)) if mode == "r" else real_qr(A, mode)
+        ),
+    )
     with pytest.raises(la.NumericalError, match=r"identifiability.*unwritten or wrong"):
         undetermined(["a", "b", "c"], J)
-    monkeypatch.setattr(np.linalg, "qr", lambda A, mode="reduced": np.full(
-        (3, 3), np.nan))
+    monkeypatch.setattr(np.linalg, "qr", lambda A, mode="reduced": np.full((3, 3), np.nan))
     with pytest.raises(la.NumericalError, match=r"identifiability.*NaN or infinite"):
         undetermined(["a", "b", "c"], J)

@@ -22,11 +22,28 @@ def test_profile_grid_and_threshold():
 def test_allowed_lengths_and_moduli_part():
     """Only the lengths inside the profile interval count, the moduli's part is their largest
     shift from the fit."""
-    rec = {"candidates": {"geodesic_bending.A_g": {"profile": [
-        {"length": 1.0, "value": 0.5, "chi2": 9.0, "moduli": {"shear.k_s": 0.6},
-         "excluded": True},
-        {"length": 2.0, "value": 2.0, "chi2": 1.0, "moduli": {"shear.k_s": 0.4},
-         "excluded": False}]}}}
+    rec = {
+        "candidates": {
+            "geodesic_bending.A_g": {
+                "profile": [
+                    {
+                        "length": 1.0,
+                        "value": 0.5,
+                        "chi2": 9.0,
+                        "moduli": {"shear.k_s": 0.6},
+                        "excluded": True,
+                    },
+                    {
+                        "length": 2.0,
+                        "value": 2.0,
+                        "chi2": 1.0,
+                        "moduli": {"shear.k_s": 0.4},
+                        "excluded": False,
+                    },
+                ]
+            }
+        }
+    }
 
     class FM:
         names = ["shear.k_s", "geodesic_bending.A_g"]
@@ -36,13 +53,16 @@ def test_allowed_lengths_and_moduli_part():
 
     assert [r["length"] for _, r in sz.allowed(rec)] == [2.0]
     assert sz.moduli_half_width(rec["candidates"], FM(), ["shear.k_s"])["shear.k_s"] == (
-        pytest.approx(0.25))
+        pytest.approx(0.25)
+    )
 
 
-@pytest.mark.serial("the fit and the band of bias --params run on 2 ranks in test_experiments' "
-                    "test_cao_force_only_compare_and_fit; the size part adds forward runs of the "
-                    "same models (this test passes on 2 ranks: 3 min of an oversubscribed "
-                    "machine, the lattice solved on every rank)")
+@pytest.mark.serial(
+    "the fit and the band of bias --params run on 2 ranks in test_experiments' "
+    "test_cao_force_only_compare_and_fit; the size part adds forward runs of the "
+    "same models (this test passes on 2 ranks: 3 min of an oversubscribed "
+    "machine, the lattice solved on every rank)"
+)
 def test_band_covers_the_other_size():
     """Fitted on 20 × 10 mm, predicted for 30 × 15 mm (lattice spacing 1 mm, fibre bending
     length 4 mm, 1 % force noise, 6 steps): the size effect moves the other specimen's curve
@@ -73,8 +93,7 @@ def test_band_holds_the_size_part_and_says_so():
     class Linear:
         def __init__(self, names):
             self.names = names
-            self.params = [(SimpleNamespace(name=n.split(".")[0]), n.split(".")[1])
-                           for n in names]
+            self.params = [(SimpleNamespace(name=n.split(".")[0]), n.split(".")[1]) for n in names]
             self.exp = SimpleNamespace(has_force=True, has_field=False, path=np.arange(3.0))
             self.v = np.zeros(len(names))
 
@@ -85,20 +104,41 @@ def test_band_holds_the_size_part_and_says_so():
             self.v = np.array(v, float)
 
         def run(self, sens=False):
-            M = A[:, :len(self.names)]
-            return SimpleNamespace(force=M @ self.v, dforce=M[:, :1] if sens else None,
-                                   u=None, du=None)
+            M = A[:, : len(self.names)]
+            return SimpleNamespace(
+                force=M @ self.v, dforce=M[:, :1] if sens else None, u=None, du=None
+            )
 
-    rec = {"candidates": {"geodesic_bending.A_g": {"profile": [
-        {"length": 1.0, "value": 0.5, "chi2": 9.0, "moduli": {"shear.k_s": 0.6},
-         "excluded": True},
-        {"length": 2.0, "value": 2.0, "chi2": 1.0, "moduli": {"shear.k_s": 0.4},
-         "excluded": False}]}}}
-    saved = {"params": {"shear": {"k_s": 0.65}},
-             "moduli": {"shear.k_s": {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0}},
-             "uncertainty": {"statistics": {"t95": 2.0},
-                             "covariance": {"names": ["shear.k_s"],
-                                            "statistical": [[1e-4]]}}}
+    rec = {
+        "candidates": {
+            "geodesic_bending.A_g": {
+                "profile": [
+                    {
+                        "length": 1.0,
+                        "value": 0.5,
+                        "chi2": 9.0,
+                        "moduli": {"shear.k_s": 0.6},
+                        "excluded": True,
+                    },
+                    {
+                        "length": 2.0,
+                        "value": 2.0,
+                        "chi2": 1.0,
+                        "moduli": {"shear.k_s": 0.4},
+                        "excluded": False,
+                    },
+                ]
+            }
+        }
+    }
+    saved = {
+        "params": {"shear": {"k_s": 0.65}},
+        "moduli": {"shear.k_s": {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0}},
+        "uncertainty": {
+            "statistics": {"t95": 2.0},
+            "covariance": {"names": ["shear.k_s"], "statistical": [[1e-4]]},
+        },
+    }
     fm = Linear(["shear.k_s", "geodesic_bending.A_g"])
     band = bd.force_band(fm, saved | {"size_effects": rec}, check=False)
     size = np.abs(A @ [0.4, 2.0] - A @ [0.65, 0.0])

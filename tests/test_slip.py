@@ -29,8 +29,10 @@ from fabricsurf.network.hencky import (
     lattice_from_continuum,
 )
 
-pytestmark = pytest.mark.serial("numpy lattices and one cell's density: nothing parallel "
-                                 "(the term's forms run on 2 ranks in every diagnosis test)")
+pytestmark = pytest.mark.serial(
+    "numpy lattices and one cell's density: nothing parallel "
+    "(the term's forms run on 2 ranks in every diagnosis test)"
+)
 
 K_L, K_S, TAU_F = 2.0, 0.3, 0.05  # post-slip fibre stiffness, shear, friction (N/mm)
 T_S, EPS_S = 0.4, 0.01  # slip tension (N/mm) and slip strain
@@ -44,8 +46,9 @@ def _densities(Fs: list, angles, model) -> np.ndarray:
     Fv = ufl.variable(Fc)
     kin = Kinematics(Fv, None, *kn.fibre_directions(*angles))
     W = sum(t.density(kin, t.values()) for t in model)
-    expr = fem.Expression(ufl.as_vector([kin.gamma, W, ufl.diff(W, Fv)[0, 0]]),
-                          np.array([[1 / 3, 1 / 3]]))
+    expr = fem.Expression(
+        ufl.as_vector([kin.gamma, W, ufl.diff(W, Fv)[0, 0]]), np.array([[1 / 3, 1 / 3]])
+    )
     out = []
     for F in Fs:
         Fc.value[:] = F
@@ -64,6 +67,7 @@ def test_term_is_registered_and_checks_its_options():
 def test_one_force_curve_is_declared_unable_to_tell_yarn_slip_from_grip_slip():
     """The diagnosis output names the look-alike and the data that would separate them, for
     force curves of one size only; a field, or a second size, lifts the statement."""
+
     def exp(field, length=230.0):
         return SimpleNamespace(has_field=field, length=length, width=115.0)
 
@@ -78,9 +82,13 @@ def test_slipping_springs_gradient_and_hessian_are_exact():
     """Finite differences of the energy and of the gradient (central, step 1e-6) on springs
     in every regime: sticking, slipping in tension and in compression."""
     X = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.2]])
-    net = SpringNetwork(X, [[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]],
-                        k_ext=[1.0, 2.0, 0.5, 1.5, 0.3], f_slip=[0.2, 0.5, 0.1, 0.3, 0.4],
-                        eps_slip=0.02)
+    net = SpringNetwork(
+        X,
+        [[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]],
+        k_ext=[1.0, 2.0, 0.5, 1.5, 0.3],
+        f_slip=[0.2, 0.5, 0.1, 0.3, 0.4],
+        eps_slip=0.02,
+    )
     x = X + np.array([[0.0, 0.0], [0.08, 0.01], [0.0, 0.002], [-0.03, -0.05]])
     ls = (net.lengths(x) - net.l0) / net.l0
     assert ls.max() > 2 * 0.02 and ls.min() < -2 * 0.02 and np.abs(ls).min() < 0.02
@@ -88,10 +96,14 @@ def test_slipping_springs_gradient_and_hessian_are_exact():
     for i in range(x.size):
         dx = np.zeros(x.size)
         dx[i] = h
-        e = (net.energy((x.ravel() + dx).reshape(-1, 2))
-             - net.energy((x.ravel() - dx).reshape(-1, 2))) / (2 * h)
-        gh = (net.gradient((x.ravel() + dx).reshape(-1, 2)).ravel()
-              - net.gradient((x.ravel() - dx).reshape(-1, 2)).ravel()) / (2 * h)
+        e = (
+            net.energy((x.ravel() + dx).reshape(-1, 2))
+            - net.energy((x.ravel() - dx).reshape(-1, 2))
+        ) / (2 * h)
+        gh = (
+            net.gradient((x.ravel() + dx).reshape(-1, 2)).ravel()
+            - net.gradient((x.ravel() - dx).reshape(-1, 2)).ravel()
+        ) / (2 * h)
         assert abs(e - g[i]) < 1e-7 and np.abs(gh - H[:, i]).max() < 1e-6
 
 
@@ -108,18 +120,29 @@ def test_affine_node_energy_is_the_continuum_density(angles):
     net = lat.net
     ee, er = net.spring_energies(net.X @ F.T)
     pad = np.pad(lat.grid, 1, constant_values=-1)
-    inner = lat.grid[(pad[2:, 1:-1] >= 0) & (pad[:-2, 1:-1] >= 0) & (pad[1:-1, 2:] >= 0)
-                     & (pad[1:-1, :-2] >= 0) & (lat.grid >= 0)]
-    node = (np.bincount(net.ext[:, 0], ee, net.n_nodes)
-            + np.bincount(net.rot[:, 1], er, net.n_nodes))[inner]
-    model = [FibreStretch(k_l=K_L, k_m=K_L), Shear(k_s=K_S), CrossoverFriction(tau_f=TAU_F),
-             YarnSlip(T_s=T_S, eps_s=EPS_S)]
+    inner = lat.grid[
+        (pad[2:, 1:-1] >= 0)
+        & (pad[:-2, 1:-1] >= 0)
+        & (pad[1:-1, 2:] >= 0)
+        & (pad[1:-1, :-2] >= 0)
+        & (lat.grid >= 0)
+    ]
+    node = (
+        np.bincount(net.ext[:, 0], ee, net.n_nodes) + np.bincount(net.rot[:, 1], er, net.n_nodes)
+    )[inner]
+    model = [
+        FibreStretch(k_l=K_L, k_m=K_L),
+        Shear(k_s=K_S),
+        CrossoverFriction(tau_f=TAU_F),
+        YarnSlip(T_s=T_S, eps_s=EPS_S),
+    ]
     gam, w, _ = _densities([F], angles, model)[0]
     lam = np.linalg.norm(F @ lat.L)
     assert abs(gam) > 0.3 and lam - 1 > 5 * EPS_S, "large shear, fibres slipping"
     assert len(inner) > 50
-    assert np.allclose(node, w * eps**2 * np.sin(np.radians(angles[0] - angles[1])),
-                       rtol=1e-12, atol=0)
+    assert np.allclose(
+        node, w * eps**2 * np.sin(np.radians(angles[0] - angles[1])), rtol=1e-12, atol=0
+    )
 
 
 def test_strip_force_curve_is_the_terms_tension():
@@ -135,8 +158,7 @@ def test_strip_force_curve_is_the_terms_tension():
     rows = len(np.unique(np.round(X[:, 1], 9)))
     u_end = 0.06 * length  # λ − 1 up to 0.06 = 6 ε_s
     bc = Dirichlet(ends, np.where(X[ends, :1] > 1, [u_end, 0.0], [0.0, 0.0]))
-    res = solve_steps(lat.net, [bc], n_steps=12,
-                      reaction_sets={"grip": ends[X[ends, 0] > 1]})
+    res = solve_steps(lat.net, [bc], n_steps=12, reaction_sets={"grip": ends[X[ends, 0] > 1]})
     model = [FibreStretch(k_l=K_L, k_m=K_L), YarnSlip(T_s=T_S, eps_s=EPS_S)]
     lattice = [r.reactions["grip"][0] for r in res]
     Fs = [np.diag([1 + r.t * u_end / length, 1.0]) for r in res]
@@ -150,11 +172,13 @@ def test_strip_force_curve_is_the_terms_tension():
 def _bias(k_l: float, T_s: float, d: np.ndarray) -> np.ndarray:
     """Grip force of a 46 × 92 mm bias lattice (ε = 4.6 mm) with ``shear`` + friction +
     locking springs at displacements ``d`` (mm)."""
-    k = lattice_from_continuum(k_l, 0.02, 0.0, 4.6 * np.sqrt(2), k4=0.2, tau_f=0.0025,
-                               T_s=T_s, eps_s=EPS_S)
+    k = lattice_from_continuum(
+        k_l, 0.02, 0.0, 4.6 * np.sqrt(2), k4=0.2, tau_f=0.0025, T_s=T_s, eps_s=EPS_S
+    )
     lat = hencky_lattice(92.0, 46.0, 4.6 * np.sqrt(2), **k)
-    res = solve_steps(lat.net, lat.bias_bcs(float(d[-1])), n_steps=len(d),
-                      reaction_sets={"grip": lat.grip})
+    res = solve_steps(
+        lat.net, lat.bias_bcs(float(d[-1])), n_steps=len(d), reaction_sets={"grip": lat.grip}
+    )
     t = np.array([r.t for r in res])
     return np.interp(d / d[-1], t, [r.reactions["grip"][0] for r in res])
 
@@ -181,8 +205,7 @@ def test_small_stretch_stiffness_is_the_densitys_second_derivative():
     stiffness that the locking ratio must use, 21 times k_l here."""
     model = [FibreStretch(k_l=K_L, k_m=K_L), YarnSlip(T_s=T_S, eps_s=EPS_S)]
     delta = 1e-5 * EPS_S
-    t = _densities([np.diag([1 + delta, 1.0]), np.diag([1 - delta, 1.0])], (0.0, 90.0),
-                   model)[:, 2]
+    t = _densities([np.diag([1 + delta, 1.0]), np.diag([1 - delta, 1.0])], (0.0, 90.0), model)[:, 2]
     fd = (t[0] - t[1]) / (2 * delta)
     assert sum(m.small_stretch_stiffness() for m in model) == pytest.approx(K_L + T_S / EPS_S)
     assert fd == pytest.approx(K_L + T_S / EPS_S, rel=1e-6)

@@ -125,8 +125,12 @@ def check_state(term, msh) -> None:
     consts = term.constants(msh)
     p = term.parameters()[0]
     before = float(getattr(term, p))
-    for other in (pickle.loads(pickle.dumps(term)), copy.copy(term), copy.deepcopy(term),
-                  term.copy()):
+    for other in (
+        pickle.loads(pickle.dumps(term)),
+        copy.copy(term),
+        copy.deepcopy(term),
+        term.copy(),
+    ):
         assert type(other) is type(term) and other == term and other is not term
         assert other.values() == term.values() and len(other._live) == 0
         assert len(term._live) == 1

@@ -25,8 +25,18 @@ from fabricsurf.model.terms import (
     parse_terms,
 )
 
-VOCABULARY = ["fibre_stretch", "shear", "shear_locking", "crossover_friction", "geodesic_bending",
-              "stretch_gradient", "shear_gradient", "normal_bending", "twist", "yarn_slip"]
+VOCABULARY = [
+    "fibre_stretch",
+    "shear",
+    "shear_locking",
+    "crossover_friction",
+    "geodesic_bending",
+    "stretch_gradient",
+    "shear_gradient",
+    "normal_bending",
+    "twist",
+    "yarn_slip",
+]
 
 
 def test_vocabulary_is_exact():
@@ -76,9 +86,10 @@ def test_shear_locking_density_is_the_quartic_sextic_polynomial():
     r = ufl.as_vector((x[0] + s * x[1], x[1]))
     term = ShearLocking(k4=2.0, k6=3.0)
     consts = term.constants(msh)
-    expr = fem.Expression(term.density(Kinematics(ufl.grad(r), None, *fibre_directions(0, 90)),
-                                       consts),
-                          np.array([[1 / 3, 1 / 3]]))
+    expr = fem.Expression(
+        term.density(Kinematics(ufl.grad(r), None, *fibre_directions(0, 90)), consts),
+        np.array([[1 / 3, 1 / 3]]),
+    )
     cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
     g = math.atan(s)
     for k4, k6 in [(2.0, 3.0), (0.0, 1.0), (5.0, 0.0)]:
@@ -92,22 +103,29 @@ def test_which_data_can_see_a_term_is_a_property_of_the_term():
     the list the diagnosis and the command line read is derived from the registry."""
     assert in_plane_invisible() == ("normal_bending", "twist")
     assert [n for n, c in EFFECTS.items() if c.in_plane] == [
-        n for n in VOCABULARY if n not in ("normal_bending", "twist")]
+        n for n in VOCABULARY if n not in ("normal_bending", "twist")
+    ]
 
 
 def _model_imports(module: Path) -> set[str]:
     """The fabricsurf.model modules ``module`` imports when it runs (at any level of its
     source; those under ``if TYPE_CHECKING:`` are for type checkers only)."""
     names, tree = set(), ast.parse(module.read_text())
-    skip = {id(n) for node in ast.walk(tree)
-            if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING"
-            for n in ast.walk(node)}
+    skip = {
+        id(n)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING"
+        for n in ast.walk(node)
+    }
     for node in ast.walk(tree):
         if id(node) in skip:
             continue
         if isinstance(node, ast.ImportFrom) and node.module:
-            names |= ({f"{node.module}.{a.name}" for a in node.names}
-                      if node.module == "fabricsurf.model" else {node.module})
+            names |= (
+                {f"{node.module}.{a.name}" for a in node.names}
+                if node.module == "fabricsurf.model"
+                else {node.module}
+            )
         elif isinstance(node, ast.Import):
             names |= {a.name for a in node.names}
     return {n.rsplit(".", 1)[-1] for n in names if n.startswith("fabricsurf.model.")}

@@ -42,8 +42,11 @@ GAMMA = np.concatenate([[0.0, 1e-4, 0.01], np.linspace(0.05, 1.3, 26)])
 
 
 def shear_law() -> list[Term]:
-    return [Shear(k_s=K_S), ShearLocking(k4=K4, k6=K6),
-            CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)]
+    return [
+        Shear(k_s=K_S),
+        ShearLocking(k4=K4, k6=K6),
+        CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F),
+    ]
 
 
 def roundoff(got: np.ndarray, exact: np.ndarray) -> bool:
@@ -92,25 +95,38 @@ def test_a_users_term_counts_and_its_moduli_change_without_recompiling():
     """τ = c sin γ of the user's term, added to the model's; after ``set`` the new modulus
     (the compiled form is reused: its moduli are constants)."""
     t = CosineShear(c=0.3)
-    assert roundoff(tz.shear_moment(GAMMA, [t, *shear_law()]),
-                    analytic(GAMMA) + 0.3 * np.sin(GAMMA))
+    assert roundoff(
+        tz.shear_moment(GAMMA, [t, *shear_law()]), analytic(GAMMA) + 0.3 * np.sin(GAMMA)
+    )
     t.set(c=0.7)
     assert roundoff(t.shear_moment(GAMMA), 0.7 * np.sin(GAMMA))
 
 
-@pytest.mark.parametrize("term", [
-    FibreStretch(k_l=1e5, k_m=2e5), FibreStretch(inextensible=True), YarnSlip(T_s=4.0),
-    GeodesicBending(A_g=40.0), StretchGradient(A_s=40.0), ShearGradient(A_Gamma=40.0),
-    NormalBending(k_b=5.0), Twist(k_t=5.0)], ids=lambda t: t.name)
+@pytest.mark.parametrize(
+    "term",
+    [
+        FibreStretch(k_l=1e5, k_m=2e5),
+        FibreStretch(inextensible=True),
+        YarnSlip(T_s=4.0),
+        GeodesicBending(A_g=40.0),
+        StretchGradient(A_s=40.0),
+        ShearGradient(A_Gamma=40.0),
+        NormalBending(k_b=5.0),
+        Twist(k_t=5.0),
+    ],
+    ids=lambda t: t.name,
+)
 def test_terms_blind_to_the_shear_angle_contribute_nothing(term):
     """Fibre terms see λ = μ = 1 (inextensible pure shear: their moment is the round-off of
     λ − 1 times a modulus, below 1e-20 N/mm); second-gradient terms see no gradient (0)."""
     assert np.max(np.abs(term.shear_moment(GAMMA))) < 1e-20
 
 
-@pytest.mark.parametrize("fibres", [FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S),
-                                    FibreStretch(inextensible=True)],
-                         ids=["K=1e6 k_s", "inextensible"])
+@pytest.mark.parametrize(
+    "fibres",
+    [FibreStretch(k_l=1e6 * K_S, k_m=1e6 * K_S), FibreStretch(inextensible=True)],
+    ids=["K=1e6 k_s", "inextensible"],
+)
 def test_bias_continuum_follows_the_estimate_with_its_own_friction_angle(fibres):
     """230 × 115 mm, ±45°, position clamps, h = W/10 on the default (fibre-aligned) mesh, as
     tests/test_locking.py and tests/test_friction.py: nearly inextensible yarns (K/k_s = 1e6)
@@ -122,12 +138,13 @@ def test_bias_continuum_follows_the_estimate_with_its_own_friction_angle(fibres)
     γ_f: friction fully mobilised at 1°)."""
     H, W = 230.0, 115.0
     model = [fibres, Shear(k_s=K_S), CrossoverFriction(tau_f=TAU_F, gamma_f=GAMMA_F)]
-    res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(
-        6.0, 3)
+    res = BiasExtension(model, length=H, width=W, h=W / 10, clamp="position").run(6.0, 3)
     d, force = np.array(res.ubar), np.array(res.force)
     new = force / tz.kinematic_force(d, H, W, model)
     old = force / tz.kinematic_force(d, H, W, [Shear(k_s=K_S), CrossoverFriction(tau_f=TAU_F)])
-    print(f"zone C {np.degrees(tz.zone_c_shear_angle(d, H, W)).round(2)} deg: force / new "
-          f"estimate {new}, / default-γ_f estimate {old}")
+    print(
+        f"zone C {np.degrees(tz.zone_c_shear_angle(d, H, W)).round(2)} deg: force / new "
+        f"estimate {new}, / default-γ_f estimate {old}"
+    )
     assert np.all(np.abs(new - 1.0) < 1e-3), new
     assert np.all(old < 0.8), old

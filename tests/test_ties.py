@@ -62,7 +62,7 @@ def test_correlated_noise_widens_the_resolution():
 
 def test_separation_counts_noise_units():
     """S = Σ(Δu/s_u)² + Σ(ΔF/s_F)², the expected z = √S/2 (3.16: below the critical 3.29)
-and the data it takes for an expected z of z_crit + 2."""
+    and the data it takes for an expected z of z_crit + 2."""
     exp = template(40.0, 20.0, [1.0, 2.0], np.array([[10.0, 5.0], [20.0, 10.0]]))
     exp.noise_std, exp.force_noise_std = 0.01, 0.5
     u = np.zeros((4, 2))
@@ -81,15 +81,20 @@ def test_candidates_measure_what_the_data_measure():
     e = template(60.0, 30.0, [1.0, 2.0], np.zeros((0, 2)))
     e.force_noise_std = 0.1
     second = {c.key: c.exp for c in dc.candidates(e, first_gradient=False)}
-    assert set(second) == {"larger_displacement", "other_fibre_angle", "narrower_specimen",
-                           "field_data"}
+    assert set(second) == {
+        "larger_displacement",
+        "other_fibre_angle",
+        "narrower_specimen",
+        "field_data",
+    }
     assert [k for k, x in second.items() if x.has_field] == ["field_data"]
     assert all(x.force_noise_std == 0.1 for x in second.values())
     assert list(second["larger_displacement"].path) == [2.0, 4.0]
     frame = {c.key: c.exp for c in dc.candidates(e)}["picture_frame"]
     assert frame.length == frame.width == 30.0 and frame.setup.options == {"frame": "clamped"}
-    assert np.isclose(frame_displacement(float(zone_c_shear_angle(2.0, 60.0, 30.0)), 30.0),
-                      frame.path[-1])
+    assert np.isclose(
+        frame_displacement(float(zone_c_shear_angle(2.0, 60.0, 30.0)), 30.0), frame.path[-1]
+    )
 
 
 def test_frame_displacement_inverts_the_frame_shear_angle():

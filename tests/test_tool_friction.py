@@ -50,12 +50,25 @@ from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
-ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-       "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
+ENV = {
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+    "OMPI_MCA_rmaps_base_oversubscribe": "1",
+    "OMP_NUM_THREADS": "1",
+}
 R, BLANK, H, STROKE, STEPS = 20.0, 60.0, 4.0, 4.0, 4
-TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
-           "holder_pressure": 1e-2, "contact_stiffness": 100.0, "locking_angle_deg": 50.0,
-           "wrinkle_tension": 1e-3, "wrinkle_curvature": 0.1 / R, "friction": 0.3}
+TOOLING = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-2,
+    "contact_stiffness": 100.0,
+    "locking_angle_deg": 50.0,
+    "wrinkle_tension": 1e-3,
+    "wrinkle_curvature": 0.1 / R,
+    "friction": 0.3,
+}
 """tests/test_hemisphere.py's tools with its holder (10 kPa, μ = 0.3): the same compiled forms."""
 TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}
 EDGE = np.array([[0.5 * BLANK, 0.0], [0.5 * BLANK, 0.5 * BLANK]])
@@ -63,8 +76,7 @@ EDGE = np.array([[0.5 * BLANK, 0.0], [0.5 * BLANK, 0.5 * BLANK]])
 
 
 def model():
-    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1),
-            Twist(k_t=0.1)]
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
 
 
 def formed(e: HemispherePlugin, mu_punch: float, mu_die: float, steps: int) -> dict:
@@ -74,8 +86,9 @@ def formed(e: HemispherePlugin, mu_punch: float, mu_die: float, steps: int) -> d
     e.set_load(0.0)
     e.solver.u.x.array[:] = 0.0
     start = sum(e.energies())
-    plain = fem.form(e.tools.k_c * e.tools.penetrations(e.r)["punch"] * e.tools.punch(e.r)[1]
-                     * e.problem.dx)
+    plain = fem.form(
+        e.tools.k_c * e.tools.penetrations(e.r)["punch"] * e.tools.punch(e.r)[1] * e.problem.dx
+    )
     plain_force = [0.0]
 
     def record(k: int, s: float) -> None:
@@ -83,11 +96,16 @@ def formed(e: HemispherePlugin, mu_punch: float, mu_die: float, steps: int) -> d
 
     e.run(STROKE, steps, on_step=record)
     richardson = (4.0 * np.trapz(e.force, e.stroke) - np.trapz(e.force[::2], e.stroke[::2])) / 3
-    return {"force": list(e.force), "work": float(np.trapz(e.force, e.stroke)),
-            "richardson_work": float(richardson),
-            "plain_force": plain_force, "plain_work": float(np.trapz(plain_force, e.stroke)),
-            "change": sum(e.energies()) - start, "dissipated": e.dissipated(),
-            "draw_in": (-eval_points(e.problem.u, EDGE)[:, 0]).tolist()}
+    return {
+        "force": list(e.force),
+        "work": float(np.trapz(e.force, e.stroke)),
+        "richardson_work": float(richardson),
+        "plain_force": plain_force,
+        "plain_work": float(np.trapz(plain_force, e.stroke)),
+        "change": sum(e.energies()) - start,
+        "dissipated": e.dissipated(),
+        "draw_in": (-eval_points(e.problem.u, EDGE)[:, 0]).tolist(),
+    }
 
 
 def balance(n: dict) -> float:
@@ -95,9 +113,13 @@ def balance(n: dict) -> float:
     return n["richardson_work"] - n["change"] - n["dissipated"]
 
 
-RUNS = {"holder": (0.0, 0.0, STEPS), "punch_0": (0.0, 0.3, STEPS),
-        f"all_{STEPS}": (0.3, 0.3, STEPS),
-        f"all_{2 * STEPS}": (0.3, 0.3, 2 * STEPS), f"all_{4 * STEPS}": (0.3, 0.3, 4 * STEPS)}
+RUNS = {
+    "holder": (0.0, 0.0, STEPS),
+    "punch_0": (0.0, 0.3, STEPS),
+    f"all_{STEPS}": (0.3, 0.3, STEPS),
+    f"all_{2 * STEPS}": (0.3, 0.3, 2 * STEPS),
+    f"all_{4 * STEPS}": (0.3, 0.3, 4 * STEPS),
+}
 """(μ_p, μ_d, steps) of the runs the tests read; the holder's μ = 0.3 in all."""
 PARALLEL = (f"all_{STEPS}",)
 """The runs repeated on 2 ranks."""
@@ -116,8 +138,9 @@ def numbers():
 
 
 @pytest.mark.parametrize("key", ["punch_friction", "die_friction"])
-@pytest.mark.parametrize("value, words", [(-0.1, r"= -0\.1 .*0 ≤ {} ≤ 2"),
-                                          (1e6, r"= 1e\+06 .*0 ≤ {} ≤ 2")])
+@pytest.mark.parametrize(
+    "value, words", [(-0.1, r"= -0\.1 .*0 ≤ {} ≤ 2"), (1e6, r"= 1e\+06 .*0 ≤ {} ≤ 2")]
+)
 def test_options(key, value, words):
     """Negative or absurd coefficients are refused before any computation, naming key and value;
     the defaults are 0 (frictionless, today's results)."""
@@ -132,9 +155,11 @@ def test_work_balance(numbers):
     errors = [balance(numbers[f"all_{k}"]) for k in (STEPS, 2 * STEPS, 4 * STEPS)]
     fine = numbers[f"all_{4 * STEPS}"]
     holder = numbers["holder"]
-    print(f"all tools: work {fine['work']:.5g}, dissipated {fine['dissipated']:.5g} (holder "
-          f"only: {holder['work']:.5g}, {holder['dissipated']:.5g}); balance errors "
-          f"{[f'{x:.3g}' for x in errors]} ({STEPS}, {2 * STEPS}, {4 * STEPS} steps)")
+    print(
+        f"all tools: work {fine['work']:.5g}, dissipated {fine['dissipated']:.5g} (holder "
+        f"only: {holder['work']:.5g}, {holder['dissipated']:.5g}); balance errors "
+        f"{[f'{x:.3g}' for x in errors]} ({STEPS}, {2 * STEPS}, {4 * STEPS} steps)"
+    )
     assert all(abs(b) < 0.66 * abs(a) for a, b in pairwise(errors))
     assert abs(errors[2]) < 1e-2 * fine["work"]
 
@@ -145,9 +170,11 @@ def test_lip_friction(numbers):
     after the sheet first presses on the lip (its pressure is taken at the step's start; before
     that the forces are equal)."""
     holder, lip = numbers["holder"], numbers["punch_0"]
-    print(f"lip friction 0.3: dissipated {lip['dissipated']:.5g} against {holder['dissipated']:.5g}"
-          f" N·mm; punch force {holder['force'][-1]:.5g} -> {lip['force'][-1]:.5g} N; draw-in "
-          f"{np.round(holder['draw_in'], 5)} -> {np.round(lip['draw_in'], 5)} mm")
+    print(
+        f"lip friction 0.3: dissipated {lip['dissipated']:.5g} against {holder['dissipated']:.5g}"
+        f" N·mm; punch force {holder['force'][-1]:.5g} -> {lip['force'][-1]:.5g} N; draw-in "
+        f"{np.round(holder['draw_in'], 5)} -> {np.round(lip['draw_in'], 5)} mm"
+    )
     assert lip["dissipated"] > 1.01 * holder["dissipated"]
     assert all(b >= a for a, b in zip(holder["force"], lip["force"]))
     assert lip["force"][-1] > 1.01 * holder["force"][-1]
@@ -162,9 +189,11 @@ def test_zero_tool_friction_is_todays_force(numbers):
 @pytest.mark.serial("1 = 2 ranks: test_serial_matches_two_ranks runs the same under mpirun")
 def test_punch_friction_monotone(numbers):
     a, b = numbers["punch_0"], numbers[f"all_{STEPS}"]
-    print(f"punch force {a['force'][-1]:.7g} -> {b['force'][-1]:.7g} N, dissipated "
-          f"{a['dissipated']:.7g} -> {b['dissipated']:.7g} N·mm, draw-in "
-          f"{np.round(a['draw_in'], 6)} -> {np.round(b['draw_in'], 6)} mm")
+    print(
+        f"punch force {a['force'][-1]:.7g} -> {b['force'][-1]:.7g} N, dissipated "
+        f"{a['dissipated']:.7g} -> {b['dissipated']:.7g} N·mm, draw-in "
+        f"{np.round(a['draw_in'], 6)} -> {np.round(b['draw_in'], 6)} mm"
+    )
     assert b["force"][-1] > a["force"][-1] and b["dissipated"] > a["dissipated"]
     assert b["draw_in"][1] < a["draw_in"][1]
 
@@ -172,8 +201,13 @@ def test_punch_friction_monotone(numbers):
 @pytest.mark.serial("starts mpirun -n 2 itself (serial session only)")
 def test_serial_matches_two_ranks(numbers, tmp_path):
     out = tmp_path / "two_ranks.json"
-    p = subprocess.run(["mpirun", "-n", "2", sys.executable, __file__, str(out)],
-                       env=dict(os.environ, **ENV), capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        ["mpirun", "-n", "2", sys.executable, __file__, str(out)],
+        env=dict(os.environ, **ENV),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     two = json.loads(out.read_text())
     for run in PARALLEL:

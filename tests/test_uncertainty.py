@@ -56,8 +56,10 @@ def test_sandwich_by_hand_and_noise_floor():
     r = np.array([0.1, -0.2, 0.05, 0.3, -0.1, -0.15])
     labels = np.array([0, 0, 1, 1, 2, 2])
     B = np.linalg.inv(J.T @ J)
-    meat = sum(np.outer(J[labels == g].T @ r[labels == g], J[labels == g].T @ r[labels == g])
-               for g in range(3))
+    meat = sum(
+        np.outer(J[labels == g].T @ r[labels == g], J[labels == g].T @ r[labels == g])
+        for g in range(3)
+    )
     st = unc.sandwich(J, r, labels, noise_known=False)
     assert np.allclose(st.cov, 3 / (3 - 2) * B @ meat @ B)
     floored = unc.sandwich(J, r, labels, noise_known=True)
@@ -117,13 +119,21 @@ def test_symmetric_pair_reports_its_mean():
 
 def test_interval_parts_combine():
     """ci95 half-width = √((tσ)² + (1.96τ)²) + 2|δ| and each part is reported."""
-    out = intervals.summarise(["a.k"], np.array([10.0]), np.array([[1.0]]), 2.0,
-                              np.array([0.5]), np.array([-0.25]), set())
+    out = intervals.summarise(
+        ["a.k"], np.array([10.0]), np.array([[1.0]]), 2.0, np.array([0.5]), np.array([-0.25]), set()
+    )
     m = out["moduli"]["a.k"]
     half = np.sqrt(4.0 + (intervals.Z95 * 0.5) ** 2) + 0.5
     assert np.allclose(m["ci95"], [10 - half, 10 + half]) and m["identifiable"]
-    assert set(m) == {"value", "ci95", "std_statistical", "systematic_mesh",
-                      "mesh_shift_h_to_h2", "systematic_model", "identifiable"}
+    assert set(m) == {
+        "value",
+        "ci95",
+        "std_statistical",
+        "systematic_mesh",
+        "mesh_shift_h_to_h2",
+        "systematic_model",
+        "identifiable",
+    }
     assert m["systematic_mesh"] == 0.5 and m["std_statistical"] == 1.0
 
 
@@ -156,8 +166,9 @@ def test_force_band_of_a_linear_model():
 
         def __init__(self):
             self.params = [(SimpleNamespace(name="a"), "k"), (SimpleNamespace(name="b"), "k")]
-            self.exp = SimpleNamespace(has_force=True, has_field=True,
-                                       path=np.array([1.0, 2.0, 3.0]))
+            self.exp = SimpleNamespace(
+                has_force=True, has_field=True, path=np.array([1.0, 2.0, 3.0])
+            )
             self.v = np.zeros(2)
 
         def values(self):
@@ -167,15 +178,22 @@ def test_force_band_of_a_linear_model():
             self.v = np.array(v, float)
 
         def run(self, sens=False):
-            return SimpleNamespace(force=A @ self.v, dforce=A if sens else None,
-                                   u=D @ self.v, du=D if sens else None)
+            return SimpleNamespace(
+                force=A @ self.v, dforce=A if sens else None, u=D @ self.v, du=D if sens else None
+            )
 
     C = np.array([[0.04, 0.01], [0.01, 0.09]])
-    saved = {"params": {"a": {"k": 2.0}, "b": {"k": 3.0}},
-             "moduli": {"a.k": {"systematic_model": 0.1, "mesh_shift_h_to_h2": 0.05},
-                        "b.k": {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0}},
-             "uncertainty": {"statistics": {"t95": 2.1},
-                             "covariance": {"names": ["a.k", "b.k"], "statistical": C}}}
+    saved = {
+        "params": {"a": {"k": 2.0}, "b": {"k": 3.0}},
+        "moduli": {
+            "a.k": {"systematic_model": 0.1, "mesh_shift_h_to_h2": 0.05},
+            "b.k": {"systematic_model": 0.0, "mesh_shift_h_to_h2": 0.0},
+        },
+        "uncertainty": {
+            "statistics": {"t95": 2.1},
+            "covariance": {"names": ["a.k", "b.k"], "statistical": C},
+        },
+    }
     band = force_band(Linear(), saved)
     stat = 2.1 * np.sqrt(np.einsum("ki,ij,kj->k", A, C, A))
     half = np.sqrt(stat**2 + (intervals.Z95 * 0.1 * A[:, 0]) ** 2) + 2 * 0.05 * A[:, 0]
@@ -184,7 +202,8 @@ def test_force_band_of_a_linear_model():
     assert band["nonlinearity"] < 1e-12 and band["reliable"]
     stat_u = 2.1 * np.sqrt(np.einsum("rci,ij,rcj->rc", D, C, D))
     half_u = np.sqrt(stat_u**2 + (intervals.Z95 * 0.1 * D[..., 0]) ** 2) + 2 * 0.05 * np.abs(
-        D[..., 0])
+        D[..., 0]
+    )
     assert np.allclose(band["field_half_width"], half_u)
 
 
@@ -248,8 +267,21 @@ def bands_from_the_saved_fit(fit_json, exp, truth: dict, comm) -> None:
     if comm.rank == 0:
         write_experiment(root / "data", exp)
     comm.barrier()
-    assert main(["compare", str(root / "data"), "--params", str(fit_json), "--h", "4",
-                 "--out", str(root / "cmp")]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(root / "data"),
+                "--params",
+                str(fit_json),
+                "--h",
+                "4",
+                "--out",
+                str(root / "cmp"),
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     band = np.loadtxt(root / "cmp" / "force_band.csv", delimiter=",", skiprows=1)
     info = json.loads((root / "cmp" / "misfit.json").read_text())["force_bands"][exp.name]
@@ -260,8 +292,28 @@ def bands_from_the_saved_fit(fit_json, exp, truth: dict, comm) -> None:
     with ForwardModel(exp, full_model(list(truth), truth), h=4.0, comm=comm) as fm:
         f_true = fm.run().force
     assert np.all((band[:, 2] <= f_true) & (f_true <= band[:, 3])), (band, f_true)
-    assert main(["bias", "--params", str(fit_json), "--length", "48", "--width", "24",
-                 "--h", "4", "--ubar", "2", "--steps", "2", "--out", str(root / "bias")]) == 0
+    assert (
+        main(
+            [
+                "bias",
+                "--params",
+                str(fit_json),
+                "--length",
+                "48",
+                "--width",
+                "24",
+                "--h",
+                "4",
+                "--ubar",
+                "2",
+                "--steps",
+                "2",
+                "--out",
+                str(root / "bias"),
+            ]
+        )
+        == 0
+    )
     comm.barrier()
     s = json.loads((root / "bias" / "summary.json").read_text())
     assert np.allclose(s["force_band"]["force"], s["force"], rtol=1e-6)

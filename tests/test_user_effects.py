@@ -30,8 +30,11 @@ from fabricsurf.model.terms import EFFECTS, make_term, parse_terms
 from fabricsurf.model.user_effects import effects_from
 
 COMM = MPI.COMM_WORLD
-TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
-         "shear_tension": {"k_c": 2.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 25.0, "k_m": 25.0},
+    "shear": {"k_s": 0.4},
+    "shear_tension": {"k_c": 2.0},
+}
 TERMS = "fibre_stretch,shear,shear_tension"
 
 EFFECT = '''"""My effects."""
@@ -55,14 +58,16 @@ class ShearTension(Term):
 '''
 
 
-def effect_source(name="shear_tension", units='{"k_c": "N/mm"}', signed="()",
-                  modulus='p["k_c"]') -> str:
+def effect_source(
+    name="shear_tension", units='{"k_c": "N/mm"}', signed="()", modulus='p["k_c"]'
+) -> str:
     return EFFECT.format(name=name, units=units, signed=signed, modulus=modulus)
 
 
 def source_file(name: str, text: str):
     def make(base: Path) -> None:
         (base / name).write_text(text, encoding="utf-8")
+
     return make
 
 
@@ -70,6 +75,7 @@ def both(*makers):
     def make(base: Path) -> None:
         for m in makers:
             m(base)
+
     return make
 
 
@@ -78,50 +84,111 @@ def params_json(name: str, content: dict):
 
 
 CASES = [
-    dict(id="effects-name-clash", klass="`--effects` file whose effect takes a built-in's name",
-         make=source_file("clash.py", effect_source(name="shear")),
-         argv=["compare", "good", "--terms", "shear", "--effects", "clash.py", "--out", "out"],
-         pattern=r"clash.py: effect name 'shear' \(ShearTension\) is already taken by a "
-         "built-in effect"),
-    dict(id="effects-clash-between-files", klass="two `--effects` files defining one name",
-         make=both(source_file("mine.py", effect_source()),
-                   source_file("mine_too.py", effect_source())),
-         argv=["compare", "good", "--terms", "shear", "--effects", "mine.py,mine_too.py",
-               "--out", "out"],
-         pattern=r"mine_too.py: effect name 'shear_tension' \(ShearTension\) is already taken "
-         "by the effect from mine.py"),
-    dict(id="effects-import-error", klass="`--effects` file that fails to import",
-         make=source_file("broken_effect.py", "import math\nx = 1 / 0\n"),
-         argv=["compare", "good", "--terms", "shear", "--effects", "broken_effect.py",
-               "--out", "out"],
-         pattern=r"--effects broken_effect.py: cannot be imported \(ZeroDivisionError: "
-         "division by zero\\)"),
-    dict(id="effects-nonlinear", klass="`--effects` effect whose density is not linear in "
-         "its moduli", make=source_file("squared.py", effect_source(modulus='p["k_c"]**2')),
-         argv=["fit", "good", "--terms", "shear,shear_tension", "--effects", "squared.py",
-               "--out", "out"],
-         pattern=r"squared.py: effect 'shear_tension' \(ShearTension\): its density is not "
-         r"linear in its moduli \(k_c\): W\(2p\) = 2 W\(p\) fails"),
-    dict(id="effects-no-term", klass="`--effects` file that defines no effect",
-         make=source_file("no_term.py", "K = 1.0\n"),
-         argv=["compare", "good", "--terms", "shear", "--effects", "no_term.py", "--out", "out"],
-         pattern=r"--effects no_term.py: defines no subclass of fabricsurf's Term with a name"),
-    dict(id="effects-no-unit", klass="`--effects` effect with a modulus without a unit",
-         make=source_file("no_unit.py", effect_source(units="{}")),
-         argv=["compare", "good", "--terms", "shear", "--effects", "no_unit.py", "--out", "out"],
-         pattern=r"no_unit.py: effect 'shear_tension' \(ShearTension\): no unit declared "
-         "for k_c"),
-    dict(id="effects-missing-file", klass="`--effects` naming a file that does not exist",
-         make=lambda base: None,
-         argv=["terms", "--effects", "absent.py"], pattern=r"--effects absent.py: no such file"),
-    dict(id="fit-signed-modulus", klass="`fit` of an effect whose modulus may be negative",
-         make=both(source_file("signed.py", effect_source(signed='("k_c",)')),
-                   params_json("signed.json", {"shear": {"k_s": 0.4},
-                                               "shear_tension": {"k_c": -1.0}})),
-         argv=["fit", "good", "--terms", "shear,shear_tension", "--effects", "signed.py",
-               "--params", "signed.json", "--out", "out"],
-         pattern=r"--terms shear,shear_tension: shear_tension.k_c may be negative \(signed\), "
-         "and fit fits moduli in log scale"),
+    dict(
+        id="effects-name-clash",
+        klass="`--effects` file whose effect takes a built-in's name",
+        make=source_file("clash.py", effect_source(name="shear")),
+        argv=["compare", "good", "--terms", "shear", "--effects", "clash.py", "--out", "out"],
+        pattern=r"clash.py: effect name 'shear' \(ShearTension\) is already taken by a "
+        "built-in effect",
+    ),
+    dict(
+        id="effects-clash-between-files",
+        klass="two `--effects` files defining one name",
+        make=both(
+            source_file("mine.py", effect_source()), source_file("mine_too.py", effect_source())
+        ),
+        argv=[
+            "compare",
+            "good",
+            "--terms",
+            "shear",
+            "--effects",
+            "mine.py,mine_too.py",
+            "--out",
+            "out",
+        ],
+        pattern=r"mine_too.py: effect name 'shear_tension' \(ShearTension\) is already taken "
+        "by the effect from mine.py",
+    ),
+    dict(
+        id="effects-import-error",
+        klass="`--effects` file that fails to import",
+        make=source_file("broken_effect.py", "import math\nx = 1 / 0\n"),
+        argv=[
+            "compare",
+            "good",
+            "--terms",
+            "shear",
+            "--effects",
+            "broken_effect.py",
+            "--out",
+            "out",
+        ],
+        pattern=r"--effects broken_effect.py: cannot be imported \(ZeroDivisionError: "
+        "division by zero\\)",
+    ),
+    dict(
+        id="effects-nonlinear",
+        klass="`--effects` effect whose density is not linear in its moduli",
+        make=source_file("squared.py", effect_source(modulus='p["k_c"]**2')),
+        argv=[
+            "fit",
+            "good",
+            "--terms",
+            "shear,shear_tension",
+            "--effects",
+            "squared.py",
+            "--out",
+            "out",
+        ],
+        pattern=r"squared.py: effect 'shear_tension' \(ShearTension\): its density is not "
+        r"linear in its moduli \(k_c\): W\(2p\) = 2 W\(p\) fails",
+    ),
+    dict(
+        id="effects-no-term",
+        klass="`--effects` file that defines no effect",
+        make=source_file("no_term.py", "K = 1.0\n"),
+        argv=["compare", "good", "--terms", "shear", "--effects", "no_term.py", "--out", "out"],
+        pattern=r"--effects no_term.py: defines no subclass of fabricsurf's Term with a name",
+    ),
+    dict(
+        id="effects-no-unit",
+        klass="`--effects` effect with a modulus without a unit",
+        make=source_file("no_unit.py", effect_source(units="{}")),
+        argv=["compare", "good", "--terms", "shear", "--effects", "no_unit.py", "--out", "out"],
+        pattern=r"no_unit.py: effect 'shear_tension' \(ShearTension\): no unit declared "
+        "for k_c",
+    ),
+    dict(
+        id="effects-missing-file",
+        klass="`--effects` naming a file that does not exist",
+        make=lambda base: None,
+        argv=["terms", "--effects", "absent.py"],
+        pattern=r"--effects absent.py: no such file",
+    ),
+    dict(
+        id="fit-signed-modulus",
+        klass="`fit` of an effect whose modulus may be negative",
+        make=both(
+            source_file("signed.py", effect_source(signed='("k_c",)')),
+            params_json("signed.json", {"shear": {"k_s": 0.4}, "shear_tension": {"k_c": -1.0}}),
+        ),
+        argv=[
+            "fit",
+            "good",
+            "--terms",
+            "shear,shear_tension",
+            "--effects",
+            "signed.py",
+            "--params",
+            "signed.json",
+            "--out",
+            "out",
+        ],
+        pattern=r"--terms shear,shear_tension: shear_tension.k_c may be negative \(signed\), "
+        "and fit fits moduli in log scale",
+    ),
 ]
 
 
@@ -185,19 +252,33 @@ def test_compare_and_fit_on_the_command_line(in_root, capsys):
     wrong = TRUTH | {"shear_tension": {"k_c": -1.0}}
     (in_root / f"negative{COMM.rank}.json").write_text(json.dumps(wrong))
     common = ["--effects", "signed.py", "--h", "10"]
-    rc, out = run_cli(["compare", "st", "--params", f"truth{COMM.rank}.json", *common,
-                       "--out", "cmp_truth"], capsys)
+    rc, out = run_cli(
+        ["compare", "st", "--params", f"truth{COMM.rank}.json", *common, "--out", "cmp_truth"],
+        capsys,
+    )
     assert rc == 0, out
-    rc, out = run_cli(["compare", "st", "--params", f"negative{COMM.rank}.json", *common,
-                       "--out", "cmp_negative"], capsys)
+    rc, out = run_cli(
+        [
+            "compare",
+            "st",
+            "--params",
+            f"negative{COMM.rank}.json",
+            *common,
+            "--out",
+            "cmp_negative",
+        ],
+        capsys,
+    )
     assert rc == 0, out
     COMM.barrier()
     at_truth = json.loads((in_root / "cmp_truth" / "misfit.json").read_text())
     negative = json.loads((in_root / "cmp_negative" / "misfit.json").read_text())
     assert at_truth["combined"] < 1e-6, at_truth["combined"]  # the data's own model
     assert negative["combined"] > 0.1, negative["combined"]  # k_c = -1 is seen
-    rc, out = run_cli(["fit", "st", "--terms", TERMS, "--effects", "effect.py", "--h", "10",
-                       "--out", "fit"], capsys)
+    rc, out = run_cli(
+        ["fit", "st", "--terms", TERMS, "--effects", "effect.py", "--h", "10", "--out", "fit"],
+        capsys,
+    )
     assert rc == 0, out
     COMM.barrier()
     saved = json.loads((in_root / "fit" / "fit.json").read_text())
@@ -224,8 +305,14 @@ def test_python_api(registered, root):
     from fabricsurf.inverse.contract.data import load_experiment
 
     exp = load_experiment(root / "st")
-    start = parse_terms(TERMS, {"fibre_stretch": {"k_l": 20.0, "k_m": 20.0},
-                                "shear": {"k_s": 0.5}, "shear_tension": {"k_c": 1.0}})
+    start = parse_terms(
+        TERMS,
+        {
+            "fibre_stretch": {"k_l": 20.0, "k_m": 20.0},
+            "shear": {"k_s": 0.5},
+            "shear_tension": {"k_c": 1.0},
+        },
+    )
     res = fit(ForwardModel(exp, start, h=10.0))
     np.testing.assert_allclose(res.values, [25.0, 25.0, 0.4, 2.0], rtol=1e-3)
     # a diagnosis candidate by default, like a built-in the data can see (at modulus 0)

@@ -21,10 +21,16 @@ from fabricsurf.inverse.forward import warm_start
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 
-TRUTH = {"fibre_stretch": {"k_l": 25.0, "k_m": 25.0}, "shear": {"k_s": 0.4},
-         "geodesic_bending": {"A_g": 12.0}}
-START = {"fibre_stretch": {"k_l": 20.0, "k_m": 30.0}, "shear": {"k_s": 0.5},
-         "geodesic_bending": {"A_g": 8.0}}
+TRUTH = {
+    "fibre_stretch": {"k_l": 25.0, "k_m": 25.0},
+    "shear": {"k_s": 0.4},
+    "geodesic_bending": {"A_g": 12.0},
+}
+START = {
+    "fibre_stretch": {"k_l": 20.0, "k_m": 30.0},
+    "shear": {"k_s": 0.5},
+    "geodesic_bending": {"A_g": 8.0},
+}
 
 
 def one_fit(exp, warm: bool):

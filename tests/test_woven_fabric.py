@@ -46,10 +46,14 @@ def test_hidden_locking_in_lattice_data_is_diagnosed():
     sy.lattice_data(exp, 0.8, every=6, **LATTICE)
     sy.add_noise(exp, 0.01, 0.02, 7)
     assert np.degrees(tz.zone_c_shear_angle(6.8, 48.0, 24.0)) > 40.0
-    d = diagnose(exp, ["fibre_stretch", "shear"], h=4.0, confirm=1, max_effects=1,
-                 check_discretisation=False)
-    print(d.base_fit.misfit["combined"], [(r["effect"], r["score"], r["refit_misfit"])
-                                          for r in d.ranking], d.final_fit.params())
+    d = diagnose(
+        exp, ["fibre_stretch", "shear"], h=4.0, confirm=1, max_effects=1, check_discretisation=False
+    )
+    print(
+        d.base_fit.misfit["combined"],
+        [(r["effect"], r["score"], r["refit_misfit"]) for r in d.ranking],
+        d.final_fit.params(),
+    )
     assert d.verdict == "shear_locking" == d.ranking[0]["effect"]
     assert d.ranking[0]["significant"]
     assert abs(d.final_fit.params()["shear"]["k_s"] / LATTICE["k_s"] - 1.0) < 0.10

@@ -31,16 +31,25 @@ STROKE, STEPS, SHALLOW = 12.0, 12, 4.0
 BOUND = 0.05
 """mm: above the shallow state's amplitude on every mesh, below the deep one's
 (benchmarks/wrinkling.py --blank 60; docs/forming.md)."""
-TOOLING = {"punch_radius": R, "clearance": 2.0, "die_lip": 2.0, "holder_gap": 0.4,
-           "holder_pressure": 1e-2, "friction": 0.3, "contact_stiffness": 100.0,
-           "locking_angle_deg": 50.0, "wrinkle_tension": 1e-3, "wrinkle_curvature": 1.0 / R}
-SERIAL = pytest.mark.serial("one forming run; the 1 = 2 ranks agreement of this experiment is "
-                            "tests/test_hemisphere.py's")
+TOOLING = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-2,
+    "friction": 0.3,
+    "contact_stiffness": 100.0,
+    "locking_angle_deg": 50.0,
+    "wrinkle_tension": 1e-3,
+    "wrinkle_curvature": 1.0 / R,
+}
+SERIAL = pytest.mark.serial(
+    "one forming run; the 1 = 2 ranks agreement of this experiment is tests/test_hemisphere.py's"
+)
 
 
 def model():
-    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1),
-            Twist(k_t=0.1)]
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
 
 
 @pytest.fixture(scope="module")
@@ -63,8 +72,10 @@ def states():
 def test_amplitude_separates_the_states(states):
     _, out = states
     shallow, deep = out[SHALLOW], out[STROKE]
-    print(f"amplitude {shallow['amplitude']:.4f} mm at {SHALLOW:g} mm, {deep['amplitude']:.4f}"
-          f" mm at {STROKE:g} mm; reference area {deep['reference_area']:.4f}")
+    print(
+        f"amplitude {shallow['amplitude']:.4f} mm at {SHALLOW:g} mm, {deep['amplitude']:.4f}"
+        f" mm at {STROKE:g} mm; reference area {deep['reference_area']:.4f}"
+    )
     assert shallow["amplitude"] < BOUND < deep["amplitude"]
     assert shallow["reference_points"] == 0 and deep["reference_points"] > 100
 
@@ -89,8 +100,10 @@ def test_indicator_against_amplitude(states):
     flags = [out[s]["indicator"][1]["area"] for s in strokes]
     ratios = [out[s]["buckling"]["ratio"] for s in strokes]
     for s, a, q, m, f in zip(strokes, amp, ratios, marks, flags):
-        print(f"stroke {s:4.1f}: amplitude {a:.4f} mm, buckling ratio {q:.3f}, indicator "
-              f"{m:.4f}, curvature flag {f:.4f}")
+        print(
+            f"stroke {s:4.1f}: amplitude {a:.4f} mm, buckling ratio {q:.3f}, indicator "
+            f"{m:.4f}, curvature flag {f:.4f}"
+        )
     onset = next(s for s, m in zip(strokes, marks) if m > 0)
     assert all(m == 0 for q, m in zip(ratios, marks) if q < 0.4)
     assert ratios[strokes.index(onset)] < 1.0 <= ratios[-1]

@@ -62,11 +62,17 @@ def cmd_terms(args) -> int:
     from fabricsurf.model.registry import BUILTIN
     from fabricsurf.model.terms import EFFECTS
 
-    rank0(logger, COMM, "Effects (energy densities per unit reference area, N/mm; symbols in "
-                        "docs/vocabulary.md). Use the names in --terms and --params.")
+    rank0(
+        logger,
+        COMM,
+        "Effects (energy densities per unit reference area, N/mm; symbols in "
+        "docs/vocabulary.md). Use the names in --terms and --params.",
+    )
     for name, cls in EFFECTS.items():
-        units = ", ".join(f"{p} ({cls.units.get(p, '?')}{', signed' * (p in cls.signed)})"
-                          for p in cls.parameters())
+        units = ", ".join(
+            f"{p} ({cls.units.get(p, '?')}{', signed' * (p in cls.signed)})"
+            for p in cls.parameters()
+        )
         doc = ((cls.__doc__ or "").strip().splitlines() or [""])[0]
         origin = EFFECTS.origin(name)
         where = "" if origin == BUILTIN else f"\n{'':18s} (your effect, from {origin})"
@@ -79,18 +85,27 @@ def build_parser() -> argparse.ArgumentParser:
     from fabricsurf.cli import dic as dic_cli
     from fabricsurf.cli import measure
 
-    ap = argparse.ArgumentParser(prog="fabricsurf", formatter_class=HelpFormatter,
-                                 description="Fabric surface models vs measurements: solve, "
-                                 "compare, fit, diagnose the missing effect. Lengths in mm, "
-                                 "forces in N; moduli N/mm (first gradient) and N·mm (second).")
+    ap = argparse.ArgumentParser(
+        prog="fabricsurf",
+        formatter_class=HelpFormatter,
+        description="Fabric surface models vs measurements: solve, "
+        "compare, fit, diagnose the missing effect. Lengths in mm, "
+        "forces in N; moduli N/mm (first gradient) and N·mm (second).",
+    )
     _verbose(ap, False)
     sub = ap.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("terms", formatter_class=HelpFormatter,
-                       help="list the effects: names, moduli, units, formulas")
+    p = sub.add_parser(
+        "terms",
+        formatter_class=HelpFormatter,
+        help="list the effects: names, moduli, units, formulas",
+    )
     add_effects(p)
     p.set_defaults(func=cmd_terms)
-    p = sub.add_parser("bias", formatter_class=HelpFormatter,
-                       help="continuum bias-extension test: XDMF, force curve, log")
+    p = sub.add_parser(
+        "bias",
+        formatter_class=HelpFormatter,
+        help="continuum bias-extension test: XDMF, force curve, log",
+    )
     bias_cli.add_arguments(p)
     p.set_defaults(func=bias_cli.run)
     measure.add_parsers(sub, HelpFormatter)
@@ -103,12 +118,21 @@ def build_parser() -> argparse.ArgumentParser:
 def _verbose(p: argparse.ArgumentParser, default) -> None:
     """``--verbose`` and ``--quiet`` before or after the command (SUPPRESS: the command's copy
     does not overwrite the value given before it)."""
-    p.add_argument("-v", "--verbose", action="store_true", default=default,
-                   help="details too (the 'fabricsurf' logger at DEBUG) and the JIT "
-                   "compiler's messages (FFCx, UFL, C compiler)")
-    p.add_argument("-q", "--quiet", action="store_true", default=default,
-                   help="no progress messages, only warnings and errors (the 'fabricsurf' "
-                   "logger at WARNING)")
+    p.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        default=default,
+        help="details too (the 'fabricsurf' logger at DEBUG) and the JIT "
+        "compiler's messages (FFCx, UFL, C compiler)",
+    )
+    p.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        default=default,
+        help="no progress messages, only warnings and errors (the 'fabricsurf' logger at WARNING)",
+    )
 
 
 @contextlib.contextmanager
@@ -192,10 +216,15 @@ def numbers_joined(ap: argparse.ArgumentParser, argv: list[str]) -> list[str]:
     argparse reads such a token as an option, unless it is a plain negative number ("-1",
     "-.5"), and stops with "expected one argument"; joined, the value reaches the option's own
     check, which names what is wrong with it. Nothing after "--" is touched."""
-    parsers = [ap] + [p for a in ap._actions if isinstance(a, argparse._SubParsersAction)
-                      for p in a.choices.values()]
-    takes_value = {o for p in parsers for a in p._actions if a.nargs is None
-                   for o in a.option_strings}
+    parsers = [ap] + [
+        p
+        for a in ap._actions
+        if isinstance(a, argparse._SubParsersAction)
+        for p in a.choices.values()
+    ]
+    takes_value = {
+        o for p in parsers for a in p._actions if a.nargs is None for o in a.option_strings
+    }
     out: list[str] = []
     i = 0
     while i < len(argv):

@@ -43,37 +43,71 @@ from fabricsurf.model.terms import EFFECTS
 
 log = logging.getLogger(__name__)
 
-OUTPUTS = ("bias.xdmf", "bias.h5", "bias_steps.csv", "bias_steps.json", "bias_curve.json",
-           "force.png", "force_band.csv", "force_band.png", "summary.json", "failure.json")
+OUTPUTS = (
+    "bias.xdmf",
+    "bias.h5",
+    "bias_steps.csv",
+    "bias_steps.json",
+    "bias_curve.json",
+    "force.png",
+    "force_band.csv",
+    "force_band.png",
+    "summary.json",
+    "failure.json",
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=out_path, default=Path("out/bias"),
-                   help="output directory (created if missing; must be writable)")
+    p.add_argument(
+        "--out",
+        type=out_path,
+        default=Path("out/bias"),
+        help="output directory (created if missing; must be writable)",
+    )
     p.add_argument("--length", type=float, default=187.0, help="specimen length along x (mm)")
     p.add_argument("--width", type=float, default=119.0, help="specimen width (mm)")
-    p.add_argument("--h", type=float, default=6.0,
-                   help="mesh size (mm), at most half the width")
-    p.add_argument("--ubar", type=float, default=None,
-                   help="final grip displacement (mm), in (0, length) (default: 25%% of the "
-                   "length)")
-    p.add_argument("--steps", type=int, default=10,
-                   help="number of equal requested load steps, 1 to 1000")
-    p.add_argument("--terms", default=None,
-                   help="comma-separated effects, each once, from: " + ", ".join(EFFECTS)
-                   + " (default: " + "; ".join(
-                       t.name + " " + ", ".join(f"{k} = {v:g} {t.units[k]}"
-                                                for k, v in t.values().items())
-                       for t in default_model()) + ")")
-    p.add_argument("--params", type=Path, default=None,
-                   help='JSON moduli {"term": {"parameter": value}}, first-gradient moduli in '
-                   "N/mm, second-gradient in N·mm (see `fabricsurf terms`), or a saved "
-                   "fit.json; without --terms its terms are the model (default: none, the default "
-                   "model of --terms)")
-    p.add_argument("--clamp", choices=("gradient", "position"), default="gradient",
-                   help="gradient: u and its normal derivative held; position: u only")
-    p.add_argument("--no-band", action="store_true",
-                   help="no prediction band even when --params is a saved fit")
+    p.add_argument("--h", type=float, default=6.0, help="mesh size (mm), at most half the width")
+    p.add_argument(
+        "--ubar",
+        type=float,
+        default=None,
+        help="final grip displacement (mm), in (0, length) (default: 25%% of the length)",
+    )
+    p.add_argument(
+        "--steps", type=int, default=10, help="number of equal requested load steps, 1 to 1000"
+    )
+    p.add_argument(
+        "--terms",
+        default=None,
+        help="comma-separated effects, each once, from: "
+        + ", ".join(EFFECTS)
+        + " (default: "
+        + "; ".join(
+            t.name + " " + ", ".join(f"{k} = {v:g} {t.units[k]}" for k, v in t.values().items())
+            for t in default_model()
+        )
+        + ")",
+    )
+    p.add_argument(
+        "--params",
+        type=Path,
+        default=None,
+        help='JSON moduli {"term": {"parameter": value}}, first-gradient moduli in '
+        "N/mm, second-gradient in N·mm (see `fabricsurf terms`), or a saved "
+        "fit.json; without --terms its terms are the model (default: none, the default "
+        "model of --terms)",
+    )
+    p.add_argument(
+        "--clamp",
+        choices=("gradient", "position"),
+        default="gradient",
+        help="gradient: u and its normal derivative held; position: u only",
+    )
+    p.add_argument(
+        "--no-band",
+        action="store_true",
+        help="no prediction band even when --params is a saved fit",
+    )
     add_max_elements(p)
     add_effects(p)
 
@@ -83,7 +117,8 @@ ANGLE_A_NOTE = (
     "clamp's corners cross and the unsheared, half-sheared and centre zones meet; a model "
     "without an in-plane second-gradient term (geodesic_bending, stretch_gradient, "
     "shear_gradient) has sharp zone boundaries, so the value there depends on the mesh "
-    "(gamma_B and the force do not): add geodesic bending to read it")
+    "(gamma_B and the force do not): add geodesic bending to read it"
+)
 """Said when γ_A has no mesh-independent value (docs/theory.md, "Shear angles at A and B")."""
 
 
@@ -99,8 +134,10 @@ def _model(args) -> tuple[list, dict]:
     out_of_plane = [t.name for t in model if not t.in_plane]
     if out_of_plane:
         spec = args.terms or f"(the terms of --params {args.params})"
-        raise InputError(f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane effect, "
-                         "and the bias test is planar (no out-of-plane placement); remove it")
+        raise InputError(
+            f"--terms {spec}: {', '.join(out_of_plane)} is an out-of-plane effect, "
+            "and the bias test is planar (no out-of-plane placement); remove it"
+        )
     return model, params
 
 
@@ -110,29 +147,49 @@ def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dic
     from fabricsurf.inverse.fitting.band import predicted_band, write_band
     from fabricsurf.inverse.plots.figures import force_band as band_figure
 
-    band = predicted_band(saved, model, args.length, args.width,
-                          np.linspace(ubar / args.steps, ubar, args.steps), args.h, args.clamp,
-                          comm)
+    band = predicted_band(
+        saved,
+        model,
+        args.length,
+        args.width,
+        np.linspace(ubar / args.steps, ubar, args.steps),
+        args.h,
+        args.clamp,
+        comm,
+    )
     on_rank0(comm, write_band, stage / "force_band.csv", band)
-    on_rank0(comm, band_figure, band, stage / "force_band.png",
-             f"bias {args.length:g} x {args.width:g} mm at the moduli of {args.params.name}")
+    on_rank0(
+        comm,
+        band_figure,
+        band,
+        stage / "force_band.png",
+        f"bias {args.length:g} x {args.width:g} mm at the moduli of {args.params.name}",
+    )
     return band
 
 
 def _check(args) -> float:
     """Every option against the others, before any computation (messages name them)."""
-    for option, v in (("--length", args.length), ("--width", args.width), ("--h", args.h),
-                      ("--ubar", args.ubar)):
+    for option, v in (
+        ("--length", args.length),
+        ("--width", args.width),
+        ("--h", args.h),
+        ("--ubar", args.ubar),
+    ):
         if v is not None and not math.isfinite(v):
             raise InputError(f"{option} {v}: must be a finite number (mm)")
     if not (args.length > 0 and args.width > 0):
         raise InputError(f"--length {args.length}, --width {args.width}: must be positive (mm)")
     if args.width > args.length:
-        raise InputError(f"--width {args.width:g} exceeds --length {args.length:g}: the bias "
-                         "specimen has its long side along the load (x); swap them")
+        raise InputError(
+            f"--width {args.width:g} exceeds --length {args.length:g}: the bias "
+            "specimen has its long side along the load (x); swap them"
+        )
     if not 0 < args.h <= 0.5 * min(args.length, args.width):
-        raise InputError(f"--h {args.h}: must lie in (0, {0.5 * min(args.length, args.width):g}]"
-                         " mm (at least two elements across the width)")
+        raise InputError(
+            f"--h {args.h}: must lie in (0, {0.5 * min(args.length, args.width):g}]"
+            " mm (at least two elements across the width)"
+        )
     check_size(args.h, [("specimen", args.length, args.width)], args.max_elements)
     if not 1 <= args.steps <= 1000:
         raise InputError(f"--steps {args.steps}: must lie in [1, 1000]")
@@ -151,12 +208,21 @@ def interrupted_report(stage: Path, summary: dict, converged: int, steps: int, o
     point to it), write failure.json, and return the rest of the message."""
     for name in FIELD_FILES:
         (stage / name).unlink(missing_ok=True)
-    write_json(MPI.COMM_SELF, stage / "failure.json", summary | {
-        "error": f"interrupted at step {converged + 1}", "converged_steps": converged,
-        "fields": "not kept (bias.xdmf and bias.h5 of an interrupted run cannot be read back)"})
-    return (f" at step {converged + 1} of {steps}; the step log of the {converged} converged "
-            f"steps (bias_steps.csv, .json) and failure.json are in {out}; the fields "
-            "(bias.xdmf, bias.h5) are not kept: an interrupted HDF5 file cannot be read back")
+    write_json(
+        MPI.COMM_SELF,
+        stage / "failure.json",
+        summary
+        | {
+            "error": f"interrupted at step {converged + 1}",
+            "converged_steps": converged,
+            "fields": "not kept (bias.xdmf and bias.h5 of an interrupted run cannot be read back)",
+        },
+    )
+    return (
+        f" at step {converged + 1} of {steps}; the step log of the {converged} converged "
+        f"steps (bias_steps.csv, .json) and failure.json are in {out}; the fields "
+        "(bias.xdmf, bias.h5) are not kept: an interrupted HDF5 file cannot be read back"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -165,40 +231,67 @@ def run(args: argparse.Namespace) -> int:
     ubar = _check(args)
     model, params = _model(args)
     saved = saved_fit(args)
-    od = OutputDir(args.out, comm, keep_on_error=True, files=OUTPUTS,
-                   inputs=((f"--params {args.params}", args.params),) if args.params else ())
-    rank0(log, comm, f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
-                      f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
-                      f"on {comm.size} rank(s)")
+    od = OutputDir(
+        args.out,
+        comm,
+        keep_on_error=True,
+        files=OUTPUTS,
+        inputs=((f"--params {args.params}", args.params),) if args.params else (),
+    )
+    rank0(
+        log,
+        comm,
+        f"bias extension {args.length} x {args.width} mm, h = {args.h} mm, "
+        f"terms {[t.name for t in model]}, ubar up to {ubar} mm "
+        f"on {comm.size} rank(s)",
+    )
     defaulted = defaulted_moduli(model, params) if args.params else []
     if defaulted:  # a partial --params file: the rest are the terms' defaults, said
-        rank0(log, comm, f"note: --params {args.params} gives no value for "
-                          f"{', '.join(defaulted)}: the term's default is used")
+        rank0(
+            log,
+            comm,
+            f"note: --params {args.params} gives no value for "
+            f"{', '.join(defaulted)}: the term's default is used",
+        )
     with od as stage:
         test = BiasExtension(model, args.length, args.width, args.h, args.clamp)
-        summary = {"provenance": provenance(model, [], [args.h]), "clamp": args.clamp,
-                   "discretisation": test.discretisation,
-                   "angle_A_mesh_dependent": not has_second_gradient(model)}
+        summary = {
+            "provenance": provenance(model, [], [args.h]),
+            "clamp": args.clamp,
+            "discretisation": test.discretisation,
+            "angle_A_mesh_dependent": not has_second_gradient(model),
+        }
         if summary["angle_A_mesh_dependent"]:
             rank0(log, comm, ANGLE_A_NOTE)
         done: list[int] = []
 
         od.on_interrupt = lambda stage_dir: interrupted_report(  # no MPI call in there
-            stage_dir, summary, len(done), args.steps, args.out)
+            stage_dir, summary, len(done), args.steps, args.out
+        )
         try:
             res = test.run(ubar, args.steps, out=stage, on_step=lambda k, u: done.append(k))
         except LoadStepError as e:
             write_json(comm, stage / "failure.json", summary | {"error": str(e)})
             raise RuntimeError(f"{e}; the converged steps are in {args.out}") from None
-        summary |= {"ubar": res.ubar, "force": res.force, "angle_A_deg": res.angle_A_deg,
-                    "angle_B_deg": res.angle_B_deg, "newton_iterations": res.newton,
-                    "seconds": res.seconds, "ranks": comm.size}
+        summary |= {
+            "ubar": res.ubar,
+            "force": res.force,
+            "angle_A_deg": res.angle_A_deg,
+            "angle_B_deg": res.angle_B_deg,
+            "newton_iterations": res.newton,
+            "seconds": res.seconds,
+            "ranks": comm.size,
+        }
         if saved is not None:
             band = summary["force_band"] = _band(args, model, ubar, saved, stage, comm)
             half, F = band["half_width"][-1], band["force"][-1]
-            rank0(log, comm, f"prediction band at ubar = {ubar:g} mm: {F:.4g} ± {half:.2g} N "
-                              f"(95 %; linearisation "
-                              f"{'holds' if band['reliable'] else 'fails: refit instead'})")
+            rank0(
+                log,
+                comm,
+                f"prediction band at ubar = {ubar:g} mm: {F:.4g} ± {half:.2g} N "
+                f"(95 %; linearisation "
+                f"{'holds' if band['reliable'] else 'fails: refit instead'})",
+            )
         write_json(comm, stage / "summary.json", summary)
         on_rank0(comm, bias_curves, res, stage / "force.png")
     rank0(log, comm, f"done in {res.seconds:.1f} s; XDMF, force curve and summary in {args.out}")

@@ -37,10 +37,15 @@ def demo_parser(description: str | None, out: str) -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--out", type=Path, default=Path(out), help="output directory")
     ap.add_argument("--quick", action="store_true", help="small and fast (the test suite)")
-    ap.add_argument("-v", "--verbose", action="store_true",
-                    help="details too, and the JIT compiler's messages (FFCx, UFL, C compiler)")
-    ap.add_argument("-q", "--quiet", action="store_true",
-                    help="no progress messages, only warnings and errors")
+    ap.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="details too, and the JIT compiler's messages (FFCx, UFL, C compiler)",
+    )
+    ap.add_argument(
+        "-q", "--quiet", action="store_true", help="no progress messages, only warnings and errors"
+    )
     return ap
 
 
@@ -61,7 +66,8 @@ def declared(script: Path) -> dict:
     tree = ast.parse(Path(script).read_text(), filename=str(script))
     for node in tree.body:
         if isinstance(node, ast.Assign) and any(
-                isinstance(t, ast.Name) and t.id == "CHECKS" for t in node.targets):
+            isinstance(t, ast.Name) and t.id == "CHECKS" for t in node.targets
+        ):
             return ast.literal_eval(node.value)
     raise LookupError(f"{script}: no module-level CHECKS dict")
 
@@ -99,8 +105,11 @@ def failures(summary: dict, checks: dict) -> list[str]:
                 continue
             if isinstance(want, tuple):
                 low, high = want
-                ok = isinstance(value, (int, float)) and not isinstance(value, bool) and (
-                    (low is None or value >= low) and (high is None or value <= high))
+                ok = (
+                    isinstance(value, (int, float))
+                    and not isinstance(value, bool)
+                    and ((low is None or value >= low) and (high is None or value <= high))
+                )
             else:
                 ok = value == want
             if not ok:

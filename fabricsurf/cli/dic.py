@@ -27,13 +27,24 @@ OUTPUTS = ("experiment.toml", "field.csv", "force.csv", "dic_import.json")
 
 
 def add_parser(sub, formatter) -> None:
-    p = sub.add_parser("import-dic", formatter_class=formatter,
-                       help="DIC exports (CSV per image) → a measurement directory")
-    p.add_argument("spec", type=Path, help="the import description, e.g. dic.toml "
-                   "(docs/dic.md: files, layout, units, frame, steps, binning)")
-    p.add_argument("--out", required=True, type=Path,
-                   help="the measurement directory to write (experiment.toml, field.csv, "
-                   "force.csv, dic_import.json)")
+    p = sub.add_parser(
+        "import-dic",
+        formatter_class=formatter,
+        help="DIC exports (CSV per image) → a measurement directory",
+    )
+    p.add_argument(
+        "spec",
+        type=Path,
+        help="the import description, e.g. dic.toml "
+        "(docs/dic.md: files, layout, units, frame, steps, binning)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        type=Path,
+        help="the measurement directory to write (experiment.toml, field.csv, "
+        "force.csv, dic_import.json)",
+    )
     p.set_defaults(func=run)
 
 
@@ -54,8 +65,9 @@ def _reads_back(stage: Path) -> None:
     try:
         load_experiment(stage)
     except DataError as e:
-        raise DataError(f"the imported data fail the measurement contract's checks, so "
-                        f"nothing is written: {e}") from None
+        raise DataError(
+            f"the imported data fail the measurement contract's checks, so nothing is written: {e}"
+        ) from None
 
 
 def _import(spec_path: Path, stage: Path) -> str:
@@ -64,24 +76,33 @@ def _import(spec_path: Path, stage: Path) -> str:
 
     spec = read_spec(spec_path)
     exp, report = import_dic(spec)
-    report["provenance"] = {"fabricsurf": __version__, "spec": str(spec_path.resolve()),
-                            "export_directory": str(spec.root.resolve())}
+    report["provenance"] = {
+        "fabricsurf": __version__,
+        "spec": str(spec_path.resolve()),
+        "export_directory": str(spec.root.resolve()),
+    }
     write_directory(stage, exp, report)
     _reads_back(stage)
     noise = report["noise"]
-    notes = [f"note: {role} column dropped ({why})"
-             for role, why in report["dropped_columns"].items()]
+    notes = [
+        f"note: {role} column dropped ({why})" for role, why in report["dropped_columns"].items()
+    ]
     if report["coordinates"]["converted"]:
-        notes.append("note: the export's coordinates are deformed positions; reference = "
-                     "deformed − displacement")
-    return (f"{report['points_read']} points read from {len(report['files'])} images "
-            f"({report['layout']}, {', '.join(report['encoding'])}), {report['holes']} holes "
-            f"and {report['outside_dropped']} points off the specimen dropped; "
-            f"{report['rows_written']} field rows written"
-            + (f" (binned to {spec.pitch:g} mm)" if spec.pitch else "")
-            + "; noise_std " + ("" if noise["noise_std"] is None else
-                                f"{noise['noise_std']:.3g} mm ") + f"({noise['method']})"
-            + "".join("\n" + n for n in notes))
+        notes.append(
+            "note: the export's coordinates are deformed positions; reference = "
+            "deformed − displacement"
+        )
+    return (
+        f"{report['points_read']} points read from {len(report['files'])} images "
+        f"({report['layout']}, {', '.join(report['encoding'])}), {report['holes']} holes "
+        f"and {report['outside_dropped']} points off the specimen dropped; "
+        f"{report['rows_written']} field rows written"
+        + (f" (binned to {spec.pitch:g} mm)" if spec.pitch else "")
+        + "; noise_std "
+        + ("" if noise["noise_std"] is None else f"{noise['noise_std']:.3g} mm ")
+        + f"({noise['method']})"
+        + "".join("\n" + n for n in notes)
+    )
 
 
 def _inputs(spec_path: Path) -> tuple[tuple[str, Path], ...]:

@@ -15,11 +15,16 @@ from fabricsurf.errors import InputError
 def add_effects(p: argparse.ArgumentParser) -> None:
     """``--effects FILE.py``: a user's own effects, usable in --terms and --params
     (docs/usage.md, "Adding your own effect"); repeatable, or comma-separated."""
-    p.add_argument("--effects", action="append", default=None, metavar="FILE.py",
-                   help="Python file(s) defining your own effects (Term subclasses with a "
-                   "name), checked and then usable in --terms and --params like the built-ins; "
-                   "repeatable or comma-separated (docs/usage.md, 'Adding your own effect'; "
-                   "default: none, the built-in effects only)")
+    p.add_argument(
+        "--effects",
+        action="append",
+        default=None,
+        metavar="FILE.py",
+        help="Python file(s) defining your own effects (Term subclasses with a "
+        "name), checked and then usable in --terms and --params like the built-ins; "
+        "repeatable or comma-separated (docs/usage.md, 'Adding your own effect'; "
+        "default: none, the built-in effects only)",
+    )
 
 
 @contextlib.contextmanager

@@ -92,21 +92,28 @@ def _settings(files: list[tuple[Path, str | None]], problems: list) -> dict:
             continue
         except OSError as e:
             if source is None:
-                raise InputError(f"{path}: the JIT compiler's settings file cannot be read "
-                                 f"({e.strerror}); remove it, or run elsewhere") from None
+                raise InputError(
+                    f"{path}: the JIT compiler's settings file cannot be read "
+                    f"({e.strerror}); remove it, or run elsewhere"
+                ) from None
             if not problems:  # the first of them says it
-                problems.append((source, f"read its settings file {path}",
-                                 _why(path.parent) or e.strerror))
+                problems.append(
+                    (source, f"read its settings file {path}", _why(path.parent) or e.strerror)
+                )
             continue
         try:
             value = json.loads(text)
-            why = "" if isinstance(value, dict) else f"holds a {type(value).__name__}, not a " \
-                "JSON object"
+            why = (
+                ""
+                if isinstance(value, dict)
+                else f"holds a {type(value).__name__}, not a JSON object"
+            )
         except ValueError as e:
             value, why = None, f"is not valid JSON ({e})"
         if why:
-            raise InputError(f"{path}: the JIT compiler's settings file {why}; correct it or "
-                             "remove it")
+            raise InputError(
+                f"{path}: the JIT compiler's settings file {why}; correct it or remove it"
+            )
         if path.name.startswith("dolfinx"):
             merged |= value
     return merged
@@ -120,10 +127,15 @@ def jit_files() -> None:
     cache_source = _variable("XDG_CACHE_HOME")
     cache = Path(os.getenv("XDG_CACHE_HOME", default=_home() / ".cache")) / "fenics"
     problems: list[tuple[str, str, str]] = []
-    settings = _settings([(config / "ffcx" / "ffcx_parameters.json", config_source),
-                          (Path.cwd() / "ffcx_parameters.json", None),
-                          (config / "dolfinx" / "dolfinx_jit_parameters.json", config_source),
-                          (Path.cwd() / "dolfinx_jit_parameters.json", None)], problems)
+    settings = _settings(
+        [
+            (config / "ffcx" / "ffcx_parameters.json", config_source),
+            (Path.cwd() / "ffcx_parameters.json", None),
+            (config / "dolfinx" / "dolfinx_jit_parameters.json", config_source),
+            (Path.cwd() / "dolfinx_jit_parameters.json", None),
+        ],
+        problems,
+    )
     if "cache_dir" in settings:
         cache = Path(str(settings["cache_dir"])).expanduser()
         cache_source = "cache_dir in dolfinx_jit_parameters.json"
@@ -138,9 +150,12 @@ def jit_files() -> None:
             remedy += " (or XDG_CACHE_HOME and XDG_CONFIG_HOME)"
         whys = {why for _, _, why in problems}
         if len(whys) == 1 and len(problems) == 2:  # one cause (HOME under a file): said once
-            text = (f"{whys.pop()}, so the JIT compiler can neither {problems[0][1]} nor "
-                    f"{problems[1][1]}")
+            text = (
+                f"{whys.pop()}, so the JIT compiler can neither {problems[0][1]} nor "
+                f"{problems[1][1]}"
+            )
         else:
-            text = "the JIT compiler cannot " + " nor ".join(f"{what} ({why})"
-                                                            for _, what, why in problems)
+            text = "the JIT compiler cannot " + " nor ".join(
+                f"{what} ({why})" for _, what, why in problems
+            )
         raise InputError(f"{'; '.join(sources)}: {text}; {remedy}")

@@ -54,23 +54,43 @@ from fabricsurf.model.terms import EFFECTS
 log = logging.getLogger(__name__)
 
 COMM = MPI.COMM_WORLD
+
+
 def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
     p.add_argument("data", nargs="+", help="measurement directories (experiment.toml + CSV)")
-    p.add_argument("--terms", required=terms_required, default=None,
-                   help="comma-separated effects, each once, from: " + ", ".join(EFFECTS)
-                   + " and those of --effects" + (" (required)" if terms_required else
-                      " (default: the terms named in --params)"))
-    p.add_argument("--params", default=None, help='JSON moduli {"term": {"parameter": value}}, '
-                   "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
-                   "terms`), or a saved fit.json; only terms of --terms; compare needs every "
-                   "modulus of --terms, fit and diagnose start from them (default: every "
-                   "modulus 1.0)")
-    p.add_argument("--out", required=True, type=out_path, help="output directory (created if "
-                   "missing; must be writable; one run's results: those of an earlier run there "
-                   "are replaced, docs/usage.md)")
-    p.add_argument("--h", type=float, default=None,
-                   help="element size in mm (default: the test's own: min(length, width)/10 "
-                   "for bias_extension, length/8 for picture_frame)")
+    p.add_argument(
+        "--terms",
+        required=terms_required,
+        default=None,
+        help="comma-separated effects, each once, from: "
+        + ", ".join(EFFECTS)
+        + " and those of --effects"
+        + (" (required)" if terms_required else " (default: the terms named in --params)"),
+    )
+    p.add_argument(
+        "--params",
+        default=None,
+        help='JSON moduli {"term": {"parameter": value}}, '
+        "first-gradient moduli in N/mm, second-gradient in N·mm (see `fabricsurf "
+        "terms`), or a saved fit.json; only terms of --terms; compare needs every "
+        "modulus of --terms, fit and diagnose start from them (default: every "
+        "modulus 1.0)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        type=out_path,
+        help="output directory (created if "
+        "missing; must be writable; one run's results: those of an earlier run there "
+        "are replaced, docs/usage.md)",
+    )
+    p.add_argument(
+        "--h",
+        type=float,
+        default=None,
+        help="element size in mm (default: the test's own: min(length, width)/10 "
+        "for bias_extension, length/8 for picture_frame)",
+    )
     add_max_elements(p)
     add_effects(p)
 
@@ -85,8 +105,10 @@ def _setup(args, refine: int = 1):
     exps = [load_experiment(d) for d in args.data]
     names = [e.name for e in exps]
     if len(set(names)) != len(names):
-        raise InputError(f"experiments must have distinct names (experiment.toml: name), got "
-                         f"{names} from {', '.join(map(str, args.data))}")
+        raise InputError(
+            f"experiments must have distinct names (experiment.toml: name), got "
+            f"{names} from {', '.join(map(str, args.data))}"
+        )
     if len(names) > 1:
         from fabricsurf.inverse.plots.outputs import slug
 
@@ -94,9 +116,11 @@ def _setup(args, refine: int = 1):
         for n in names:
             other = seen.setdefault(slug(n).casefold(), n)
             if other != n:
-                raise InputError(f"experiments '{other}' and '{n}' (experiment.toml: name) "
-                                 f"give the same file name prefix '{slug(n)}_' in --out, so "
-                                 "one set of figures would overwrite the other; rename one")
+                raise InputError(
+                    f"experiments '{other}' and '{n}' (experiment.toml: name) "
+                    f"give the same file name prefix '{slug(n)}_' in --out, so "
+                    "one set of figures would overwrite the other; rename one"
+                )
     check_in_loop(exps, args.data)
     check_terms_fit_data(exps, model, ",".join(t.name for t in model))
     check_h(args.h, exps)
@@ -105,8 +129,9 @@ def _setup(args, refine: int = 1):
         if warning:
             warn(log, COMM, str(warning))
     if args.h is not None:
-        check_size(args.h, [(f"'{e.name}'", e.length, e.width) for e in exps],
-                   args.max_elements, refine)
+        check_size(
+            args.h, [(f"'{e.name}'", e.length, e.width) for e in exps], args.max_elements, refine
+        )
     else:
         check_default_size(exps, args.max_elements, refine)
     return exps, model, params
@@ -120,16 +145,25 @@ def _failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
         yield
     except LoadStepError as e:
         partial, by_name = getattr(e, "partial", None), {x.name: x for x in exps}
-        kept = {} if partial is None else {"experiment": e.experiment, "converged_steps":
-                                           converged_steps(by_name[e.experiment], partial)}
+        kept = (
+            {}
+            if partial is None
+            else {
+                "experiment": e.experiment,
+                "converged_steps": converged_steps(by_name[e.experiment], partial),
+            }
+        )
         if e.step:  # where the load path stopped
             kept |= {"step": e.step, "load": e.target}
-        write_json(COMM, stage / "failure.json",
-                   {"error": str(e)} | kept | {"provenance": provenance(
-                       model, [str(d) for d in args.data], args.h and [args.h])})
+        write_json(
+            COMM,
+            stage / "failure.json",
+            {"error": str(e)}
+            | kept
+            | {"provenance": provenance(model, [str(d) for d in args.data], args.h and [args.h])},
+        )
         od.keep = True
-        raise RuntimeError(f"{e}; the failure report is in {od.out / 'failure.json'}"
-                           ) from None
+        raise RuntimeError(f"{e}; the failure report is in {od.out / 'failure.json'}") from None
 
 
 def _prov(model, args, h: list[float], discretisation: dict) -> dict:
@@ -157,8 +191,14 @@ def cmd_compare(args) -> int:
         if res.bands is not None:
             write_band_files(stage, exps, res.bands, COMM)
             extra["force_bands"] = res.band_summary()
-        write_comparison(stage, exps, [(res.label, res.predictions)],
-                         [(res.label, res.misfit)], steps, extra=extra)
+        write_comparison(
+            stage,
+            exps,
+            [(res.label, res.predictions)],
+            [(res.label, res.misfit)],
+            steps,
+            extra=extra,
+        )
     rank0(log, COMM, misfit_summary(res.label, res.misfit))
     return 0
 
@@ -172,8 +212,9 @@ def cmd_fit(args) -> int:
     exps, model, _ = _setup(args, refine=2)
     positive_start(model, args, "fit")
     enough_data(exps, model)
-    od = OutputDir(args.out, COMM, files=("fit.json", "misfit.json"),
-                   inputs=input_paths(args, exps))
+    od = OutputDir(
+        args.out, COMM, files=("fit.json", "misfit.json"), inputs=input_paths(args, exps)
+    )
     with od as stage, _failure_report(od, stage, model, args, exps):
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
             res = fit(fs)
@@ -201,98 +242,178 @@ def cmd_diagnose(args) -> int:
     candidates, fixed = diagnose_options(args, exps, model, params)
     enough_data(exps, model, fixed or [])
     params = {t.name: t.values() for t in model}
-    od = OutputDir(args.out, COMM, files=("diagnosis.json",),
-                   inputs=input_paths(args, exps))
+    od = OutputDir(args.out, COMM, files=("diagnosis.json",), inputs=input_paths(args, exps))
     with od as stage, _failure_report(od, stage, model, args, exps):
         try:
-            d = diagnose_on_mesh(exps, [t.name for t in model], h=args.h, budget=budget,
-                                 params=params, confirm=args.confirm,
-                                 max_effects=args.max_effects, comm=COMM,
-                                 candidates=candidates, fixed=fixed, grip_depths=depths)
+            d = diagnose_on_mesh(
+                exps,
+                [t.name for t in model],
+                h=args.h,
+                budget=budget,
+                params=params,
+                confirm=args.confirm,
+                max_effects=args.max_effects,
+                comm=COMM,
+                candidates=candidates,
+                fixed=fixed,
+                grip_depths=depths,
+            )
         except ValueError as e:
             raise InputError(str(e)) from None
         d, tie = separate_tie(d, exps, args.h, COMM)
         if tie is not None:
-            on_rank0(COMM, figures.difference_map, tie.maps, tie.effects,
-                     stage / "tie_difference_map.png")
-        out = d.as_dict() | {"provenance": provenance(model, [str(x) for x in args.data],
-                                                      [m["h"] for m in d.meshes])}
+            on_rank0(
+                COMM,
+                figures.difference_map,
+                tie.maps,
+                tie.effects,
+                stage / "tie_difference_map.png",
+            )
+        out = d.as_dict() | {
+            "provenance": provenance(model, [str(x) for x in args.data], [m["h"] for m in d.meshes])
+        }
         write_json(COMM, stage / "diagnosis.json", out)
         b, f = d.base_fit, d.final_fit
         preds, mfs = [("baseline", b.prediction)], [("baseline", b.misfit)]
         write_comparison(stage, exps, preds, mfs, stem="baseline_")
         if d.verdict is not None:
             label = "+".join(d.terms)
-            write_comparison(stage, exps, preds + [(label, f.prediction)],
-                             mfs + [(label, f.misfit)], stem="before_after_")
+            write_comparison(
+                stage,
+                exps,
+                preds + [(label, f.prediction)],
+                mfs + [(label, f.misfit)],
+                stem="before_after_",
+            )
             if args.add_best:
                 write_json(COMM, stage / "model_best.json", f.as_dict())
         on_rank0(COMM, figures.misfit_path, d.path, stage / "misfit_path.png")
     if d.grip_depth is not None:
-        rank0(log, COMM, f"grip depth: {d.grip_depth['best_mm']:g} mm (the best of "
-                    f"{[q['depth_mm'] for q in d.grip_depth['profile']]})")
+        rank0(
+            log,
+            COMM,
+            f"grip depth: {d.grip_depth['best_mm']:g} mm (the best of "
+            f"{[q['depth_mm'] for q in d.grip_depth['profile']]})",
+        )
     rank0(log, COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
     for r in d.ranking:
-        rank0(log, COMM, f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
-                    f"{r['refit_misfit']}  Wald p {r.get('wald_p')}  significant "
-                    f"{r['significant']}")
+        rank0(
+            log,
+            COMM,
+            f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
+            f"{r['refit_misfit']}  Wald p {r.get('wald_p')}  significant "
+            f"{r['significant']}",
+        )
     for line in tie_lines(d):
         rank0(log, COMM, line)
-    rank0(log, COMM, f"verdict: {d.verdict_text()}; final {'+'.join(d.terms)} misfit "
-                f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}")
+    rank0(
+        log,
+        COMM,
+        f"verdict: {d.verdict_text()}; final {'+'.join(d.terms)} misfit "
+        f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}",
+    )
     for line in result_lines(out["final"]):
         rank0(log, COMM, line)
     lead = (d.unexplained or {}).get("best_lead")
     if lead:
-        wald = "no Wald test" if lead["wald_p"] is None else \
-            f"Wald p = {lead['wald_p']:.3g} (must be below {lead['wald_p_needed']:.3g})"
-        rank0(log, COMM, f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
-                    f"the excess misfit; {wald}; F-test "
-                    f"{'passed' if lead['f_test_passed'] else 'failed'} (both are needed)")
+        wald = (
+            "no Wald test"
+            if lead["wald_p"] is None
+            else f"Wald p = {lead['wald_p']:.3g} (must be below {lead['wald_p_needed']:.3g})"
+        )
+        rank0(
+            log,
+            COMM,
+            f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
+            f"the excess misfit; {wald}; F-test "
+            f"{'passed' if lead['f_test_passed'] else 'failed'} (both are needed)",
+        )
     return 0
 
 
 def add_parsers(sub, formatter) -> None:
-    p = sub.add_parser("compare", formatter_class=formatter,
-                       help="misfit of a model against the data, with figures")
+    p = sub.add_parser(
+        "compare",
+        formatter_class=formatter,
+        help="misfit of a model against the data, with figures",
+    )
     add_common(p, terms_required=False)
-    p.add_argument("--steps", default=None, help="comma-separated step numbers (as in the "
-                   "data files, from 1) for the error map (default: the middle and the last)")
-    p.add_argument("--no-band", action="store_true", help="no prediction band of the force "
-                   "curves even when --params is a saved fit (fit.json, model_best.json: the "
-                   "band costs two more forward runs per experiment)")
+    p.add_argument(
+        "--steps",
+        default=None,
+        help="comma-separated step numbers (as in the "
+        "data files, from 1) for the error map (default: the middle and the last)",
+    )
+    p.add_argument(
+        "--no-band",
+        action="store_true",
+        help="no prediction band of the force "
+        "curves even when --params is a saved fit (fit.json, model_best.json: the "
+        "band costs two more forward runs per experiment)",
+    )
     p.set_defaults(func=cmd_compare)
-    p = sub.add_parser("fit", formatter_class=formatter,
-                       help="least-squares fit of the moduli (log-parametrised)")
+    p = sub.add_parser(
+        "fit", formatter_class=formatter, help="least-squares fit of the moduli (log-parametrised)"
+    )
     add_common(p)
     p.set_defaults(func=cmd_fit)
-    p = sub.add_parser("diagnose", formatter_class=formatter,
-                       help="which effect is missing: rank, confirm, add (stepwise)")
+    p = sub.add_parser(
+        "diagnose",
+        formatter_class=formatter,
+        help="which effect is missing: rank, confirm, add (stepwise)",
+    )
     add_common(p)
-    p.add_argument("--confirm", type=int, default=2,
-                   help="candidates confirmed by refitting in each round (≥ 1)")
-    p.add_argument("--max-effects", type=int, default=2,
-                   help="at most this many effects added, one per round (≥ 0)")
-    p.add_argument("--candidates", default=None,
-                   help="comma-separated effects to consider (default: every effect the data "
-                   "can see)")
-    p.add_argument("--fixed", default=None,
-                   help="comma-separated baseline terms held at their --params moduli "
-                   "(default: none, every baseline modulus is fitted)")
-    p.add_argument("--grip-depths", default=None,
-                   help="comma-separated grip depths in mm of the bias experiments, e.g. "
-                   "0,0.5,1: the depth is fitted as a nuisance parameter first (the best of "
-                   "these by baseline chi2), then the diagnosis uses it (default: the depth "
-                   "in the data)")
-    p.add_argument("--max-dofs", type=int, default=DEFAULT_MAX_DOFS,
-                   help="mesh selection: when the h/2 check says the mesh is too coarse for the "
-                   "data, the diagnosis halves h and runs again, up to this many displacement "
-                   "unknowns (all experiments; the check solves on ~4x as many) and within "
-                   "--max-elements for the check's mesh (docs/diagnosis.md)")
-    p.add_argument("--time-budget", type=float, default=DEFAULT_SECONDS,
-                   help="mesh selection: a refined level is started only if it is predicted "
-                   f"to end within this many seconds of the start ({LEVEL_GROWTH:g}x the last "
-                   "level's time)")
-    p.add_argument("--add-best", action="store_true",
-                   help="also save the final model as model_best.json (a --params file)")
+    p.add_argument(
+        "--confirm",
+        type=int,
+        default=2,
+        help="candidates confirmed by refitting in each round (≥ 1)",
+    )
+    p.add_argument(
+        "--max-effects",
+        type=int,
+        default=2,
+        help="at most this many effects added, one per round (≥ 0)",
+    )
+    p.add_argument(
+        "--candidates",
+        default=None,
+        help="comma-separated effects to consider (default: every effect the data can see)",
+    )
+    p.add_argument(
+        "--fixed",
+        default=None,
+        help="comma-separated baseline terms held at their --params moduli "
+        "(default: none, every baseline modulus is fitted)",
+    )
+    p.add_argument(
+        "--grip-depths",
+        default=None,
+        help="comma-separated grip depths in mm of the bias experiments, e.g. "
+        "0,0.5,1: the depth is fitted as a nuisance parameter first (the best of "
+        "these by baseline chi2), then the diagnosis uses it (default: the depth "
+        "in the data)",
+    )
+    p.add_argument(
+        "--max-dofs",
+        type=int,
+        default=DEFAULT_MAX_DOFS,
+        help="mesh selection: when the h/2 check says the mesh is too coarse for the "
+        "data, the diagnosis halves h and runs again, up to this many displacement "
+        "unknowns (all experiments; the check solves on ~4x as many) and within "
+        "--max-elements for the check's mesh (docs/diagnosis.md)",
+    )
+    p.add_argument(
+        "--time-budget",
+        type=float,
+        default=DEFAULT_SECONDS,
+        help="mesh selection: a refined level is started only if it is predicted "
+        f"to end within this many seconds of the start ({LEVEL_GROWTH:g}x the last "
+        "level's time)",
+    )
+    p.add_argument(
+        "--add-best",
+        action="store_true",
+        help="also save the final model as model_best.json (a --params file)",
+    )
     p.set_defaults(func=cmd_diagnose)

@@ -22,8 +22,9 @@ def out_path(text: str) -> Path:
     """The type of ``--out``: an empty or blank name (an unset shell variable) is a usage error,
     not the working directory (which ``Path("")`` would be)."""
     if not text.strip():
-        raise argparse.ArgumentTypeError(f"{text!r} is empty (an unset variable?); give the "
-                                         "output directory by name")
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is empty (an unset variable?); give the output directory by name"
+        )
     return Path(text)
 
 
@@ -34,14 +35,19 @@ def check_params_file(path) -> None:
 
     kind = special_file(Path(path)) if path else None
     if kind:
-        raise InputError(f"--params {path}: {kind}, not a regular file; give the moduli as a "
-                         "JSON file")
+        raise InputError(
+            f"--params {path}: {kind}, not a regular file; give the moduli as a JSON file"
+        )
 
 
 def add_max_elements(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--max-elements", type=int, default=MAX_ELEMENTS,
-                   help="refuse a --h whose meshes would have more elements than this, "
-                   f"estimated before meshing (~{KB_PER_ELEMENT:g} kB of memory each)")
+    p.add_argument(
+        "--max-elements",
+        type=int,
+        default=MAX_ELEMENTS,
+        help="refuse a --h whose meshes would have more elements than this, "
+        f"estimated before meshing (~{KB_PER_ELEMENT:g} kB of memory each)",
+    )
 
 
 def _elements(length: float, width: float, h: float) -> float:
@@ -57,8 +63,9 @@ def _count(n: float) -> str:
 REFINED = " (fit and diagnose also solve there: the mesh check)"
 
 
-def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements: int,
-               refine: int = 1) -> None:
+def check_size(
+    h: float, specimens: list[tuple[str, float, float]], max_elements: int, refine: int = 1
+) -> None:
     """Refuse ``--h`` when the meshes of ``specimens`` ((name, length, width) in mm) would
     have more than ``max_elements`` triangles in all, estimated as 2 per h × h square before
     any meshing, with the memory they would take. ``refine``: the finest mesh the command
@@ -70,16 +77,20 @@ def check_size(h: float, specimens: list[tuple[str, float, float]], max_elements
     if refine > 1:
         what += f"; at h/{refine} = {h / refine:g} mm{REFINED}"
     if not math.isfinite(n):
-        raise InputError(f"--h {h:g}: far too small an element size for {what} (the element "
-                         "count overflows); give a larger --h")
+        raise InputError(
+            f"--h {h:g}: far too small an element size for {what} (the element "
+            "count overflows); give a larger --h"
+        )
     if n > max_elements:
         gb = n * KB_PER_ELEMENT / 1e6
         gb = f"{gb:,.0f}" if 10 <= gb < 1e15 else f"{gb:.2g}"
-        raise InputError(f"--h {h:g}: about {_count(n)} elements ({what}), more than "
-                         f"--max-elements {max_elements:,}; they would take about "
-                         f"{gb} GB of memory (~{KB_PER_ELEMENT:g} kB "
-                         "per element): give a larger --h, or raise --max-elements if the "
-                         "machine has the memory")
+        raise InputError(
+            f"--h {h:g}: about {_count(n)} elements ({what}), more than "
+            f"--max-elements {max_elements:,}; they would take about "
+            f"{gb} GB of memory (~{KB_PER_ELEMENT:g} kB "
+            "per element): give a larger --h, or raise --max-elements if the "
+            "machine has the memory"
+        )
 
 
 def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
@@ -92,14 +103,17 @@ def check_default_size(exps: list, max_elements: int, refine: int = 1) -> None:
     hs = [get_test(e.test).default_h(e.setup) for e in exps]
     n = sum(_elements(e.length, e.width, h / refine) for e, h in zip(exps, hs))
     if n > max_elements:
-        what = ", ".join(f"'{e.name}' {e.length:g} x {e.width:g} mm at h = {h:.3g} mm"
-                         for e, h in zip(exps, hs))
+        what = ", ".join(
+            f"'{e.name}' {e.length:g} x {e.width:g} mm at h = {h:.3g} mm" for e, h in zip(exps, hs)
+        )
         if refine > 1:
             what += f", and at h/{refine}{REFINED}"
-        raise InputError(f"no --h given: the tests' default element sizes ({what}) give about "
-                         f"{_count(n)} elements, more than --max-elements {max_elements:,} (about "
-                         f"{n * KB_PER_ELEMENT / 1e6:.3g} GB of memory); give a larger --h, "
-                         "or raise --max-elements if the machine has the memory")
+        raise InputError(
+            f"no --h given: the tests' default element sizes ({what}) give about "
+            f"{_count(n)} elements, more than --max-elements {max_elements:,} (about "
+            f"{n * KB_PER_ELEMENT / 1e6:.3g} GB of memory); give a larger --h, "
+            "or raise --max-elements if the machine has the memory"
+        )
 
 
 def mesh_budget(args):
@@ -108,8 +122,10 @@ def mesh_budget(args):
     from fabricsurf.inverse.diagnosis.mesh_choice import Budget
 
     if args.max_dofs < 1:
-        raise InputError(f"--max-dofs {args.max_dofs}: must be at least 1 (displacement "
-                         "unknowns of the finest mesh the diagnosis may fit on)")
+        raise InputError(
+            f"--max-dofs {args.max_dofs}: must be at least 1 (displacement "
+            "unknowns of the finest mesh the diagnosis may fit on)"
+        )
     t = args.time_budget
     if not (math.isfinite(t) and t > 0):
         raise InputError(f"--time-budget {t:g}: must be a finite time in seconds > 0")
@@ -137,9 +153,10 @@ def check_h(h: float | None, exps: list | None = None) -> None:
         return
     limit = 0.5 * min(min(e.length, e.width) for e in exps) if exps else float("inf")
     if not 0 < h <= limit:
-        raise InputError(f"--h {h:g}: must be a positive element size in mm"
-                         + (f", at most {limit:g} (two elements across the narrowest specimen)"
-                            if exps else ""))
+        raise InputError(
+            f"--h {h:g}: must be a positive element size in mm"
+            + (f", at most {limit:g} (two elements across the narrowest specimen)" if exps else "")
+        )
 
 
 def input_paths(args, exps: list) -> tuple[tuple[str, str], ...]:
@@ -155,8 +172,13 @@ def _terms(model: list) -> str:
 
 def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None:
     """:func:`~fabricsurf.inverse.fitting.preconditions.enough_data`, naming the options."""
-    pre.enough_data(exps, model, fixed, _terms(model), " (fewer --terms, or --fixed)"
-                    if fixed is not None else " (fewer --terms)")
+    pre.enough_data(
+        exps,
+        model,
+        fixed,
+        _terms(model),
+        " (fewer --terms, or --fixed)" if fixed is not None else " (fewer --terms)",
+    )
 
 
 def positive_start(model, args, command: str = "fit") -> None:
@@ -180,8 +202,10 @@ def error_map_steps(spec: str | None, exps: list) -> list[int] | None:
     for e in exps:
         bad = [s for s in steps if s not in set(int(k) for k in e.steps)]
         if bad:
-            raise InputError(f"--steps {spec}: step {bad[0]} is not a step of experiment "
-                             f"'{e.name}' (steps {int(e.steps[0])}..{int(e.steps[-1])})")
+            raise InputError(
+                f"--steps {spec}: step {bad[0]} is not a step of experiment "
+                f"'{e.name}' (steps {int(e.steps[0])}..{int(e.steps[-1])})"
+            )
     return steps
 
 
@@ -203,8 +227,9 @@ def grip_depths(spec: str | None, exps: list) -> list[float] | None:
     return depths
 
 
-def diagnose_options(args, exps: list, model: list, params: dict
-                      ) -> tuple[list[str] | None, list[str] | None]:
+def diagnose_options(
+    args, exps: list, model: list, params: dict
+) -> tuple[list[str] | None, list[str] | None]:
     """--candidates, --fixed, --confirm and --max-effects, checked against the vocabulary, the
     baseline (--terms), the data and --params (:mod:`~fabricsurf.inverse.diagnosis.choices`,
     the library's own checks, worded with the options' names)."""
@@ -213,13 +238,25 @@ def diagnose_options(args, exps: list, model: list, params: dict
 
     baseline = [t.name for t in model]
     cands, fixed = name_list(args.candidates), name_list(args.fixed)
-    labels = Labels(candidates=f"--candidates {args.candidates}", fixed=f"--fixed {args.fixed}",
-                    baseline=f"--terms {','.join(baseline)}", params="--params",
-                    params_where=(f"in --params {args.params}" if args.params
-                                  else "(no --params file)"),
-                    confirm="--confirm", max_effects="--max-effects")
-    check_choices(baseline, cands, fixed, params, visible_effects(exps), args.confirm,
-                  args.max_effects, labels)
+    labels = Labels(
+        candidates=f"--candidates {args.candidates}",
+        fixed=f"--fixed {args.fixed}",
+        baseline=f"--terms {','.join(baseline)}",
+        params="--params",
+        params_where=(f"in --params {args.params}" if args.params else "(no --params file)"),
+        confirm="--confirm",
+        max_effects="--max-effects",
+    )
+    check_choices(
+        baseline,
+        cands,
+        fixed,
+        params,
+        visible_effects(exps),
+        args.confirm,
+        args.max_effects,
+        labels,
+    )
     try:
         check_unsigned(cands or [])
     except ValueError as e:
@@ -231,8 +268,12 @@ def diagnose_options(args, exps: list, model: list, params: dict
 def defaulted_moduli(model: list, params: dict) -> list[str]:
     """The moduli of ``model`` that ``params`` (the --params file's) does not give, each as
     "term.param = value unit": they take the term's default."""
-    return [f"{t.name}.{p} = {v:g} {t.units.get(p, '')}".rstrip()
-            for t in model for p, v in t.values().items() if p not in params.get(t.name, {})]
+    return [
+        f"{t.name}.{p} = {v:g} {t.units.get(p, '')}".rstrip()
+        for t in model
+        for p, v in t.values().items()
+        if p not in params.get(t.name, {})
+    ]
 
 
 def compare_moduli(args, model: list, params: dict) -> str | None:
@@ -244,13 +285,18 @@ def compare_moduli(args, model: list, params: dict) -> str | None:
     if not missing:
         return None
     if args.params is None:
-        return ("note: no --params given: every modulus takes its default ("
-                + ", ".join(missing) + "); give a --params file to compare your own moduli")
+        return (
+            "note: no --params given: every modulus takes its default ("
+            + ", ".join(missing)
+            + "); give a --params file to compare your own moduli"
+        )
     terms = ",".join(t.name for t in model)
-    raise InputError(f"--params {args.params}: gives no value for "
-                     f"{', '.join(m.split(' = ')[0] for m in missing)} of --terms {terms}, so "
-                     f"compare would use the default{'s' * (len(missing) > 1)} "
-                     f"({', '.join(missing)}), nobody's estimate; add "
-                     f"{'them' if len(missing) > 1 else 'it'} to {args.params}, or drop the "
-                     "term from --terms (a saved fit: leave --terms out to compare the fit's "
-                     "own model)")
+    raise InputError(
+        f"--params {args.params}: gives no value for "
+        f"{', '.join(m.split(' = ')[0] for m in missing)} of --terms {terms}, so "
+        f"compare would use the default{'s' * (len(missing) > 1)} "
+        f"({', '.join(missing)}), nobody's estimate; add "
+        f"{'them' if len(missing) > 1 else 'it'} to {args.params}, or drop the "
+        "term from --terms (a saved fit: leave --terms out to compare the fit's "
+        "own model)"
+    )

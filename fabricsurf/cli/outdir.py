@@ -63,11 +63,14 @@ def _resolve(out: Path) -> Path:
         probe = probe / part
         link = broken_link(probe)
         if link == "loops":
-            raise InputError(f"--out {out}: {probe} is a symbolic link that loops "
-                             f"(-> {os.readlink(probe)})")
+            raise InputError(
+                f"--out {out}: {probe} is a symbolic link that loops (-> {os.readlink(probe)})"
+            )
         if link:
-            raise InputError(f"--out {out}: {probe} is a symbolic link to "
-                             f"{os.readlink(probe)}, which does not exist")
+            raise InputError(
+                f"--out {out}: {probe} is a symbolic link to "
+                f"{os.readlink(probe)}, which does not exist"
+            )
     return out.resolve()
 
 
@@ -83,8 +86,10 @@ def _inputs_clash(out: Path, real: Path, inputs: tuple[tuple[str, Path], ...]) -
             why = "lies inside"
         else:
             continue
-        raise InputError(f"--out {out}: it {why} the input {label}; outputs must not "
-                         "overwrite or mix with the inputs: choose another directory")
+        raise InputError(
+            f"--out {out}: it {why} the input {label}; outputs must not "
+            "overwrite or mix with the inputs: choose another directory"
+        )
 
 
 def _clash(dst: Path, will_be_dir: bool) -> str | None:
@@ -96,14 +101,16 @@ def _clash(dst: Path, will_be_dir: bool) -> str | None:
     return None
 
 
-def _check(out: Path, files: tuple[str, ...],
-           inputs: tuple[tuple[str, Path], ...] = ()) -> tuple[str, tuple[int, Path]]:
+def _check(
+    out: Path, files: tuple[str, ...], inputs: tuple[tuple[str, Path], ...] = ()
+) -> tuple[str, tuple[int, Path]]:
     """Validate ``--out`` (before any computation), take its lock and create the staging
     directory; returns the staging directory and the lock."""
     real = _resolve(out)
     if real == real.parent:
-        raise InputError(f"--out {out}: the root of the file system; give a directory of its "
-                         "own for the results")
+        raise InputError(
+            f"--out {out}: the root of the file system; give a directory of its own for the results"
+        )
     _inputs_clash(out, real, inputs)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
@@ -120,8 +127,10 @@ def _check(out: Path, files: tuple[str, ...],
             raise InputError(f"--out {out}: {why}")
     found = unrecorded(out, files)
     if found:
-        raise InputError(f"--out {out}: {unrecorded_message(out, found)}; move it elsewhere "
-                         "or give another --out")
+        raise InputError(
+            f"--out {out}: {unrecorded_message(out, found)}; move it elsewhere "
+            "or give another --out"
+        )
     # beside the real OUT (a rename cannot cross file systems), named as given when it is there
     parent = out.parent if out.parent.resolve() == real.parent else real.parent
     parent.mkdir(parents=True, exist_ok=True)
@@ -129,8 +138,7 @@ def _check(out: Path, files: tuple[str, ...],
     try:
         lock = (take_lock(parent / f".{short}.lock", out), parent / f".{short}.lock")
     except OSError as e:
-        raise InputError(f"--out {out}: cannot create files in {parent} ({e.strerror})"
-                         ) from None
+        raise InputError(f"--out {out}: cannot create files in {parent} ({e.strerror})") from None
     try:
         remove_stale_stages(parent, short)
         stage = tempfile.mkdtemp(prefix=f".{short}.partial-", dir=parent)
@@ -164,10 +172,12 @@ def _publish(stage: Path, out: Path) -> None:
     if why:  # kept under a name the next run's clean-up of stale stages leaves alone
         kept = stage.with_name(stage.name.replace(".partial-", ".unpublished-", 1))
         os.rename(stage, kept)
-        raise InputError(f"--out {out}: {why}; nothing was published, the results are in "
-                         f"{kept}")
-    (stage / MANIFEST).write_text(json.dumps({"files": files, "pid": os.getpid(),
-                                              "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}))
+        raise InputError(f"--out {out}: {why}; nothing was published, the results are in {kept}")
+    (stage / MANIFEST).write_text(
+        json.dumps(
+            {"files": files, "pid": os.getpid(), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        )
+    )
     if not out.exists():
         os.replace(stage, out.resolve())
         return
@@ -266,9 +276,14 @@ class OutputDir:
     the run.
     """
 
-    def __init__(self, out: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
-                 keep_on_error: bool = False, files: tuple[str, ...] = (),
-                 inputs: tuple[tuple[str, Path], ...] = ()) -> None:
+    def __init__(
+        self,
+        out: str | Path,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        keep_on_error: bool = False,
+        files: tuple[str, ...] = (),
+        inputs: tuple[tuple[str, Path], ...] = (),
+    ) -> None:
         self.out, self.comm, self.keep = Path(out), comm, keep_on_error
         self.on_interrupt: Callable[[Path], str] | None = None
         checked = on_rank0(comm, _check, self.out, tuple(files), tuple(inputs))

@@ -43,9 +43,10 @@ def take_lock(path: Path, out: Path) -> int:
         except BlockingIOError:
             holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
             os.close(fd)
-            raise InputError(f"--out {out}: another fabricsurf run ({holder}) is writing to "
-                             "this directory; wait for it to end, or give another --out"
-                             ) from None
+            raise InputError(
+                f"--out {out}: another fabricsurf run ({holder}) is writing to "
+                "this directory; wait for it to end, or give another --out"
+            ) from None
         try:
             same = os.fstat(fd).st_ino == os.stat(path).st_ino
         except FileNotFoundError:  # its holder removed it just before we locked it
@@ -101,13 +102,16 @@ def unrecorded(out: Path, names) -> list[str]:
     if not out.is_dir():
         return []
     mine = {str(p.relative_to(out)) for p in recorded(out)}
-    return [n for n in names if n not in mine and os.path.lexists(out / n)
-            and not (out / n).is_dir()]
+    return [
+        n for n in names if n not in mine and os.path.lexists(out / n) and not (out / n).is_dir()
+    ]
 
 
 def unrecorded_message(out: Path, names: list[str]) -> str:
     """What :func:`unrecorded` found, for a message that goes on with the remedy."""
     more = f" (and {len(names) - 1} more: {', '.join(names[1:4])}{'…' if len(names) > 4 else ''})"
-    return (f"{out / names[0]}{more if len(names) > 1 else ''} is not the result of a fabricsurf "
-            f"run (the record {MANIFEST} does not list it) and this run writes a file of that "
-            "name")
+    return (
+        f"{out / names[0]}{more if len(names) > 1 else ''} is not the result of a fabricsurf "
+        f"run (the record {MANIFEST} does not list it) and this run writes a file of that "
+        "name"
+    )

@@ -26,6 +26,7 @@ def _petsc_library():
             paths = [ln.split()[-1] for ln in f if "libpetsc" in ln and ".so" in ln]
     if not paths:
         import petsc4py
+
         cfg = petsc4py.get_config()
         paths = glob.glob(os.path.join(cfg["PETSC_DIR"], cfg["PETSC_ARCH"], "lib", "libpetsc*.so*"))
     try:
@@ -56,9 +57,11 @@ def set_domain_error(snes: PETSc.SNES, which: str) -> bool:
 def _require(obj, attr: str, what: str) -> None:
     if not hasattr(obj, attr):
         owner = getattr(obj, "__name__", type(obj).__name__)
-        raise RuntimeError(f"{what} relies on {owner}.{attr} of UFL 2022 (installed: "
-                           f"UFL {ufl.__version__}); check fabricsurf/discretise/jit_keys.py "
-                           "against this version")
+        raise RuntimeError(
+            f"{what} relies on {owner}.{attr} of UFL 2022 (installed: "
+            f"UFL {ufl.__version__}); check fabricsurf/discretise/jit_keys.py "
+            "against this version"
+        )
 
 
 def set_coordinate_element(domain: ufl.Mesh, element: ufl.FiniteElementBase) -> None:

@@ -99,8 +99,15 @@ def strain_energy_density(bound: Bound, kin: Kinematics):
 
 def membrane_scale(bound: Bound, kin: Kinematics):
     """Sum of the first-gradient moduli of the unconstrained terms (UFL, N/mm)."""
-    return sum((c[q] for t, c in bound if t.order == 1 and not t.constraints(kin, c)
-                for q in t.parameters()), 0.0)
+    return sum(
+        (
+            c[q]
+            for t, c in bound
+            if t.order == 1 and not t.constraints(kin, c)
+            for q in t.parameters()
+        ),
+        0.0,
+    )
 
 
 def has_second_gradient(model: list[Term]) -> bool:
@@ -149,16 +156,21 @@ class EnergyForm:
 
     def __post_init__(self) -> None:
         if self.fibre_treatment not in FIBRE_TREATMENTS:
-            raise ValueError(f"fibre_treatment = {self.fibre_treatment!r} must be one of "
-                             f"{', '.join(FIBRE_TREATMENTS)}")
+            raise ValueError(
+                f"fibre_treatment = {self.fibre_treatment!r} must be one of "
+                f"{', '.join(FIBRE_TREATMENTS)}"
+            )
         stable_constant_order()  # before the moduli's Constants are made (jit_keys)
         msh = self.u.function_space.mesh
         self.bound: Bound = [(t, t.constants(msh)) for t in self.model]
         self.alpha = fem.Constant(msh, float(self.penalty))
         self.kin = kinematics(self.u, self.L, self.M)
         scale = AUGMENTATION * membrane_scale(self.bound, self.kin)
-        self.multipliers = [Multiplier(name, g, r + scale, msh, self.term_degree(t))
-                            for t, c in self.bound for name, g, r in t.constraints(self.kin, c)]
+        self.multipliers = [
+            Multiplier(name, g, r + scale, msh, self.term_degree(t))
+            for t, c in self.bound
+            for name, g, r in t.constraints(self.kin, c)
+        ]
         self.dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": self.qdeg_cell})
         if self.reduced:
             self.dx, self.dx_fibre = reduced_measures(msh, self.qdeg_cell)
@@ -171,9 +183,11 @@ class EnergyForm:
         for t, c in self.bound:
             if t is term:
                 return c
-        raise ValueError(f"term '{term.name}' is not one of this form's terms; a test builds "
-                         "its forms from its own copies of the terms it was given: use those "
-                         "(test.model)")
+        raise ValueError(
+            f"term '{term.name}' is not one of this form's terms; a test builds "
+            "its forms from its own copies of the terms it was given: use those "
+            "(test.model)"
+        )
 
     @property
     def reduced(self) -> bool:
@@ -251,8 +265,9 @@ class EnergyForm:
         return pieces
 
     def _penalty_energy(self):
-        return sum(self.alpha * S / (2 * h) * ufl.dot(j, j) * m
-                   for m, j, _, S, h in self._ip_pieces())
+        return sum(
+            self.alpha * S / (2 * h) * ufl.dot(j, j) * m for m, j, _, S, h in self._ip_pieces()
+        )
 
     def _consistency_energy(self):
         return sum(-ufl.dot(j, Mnn) * m for m, j, Mnn, _, _ in self._ip_pieces())
@@ -295,6 +310,11 @@ class EnergyForm:
         for m, j, Mnn, _, _ in self._ip_pieces():
             dj_v = ufl.derivative(j, self.u, v)
             dj_du = ufl.derivative(j, self.u, du)
-            a += -(ufl.dot(dj_v, ufl.derivative(Mnn, self.u, du))
-                   + ufl.dot(dj_du, ufl.derivative(Mnn, self.u, v))) * m
+            a += (
+                -(
+                    ufl.dot(dj_v, ufl.derivative(Mnn, self.u, du))
+                    + ufl.dot(dj_du, ufl.derivative(Mnn, self.u, v))
+                )
+                * m
+            )
         return a

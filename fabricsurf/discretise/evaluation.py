@@ -24,8 +24,9 @@ def _owned_cells_at(msh, points3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rows[keep], cells[keep]
 
 
-def _basis_matrix(V: fem.FunctionSpace, points3: np.ndarray, rows: np.ndarray,
-                  cells: np.ndarray, n: int) -> sparse.csr_matrix | None:
+def _basis_matrix(
+    V: fem.FunctionSpace, points3: np.ndarray, rows: np.ndarray, cells: np.ndarray, n: int
+) -> sparse.csr_matrix | None:
     """B (n points × local nodes of ``V``, each node a block of ``bs`` dofs): the sum over the
     (point ``rows``, owned ``cells``) pairs of the cell's scalar basis functions at the point,
     so that B U (U: nodes × bs) is the sum of a function's values over the pairs, which
@@ -33,8 +34,11 @@ def _basis_matrix(V: fem.FunctionSpace, points3: np.ndarray, rows: np.ndarray,
     shortcut does not hold: a mesh not made of straight-sided triangles in the plane, an
     element with dof transformations or a non-scalar base element (``eval`` is used)."""
     msh = V.mesh
-    if (msh.topology.cell_name() != "triangle" or msh.geometry.cmap.degree != 1
-            or V.element.needs_dof_transformations):
+    if (
+        msh.topology.cell_name() != "triangle"
+        or msh.geometry.cmap.degree != 1
+        or V.element.needs_dof_transformations
+    ):
         return None
     e = V.element.basix_element
     if len(e.value_shape) != 0:
@@ -51,8 +55,9 @@ def _basis_matrix(V: fem.FunctionSpace, points3: np.ndarray, rows: np.ndarray,
     X = np.linalg.solve(J, (points3[:, :2] - v[:, 0])[..., None])[..., 0]
     phi = e.tabulate(0, X)[0, :, :, 0]
     nodes = V.dofmap.list.array.reshape(-1, e.dim)[cells]
-    return sparse.csr_matrix((phi.ravel(), (np.repeat(rows, e.dim), nodes.ravel())),
-                             shape=(n, n_nodes))
+    return sparse.csr_matrix(
+        (phi.ravel(), (np.repeat(rows, e.dim), nodes.ravel())), shape=(n, n_nodes)
+    )
 
 
 class PointLocator:
@@ -66,8 +71,7 @@ class PointLocator:
     def __init__(self, msh, points: np.ndarray) -> None:
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2:
-            raise ValueError(f"eval_points: points must be an (n, 2) array, got shape "
-                             f"{pts.shape}")
+            raise ValueError(f"eval_points: points must be an (n, 2) array, got shape {pts.shape}")
         self.msh, self.n = msh, len(pts)
         self.pts3 = np.zeros((len(pts), 3))
         self.pts3[:, :2] = pts
@@ -81,8 +85,10 @@ class PointLocator:
         """Σ of ``f`` over the (point, owned cell) pairs of this rank, per point (n × bs)."""
         V = f.function_space
         if id(V) not in self._tables:  # V kept with its matrix: its id is not reused
-            self._tables[id(V)] = (V, _basis_matrix(V, self.pts3[self.rows], self.rows,
-                                                    self.cells, self.n))
+            self._tables[id(V)] = (
+                V,
+                _basis_matrix(V, self.pts3[self.rows], self.rows, self.cells, self.n),
+            )
         B = self._tables[id(V)][1]
         if B is not None:
             return B @ f.x.array.reshape(-1, bs)

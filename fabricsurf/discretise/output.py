@@ -38,8 +38,9 @@ class FieldWriter(Owner):
     closes the file and destroys the two work vectors.
     """
 
-    def __init__(self, path: Path, u: fem.Function, kin: Kinematics, qdeg: int = 2,
-                 extra: dict | None = None) -> None:
+    def __init__(
+        self, path: Path, u: fem.Function, kin: Kinematics, qdeg: int = 2, extra: dict | None = None
+    ) -> None:
         msh = u.function_space.mesh
         self.comm, self.u = msh.comm, u
         d = u.function_space.dofmap.index_map_bs
@@ -55,8 +56,7 @@ class FieldWriter(Owner):
         dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": qdeg})
         self.rhs = fem.form(ufl.inner(ufl.as_vector(list(exprs.values())), v) * dx)
         lumped = fem_petsc.assemble_vector(fem.form(ufl.inner(ufl.as_vector([1.0] * k), v) * dx))
-        lumped.ghostUpdate(addv=PETSc.InsertMode.ADD,
-                           mode=PETSc.ScatterMode.REVERSE)
+        lumped.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         self.lumped, self.b = lumped, lumped.duplicate()
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         self.file = io.XDMFFile(self.comm, str(path), "w")
@@ -67,8 +67,7 @@ class FieldWriter(Owner):
         with b.localForm() as b_local:
             b_local.set(0.0)
         fem_petsc.assemble_vector(b, self.rhs)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD,
-                      mode=PETSc.ScatterMode.REVERSE)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         b.pointwiseDivide(b, self.lumped)
         b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         with b.localForm() as b_local:
@@ -96,8 +95,9 @@ class StepLog:
         self.rows: list[dict] = []
 
     def add(self, **row) -> None:
-        self.rows.append({k: (float(v) if isinstance(v, (np.floating, float)) else v)
-                          for k, v in row.items()})
+        self.rows.append(
+            {k: (float(v) if isinstance(v, (np.floating, float)) else v) for k, v in row.items()}
+        )
         self.save()
 
     def save(self) -> None:

@@ -34,10 +34,18 @@ class FabricProblem(Owner):
     integrated.
     """
 
-    def __init__(self, specimen, model: list[Term], d: int = 2, degree: int = 2,
-                 fibre_angles: tuple[float, float] = (45.0, -45.0),
-                 penalty: float = DEFAULT_PENALTY, snes_options: dict | None = None,
-                 prefix: str | None = None, fibre_treatment: str = "full") -> None:
+    def __init__(
+        self,
+        specimen,
+        model: list[Term],
+        d: int = 2,
+        degree: int = 2,
+        fibre_angles: tuple[float, float] = (45.0, -45.0),
+        penalty: float = DEFAULT_PENALTY,
+        snes_options: dict | None = None,
+        prefix: str | None = None,
+        fibre_treatment: str = "full",
+    ) -> None:
         if d not in (2, 3):
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
@@ -63,8 +71,10 @@ class FabricProblem(Owner):
         """Boundary data are compiled into the solver's forms and vectors when it is built:
         adding more afterwards would be silently ignored, so it is an error."""
         if self._solver is not None:
-            raise RuntimeError(f"FabricProblem.{what}: the solver was already built; add all "
-                               "boundary data and loads before calling solver()")
+            raise RuntimeError(
+                f"FabricProblem.{what}: the solver was already built; add all "
+                "boundary data and loads before calling solver()"
+            )
 
     def edge_facets(self, edge: str) -> np.ndarray:
         tag = self.specimen.edge_tags[edge]
@@ -91,8 +101,9 @@ class FabricProblem(Owner):
     def fix_function(self, edge_or_facets, g: fem.Function) -> None:
         """Prescribe u = g (a Function in V) on an edge name or an array of facets."""
         self._open("fix_function")
-        facets = (self.edge_facets(edge_or_facets) if isinstance(edge_or_facets, str)
-                  else edge_or_facets)
+        facets = (
+            self.edge_facets(edge_or_facets) if isinstance(edge_or_facets, str) else edge_or_facets
+        )
         self.bcs.append(fem.dirichletbc(g, fem.locate_dofs_topological(self.V, 1, facets)))
 
     def clamp_gradient(self, edge: str | None, g=None) -> None:
@@ -130,7 +141,8 @@ class FabricProblem(Owner):
         x = np.asarray(point, dtype=float)
         Vc, parent = self.V.sub(0).collapse()
         local = fem.locate_dofs_geometrical(
-            Vc, lambda X: np.isclose(X[0], x[0]) & np.isclose(X[1], x[1]))
+            Vc, lambda X: np.isclose(X[0], x[0]) & np.isclose(X[1], x[1])
+        )
         return np.asarray(parent)[local] // self.V.dofmap.index_map_bs
 
     def fix_point(self, point: Sequence[float], values: Sequence[float]) -> list[fem.Constant]:
@@ -160,8 +172,11 @@ class FabricProblem(Owner):
         forces and body forces, summed into one local array (ghost entries included, before
         the reverse scatter of SNESSolver._F), so loads at the same dof add up."""
         im, bs = self.V.dofmap.index_map, self.V.dofmap.index_map_bs
-        f = (fem.assemble_vector(self._body_form).array.copy() if self._body_form is not None
-             else np.zeros((im.size_local + im.num_ghosts) * bs))
+        f = (
+            fem.assemble_vector(self._body_form).array.copy()
+            if self._body_form is not None
+            else np.zeros((im.size_local + im.num_ghosts) * bs)
+        )
         for nodes, fp, bs in self._point_forces:
             fv = np.asarray(fp.value if isinstance(fp, fem.Constant) else fp, dtype=float)
             for i in range(self.d):
@@ -172,13 +187,22 @@ class FabricProblem(Owner):
     def solver(self) -> SNESSolver:
         """The SNES solver of Π_h (built once)."""
         if self._solver is None:
-            self.energy = EnergyForm(self.model, self.u, self.L, self.M, self.specimen.facet_tags,
-                                     self.normal_derivative, self.tractions, self.penalty,
-                                     fibre_treatment=self.fibre_treatment)
+            self.energy = EnergyForm(
+                self.model,
+                self.u,
+                self.L,
+                self.M,
+                self.specimen.facet_tags,
+                self.normal_derivative,
+                self.tractions,
+                self.penalty,
+                fibre_treatment=self.fibre_treatment,
+            )
             v, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
             if self.body_forces:
-                dx = ufl.Measure("dx", domain=self.msh,
-                                 metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
+                dx = ufl.Measure(
+                    "dx", domain=self.msh, metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE}
+                )
                 self._body_form = fem.form(sum(ufl.dot(b, v) for b in self.body_forces) * dx)
             F, J = self.energy.residual(v), self.energy.jacobian(du, v)
             extra = self.extra_energy()
@@ -186,8 +210,10 @@ class FabricProblem(Owner):
                 dP = ufl.derivative(extra, self.u, v)
                 F, J = F + dP, J + ufl.derivative(dP, self.u, du)
             self._solver = self._new_solver(
-                F, J, weak_method(self._nodal_forces) if self._point_forces or self.body_forces
-                else None)
+                F,
+                J,
+                weak_method(self._nodal_forces) if self._point_forces or self.body_forces else None,
+            )
         return self._solver
 
     def extra_energy(self):
@@ -198,8 +224,16 @@ class FabricProblem(Owner):
     def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
         """The solver of residual F and Jacobian J (a subclass may return a SNESSolver
         subclass)."""
-        return SNESSolver(F, J, self.u, self.bcs, self.prefix, self.snes_options, nodal_forces,
-                          self.energy.multipliers)
+        return SNESSolver(
+            F,
+            J,
+            self.u,
+            self.bcs,
+            self.prefix,
+            self.snes_options,
+            nodal_forces,
+            self.energy.multipliers,
+        )
 
     def solve(self) -> tuple[int, int]:
         return self.solver().solve()

@@ -52,7 +52,7 @@ def dot_function(b: PETSc.Vec, w: fem.Function) -> float:
 
 def copy_to_function(x: PETSc.Vec, f: fem.Function) -> None:
     """f ← x (owned entries, then ghosts), without wrapping a PETSc vector around f."""
-    f.x.array[:x.getLocalSize()] = x.array_r
+    f.x.array[: x.getLocalSize()] = x.array_r
     f.x.scatter_forward()
 
 

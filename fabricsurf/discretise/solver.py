@@ -99,11 +99,17 @@ class SNESSolver(Owner):
     matrix_type: str | None = None
     """PETSc type of the Jacobian (None: dolfinx's AIJ; a subclass may ask for "baij")."""
 
-    def __init__(self, residual: ufl.Form, jacobian: ufl.Form, u: fem.Function,
-                 bcs: Sequence[fem.DirichletBCMetaClass] = (),
-                 prefix: str | None = None, options: dict | None = None,
-                 nodal_forces: Callable | None = None,
-                 multipliers: Sequence[Multiplier] = ()) -> None:
+    def __init__(
+        self,
+        residual: ufl.Form,
+        jacobian: ufl.Form,
+        u: fem.Function,
+        bcs: Sequence[fem.DirichletBCMetaClass] = (),
+        prefix: str | None = None,
+        options: dict | None = None,
+        nodal_forces: Callable | None = None,
+        multipliers: Sequence[Multiplier] = (),
+    ) -> None:
         V = u.function_space
         options = dict(options or {})
         mode = options.pop("jacobian", "given")
@@ -142,8 +148,9 @@ class SNESSolver(Owner):
         were there before, e.g. from the command line, restored)."""
         opts = PETSc.Options()
         merged = {**SNES_DEFAULTS, **options}
-        before = {k: opts.getString(self.prefix + k) for k in merged
-                  if opts.hasName(self.prefix + k)}
+        before = {
+            k: opts.getString(self.prefix + k) for k in merged if opts.hasName(self.prefix + k)
+        }
         try:
             for k, v in merged.items():
                 opts[self.prefix + k] = v
@@ -218,8 +225,10 @@ class SNESSolver(Owner):
                 more, reason = self._polish()
                 its += more
         except PETSc.Error:
-            return (int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE),
-                    self.snes.getIterationNumber())
+            return (
+                int(PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE),
+                self.snes.getIterationNumber(),
+            )
         self._update_u(self.x)
         return reason, its
 

@@ -39,29 +39,47 @@ class LoadStepError(RuntimeError):
     :meth:`carrying` ``from`` the error instead of changing it.
     """
 
-    def __init__(self, message: str, step: int = 0, target: float = float("nan"),
-                 last_load: float = float("nan"), reason: int = 0,
-                 attempts: Sequence[tuple[float, int]] = (), partial=None,
-                 experiment: str | None = None) -> None:
+    def __init__(
+        self,
+        message: str,
+        step: int = 0,
+        target: float = float("nan"),
+        last_load: float = float("nan"),
+        reason: int = 0,
+        attempts: Sequence[tuple[float, int]] = (),
+        partial=None,
+        experiment: str | None = None,
+    ) -> None:
         super().__init__(message)
         self.step, self.target, self.last_load = step, target, last_load
         self.reason, self.attempts = reason, list(attempts)
         self.partial, self.experiment = partial, experiment
 
-    def carrying(self, message: str | None = None, partial=None,
-                 experiment: str | None = None) -> LoadStepError:
+    def carrying(
+        self, message: str | None = None, partial=None, experiment: str | None = None
+    ) -> LoadStepError:
         """The same failure (step, loads, reason, attempts) with a new ``message`` and what the
         caller adds: the steps it converged (``partial``) and the experiment's name; what is
         not given is kept."""
-        return LoadStepError(str(self) if message is None else message, self.step, self.target,
-                             self.last_load, self.reason, self.attempts,
-                             self.partial if partial is None else partial,
-                             self.experiment if experiment is None else experiment)
+        return LoadStepError(
+            str(self) if message is None else message,
+            self.step,
+            self.target,
+            self.last_load,
+            self.reason,
+            self.attempts,
+            self.partial if partial is None else partial,
+            self.experiment if experiment is None else experiment,
+        )
 
     def as_dict(self) -> dict:
         """Where the load path stopped, JSON-ready: step, last_load, reason, message."""
-        return {"step": self.step, "last_load": self.last_load, "reason": self.reason,
-                "message": str(self)}
+        return {
+            "step": self.step,
+            "last_load": self.last_load,
+            "reason": self.reason,
+            "message": str(self),
+        }
 
 
 class LoadStepper:
@@ -77,11 +95,15 @@ class LoadStepper:
     Each cut is logged at DEBUG (module docstring), its line prefixed with ``label``.
     """
 
-    def __init__(self, solver: SNESSolver, set_load: Callable[[float], None],
-                 on_converged: Callable[[int, float, int], None] | None = None,
-                 min_fraction: float = 1e-4,
-                 predictor: Callable[[int, float], np.ndarray | None] | None = None,
-                 label: str = ""):
+    def __init__(
+        self,
+        solver: SNESSolver,
+        set_load: Callable[[float], None],
+        on_converged: Callable[[int, float, int], None] | None = None,
+        min_fraction: float = 1e-4,
+        predictor: Callable[[int, float], np.ndarray | None] | None = None,
+        label: str = "",
+    ):
         self.solver, self.set_load, self.on_converged = solver, set_load, on_converged
         self.min_fraction, self.predictor, self.label = min_fraction, predictor, label
         self.comm = getattr(solver, "comm", MPI.COMM_SELF)
@@ -120,13 +142,20 @@ class LoadStepper:
                 dt = float(np.sign(span)) * min(abs(span), 1.5 * abs(dt))
                 continue
             dt = 0.5 * (t_next - self.t)
-            self._say(f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
-                      f"cutting the increment to {dt:.3g}")
+            self._say(
+                f"step {k + 1}: SNES {reason_name(reason)} at load {t_next:.6g}; "
+                f"cutting the increment to {dt:.3g}"
+            )
             if abs(dt) < self.min_fraction * abs(span):
                 self.set_load(self.t)
-                raise LoadStepError(_failure_message(k + 1, target, self.t, reason, tried,
-                                                     self.min_fraction),
-                                    k + 1, target, self.t, reason, tried)
+                raise LoadStepError(
+                    _failure_message(k + 1, target, self.t, reason, tried, self.min_fraction),
+                    k + 1,
+                    target,
+                    self.t,
+                    reason,
+                    tried,
+                )
         self.attempts.append(len(tried))
         return total
 
@@ -148,8 +177,10 @@ class LoadStepper:
             self.t = target
             self.attempts.append(1)
         else:
-            self._say(f"step {k + 1}: SNES {reason_name(reason)} from the predicted state; "
-                      "stepping from the last converged one")
+            self._say(
+                f"step {k + 1}: SNES {reason_name(reason)} from the predicted state; "
+                "stepping from the last converged one"
+            )
         return ok, its
 
     def _say(self, message: str) -> None:
@@ -164,8 +195,14 @@ class LoadStepper:
         return self.iterations
 
 
-def _failure_message(step: int, target: float, last: float, reason: int,
-                     tried: list[tuple[float, int]], min_fraction: float) -> str:
+def _failure_message(
+    step: int,
+    target: float,
+    last: float,
+    reason: int,
+    tried: list[tuple[float, int]],
+    min_fraction: float,
+) -> str:
     failed = [(t, r) for t, r in tried if r <= 0]
     shown = ", ".join(f"{t:.6g}" for t, _ in failed[:3])
     if len(failed) > 4:
@@ -173,7 +210,9 @@ def _failure_message(step: int, target: float, last: float, reason: int,
     elif len(failed) == 4:
         shown += ", "
     shown += f"{failed[-1][0]:.6g}" if len(failed) > 3 else ""
-    return (f"load step {step} (target {target:.6g}) failed: Newton did not converge "
-            f"({reason_name(reason)}) even after cutting the increment {len(failed) - 1} times "
-            f"to below {min_fraction:g} of the step; loads tried without convergence: {shown}; "
-            f"last converged load {last:.6g}")
+    return (
+        f"load step {step} (target {target:.6g}) failed: Newton did not converge "
+        f"({reason_name(reason)}) even after cutting the increment {len(failed) - 1} times "
+        f"to below {min_fraction:g} of the step; loads tried without convergence: {shown}; "
+        f"last converged load {last:.6g}"
+    )

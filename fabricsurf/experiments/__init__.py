@@ -22,11 +22,11 @@ ALIASES: dict[str, str] = {}
 
 NOT_MODELLED = {
     "tensile": "a tensile test (the yarns pulled along the load, fibres at 0/90 deg) is not "
-               "modelled: the bias-extension geometry degenerates there (fibres run from clamp "
-               "to grip), so no plug-in takes it; for a bias-extension test (fibres on the bias, "
-               "e.g. fibre_angles_deg = [45.0, -45.0]) write test = \"bias_extension\"; a fibre "
-               "stiffness measured in a tensile test can be held with diagnose --fixed "
-               "fibre_stretch",
+    "modelled: the bias-extension geometry degenerates there (fibres run from clamp "
+    "to grip), so no plug-in takes it; for a bias-extension test (fibres on the bias, "
+    'e.g. fibre_angles_deg = [45.0, -45.0]) write test = "bias_extension"; a fibre '
+    "stiffness measured in a tensile test can be held with diagnose --fixed "
+    "fibre_stretch",
 }
 """Test names that are refused with what they mean and what to do (``tensile`` was once an
 alias of ``bias_extension``: a name promising a test that plug-in refuses)."""
@@ -39,8 +39,10 @@ def get_test(name: str) -> type[ExperimentPlugin]:
     if isinstance(key, str) and key in NOT_MODELLED:
         raise DataError(f"experiment.toml: [loading] test = {name!r}: {NOT_MODELLED[key]}")
     if key not in TESTS:
-        raise DataError(f"experiment.toml: [loading] test = {name!r} is not one of "
-                        f"{sorted(TESTS) + sorted(ALIASES)}")
+        raise DataError(
+            f"experiment.toml: [loading] test = {name!r} is not one of "
+            f"{sorted(TESTS) + sorted(ALIASES)}"
+        )
     return TESTS[key]
 
 

@@ -112,8 +112,9 @@ class ExperimentPlugin(Owner, ABC):
     problem: FabricProblem
     solver: SNESSolver
 
-    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    def __init__(
+        self, setup: PluginSetup, model: list[Term], h: float, comm: MPI.Comm = MPI.COMM_WORLD
+    ) -> None:
         self.setup, self.h, self.comm = setup, float(h), comm
         self.model: list[Term] = [t.copy() for t in model]
         """The plug-in's own terms (copies of those given): its forms are built from them, so a
@@ -138,9 +139,11 @@ class ExperimentPlugin(Owner, ABC):
         neg = [k for k, v in enumerate(path) if v < 0]
         if neg:
             k = neg[0]
-            raise DataError(f"{where}: step {int(steps[k])}: {cls.path_label} {path[k]:g} is "
-                            f"negative; the '{cls.name}' test models extension (the specimen "
-                            "pulled, displacements ≥ 0), not compression")
+            raise DataError(
+                f"{where}: step {int(steps[k])}: {cls.path_label} {path[k]:g} is "
+                f"negative; the '{cls.name}' test models extension (the specimen "
+                "pulled, displacements ≥ 0), not compression"
+            )
 
     @classmethod
     def check_data(cls, setup: PluginSetup, steps, path, where: str) -> None:
@@ -148,8 +151,7 @@ class ExperimentPlugin(Owner, ABC):
         before any computation; default: none."""
 
     @classmethod
-    def separating_variants(cls, setup: PluginSetup, path, first_gradient: bool
-                            ) -> list[Variant]:
+    def separating_variants(cls, setup: PluginSetup, path, first_gradient: bool) -> list[Variant]:
         """Variants of this test that may separate two tied effects (docs/diagnosis.md,
         "Separating a tie"), besides the generic ones (a larger displacement, a measured
         field); ``first_gradient``: whether the tie is between first-gradient effects."""
@@ -202,8 +204,9 @@ class ExperimentPlugin(Owner, ABC):
             release_vectors(self.reaction_weight())
 
 
-def choice_option(tables: dict, table: str, key: str, allowed: tuple[str, ...], default: str,
-                  where: str) -> str:
+def choice_option(
+    tables: dict, table: str, key: str, allowed: tuple[str, ...], default: str, where: str
+) -> str:
     """A string option that must be one of ``allowed`` (default when absent)."""
     value = tables.get(table, {}).get(key, default)
     if not isinstance(value, str) or value not in allowed:
@@ -211,8 +214,14 @@ def choice_option(tables: dict, table: str, key: str, allowed: tuple[str, ...], 
     return value
 
 
-def number_option(tables: dict, table: str, key: str, where: str, default: float | None = None,
-                  positive: bool = True) -> float:
+def number_option(
+    tables: dict,
+    table: str,
+    key: str,
+    where: str,
+    default: float | None = None,
+    positive: bool = True,
+) -> float:
     """A finite (positive) number option; required when ``default`` is None."""
     t = tables.get(table, {})
     if key not in t:

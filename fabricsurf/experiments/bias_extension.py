@@ -97,28 +97,49 @@ class BiasExtension:
     and recorded in :attr:`discretisation` and the result.
     """
 
-    def __init__(self, model: list[Term] | None = None, length: float = 187.0,
-                 width: float = 119.0, h: float = 8.0, clamp: str = "gradient",
-                 fibre_angles: tuple[float, float] = (45.0, -45.0), snes_options=None,
-                 comm: MPI.Comm = MPI.COMM_WORLD, specimen: Specimen | None = None,
-                 mesh: str = "auto", fibre_treatment: str = "auto") -> None:
+    def __init__(
+        self,
+        model: list[Term] | None = None,
+        length: float = 187.0,
+        width: float = 119.0,
+        h: float = 8.0,
+        clamp: str = "gradient",
+        fibre_angles: tuple[float, float] = (45.0, -45.0),
+        snes_options=None,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        specimen: Specimen | None = None,
+        mesh: str = "auto",
+        fibre_treatment: str = "auto",
+    ) -> None:
         if clamp not in CLAMPS:
             raise ValueError(f"clamp = {clamp!r}: must be 'gradient' or 'position'")
-        self.model = ([t.copy() for t in model] if model is not None  # its own terms
-                      else default_model())
+        self.model = (
+            [t.copy() for t in model]
+            if model is not None  # its own terms
+            else default_model()
+        )
         given = tuple(float(a) for a in fibre_angles)
         fibre_angles = canonical_angles(given)
         if specimen is None:
             check_bias_angles(fibre_angles, length, width)
-        self.specimen = (specimen if specimen is not None
-                         else specimen_mesh(length, width, h, fibre_angles, comm, mesh,
-                                            self.model))
+        self.specimen = (
+            specimen
+            if specimen is not None
+            else specimen_mesh(length, width, h, fibre_angles, comm, mesh, self.model)
+        )
         self.discretisation = choose_fibre_treatment(
-            fibre_treatment, self.specimen, self.model, h, given, fibre_angles)
+            fibre_treatment, self.specimen, self.model, h, given, fibre_angles
+        )
         announce(comm, self.discretisation)
-        p = FabricProblem(self.specimen, self.model, d=2, fibre_angles=fibre_angles,
-                          snes_options=snes_options, prefix="fabricsurf_bias_",
-                          fibre_treatment=self.discretisation["fibre_treatment"])
+        p = FabricProblem(
+            self.specimen,
+            self.model,
+            d=2,
+            fibre_angles=fibre_angles,
+            snes_options=snes_options,
+            prefix="fabricsurf_bias_",
+            fibre_treatment=self.discretisation["fibre_treatment"],
+        )
         p.fix("clamp", (0.0, 0.0))
         self.grip_ux, _ = p.fix("grip", (0.0, 0.0))
         if clamp == "gradient" and has_second_gradient(self.model):
@@ -130,8 +151,10 @@ class BiasExtension:
         kin = p.energy.kin
         self._fibre_V = fem.VectorFunctionSpace(p.msh, ("DG", 2), dim=3)
         self._fibre_expr = ufl.as_vector([kin.lam, kin.mu, kin.gamma])
-        self._tensions = [quadrature_expression(e, p.msh, p.energy.tension_degree)
-                          for e in p.energy.tension_fields().values()]
+        self._tensions = [
+            quadrature_expression(e, p.msh, p.energy.tension_degree)
+            for e in p.energy.tension_fields().values()
+        ]
         pts = {**bias_points(self.specimen.length, self.specimen.width), **self.specimen.points}
         self.points = np.array([pts["A"], pts["B"]])
 
@@ -158,8 +181,13 @@ class BiasExtension:
         f = interpolate_expression(self._fibre_expr, self._fibre_V)
         return eval_points(f, points)
 
-    def run(self, ubar_max: float, steps: int, out: Path | None = None,
-            on_step: Callable[[int, float], None] | None = None) -> BiasResult:
+    def run(
+        self,
+        ubar_max: float,
+        steps: int,
+        out: Path | None = None,
+        on_step: Callable[[int, float], None] | None = None,
+    ) -> BiasResult:
         """Load to ``ubar_max`` in ``steps`` equal requested steps; write XDMF/logs to ``out``;
         each converged step is logged at PROGRESS (its increments' cuts at DEBUG).
 
@@ -171,24 +199,50 @@ class BiasExtension:
         comm = self.problem.msh.comm
         res, t0 = BiasResult(discretisation=dict(self.discretisation)), time.perf_counter()
         energy = self.problem.energy
-        writer = FieldWriter(Path(out) / "bias.xdmf", self.problem.u, energy.kin,
-                             _writer_degree(energy), energy.tension_fields()) if out else None
+        writer = (
+            FieldWriter(
+                Path(out) / "bias.xdmf",
+                self.problem.u,
+                energy.kin,
+                _writer_degree(energy),
+                energy.tension_fields(),
+            )
+            if out
+            else None
+        )
         log = StepLog(comm, Path(out), "bias_steps") if out else None
 
         def converged(k: int, ubar: float, its: int) -> None:
             f = self.problem.reaction("grip", 0)
             a = self.angles_deg()
             t_max = self.tension_max()
-            for lst, v in ((res.ubar, ubar), (res.force, f), (res.angle_A_deg, a[0]),
-                           (res.angle_B_deg, a[1]), (res.newton, its), (res.tension_max, t_max)):
+            for lst, v in (
+                (res.ubar, ubar),
+                (res.force, f),
+                (res.angle_A_deg, a[0]),
+                (res.angle_B_deg, a[1]),
+                (res.newton, its),
+                (res.tension_max, t_max),
+            ):
                 lst.append(float(v))
             if writer:
                 writer.write(ubar)
-                log.add(step=k + 1, ubar=ubar, force=f, angle_A_deg=a[0], angle_B_deg=a[1],
-                        tension_max=t_max, newton_iterations=its)
-            rank0(logger, comm, f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
-                  f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
-                  f"  max fibre tension {t_max:8.4g} N/mm  Newton {its}")
+                log.add(
+                    step=k + 1,
+                    ubar=ubar,
+                    force=f,
+                    angle_A_deg=a[0],
+                    angle_B_deg=a[1],
+                    tension_max=t_max,
+                    newton_iterations=its,
+                )
+            rank0(
+                logger,
+                comm,
+                f"  step {k + 1}/{steps}: ubar = {ubar:7.3f} mm  force = "
+                f"{f:9.4f} N  gamma_A = {a[0]:6.2f} deg  gamma_B = {a[1]:6.2f} deg"
+                f"  max fibre tension {t_max:8.4g} N/mm  Newton {its}",
+            )
             for follow in self.followers:
                 follow()
             if on_step is not None:
@@ -216,7 +270,8 @@ EXACT_FIBRES_HINT = (
     "and 1e5 N at 0.04 L, on h = W/10 and W/20 alike), or on a mesh that locks (see the mesh "
     "notice). To tell which, "
     "run elastic fibres at two K/k_s (1e6, 1e9) and h and h/2: a force that grows with K on "
-    "both meshes is the kinematic limit")
+    "both meshes is the kinematic limit"
+)
 """Appended to a failed load step's message when the fibres are exactly inextensible
 (docs/theory.md, "Exact inextensibility")."""
 
@@ -239,27 +294,40 @@ class BiasExtensionPlugin(ExperimentPlugin):
     name = "bias_extension"
     path_label = "grip displacement (mm)"
     reaction_label = "grip force (N)"
-    keys = {"loading": {"clamp": "gradient | position (default gradient)",
-                        "grip_depth": "depth held by each grip beyond the free length (length "
-                        "units, default 0)"}}
+    keys = {
+        "loading": {
+            "clamp": "gradient | position (default gradient)",
+            "grip_depth": "depth held by each grip beyond the free length (length "
+            "units, default 0)",
+        }
+    }
 
     @classmethod
     def separating_variants(cls, setup: PluginSetup, path, first_gradient: bool) -> list:
         return bias_variants(setup, path, first_gradient)
 
-    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    def __init__(
+        self, setup: PluginSetup, model: list[Term], h: float, comm: MPI.Comm = MPI.COMM_WORLD
+    ) -> None:
         super().__init__(setup, model, h, comm)
         depth = float(setup.options.get("grip_depth", 0.0))
         angles = canonical_angles(tuple(setup.fibre_angles_deg))
         check_bias_angles(angles, setup.length - 2 * depth, setup.width)
-        specimen = specimen_mesh(setup.length - 2 * depth, setup.width, h, angles, comm,
-                                 model=self.model)
+        specimen = specimen_mesh(
+            setup.length - 2 * depth, setup.width, h, angles, comm, model=self.model
+        )
         if depth:
             shift_x(specimen, depth)
-        self.bias = BiasExtension(self.model, setup.length, setup.width, h,
-                                  setup.options.get("clamp", "gradient"),
-                                  tuple(setup.fibre_angles_deg), comm=comm, specimen=specimen)
+        self.bias = BiasExtension(
+            self.model,
+            setup.length,
+            setup.width,
+            h,
+            setup.options.get("clamp", "gradient"),
+            tuple(setup.fibre_angles_deg),
+            comm=comm,
+            specimen=specimen,
+        )
         self.discretisation = self.bias.discretisation
         self.problem, self.solver = self.bias.problem, self.bias.solver
         self.followers = self.bias.followers
@@ -272,26 +340,35 @@ class BiasExtensionPlugin(ExperimentPlugin):
         depth = number_option(tables, "loading", "grip_depth", where, 0.0, positive=False)
         if depth < 0:
             raise DataError(f"{where}: [loading] grip_depth = {depth:g} must be ≥ 0")
-        return {"clamp": choice_option(tables, "loading", "clamp", CLAMPS, "gradient", where),
-                "grip_depth": depth * length_scale}
+        return {
+            "clamp": choice_option(tables, "loading", "clamp", CLAMPS, "gradient", where),
+            "grip_depth": depth * length_scale,
+        }
 
     @classmethod
     def check_specimen(cls, setup: PluginSetup, where: str) -> None:
         if 2 * setup.options.get("grip_depth", 0.0) >= 0.5 * setup.length:
-            raise DataError(f"{where}: [loading] grip_depth "
-                            f"{setup.options['grip_depth']:g} mm leaves less than half of the "
-                            f"{setup.length:g} mm specimen free")
+            raise DataError(
+                f"{where}: [loading] grip_depth "
+                f"{setup.options['grip_depth']:g} mm leaves less than half of the "
+                f"{setup.length:g} mm specimen free"
+            )
         if setup.width > setup.length:
-            raise DataError(f"{where}: [specimen] width {setup.width:g} mm exceeds length "
-                            f"{setup.length:g} mm; the bias specimen has its long side along "
-                            "the load (x)")
+            raise DataError(
+                f"{where}: [specimen] width {setup.width:g} mm exceeds length "
+                f"{setup.length:g} mm; the bias specimen has its long side along "
+                "the load (x)"
+            )
         try:
-            check_bias_angles(canonical_angles(tuple(setup.fibre_angles_deg)),
-                              setup.length - 2 * setup.options.get("grip_depth", 0.0),
-                              setup.width)
+            check_bias_angles(
+                canonical_angles(tuple(setup.fibre_angles_deg)),
+                setup.length - 2 * setup.options.get("grip_depth", 0.0),
+                setup.width,
+            )
         except ValueError as e:
-            raise DataError(f"{where}: [specimen] fibre_angles_deg = "
-                            f"{list(setup.fibre_angles_deg)}: {e}") from None
+            raise DataError(
+                f"{where}: [specimen] fibre_angles_deg = {list(setup.fibre_angles_deg)}: {e}"
+            ) from None
 
     def set_load(self, t: float) -> None:
         self.bias.set_load(t)

@@ -99,8 +99,14 @@ def may_lock(kind: str, treatment: str, ratio: float, mismatch_deg: float = 0.0)
     return ratio >= LOCKING_RATIO and (treatment == "reduced" or kind not in LOCKING_FREE_MESHES)
 
 
-def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float,
-                           given: tuple[float, float], used: tuple[float, float]) -> dict:
+def choose_fibre_treatment(
+    requested: str,
+    specimen,
+    model: list[Term],
+    h: float,
+    given: tuple[float, float],
+    used: tuple[float, float],
+) -> dict:
     """The record of the discretisation (mesh kind, h requested and used, fibre treatment,
     fibre angles given and used, K/k_s, whether the answer may be locked) and its ``notice``
     ("" when there is nothing to say: a corner-to-corner aligned mesh, fibres as given).
@@ -111,13 +117,20 @@ def choose_fibre_treatment(requested: str, specimen, model: list[Term], h: float
     treatment = "full" if requested == "auto" else requested
     ratio = stiffness_ratio(model)
     mismatch = float(getattr(specimen, "angle_mismatch_deg", 0.0))
-    record = {"mesh_kind": kind, "h_requested": float(h), "h_used": float(specimen.h),
-              "fibre_treatment": treatment, "fibre_angles_given": list(given),
-              "fibre_angles_used": list(used), "fibre_stiffness_ratio": ratio,
-              "angle_mismatch_deg": mismatch,
-              "may_lock": may_lock(kind, treatment, ratio, mismatch)}
-    record["notice"] = _notice(record, getattr(specimen, "note", ""),
-                               _size_reason(record, specimen, model, used))
+    record = {
+        "mesh_kind": kind,
+        "h_requested": float(h),
+        "h_used": float(specimen.h),
+        "fibre_treatment": treatment,
+        "fibre_angles_given": list(given),
+        "fibre_angles_used": list(used),
+        "fibre_stiffness_ratio": ratio,
+        "angle_mismatch_deg": mismatch,
+        "may_lock": may_lock(kind, treatment, ratio, mismatch),
+    }
+    record["notice"] = _notice(
+        record, getattr(specimen, "note", ""), _size_reason(record, specimen, model, used)
+    )
     return record
 
 
@@ -137,35 +150,54 @@ def _size_reason(r: dict, specimen, model: list[Term], used: tuple[float, float]
     asked, got = r["h_requested"], r["h_used"]
     if r["mesh_kind"] not in LATTICES or not abs(got - asked) > SIZE_NOTE * asked:
         return ""
-    why = (f"h = {got:.4g} mm, {100 * (got / asked - 1):+.0f} % from the {asked:g} mm asked: "
-           "a fibre-aligned mesh needs a whole number of cells between fibre lines along both "
-           "sides of the specimen at the fibres' angle, so only some sizes fit it")
+    why = (
+        f"h = {got:.4g} mm, {100 * (got / asked - 1):+.0f} % from the {asked:g} mm asked: "
+        "a fibre-aligned mesh needs a whole number of cells between fibre lines along both "
+        "sides of the specimen at the fibres' angle, so only some sizes fit it"
+    )
     theta = symmetric_angle(used)
     if r["mesh_kind"] != "aligned" or theta is None:
         return why + "; the nearest that fits was taken"
     tol = max(min(tolerated_mismatch_deg(model), ANGLE_TOLERANCE_DEG), EXACT_DEG)
     finer, coarser = lattice_sizes(specimen.length, specimen.width, asked, theta, tol)
     sizes = " and ".join(f"{v:.4g} mm" for v in (finer, coarser) if v is not None)
-    return (why + f"; near {asked:g} mm these are h = {sizes}, and the nearest in cell count "
-            f"was taken" + (f" (for a mesh no coarser than asked: h = {finer:.4g} mm)"
-                            if finer is not None and got > asked else ""))
+    return (
+        why + f"; near {asked:g} mm these are h = {sizes}, and the nearest in cell count "
+        f"was taken"
+        + (
+            f" (for a mesh no coarser than asked: h = {finer:.4g} mm)"
+            if finer is not None and got > asked
+            else ""
+        )
+    )
 
 
 def _notice(r: dict, why: str, size: str = "") -> str:
     lines = []
     if [float(a) for a in r["fibre_angles_given"]] != r["fibre_angles_used"]:
-        lines.append(f"fibre angles {r['fibre_angles_given']} deg are the fibre lines "
-                     f"{r['fibre_angles_used']} deg (directions are defined mod 180 deg); "
-                     "computed with the latter")
-    head = (f"mesh: {r['mesh_kind']}" + (f" ({why})" if why else "")
-            + f", h = {r['h_used']:.4g} mm (asked {r['h_requested']:g}), "
-            f"K/k_s = {r['fibre_stiffness_ratio']:.3g}, fibre terms {r['fibre_treatment']}")
+        lines.append(
+            f"fibre angles {r['fibre_angles_given']} deg are the fibre lines "
+            f"{r['fibre_angles_used']} deg (directions are defined mod 180 deg); "
+            "computed with the latter"
+        )
+    head = (
+        f"mesh: {r['mesh_kind']}"
+        + (f" ({why})" if why else "")
+        + f", h = {r['h_used']:.4g} mm (asked {r['h_requested']:g}), "
+        f"K/k_s = {r['fibre_stiffness_ratio']:.3g}, fibre terms {r['fibre_treatment']}"
+    )
     if r["may_lock"]:
-        lines.append("WARNING " + head + ": the answer may be LOCKED, too stiff by a factor "
-                     "that grows with K/k_s (intra-ply shear locking, docs/theory.md 'Locking'"
-                     + ("; the reduced treatment is too soft instead" if
-                        r["fibre_treatment"] == "reduced" else "")
-                     + "). Remedy: " + _remedy(r))
+        lines.append(
+            "WARNING " + head + ": the answer may be LOCKED, too stiff by a factor "
+            "that grows with K/k_s (intra-ply shear locking, docs/theory.md 'Locking'"
+            + (
+                "; the reduced treatment is too soft instead"
+                if r["fibre_treatment"] == "reduced"
+                else ""
+            )
+            + "). Remedy: "
+            + _remedy(r)
+        )
     elif r["mesh_kind"] != "aligned" or r["fibre_treatment"] != "full" or size:
         lines.append(head)
     if size:
@@ -175,12 +207,20 @@ def _notice(r: dict, why: str, size: str = "") -> str:
 
 def _remedy(r: dict) -> str:
     if r["mesh_kind"] == "aligned" and r["angle_mismatch_deg"] > 0.0:
-        return ("an h whose lattice has the fibres' angle exactly, or mesh = 'lattice_pair' "
-                "(the angle exact by construction), or check the force against a run at h/2")
-    return (("elastic fibres with K/k_s = 1e9 (within 1e-4 of the limit on fibre-aligned "
-             "meshes), or " if math.isinf(r["fibre_stiffness_ratio"]) else "")
-            + "fibres at +-theta to the load on a specimen longer than 2 W / tan(theta), which "
-            "get a fibre-aligned mesh, or check the force against a run at h/2")
+        return (
+            "an h whose lattice has the fibres' angle exactly, or mesh = 'lattice_pair' "
+            "(the angle exact by construction), or check the force against a run at h/2"
+        )
+    return (
+        (
+            "elastic fibres with K/k_s = 1e9 (within 1e-4 of the limit on fibre-aligned "
+            "meshes), or "
+            if math.isinf(r["fibre_stiffness_ratio"])
+            else ""
+        )
+        + "fibres at +-theta to the load on a specimen longer than 2 W / tan(theta), which "
+        "get a fibre-aligned mesh, or check the force against a run at h/2"
+    )
 
 
 def announce(comm: MPI.Comm, record: dict) -> None:
@@ -205,9 +245,11 @@ def check_bias_angles(angles: tuple[float, float], length: float, width: float) 
     apart = abs(a - b) % 180.0
     apart = min(apart, 180.0 - apart)
     if apart < MIN_SEPARATION_DEG:
-        raise ValueError(f"bias test: fibre angles {list(angles)} deg are {apart:.3g} deg apart "
-                         f"as lines; the families must cross at {MIN_SEPARATION_DEG:g} deg or "
-                         "more")
+        raise ValueError(
+            f"bias test: fibre angles {list(angles)} deg are {apart:.3g} deg apart "
+            f"as lines; the families must cross at {MIN_SEPARATION_DEG:g} deg or "
+            "more"
+        )
     steepest = math.degrees(math.atan(width / length))
     for phi in (abs(a), abs(b)):
         if phi <= steepest:
@@ -215,20 +257,36 @@ def check_bias_angles(angles: tuple[float, float], length: float, width: float) 
                 f"bias test: fibres at {phi:g} deg to the load run from clamp to grip on a "
                 f"{length:g} x {width:g} mm specimen (they must make more than "
                 f"atan(W/L) = {steepest:.3g} deg with it): the test degenerates into a tensile "
-                "test of the yarns; cut the specimen on the bias (e.g. +-45 deg) or longer")
+                "test of the yarns; cut the specimen on the bias (e.g. +-45 deg) or longer"
+            )
 
 
-def specimen_mesh(length: float, width: float, h: float, fibre_angles: tuple[float, float],
-                  comm: MPI.Comm = MPI.COMM_WORLD, mesh: str = "auto",
-                  model: list[Term] | None = None) -> Specimen:
+def specimen_mesh(
+    length: float,
+    width: float,
+    h: float,
+    fibre_angles: tuple[float, float],
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    mesh: str = "auto",
+    model: list[Term] | None = None,
+) -> Specimen:
     """The bias specimen [0, length] × [0, width] meshed with size ``h`` (``mesh``: see
     :data:`fabricsurf.geometry.fibre_mesh.MESH_KINDS`), with the points A and B of
     :func:`~fabricsurf.geometry.specimen.bias_points`; for ``model``'s fibres, ``auto`` takes no
     corner-to-corner lattice so far off their angle that they would lock it."""
     check_positive(length=length, width=width, h=h)
     if width > length:
-        raise ValueError(f"geometry: width {width} exceeds length {length}; the bias specimen "
-                         "has its long side along the load")
-    return bias_mesh(length, width, h, fibre_angles, comm, mesh,
-                     extra_points=bias_points(length, width),
-                     max_mismatch_deg=tolerated_mismatch_deg(model or []))
+        raise ValueError(
+            f"geometry: width {width} exceeds length {length}; the bias specimen "
+            "has its long side along the load"
+        )
+    return bias_mesh(
+        length,
+        width,
+        h,
+        fibre_angles,
+        comm,
+        mesh,
+        extra_points=bias_points(length, width),
+        max_mismatch_deg=tolerated_mismatch_deg(model or []),
+    )

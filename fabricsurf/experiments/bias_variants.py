@@ -24,17 +24,43 @@ def bias_variants(setup: PluginSetup, path, first_gradient: bool) -> list[Varian
     path = np.asarray(path, float)
     near_45 = abs(abs(ang[0]) - 45.0) < PAIRED_ANGLE_TOLERANCE
     other = (30.0, -30.0) if near_45 else (45.0, -45.0)
-    out = [Variant("other_fibre_angle", f"the same bias test with the fibres at ±{other[0]:g}°",
-                   L, W, path, other),
-           Variant("narrower_specimen", f"the same bias test on a specimen half as wide "
-                   f"({L:g} × {W / 2:g} mm)", L, W / 2, path, ang)]
+    out = [
+        Variant(
+            "other_fibre_angle",
+            f"the same bias test with the fibres at ±{other[0]:g}°",
+            L,
+            W,
+            path,
+            other,
+        ),
+        Variant(
+            "narrower_specimen",
+            f"the same bias test on a specimen half as wide ({L:g} × {W / 2:g} mm)",
+            L,
+            W / 2,
+            path,
+            ang,
+        ),
+    ]
     if first_gradient:
-        gamma = (float(np.nan_to_num(zone_c_shear_angle(path[-1], L, W), nan=math.pi / 2))
-                 if L > W else 0.2)  # beyond the lock: 90°
+        gamma = (
+            float(np.nan_to_num(zone_c_shear_angle(path[-1], L, W), nan=math.pi / 2))
+            if L > W
+            else 0.2
+        )  # beyond the lock: 90°
         d = frame_displacement(max(gamma, 0.05), W)
-        out.append(Variant("picture_frame", f"a picture-frame test (clamped frame, side {W:g} "
-                           f"mm, fibres along the bars) to the same shear angle "
-                           f"({math.degrees(gamma):.3g}°, crosshead {d:.3g} mm)", W, W,
-                           path / path[-1] * d, (0.0, 90.0), "picture_frame",
-                           {"frame": "clamped"}))
+        out.append(
+            Variant(
+                "picture_frame",
+                f"a picture-frame test (clamped frame, side {W:g} "
+                f"mm, fibres along the bars) to the same shear angle "
+                f"({math.degrees(gamma):.3g}°, crosshead {d:.3g} mm)",
+                W,
+                W,
+                path / path[-1] * d,
+                (0.0, 90.0),
+                "picture_frame",
+                {"frame": "clamped"},
+            )
+        )
     return out

@@ -63,8 +63,10 @@ def areal_density_option(tables: dict, where: str, default: float | None = None)
         return default
     rho = number_option(tables, "material", "areal_density_g_m2", where)
     if not 1.0 <= rho <= 5000.0:
-        raise DataError(f"{where}: [material] areal_density_g_m2 = {rho:g} g/m² is not a "
-                        "plausible fabric (1 to 5000 g/m²): is it in another unit?")
+        raise DataError(
+            f"{where}: [material] areal_density_g_m2 = {rho:g} g/m² is not a "
+            "plausible fabric (1 to 5000 g/m²): is it in another unit?"
+        )
     return rho
 
 
@@ -77,8 +79,7 @@ def rigidity_uNm(rigidity_N_mm: float) -> float:
 def moduli(model: list[Term]) -> tuple[float, float]:
     """(k_b, k_t) of a model (0 for a term it lacks)."""
     vals = {t.name: t.values() for t in model}
-    return (vals.get("normal_bending", {}).get("k_b", 0.0),
-            vals.get("twist", {}).get("k_t", 0.0))
+    return (vals.get("normal_bending", {}).get("k_b", 0.0), vals.get("twist", {}).get("k_t", 0.0))
 
 
 class CantileverPlugin(ExperimentPlugin):
@@ -92,21 +93,30 @@ class CantileverPlugin(ExperimentPlugin):
     path_label = "self-weight factor"
     weak_terms = ("fibre_stretch", "shear", "shear_locking")  # the strip hardly strains in-plane
     bends = "cantilever"
-    keys = {"material": {"areal_density_g_m2": "areal density (g/m²), gravity 9.81 m/s² "
-                                                "along −z (required)"}}
+    keys = {
+        "material": {
+            "areal_density_g_m2": "areal density (g/m²), gravity 9.81 m/s² along −z (required)"
+        }
+    }
 
-    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    def __init__(
+        self, setup: PluginSetup, model: list[Term], h: float, comm: MPI.Comm = MPI.COMM_WORLD
+    ) -> None:
         super().__init__(setup, model, h, comm)
         if not has_second_gradient(model):
-            raise ValueError("cantilever: the model has no second-gradient term, so the strip "
-                             "has no bending stiffness at all; add normal_bending (and twist)")
+            raise ValueError(
+                "cantilever: the model has no second-gradient term, so the strip "
+                "has no bending stiffness at all; add normal_bending (and twist)"
+            )
         L, w = setup.length, setup.width
-        self.specimen = structured_rectangle(L, w, max(2, round(L / h)), max(1, round(w / h)),
-                                             comm)
-        p = FabricProblem(self.specimen, self.model, d=3,
-                          fibre_angles=tuple(setup.fibre_angles_deg),
-                          prefix="fabricsurf_cantilever_")
+        self.specimen = structured_rectangle(L, w, max(2, round(L / h)), max(1, round(w / h)), comm)
+        p = FabricProblem(
+            self.specimen,
+            self.model,
+            d=3,
+            fibre_angles=tuple(setup.fibre_angles_deg),
+            prefix="fabricsurf_cantilever_",
+        )
         p.fix("clamp", (0.0, 0.0, 0.0))
         p.clamp_gradient("clamp")
         self.weight = weight_per_area(setup.options["areal_density_g_m2"])
@@ -128,9 +138,11 @@ class CantileverPlugin(ExperimentPlugin):
         bad = [k for k, v in enumerate(path) if not 0 < v <= 1]
         if bad:
             k = bad[0]
-            raise DataError(f"{where}: step {int(steps[k])}: self-weight factor {path[k]:g} "
-                            "is outside (0, 1]; the cantilever sags under a fraction t of its "
-                            "own weight (t = 1: the full weight)")
+            raise DataError(
+                f"{where}: step {int(steps[k])}: self-weight factor {path[k]:g} "
+                "is outside (0, 1]; the cantilever sags under a fraction t of its "
+                "own weight (t = 1: the full weight)"
+            )
 
     @classmethod
     def default_h(cls, setup: PluginSetup) -> float:
@@ -161,14 +173,20 @@ class CantileverPlugin(ExperimentPlugin):
         cyl = cylindrical_rigidity(k_b, k_t, angles)
         if narrow >= MECHANISM_RATIO * cyl:
             return None
-        return (f"cantilever: with fibres at {list(angles)} deg and k_t = {k_t:g} N·mm the "
-                f"narrow-strip rigidity {narrow:.3g} N·mm is {narrow / cyl:.2g} of the "
-                f"cylindrical one {cyl:.3g} N·mm: a near-mechanism (fibres along the asymptotic "
-                "lines of an anticlastic surface); only the clamp and the membrane resist, so "
-                "expect a very soft strip or a failed load step. Add twist (k_t > 0).")
+        return (
+            f"cantilever: with fibres at {list(angles)} deg and k_t = {k_t:g} N·mm the "
+            f"narrow-strip rigidity {narrow:.3g} N·mm is {narrow / cyl:.2g} of the "
+            f"cylindrical one {cyl:.3g} N·mm: a near-mechanism (fibres along the asymptotic "
+            "lines of an anticlastic surface); only the clamp and the membrane resist, so "
+            "expect a very soft strip or a failed load step. Add twist (k_t > 0)."
+        )
 
-    def run(self, t_max: float = 1.0, steps: int = 8,
-            on_step: Callable[[int, float], None] | None = None) -> list[int]:
+    def run(
+        self,
+        t_max: float = 1.0,
+        steps: int = 8,
+        on_step: Callable[[int, float], None] | None = None,
+    ) -> list[int]:
         """Ramp the self-weight from the reference state to ``t_max`` in ``steps`` equal
         requested steps (cut automatically on divergence); ``on_step(k, t)`` after each (all
         ranks). Returns the Newton iterations per step."""
@@ -177,7 +195,8 @@ class CantileverPlugin(ExperimentPlugin):
         done = (lambda k, t, its: on_step(k, t)) if on_step is not None else None
         try:
             return LoadStepper(self.solver, self.set_load, done).run(
-                np.linspace(t_max / steps, t_max, steps))
+                np.linspace(t_max / steps, t_max, steps)
+            )
         except LoadStepError as e:
             note = self.mechanism_note()
             raise e.carrying(f"{e}" + (f"\n{note}" if note else "")) from e

@@ -66,14 +66,20 @@ class PenaltyFollower:
     ``history`` holds one record per call (largest ρ, ρ cos γ, its reference position).
     """
 
-    def __init__(self, problem: FabricProblem, terms: list[PantographBending],
-                 margin: float = PENALTY_MARGIN, local: bool = False) -> None:
+    def __init__(
+        self,
+        problem: FabricProblem,
+        terms: list[PantographBending],
+        margin: float = PENALTY_MARGIN,
+        local: bool = False,
+    ) -> None:
         self.problem, self.terms, self.margin, self.local = problem, list(terms), margin, local
         kin = problem.energy.kin
         V = fem.VectorFunctionSpace(problem.msh, ("DG", 2), dim=2)
         self._stretch = fem.Function(V)
-        self._expr = fem.Expression(ufl.as_vector([kin.lam, kin.mu]),
-                                    V.element.interpolation_points())
+        self._expr = fem.Expression(
+            ufl.as_vector([kin.lam, kin.mu]), V.element.interpolation_points()
+        )
         self._X = V.tabulate_dof_coordinates()[:, :2]
         self._cell_nodes = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
         self.history: list[dict] = []
@@ -109,14 +115,17 @@ class PenaltyFollower:
         self._stretch.interpolate(self._expr)
         nodal = self._stretch.x.array.reshape(-1, 2).max(axis=1)
         rho, where = self.max_stretch(nodal)
-        cells = (nodal[self._cell_nodes].max(axis=1) if self.local
-                 else np.full(len(self._cell_nodes), rho))
+        cells = (
+            nodal[self._cell_nodes].max(axis=1)
+            if self.local
+            else np.full(len(self._cell_nodes), rho)
+        )
         for k, t in enumerate(self.terms):
-            self._write(k, np.maximum(self.floor(k), penalty_stretch(cells, self.margin,
-                                                                     t.gamma)))
+            self._write(k, np.maximum(self.floor(k), penalty_stretch(cells, self.margin, t.gamma)))
         gamma = self.terms[0].gamma if self.terms else math.pi / 6
-        self.history.append({"max_stretch": rho, "rho_cos_gamma": rho * math.cos(gamma),
-                             "at": where})
+        self.history.append(
+            {"max_stretch": rho, "rho_cos_gamma": rho * math.cos(gamma), "at": where}
+        )
 
     def reset(self) -> None:
         """ρ_p back to each term's ρ_0 (uniform; :meth:`floor`), the term's own value too; the

@@ -50,6 +50,7 @@ from fabricsurf.model.terms import Term
 
 logger = logging.getLogger(__name__)
 
+
 class HemispherePlugin(ExperimentPlugin):
     """Plug-in: a blank formed over a hemispherical punch (module docstring). Load path: the
     stroke s (mm); reaction: the punch force (N)."""
@@ -58,19 +59,31 @@ class HemispherePlugin(ExperimentPlugin):
     d = 3
     path_label = "punch stroke (mm)"
     reaction_label = "punch force (N)"
-    keys = {"tooling": {**forming_blank.KEYS, **forming_options.TOOL_KEYS},
-            "material": forming_options.MATERIAL_KEYS}
+    keys = {
+        "tooling": {**forming_blank.KEYS, **forming_options.TOOL_KEYS},
+        "material": forming_options.MATERIAL_KEYS,
+    }
 
-    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
-                 comm: MPI.Comm = MPI.COMM_WORLD, snes_options: dict | None = None) -> None:
+    def __init__(
+        self,
+        setup: PluginSetup,
+        model: list[Term],
+        h: float,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        snes_options: dict | None = None,
+    ) -> None:
         super().__init__(setup, model, h, comm)
         o = setup.options
         self.check_specimen(setup, "hemisphere")
         forming_blank.check_mesh(setup, h, h == self.default_h(setup))
         if h > min(o["clearance"], o["die_lip"]):
-            warn(logger, comm, f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
-                 f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not resolve the "
-                 "tools and the punch force is not mesh-converged")
+            warn(
+                logger,
+                comm,
+                f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
+                f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not resolve the "
+                "tools and the punch force is not mesh-converged",
+            )
         unheld = forming_blank.unheld_edge(setup)
         if unheld is not None:
             warn(logger, comm, unheld)
@@ -82,29 +95,48 @@ class HemispherePlugin(ExperimentPlugin):
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools.from_options(msh, o)
-        p = ContactProblem(self.specimen, self.model, self.tools, d=3,
-                           fibre_angles=tuple(setup.fibre_angles_deg),
-                           prefix="fabricsurf_hemisphere_", fallback=FALLBACK,
-                           snes_options={"snes_max_it": FULL_STEP_ITERATIONS,
-                                         "snes_linesearch_type": "basic",
-                                         **(snes_options or {})})
+        p = ContactProblem(
+            self.specimen,
+            self.model,
+            self.tools,
+            d=3,
+            fibre_angles=tuple(setup.fibre_angles_deg),
+            prefix="fabricsurf_hemisphere_",
+            fallback=FALLBACK,
+            snes_options={
+                "snes_max_it": FULL_STEP_ITERATIONS,
+                "snes_linesearch_type": "basic",
+                **(snes_options or {}),
+            },
+        )
         p.mirror("clamp", 0)  # the full blank has no such edges: the same forms, no terms
         p.mirror("bottom", 1)
-        self.pins, self.rotation_vertex = ({}, None) if self.domain == "quarter" else \
-            forming_blank.pin_rigid_motions(p, self.R, not any(
-                o.get(k, 0.0) for k in ("friction", "punch_friction", "die_friction")))
-        self.discretisation = forming_blank.record(setup, self.specimen, self.domain,
-                                                   self.rotation_vertex, h)
+        self.pins, self.rotation_vertex = (
+            ({}, None)
+            if self.domain == "quarter"
+            else forming_blank.pin_rigid_motions(
+                p,
+                self.R,
+                not any(o.get(k, 0.0) for k in ("friction", "punch_friction", "die_friction")),
+            )
+        )
+        self.discretisation = forming_blank.record(
+            setup, self.specimen, self.domain, self.rotation_vertex, h
+        )
         self.problem, self.solver = p, p.solver()
         self.r, kin = placement(p.u), p.energy.kin
         pen = self.tools.penetrations(self.r)
         self.indicators = Indicators.from_options(msh, o)
-        self.wrinkling = Wrinkling(msh, self.r, kin, p.energy.tension_fields(), self.tools,
-                                   self.model, p.dx)
-        self._forms = {"force": self.tools.force_density(self.r) * p.dx,
-                       "stored": p.energy.internal(), "tools": p.contact_energy(),
-                       "wrinkle": self.wrinkling.mark * p.dx,
-                       "locked": self.indicators.locked(kin) * p.dx}
+        self.wrinkling = Wrinkling(
+            msh, self.r, kin, p.energy.tension_fields(), self.tools, self.model, p.dx
+        )
+        self._forms = {
+            "force": self.tools.force_density(self.r) * p.dx,
+            "stored": p.energy.internal(),
+            "tools": p.contact_energy(),
+            "wrinkle": self.wrinkling.mark * p.dx,
+            "locked": self.indicators.locked(kin) * p.dx,
+        }
         self._forms = {k: fem.form(v) for k, v in self._forms.items()}
         self._S = fem.FunctionSpace(msh, ("DG", 2))
         self._pen = pen
@@ -116,8 +148,10 @@ class HemispherePlugin(ExperimentPlugin):
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
-        return {**forming_options.parse(tables, length_scale, where),
-                **forming_blank.parse(tables, where)}
+        return {
+            **forming_options.parse(tables, length_scale, where),
+            **forming_blank.parse(tables, where),
+        }
 
     @classmethod
     def check_specimen(cls, setup: PluginSetup, where: str) -> None:
@@ -139,10 +173,12 @@ class HemispherePlugin(ExperimentPlugin):
         return setup.options["punch_radius"] / 6.0
 
     bends = "hemisphere forming (the sheet bends over the punch and the die's lip)"
-    field_not_compared = ("a displacement field of a formed part is not yet compared (its "
-                          "points would need mapping onto the solved quarter with the mirrored "
-                          "components); compare the punch force (force.csv) and the shear "
-                          "angles at points (shear.csv, docs/contracts.md)")
+    field_not_compared = (
+        "a displacement field of a formed part is not yet compared (its "
+        "points would need mapping onto the solved quarter with the mirrored "
+        "components); compare the punch force (force.csv) and the shear "
+        "angles at points (shear.csv, docs/contracts.md)"
+    )
 
     @classmethod
     def check_data(cls, setup: PluginSetup, steps, path, where: str) -> None:
@@ -158,9 +194,11 @@ class HemispherePlugin(ExperimentPlugin):
         """No stroke may be negative (the punch touches the flat blank at s = 0)."""
         for k, v in zip(steps, path):
             if not v >= 0:
-                raise DataError(f"{where}: step {int(k)}: punch stroke {v:g} mm is negative: "
-                                "the punch starts touching the flat blank at 0 and pushes it "
-                                "up into the die")
+                raise DataError(
+                    f"{where}: step {int(k)}: punch stroke {v:g} mm is negative: "
+                    "the punch starts touching the flat blank at 0 and pushes it "
+                    "up into the die"
+                )
 
     def check_stroke(self, stroke: float) -> None:
         """Refuse a stroke beyond what the die and the blank allow (forming_options)."""
@@ -171,8 +209,9 @@ class HemispherePlugin(ExperimentPlugin):
 
     # -- reduced scalars (whole blank) ---------------------------------------------------
     def _scalar(self, name: str) -> float:
-        return self.copies * float(self.comm.allreduce(
-            fem.assemble_scalar(self._forms[name]), op=MPI.SUM))
+        return self.copies * float(
+            self.comm.allreduce(fem.assemble_scalar(self._forms[name]), op=MPI.SUM)
+        )
 
     def reaction(self) -> float:
         """The punch force F = ∂Π/∂s (N, forming_tools.py), reduced over ranks."""
@@ -196,8 +235,11 @@ class HemispherePlugin(ExperimentPlugin):
 
     def max_penetration(self, tool: str = "punch") -> float:
         """Largest penetration into a tool at the contact energy's quadrature points (mm)."""
-        expr = (self._pen_q if tool == "punch" else
-                quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE))
+        expr = (
+            self._pen_q
+            if tool == "punch"
+            else quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE)
+        )
         return max_over_cells(expr, self.specimen.mesh)
 
     def max_shear_deg(self) -> float:
@@ -219,32 +261,46 @@ class HemispherePlugin(ExperimentPlugin):
         """Forming fields for FieldWriter(extra=...) (module docstring)."""
         kin = self.problem.energy.kin
         fl, fm = l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)
-        out = {"shear_deg": kin.gamma * (180.0 / math.pi),
-               "contact_pressure": self.tools.pressure(self.r),
-               "wrinkle": self.wrinkling.mark, "least_membrane_force": self.wrinkling.smoothed,
-               "beyond_locking": self.indicators.locked(kin)}
-        out.update({f"{n}_{c}": v[i] for n, v in (("l", fl), ("m", fm))
-                    for i, c in enumerate("xyz")})
+        out = {
+            "shear_deg": kin.gamma * (180.0 / math.pi),
+            "contact_pressure": self.tools.pressure(self.r),
+            "wrinkle": self.wrinkling.mark,
+            "least_membrane_force": self.wrinkling.smoothed,
+            "beyond_locking": self.indicators.locked(kin),
+        }
+        out.update(
+            {f"{n}_{c}": v[i] for n, v in (("l", fl), ("m", fm)) for i, c in enumerate("xyz")}
+        )
         out.update(self.problem.energy.tension_fields())
         return out
 
     def writer(self, path) -> FieldWriter:
         """An XDMF writer of u and the forming fields (the caller closes it)."""
-        return FieldWriter(path, self.problem.u, self.problem.energy.kin,
-                           qdeg=CELL_QUADRATURE_DEGREE, extra=self.fields())
+        return FieldWriter(
+            path,
+            self.problem.u,
+            self.problem.energy.kin,
+            qdeg=CELL_QUADRATURE_DEGREE,
+            extra=self.fields(),
+        )
 
     def element_centres(self) -> np.ndarray:
         """forming_profile.element_centres: the diagonal's element midpoints (mm)."""
         return forming_profile.element_centres(self)
 
-    def profile(self, direction_deg: float, X: np.ndarray | None = None,
-                n: int = 40) -> dict[str, np.ndarray]:
+    def profile(
+        self, direction_deg: float, X: np.ndarray | None = None, n: int = 40
+    ) -> dict[str, np.ndarray]:
         """forming_profile.profile: the shear, arc and gap along a reference ray."""
         return forming_profile.profile(self, direction_deg, X, n)
 
-    def run(self, stroke: float, steps: int = 8,
-            on_step: Callable[[int, float], None] | None = None,
-            label: str = "") -> list[int]:
+    def run(
+        self,
+        stroke: float,
+        steps: int = 8,
+        on_step: Callable[[int, float], None] | None = None,
+        label: str = "",
+    ) -> list[int]:
         """Move the punch from s = 0 (touching the flat blank) to ``stroke`` in ``steps`` equal
         requested steps (cut on divergence, LoadStepper); records :attr:`stroke`,
         :attr:`force` and the step log :attr:`steps` (forming/stroke_log.StrokeLog) at each, and

@@ -39,8 +39,10 @@ def frame_half_angle(d: float, a: float) -> float:
     """φ with cos φ = (a√2 + d)/(2a); the frame locks flat when the diagonal reaches 2a."""
     c = (a * math.sqrt(2.0) + d) / (2.0 * a)
     if not -1.0 < c < 1.0:
-        raise ValueError(f"picture frame: crosshead displacement {d:g} mm is beyond the frame's "
-                         f"range ({-a * math.sqrt(2):.4g}, {a * (2 - math.sqrt(2)):.4g}) mm")
+        raise ValueError(
+            f"picture frame: crosshead displacement {d:g} mm is beyond the frame's "
+            f"range ({-a * math.sqrt(2):.4g}, {a * (2 - math.sqrt(2)):.4g}) mm"
+        )
     return math.acos(c)
 
 
@@ -59,10 +61,10 @@ def frame_gradient(d: float, a: float) -> tuple[np.ndarray, np.ndarray]:
     """F₀ = [e₁ e₂] and dF₀/dd."""
     phi = frame_half_angle(d, a)
     q = 0.25 * math.pi
-    F0 = np.array([[math.cos(q - phi), math.cos(q + phi)],
-                   [math.sin(q - phi), math.sin(q + phi)]])
-    dF0_dphi = np.array([[math.sin(q - phi), -math.sin(q + phi)],
-                         [-math.cos(q - phi), math.cos(q + phi)]])
+    F0 = np.array([[math.cos(q - phi), math.cos(q + phi)], [math.sin(q - phi), math.sin(q + phi)]])
+    dF0_dphi = np.array(
+        [[math.sin(q - phi), -math.sin(q + phi)], [-math.cos(q - phi), math.cos(q + phi)]]
+    )
     return F0, dF0_dphi * (-1.0 / (2.0 * a * math.sin(phi)))
 
 
@@ -81,13 +83,19 @@ class PictureFramePlugin(ExperimentPlugin):
     reaction_label = "crosshead force (N)"
     keys = {"loading": {"frame": "pinned | clamped (default pinned)"}}
 
-    def __init__(self, setup: PluginSetup, model: list[Term], h: float,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    def __init__(
+        self, setup: PluginSetup, model: list[Term], h: float, comm: MPI.Comm = MPI.COMM_WORLD
+    ) -> None:
         super().__init__(setup, model, h, comm)
         self.a = setup.length
         specimen = rectangle(self.a, self.a, h, comm)
-        p = FabricProblem(specimen, self.model, d=2, fibre_angles=tuple(setup.fibre_angles_deg),
-                          prefix="fabricsurf_frame_")
+        p = FabricProblem(
+            specimen,
+            self.model,
+            d=2,
+            fibre_angles=tuple(setup.fibre_angles_deg),
+            prefix="fabricsurf_frame_",
+        )
         V = p.V
         self._g, self._w = fem.Function(V), fem.Function(V)
         for edge in EDGE_TAGS:
@@ -96,8 +104,9 @@ class PictureFramePlugin(ExperimentPlugin):
         if setup.options.get("frame", "pinned") == "clamped":
             p.clamp_gradient(None, (self._F0 - ufl.Identity(2)) * ufl.FacetNormal(p.msh))
         self.problem, self.solver = p, p.solver()
-        self._boundary = np.unique(np.concatenate(
-            [p.component_dofs(e, i) for e in EDGE_TAGS for i in range(2)]))
+        self._boundary = np.unique(
+            np.concatenate([p.component_dofs(e, i) for e in EDGE_TAGS for i in range(2)])
+        )
 
     @classmethod
     def parse_options(cls, tables: dict, length_scale: float, where: str) -> dict:
@@ -106,8 +115,10 @@ class PictureFramePlugin(ExperimentPlugin):
     @classmethod
     def check_specimen(cls, setup: PluginSetup, where: str) -> None:
         if not math.isclose(setup.length, setup.width, rel_tol=1e-9):
-            raise DataError(f"{where}: the picture frame is square: [specimen] length "
-                            f"{setup.length:g} mm and width {setup.width:g} mm differ")
+            raise DataError(
+                f"{where}: the picture frame is square: [specimen] length "
+                f"{setup.length:g} mm and width {setup.width:g} mm differ"
+            )
 
     @classmethod
     def default_h(cls, setup: PluginSetup) -> float:

@@ -55,8 +55,7 @@ def displacement_at_angle(gamma, length: float, width: float) -> np.ndarray:
     return np.sqrt(2.0) * D * np.cos(np.pi / 4 - 0.5 * np.asarray(gamma, float)) - D
 
 
-def normalised_shear_force(d, force, length: float, width: float
-                           ) -> tuple[np.ndarray, np.ndarray]:
+def normalised_shear_force(d, force, length: float, width: float) -> tuple[np.ndarray, np.ndarray]:
     """(γ, F_sh): zone-C angle (rad) and normalised shear force (N/mm) of Cao et al. 2008
     eq. 18 from a force curve. The recursion needs F_sh(γ/2): it is interpolated, in order of
     increasing γ, from the values already found, with F_sh(0) = 0 (the elastic reference);
@@ -113,6 +112,3 @@ def locking_angle(model: Model) -> float | None:
     k_s = sum(t.k_s for t in terms if isinstance(t, Shear))
     lock = next((t for t in terms if isinstance(t, ShearLocking)), None)
     return None if lock is None else lock.locking_angle(k_s)
-
-
-

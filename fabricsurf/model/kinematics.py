@@ -249,13 +249,16 @@ def _finite_angle(family: str, value) -> float:
     except (TypeError, ValueError):
         v = math.nan
     if not math.isfinite(v):
-        raise ValueError(f"fibre angle of family {family} = {value!r} is not a finite number "
-                         "(degrees from the x axis)")
+        raise ValueError(
+            f"fibre angle of family {family} = {value!r} is not a finite number "
+            "(degrees from the x axis)"
+        )
     return v
 
 
-def fibre_vectors(angle_L_deg: float, angle_M_deg: float | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def fibre_vectors(
+    angle_L_deg: float, angle_M_deg: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Unit reference fibre directions (numpy 2-vectors) at the given angles from the x axis.
 
     M defaults to L rotated by −90°. Any two distinct directions are accepted; parallel

@@ -89,8 +89,12 @@ class PantographBending(Term):
     penalty_stretch: float = 1.0
     name: ClassVar[str] = "bipantographic_bending"
     order: ClassVar[int] = 2
-    units: ClassVar[dict[str, str]] = {"K_E": "N·mm", "K_F": "N·mm", "gamma": "rad",
-                                       "penalty_stretch": "1"}
+    units: ClassVar[dict[str, str]] = {
+        "K_E": "N·mm",
+        "K_F": "N·mm",
+        "gamma": "rad",
+        "penalty_stretch": "1",
+    }
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -114,8 +118,10 @@ class PantographBending(Term):
         comm = f.function_space.mesh.comm
         ok = bool((values * math.cos(self.gamma) < 1.0).all())
         if not comm.allreduce(ok, op=MPI.LAND):
-            raise ValueError(f"term '{self.name}': penalty_stretch must satisfy "
-                             f"penalty_stretch·cos γ < 1 in every cell")
+            raise ValueError(
+                f"term '{self.name}': penalty_stretch must satisfy "
+                f"penalty_stretch·cos γ < 1 in every cell"
+            )
         f.x.array[f.function_space.dofmap.list.array] = values
         f.x.scatter_forward()
         largest = comm.allreduce(float(np.max(values, initial=-np.inf)), op=MPI.MAX)
@@ -132,8 +138,10 @@ class PantographBending(Term):
 
     def density(self, kin: Kinematics, p: Params):
         W = 0
-        for rho, geo, drho in ((kin.lam, kin.geodesic_l, kin.dlam_dL),
-                               (kin.mu, kin.geodesic_m, kin.dmu_dM)):
+        for rho, geo, drho in (
+            (kin.lam, kin.geodesic_l, kin.dlam_dL),
+            (kin.mu, kin.geodesic_m, kin.dmu_dM),
+        ):
             a_theta, a_rho = self._coeffs(self._stretch(rho, p), p)
             W += a_theta * (geo / rho) ** 2 + a_rho * drho**2
         return W
@@ -149,15 +157,21 @@ class PantographBending(Term):
 
     def set(self, **values: float) -> None:
         if "penalty_stretch" in values:
-            _check_below_limit(self.name, "penalty_stretch", values["penalty_stretch"],
-                               values.get("gamma", self.gamma))
+            _check_below_limit(
+                self.name,
+                "penalty_stretch",
+                values["penalty_stretch"],
+                values.get("gamma", self.gamma),
+            )
         super().set(**values)
 
 
 def _check_below_limit(name: str, key: str, rho: float, gamma: float) -> None:
     if not float(rho) * math.cos(gamma) < 1.0:
-        raise ValueError(f"term '{name}': {key} = {rho} must satisfy {key}·cos γ < 1 "
-                         f"(< {1 / math.cos(gamma):.4f} for γ = {gamma:.4f})")
+        raise ValueError(
+            f"term '{name}': {key} = {rho} must satisfy {key}·cos γ < 1 "
+            f"(< {1 / math.cos(gamma):.4f} for γ = {gamma:.4f})"
+        )
 
 
 def _pivot_extension(rho, rho_r, K_S, gamma):
@@ -205,10 +219,14 @@ class RegularisedPantographBending(PantographBending):
         return ufl.min_value(rho, p["limit_stretch"])
 
 
-def bipantographic(K_S: float = TABLE3_MACRO["K_S"], K_E: float = TABLE3_MACRO["K_E"],
-                   K_F: float = TABLE3_MACRO["K_F"], gamma: float = math.pi / 6,
-                   penalty_stretch: float = 1.0,
-                   limit_stretch: float | None = None) -> list[Term]:
+def bipantographic(
+    K_S: float = TABLE3_MACRO["K_S"],
+    K_E: float = TABLE3_MACRO["K_E"],
+    K_F: float = TABLE3_MACRO["K_F"],
+    gamma: float = math.pi / 6,
+    penalty_stretch: float = 1.0,
+    limit_stretch: float | None = None,
+) -> list[Term]:
     """The homogenised bi-pantographic energy (Barchiesi et al. 2020, eq. 2) as a model.
 
     Defaults: Barchiesi et al. 2020 Table 3 (macro model), K_S = 0.034 N/mm, K_E = 330 N·mm,
@@ -218,10 +236,17 @@ def bipantographic(K_S: float = TABLE3_MACRO["K_S"], K_E: float = TABLE3_MACRO["
     (ρ_r cos γ < 1) by a stiff quadratic, defined for every stretch ("Regularisation").
     """
     if limit_stretch is None:
-        return [PantographPivot(K_S=K_S, gamma=gamma),
-                PantographBending(K_E=K_E, K_F=K_F, gamma=gamma,
-                                  penalty_stretch=penalty_stretch)]
-    return [RegularisedPantographPivot(K_S=K_S, gamma=gamma, limit_stretch=limit_stretch),
-            RegularisedPantographBending(K_E=K_E, K_F=K_F, gamma=gamma,
-                                         penalty_stretch=penalty_stretch,
-                                         limit_stretch=limit_stretch)]
+        return [
+            PantographPivot(K_S=K_S, gamma=gamma),
+            PantographBending(K_E=K_E, K_F=K_F, gamma=gamma, penalty_stretch=penalty_stretch),
+        ]
+    return [
+        RegularisedPantographPivot(K_S=K_S, gamma=gamma, limit_stretch=limit_stretch),
+        RegularisedPantographBending(
+            K_E=K_E,
+            K_F=K_F,
+            gamma=gamma,
+            penalty_stretch=penalty_stretch,
+            limit_stretch=limit_stretch,
+        ),
+    ]

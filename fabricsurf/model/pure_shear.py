@@ -45,6 +45,7 @@ class Term(Protocol):
     def parameter_on(self, msh, name: str): ...
     def density(self, kin: Kinematics, p): ...
 
+
 BIAS_ANGLES = (45.0, -45.0)
 """Fibre angles (deg from the load axis) of the bias test, the default of :func:`shear_moment`."""
 
@@ -73,16 +74,18 @@ class _Evaluator:
     def __init__(self, model: Sequence[Term], angles: tuple[float, float], cells: int) -> None:
         n = max(_MIN_CELLS, 2 ** math.ceil(math.log2(max(cells, 1)))) // 2
         # [0, n] × [0, 1] in n × 1 squares: 2n triangles of area 1/2 each
-        self.msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.zeros(2), np.array([n, 1.0])],
-                                          [n, 1], dmesh.CellType.triangle)
+        self.msh = dmesh.create_rectangle(
+            MPI.COMM_SELF, [np.zeros(2), np.array([n, 1.0])], [n, 1], dmesh.CellType.triangle
+        )
         V = fem.FunctionSpace(self.msh, ("DG", 0))
         self.gamma = fem.Function(V)
         self.size = V.dofmap.index_map.size_local
         L, M = fibre_vectors(*angles)
         F = pure_shear_gradient(self.gamma, angles)
         kin = Kinematics(F, ufl.zero(3, 2, 2), ufl.as_vector(L), ufl.as_vector(M))
-        self.constants = [TermConstants({p: t.parameter_on(self.msh, p) for p in t.parameters()})
-                          for t in model]
+        self.constants = [
+            TermConstants({p: t.parameter_on(self.msh, p) for p in t.parameters()}) for t in model
+        ]
         W = sum((t.density(kin, c) for t, c in zip(model, self.constants)), ufl.zero())
         dx = ufl.dx(domain=self.msh, metadata={"quadrature_degree": 1})
         tau = expand_derivatives(ufl.derivative(W * dx, self.gamma, ufl.TestFunction(V)))
@@ -98,24 +101,27 @@ class _Evaluator:
         if self.form is None:
             return np.where(np.isnan(gamma), np.nan, 0.0)
         for k in range(0, gamma.size, self.size):
-            chunk = gamma[k:k + self.size]
+            chunk = gamma[k : k + self.size]
             self.gamma.x.array[:] = 0.0
-            self.gamma.x.array[:chunk.size] = chunk
+            self.gamma.x.array[: chunk.size] = chunk
             with self.vector.localForm() as b:
                 b.set(0.0)
             fem_petsc.assemble_vector(self.vector, self.form)
-            out[k:k + chunk.size] = self.vector.array[:chunk.size] / 0.5  # cell area 1/2
+            out[k : k + chunk.size] = self.vector.array[: chunk.size] / 0.5  # cell area 1/2
         return out
 
 
 def _structure(model: Sequence[Term], angles: tuple[float, float]) -> tuple:
     """What the compiled form depends on: each term's class and options, and the angles."""
-    return (tuple((type(t), tuple((o, repr(getattr(t, o))) for o in t.options)) for t in model),
-            tuple(float(a) for a in angles))
+    return (
+        tuple((type(t), tuple((o, repr(getattr(t, o))) for o in t.options)) for t in model),
+        tuple(float(a) for a in angles),
+    )
 
 
-def shear_moment(model: Sequence[Term], gamma, angles: tuple[float, float] = BIAS_ANGLES
-                 ) -> np.ndarray:
+def shear_moment(
+    model: Sequence[Term], gamma, angles: tuple[float, float] = BIAS_ANGLES
+) -> np.ndarray:
     """τ(γ) = dW/dγ (N/mm) of the sum of the terms of ``model`` in pure shear of inextensible
     fibres at ``angles`` (deg), at every shear angle of ``gamma`` (rad, any shape: the result
     has its shape). Round-off exact; 0 for an empty model; NaN where γ is NaN or outside
@@ -128,8 +134,8 @@ def shear_moment(model: Sequence[Term], gamma, angles: tuple[float, float] = BIA
         return np.where(np.isnan(g), np.nan, 0.0)
     key = _structure(model, angles)
     ev = _CACHE.get(key)
-    if ev is None or ev.size < min(g.size, 2 ** 16):
+    if ev is None or ev.size < min(g.size, 2**16):
         if len(_CACHE) >= _CACHE_SIZE:
             _CACHE.clear()
-        ev = _CACHE[key] = _Evaluator(model, angles, min(g.size, 2 ** 16))
+        ev = _CACHE[key] = _Evaluator(model, angles, min(g.size, 2**16))
     return ev(model, g.ravel()).reshape(g.shape)

@@ -48,14 +48,18 @@ class EffectRegistry(Mapping):
             raise ValueError(f"{origin}: {cls!r} is not a subclass of fabricsurf's Term")
         name = cls.name
         if not (isinstance(name, str) and name.isidentifier()):
-            raise ValueError(f"{origin}: effect {cls.__name__} has name {name!r}; give it "
-                             "a name that is an identifier, e.g. name: ClassVar[str] = "
-                             "\"shear_tension\"")
+            raise ValueError(
+                f"{origin}: effect {cls.__name__} has name {name!r}; give it "
+                "a name that is an identifier, e.g. name: ClassVar[str] = "
+                '"shear_tension"'
+            )
         if name in self._classes:
             other = self._origins[name]
             what = "a built-in effect" if other == BUILTIN else f"the effect from {other}"
-            raise ValueError(f"{origin}: effect name '{name}' ({cls.__name__}) is already "
-                             f"taken by {what}; rename it")
+            raise ValueError(
+                f"{origin}: effect name '{name}' ({cls.__name__}) is already "
+                f"taken by {what}; rename it"
+            )
         self._classes[name] = cls
         self._origins[name] = origin
         return cls

@@ -67,15 +67,15 @@ class YarnSlip(Term):
     fibre: ClassVar[bool] = True
     look_alike: ClassVar[dict] = {
         "mechanism": "slip of the specimen in the grips (a crosshead displacement the fabric "
-                     "does not take), not in the vocabulary; nor can it tell either from the "
-                     "net extending along its yarns that a soft fibre_stretch stands for",
+        "does not take), not in the vocabulary; nor can it tell either from the "
+        "net extending along its yarns that a soft fibre_stretch stands for",
         "evidence": "Cao et al. 2008, 115 x 230 mm, the whole curve, three-zone kinematics: "
-                    "yarn slip (threshold + hardening) and grip slip (threshold force + "
-                    "compliance) fit it about equally well and give the same zone-C angle "
-                    "near the lock, and so do grip compliance + shear_locking and the "
-                    "finite-element extensible net + shear_locking "
-                    "(benchmarks/large_shear_mechanisms.py; the chi2 values and angles in "
-                    "docs/woven_fabric.md, 'The large-shear range')",
+        "yarn slip (threshold + hardening) and grip slip (threshold force + "
+        "compliance) fit it about equally well and give the same zone-C angle "
+        "near the lock, and so do grip compliance + shear_locking and the "
+        "finite-element extensible net + shear_locking "
+        "(benchmarks/large_shear_mechanisms.py; the chi2 values and angles in "
+        "docs/woven_fabric.md, 'The large-shear range')",
         "identified_by": [
             "a full-field measurement: grip slip moves zone A rigidly against the grip, yarn "
             "slip stretches the net along its fibres (the crossings' spacing) in zones B and C",
@@ -84,14 +84,18 @@ class YarnSlip(Term):
             "fits' forces for a 150 x 450 mm specimen differ past 60 deg only: "
             "docs/woven_fabric.md, 'The large-shear range')",
             "a picture-frame test to the same angles: no free edges and no bias-test grip; its "
-            "shear force past 60 deg tells a shear law that locks from one that softens"]}
+            "shear force past 60 deg tells a shear law that locks from one that softens",
+        ],
+    }
 
     def __post_init__(self) -> None:
         super().__post_init__()
         e = self.eps_s
         if not (isinstance(e, (int, float)) and math.isfinite(e) and 0.0 < e <= 0.1):
-            raise ValueError(f"term '{self.name}': slip strain eps_s = {e!r} must be a number "
-                             "in (0, 0.1] (the friction is mobilised within 10 % of stretch)")
+            raise ValueError(
+                f"term '{self.name}': slip strain eps_s = {e!r} must be a number "
+                "in (0, 0.1] (the friction is mobilised within 10 % of stretch)"
+            )
 
     def small_stretch_stiffness(self) -> float:
         """T_s/ε_s: the tangent of the tension T_s tanh((λ − 1)/ε_s) at λ = 1. Sticking yarns
@@ -100,6 +104,4 @@ class YarnSlip(Term):
 
     def density(self, kin: Kinematics, p: Params):
         es = self.eps_s
-        return p["T_s"] * es * (_ln_cosh(_abs(kin.lam - 1) / es)
-                                + _ln_cosh(_abs(kin.mu - 1) / es))
-
+        return p["T_s"] * es * (_ln_cosh(_abs(kin.lam - 1) / es) + _ln_cosh(_abs(kin.mu - 1) / es))

@@ -50,8 +50,9 @@ class Term:
     fibre: ClassVar[bool] = False  # stretches the fibres (integrated apart when "reduced")
     in_plane: ClassVar[bool] = True  # acts on planar placements: planar (2D) data can see it
     signed: ClassVar[tuple[str, ...]] = ()  # moduli that may be negative (a coupling's)
-    _live: weakref.WeakSet = field(default_factory=weakref.WeakSet, init=False, repr=False,
-                                   compare=False)  # the constants of the live forms (set())
+    _live: weakref.WeakSet = field(
+        default_factory=weakref.WeakSet, init=False, repr=False, compare=False
+    )  # the constants of the live forms (set())
 
     def __post_init__(self) -> None:
         for p in self.parameters():
@@ -75,8 +76,9 @@ class Term:
 
     @classmethod
     def parameters(cls) -> list[str]:
-        return [f.name for f in fields(cls)
-                if not f.name.startswith("_") and f.name not in cls.options]
+        return [
+            f.name for f in fields(cls) if not f.name.startswith("_") and f.name not in cls.options
+        ]
 
     def _check(self, p: str, value: float) -> None:
         try:
@@ -108,8 +110,9 @@ class Term:
         (no recompilation); not in those of a copy (the class docstring)."""
         for p, v in values.items():
             if p not in self.parameters():
-                raise ValueError(f"term '{self.name}' has no parameter '{p}'; "
-                                 f"it has {self.parameters()}")
+                raise ValueError(
+                    f"term '{self.name}' has no parameter '{p}'; it has {self.parameters()}"
+                )
             self._check(p, v)
             setattr(self, p, float(v))
             for consts in self._live:

@@ -61,8 +61,7 @@ class FibreStretch(Term):
         (those of inextensible ones are the multipliers of :meth:`constraints`)."""
         if self.inextensible:
             return {}
-        return {"tension_l": p["k_l"] * (kin.lam - 1),
-                "tension_m": p["k_m"] * (kin.mu - 1)}
+        return {"tension_l": p["k_l"] * (kin.lam - 1), "tension_m": p["k_m"] * (kin.mu - 1)}
 
     def constraints(self, kin: Kinematics, p: Params) -> list[tuple[str, object, object]]:
         if not self.inextensible:
@@ -132,8 +131,10 @@ class CrossoverFriction(Term):
         super().__post_init__()
         g = self.gamma_f
         if not (isinstance(g, (int, float)) and math.isfinite(g) and 0.0 < g <= math.pi / 4):
-            raise ValueError(f"term '{self.name}': shape angle gamma_f = {g!r} must be a number "
-                             "in (0, π/4] rad (the friction is mobilised within 45°)")
+            raise ValueError(
+                f"term '{self.name}': shape angle gamma_f = {g!r} must be a number "
+                "in (0, π/4] rad (the friction is mobilised within 45°)"
+            )
 
     def density(self, kin: Kinematics, p: Params):
         g = kin.gamma
@@ -220,8 +221,20 @@ class Twist(Term):
         return 0.5 * p["k_t"] * kin.T**2
 
 
-EFFECTS = EffectRegistry((FibreStretch, Shear, ShearLocking, CrossoverFriction, GeodesicBending,
-                          StretchGradient, ShearGradient, NormalBending, Twist, YarnSlip))
+EFFECTS = EffectRegistry(
+    (
+        FibreStretch,
+        Shear,
+        ShearLocking,
+        CrossoverFriction,
+        GeodesicBending,
+        StretchGradient,
+        ShearGradient,
+        NormalBending,
+        Twist,
+        YarnSlip,
+    )
+)
 """The vocabulary of effects, by exact name (docs/theory.md): a mapping name → Term class, the
 built-ins and then the effects a user registered in this process
 (:func:`fabricsurf.model.user_effects.register_effect`, ``--effects FILE.py``)."""
@@ -238,8 +251,9 @@ def make_term(name: str, **params: float) -> Term:
     cls = EFFECTS.lookup(name)
     unknown = set(params) - set(cls.parameters())
     if unknown:
-        raise ValueError(f"term '{name}' has no parameter(s) {sorted(unknown)}; "
-                         f"it has {cls.parameters()}")
+        raise ValueError(
+            f"term '{name}' has no parameter(s) {sorted(unknown)}; it has {cls.parameters()}"
+        )
     return cls(**params)
 
 

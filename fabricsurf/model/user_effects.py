@@ -59,22 +59,30 @@ def _check_declarations(cls: type[Term], origin: str) -> None:
     params = cls.parameters()
     what = f"{origin}: effect '{cls.name}' ({cls.__name__})"
     if not params:
-        raise ValueError(f"{what} has no modulus (a dataclass field that is not in "
-                         "``options``); declare it with @dataclass and a field per modulus")
+        raise ValueError(
+            f"{what} has no modulus (a dataclass field that is not in "
+            "``options``); declare it with @dataclass and a field per modulus"
+        )
     missing = [p for p in params if not str(cls.units.get(p, "")).strip()]
     if missing:
-        raise ValueError(f"{what}: no unit declared for {', '.join(missing)}; add "
-                         f"units: ClassVar[dict[str, str]] = {{\"{missing[0]}\": \"N/mm\"}} "
-                         "(N/mm first gradient, N·mm second)")
+        raise ValueError(
+            f"{what}: no unit declared for {', '.join(missing)}; add "
+            f'units: ClassVar[dict[str, str]] = {{"{missing[0]}": "N/mm"}} '
+            "(N/mm first gradient, N·mm second)"
+        )
     stray = [s for s in cls.signed if s not in params]
     if stray:
-        raise ValueError(f"{what}: signed names {', '.join(stray)}, which are not its moduli "
-                         f"({', '.join(params)})")
+        raise ValueError(
+            f"{what}: signed names {', '.join(stray)}, which are not its moduli "
+            f"({', '.join(params)})"
+        )
     try:
         cls()
     except Exception as e:  # the user's constructor: any failure is reported
-        raise ValueError(f"{what}: cannot be made at its defaults ({type(e).__name__}: {e}); "
-                         "give every field a default") from None
+        raise ValueError(
+            f"{what}: cannot be made at its defaults ({type(e).__name__}: {e}); "
+            "give every field a default"
+        ) from None
 
 
 def load_effects(paths: list[str | Path]) -> list[str]:
@@ -84,12 +92,16 @@ def load_effects(paths: list[str | Path]) -> list[str]:
     names: list[str] = []
     for path in paths:
         module = _import_file(Path(path))
-        found = [c for _, c in inspect.getmembers(module, inspect.isclass)
-                 if issubclass(c, Term) and c is not Term and c.__module__ == module.__name__
-                 and c.name]
+        found = [
+            c
+            for _, c in inspect.getmembers(module, inspect.isclass)
+            if issubclass(c, Term) and c is not Term and c.__module__ == module.__name__ and c.name
+        ]
         if not found:
-            raise ValueError(f"--effects {path}: defines no subclass of fabricsurf's Term with "
-                             "a name (name: ClassVar[str] = \"my_effect\")")
+            raise ValueError(
+                f"--effects {path}: defines no subclass of fabricsurf's Term with "
+                'a name (name: ClassVar[str] = "my_effect")'
+            )
         for cls in found:
             names.append(register_effect(cls, str(path)).name)
     return names
@@ -124,8 +136,9 @@ def _import_file(path: Path):
         spec.loader.exec_module(module)
     except Exception as e:  # the user's module: any failure is reported
         del sys.modules[name]
-        raise ValueError(f"--effects {path}: cannot be imported ({type(e).__name__}: {e})"
-                         ) from None
+        raise ValueError(
+            f"--effects {path}: cannot be imported ({type(e).__name__}: {e})"
+        ) from None
     return module
 
 
@@ -135,23 +148,28 @@ def check_linear(cls: type[Term], origin: str) -> None:
     try:
         w = _density_evaluator(cls())
     except Exception as e:  # the user's density: any failure is reported
-        raise ValueError(f"{what}: its density cannot be evaluated ({type(e).__name__}: "
-                         f"{e})") from None
+        raise ValueError(
+            f"{what}: its density cannot be evaluated ({type(e).__name__}: {e})"
+        ) from None
     rng = np.random.default_rng(20240601)
     names = cls.parameters()
     p = dict(zip(names, rng.uniform(0.5, 2.0, len(names))))
     q = dict(zip(names, rng.uniform(0.5, 2.0, len(names))))
     wp, wq = w(p), w(q)
-    checks = (("W(2p) = 2 W(p)", w({k: 2 * v for k, v in p.items()}), 2 * wp),
-              ("W(p + q) = W(p) + W(q)", w({k: p[k] + q[k] for k in names}), wp + wq))
+    checks = (
+        ("W(2p) = 2 W(p)", w({k: 2 * v for k, v in p.items()}), 2 * wp),
+        ("W(p + q) = W(p) + W(q)", w({k: p[k] + q[k] for k in names}), wp + wq),
+    )
     for rule, lhs, rhs in checks:
         scale = np.max(np.abs(lhs) + np.abs(rhs), initial=0.0)
         err = np.max(np.abs(lhs - rhs), initial=0.0)
         if not (math.isfinite(err) and err <= LINEAR_RTOL * scale):
-            raise ValueError(f"{what}: its density is not linear in its moduli "
-                             f"({', '.join(names)}): {rule} fails by {err / max(scale, 1e-300):.2g}"
-                             " relative; fit and diagnose assume W linear in each modulus (make "
-                             "shape parameters options, not moduli: docs/usage.md)")
+            raise ValueError(
+                f"{what}: its density is not linear in its moduli "
+                f"({', '.join(names)}): {rule} fails by {err / max(scale, 1e-300):.2g}"
+                " relative; fit and diagnose assume W linear in each modulus (make "
+                "shape parameters options, not moduli: docs/usage.md)"
+            )
 
 
 def _density_evaluator(term: Term):
@@ -166,8 +184,12 @@ def _density_evaluator(term: Term):
     from fabricsurf.model.kinematics import Kinematics, fibre_vectors
     from fabricsurf.model.term_constants import TermConstants
 
-    msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.zeros(2), np.array([STATES // 2, 1.0])],
-                                 [STATES // 2, 1], dmesh.CellType.triangle)
+    msh = dmesh.create_rectangle(
+        MPI.COMM_SELF,
+        [np.zeros(2), np.array([STATES // 2, 1.0])],
+        [STATES // 2, 1],
+        dmesh.CellType.triangle,
+    )
     V = fem.FunctionSpace(msh, ("DG", 0))
     f, g = (fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0), dim=n)) for n in (6, 12))
     rng = np.random.default_rng(7)
@@ -175,8 +197,9 @@ def _density_evaluator(term: Term):
     f.x.array[:] = eye + rng.uniform(-0.2, 0.2, eye.size)
     g.x.array[:] = rng.uniform(-0.3, 0.3, g.x.array.size)
     F = ufl.as_matrix([[f[2 * i + a] for a in range(2)] for i in range(3)])
-    H = ufl.as_tensor([[[g[4 * i + 2 * a + b] for b in range(2)] for a in range(2)]
-                       for i in range(3)])
+    H = ufl.as_tensor(
+        [[[g[4 * i + 2 * a + b] for b in range(2)] for a in range(2)] for i in range(3)]
+    )
     L, M = fibre_vectors(0.0, 90.0)
     kin = Kinematics(F, H, ufl.as_vector(L), ufl.as_vector(M))
     consts = TermConstants({p: fem.Constant(msh, 1.0) for p in term.parameters()})

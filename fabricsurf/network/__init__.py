@@ -21,6 +21,16 @@ from fabricsurf.network.hencky import (
     spanning_spacing,
 )
 
-__all__ = ["ConvergenceError", "Dirichlet", "Lattice", "SpringNetwork", "continuum_from_lattice",
-           "hencky_lattice", "lattice_from_continuum", "newton", "reaction", "solve_steps",
-           "spanning_spacing"]
+__all__ = [
+    "ConvergenceError",
+    "Dirichlet",
+    "Lattice",
+    "SpringNetwork",
+    "continuum_from_lattice",
+    "hencky_lattice",
+    "lattice_from_continuum",
+    "newton",
+    "reaction",
+    "solve_steps",
+    "spanning_spacing",
+]

@@ -78,9 +78,14 @@ def _ids(n_x: int, n_y: int) -> np.ndarray:
     return ids
 
 
-def bipantographic_lattice(n_x: int = 11, n_y: int = 7, eps: float = EPS_B,
-                           k_e: float = TABLE3["k_e"], k_r1: float = TABLE3["k_r1"],
-                           k_r2: float = TABLE3["k_r2"]) -> Lattice:
+def bipantographic_lattice(
+    n_x: int = 11,
+    n_y: int = 7,
+    eps: float = EPS_B,
+    k_e: float = TABLE3["k_e"],
+    k_r1: float = TABLE3["k_r1"],
+    k_r2: float = TABLE3["k_r2"],
+) -> Lattice:
     """The 13-node-cell lattice of [B §3] on n_x x n_y cells of side sqrt(2) eps.
 
     Energy [B (20)]: 16 extensional (k_e, l0 = eps/sqrt(3)), 8 pivot (k_r1, +-pi/3) and
@@ -95,18 +100,22 @@ def bipantographic_lattice(n_x: int = 11, n_y: int = 7, eps: float = EPS_B,
     X = np.zeros(((n_x + 1) * (n_y + 1) + 9 * n_x * n_y, 2))
     loc = cell_geometry(eps)
     X[ids] = loc[None] + c * np.stack([i.ravel(), j.ravel()], 1)[:, None, :]
-    ext = np.concatenate([ids[:, [p, s]] for p, q, sl, sr in SEGMENTS for s in (sl, sr)]
-                         + [ids[:, [s, q]] for p, q, sl, sr in SEGMENTS for s in (sl, sr)])
+    ext = np.concatenate(
+        [ids[:, [p, s]] for p, q, sl, sr in SEGMENTS for s in (sl, sr)]
+        + [ids[:, [s, q]] for p, q, sl, sr in SEGMENTS for s in (sl, sr)]
+    )
     piv = np.concatenate([ids[:, [p, s, q]] for p, q, sl, sr in SEGMENTS for s in (sr, sl)])
     bend = [ids[:, list(t)] for t in R2]
     cid = _ids(n_x, n_y)
     a, b = cid[:-1, :-1], cid[1:, 1:]  # cells (i-1, j-1) and (i, j) around vertex (i, j)
     d, e = cid[:-1, 1:], cid[1:, :-1]  # cells (i-1, j) and (i, j-1)
     V = b[..., 0]
-    bend += [np.stack([a[..., 7], V, b[..., 5]], -1).reshape(-1, 3),
-             np.stack([a[..., 8], V, b[..., 6]], -1).reshape(-1, 3),
-             np.stack([d[..., 9], V, e[..., 11]], -1).reshape(-1, 3),
-             np.stack([d[..., 10], V, e[..., 12]], -1).reshape(-1, 3)]
+    bend += [
+        np.stack([a[..., 7], V, b[..., 5]], -1).reshape(-1, 3),
+        np.stack([a[..., 8], V, b[..., 6]], -1).reshape(-1, 3),
+        np.stack([d[..., 9], V, e[..., 11]], -1).reshape(-1, 3),
+        np.stack([d[..., 10], V, e[..., 12]], -1).reshape(-1, 3),
+    ]
     bend = np.concatenate(bend)
     rot = np.concatenate([piv, bend])
     phi0 = np.concatenate([np.full(len(piv), np.nan), np.zeros(len(bend))])
@@ -117,8 +126,11 @@ def bipantographic_lattice(n_x: int = 11, n_y: int = 7, eps: float = EPS_B,
     clamp = np.arange(2 * nv)
     grip = np.arange((n_x - 1) * nv, (n_x + 1) * nv)
     L, M = np.array([1.0, 1.0]) / np.sqrt(2), np.array([1.0, -1.0]) / np.sqrt(2)
-    sets = {"extension": np.arange(len(ext)), "pivot": np.arange(len(piv)),
-            "bending": len(piv) + np.arange(len(bend))}
+    sets = {
+        "extension": np.arange(len(ext)),
+        "pivot": np.arange(len(piv)),
+        "bending": len(piv) + np.arange(len(bend)),
+    }
     return Lattice(net, _axis_grid(n_x, n_y, cid), L, M, float(eps), clamp, grip, sets)
 
 

@@ -86,9 +86,22 @@ class SpringNetwork:
         the yarns' friction at the crossings against sliding through them (default 0: none).
     """
 
-    def __init__(self, X, ext, k_ext, l0=None, rot=None, k_rot=0.0, phi0=None,
-                 k_rot4=0.0, k_rot6=0.0, m_fric=0.0, phi_f: float = 1.0, f_slip=0.0,
-                 eps_slip: float = 1.0) -> None:
+    def __init__(
+        self,
+        X,
+        ext,
+        k_ext,
+        l0=None,
+        rot=None,
+        k_rot=0.0,
+        phi0=None,
+        k_rot4=0.0,
+        k_rot6=0.0,
+        m_fric=0.0,
+        phi_f: float = 1.0,
+        f_slip=0.0,
+        eps_slip: float = 1.0,
+    ) -> None:
         self.X = np.asarray(X, dtype=float).reshape(-1, 2)
         self.ext = np.asarray(ext, dtype=np.int64).reshape(-1, 2)
         self.rot = np.asarray(rot if rot is not None else [], dtype=np.int64).reshape(-1, 3)
@@ -105,10 +118,16 @@ class SpringNetwork:
         if not (np.isfinite(eps_slip) and eps_slip > 0.0):
             raise ValueError(f"SpringNetwork: slip strain eps_slip = {eps_slip!r} must be > 0")
         self.eps_slip = float(eps_slip)
-        self.l0 = self.lengths(self.X) if l0 is None else np.broadcast_to(
-            np.asarray(l0, float), (me,)).copy()
-        self.phi0 = self.turning_angles(self.X) if phi0 is None else np.broadcast_to(
-            np.asarray(phi0, float), (mr,)).copy()
+        self.l0 = (
+            self.lengths(self.X)
+            if l0 is None
+            else np.broadcast_to(np.asarray(l0, float), (me,)).copy()
+        )
+        self.phi0 = (
+            self.turning_angles(self.X)
+            if phi0 is None
+            else np.broadcast_to(np.asarray(phi0, float), (mr,)).copy()
+        )
         self._pattern = None
 
     # ------------------------------------------------------------------ sizes
@@ -150,7 +169,8 @@ class SpringNetwork:
         ee = 0.5 * self.k_ext * stretch**2
         s = np.abs(stretch) / (self.l0 * self.eps_slip)  # ln cosh s without overflow
         ee = ee + self.f_slip * self.l0 * self.eps_slip * (
-            s + np.log1p(np.exp(-2.0 * s)) - np.log(2.0))
+            s + np.log1p(np.exp(-2.0 * s)) - np.log(2.0)
+        )
         d = self.angle_deviations(x)
         d2 = d * d
         er = (0.5 * self.k_rot + (0.25 * self.k_rot4 + self.k_rot6 / 6.0 * d2) * d2) * d2
@@ -181,8 +201,11 @@ class SpringNetwork:
         d2 = d * d
         t = np.tanh(d / self.phi_f)
         moment = (self.k_rot + (self.k_rot4 + self.k_rot6 * d2) * d2) * d + self.m_fric * t
-        stiff = (self.k_rot + (3.0 * self.k_rot4 + 5.0 * self.k_rot6 * d2) * d2
-                 + self.m_fric * (1.0 - t * t) / self.phi_f)  # E_r'(d), E_r''(d)
+        stiff = (
+            self.k_rot
+            + (3.0 * self.k_rot4 + 5.0 * self.k_rot6 * d2) * d2
+            + self.m_fric * (1.0 - t * t) / self.phi_f
+        )  # E_r'(d), E_r''(d)
         return a, b, dphi, moment, stiff
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
@@ -202,11 +225,27 @@ class SpringNetwork:
 
     # --------------------------------------------------------------- hessian
     def _element_dofs(self) -> tuple[np.ndarray, np.ndarray]:
-        de = np.stack([2 * self.ext[:, 0], 2 * self.ext[:, 0] + 1,
-                       2 * self.ext[:, 1], 2 * self.ext[:, 1] + 1], axis=1)
+        de = np.stack(
+            [
+                2 * self.ext[:, 0],
+                2 * self.ext[:, 0] + 1,
+                2 * self.ext[:, 1],
+                2 * self.ext[:, 1] + 1,
+            ],
+            axis=1,
+        )
         r = self.rot
-        dr = np.stack([2 * r[:, 0], 2 * r[:, 0] + 1, 2 * r[:, 1], 2 * r[:, 1] + 1,
-                       2 * r[:, 2], 2 * r[:, 2] + 1], axis=1)
+        dr = np.stack(
+            [
+                2 * r[:, 0],
+                2 * r[:, 0] + 1,
+                2 * r[:, 1],
+                2 * r[:, 1] + 1,
+                2 * r[:, 2],
+                2 * r[:, 2] + 1,
+            ],
+            axis=1,
+        )
         return de, dr
 
     def _build_pattern(self) -> None:

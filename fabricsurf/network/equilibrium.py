@@ -70,9 +70,16 @@ def _constrained(bcs: list[Dirichlet], n: int, t: float) -> tuple[np.ndarray, np
     return fixed.ravel(), u
 
 
-def newton(net: SpringNetwork, x: np.ndarray, fixed: np.ndarray, rtol: float = 1e-10,
-           atol: float = 1e-9, maxit: int = 30, max_halvings: int = 10,
-           linear: FreeDofSolver | None = None) -> tuple[np.ndarray, NewtonInfo]:
+def newton(
+    net: SpringNetwork,
+    x: np.ndarray,
+    fixed: np.ndarray,
+    rtol: float = 1e-10,
+    atol: float = 1e-9,
+    maxit: int = 30,
+    max_halvings: int = 10,
+    linear: FreeDofSolver | None = None,
+) -> tuple[np.ndarray, NewtonInfo]:
     """Minimise E over the free dofs from ``x`` (the constrained dofs of ``x`` are kept).
 
     Newton-Raphson on ``f_free = 0`` [B (24)] with a backtracking line search on the
@@ -119,8 +126,13 @@ def reaction(net: SpringNetwork, x: np.ndarray, nodes: np.ndarray) -> np.ndarray
     return net.gradient(x)[np.asarray(nodes, np.int64)].sum(axis=0)
 
 
-def tangent_predictor(net: SpringNetwork, x: np.ndarray, fixed: np.ndarray,
-                      x_fixed_new: np.ndarray, linear: FreeDofSolver) -> np.ndarray:
+def tangent_predictor(
+    net: SpringNetwork,
+    x: np.ndarray,
+    fixed: np.ndarray,
+    x_fixed_new: np.ndarray,
+    linear: FreeDofSolver,
+) -> np.ndarray:
     """Linearised response to moving the constrained dofs: H_ff Δq_f = −H_fc Δq_c (at an
     equilibrium x), the predictor of a load step that starts from rest; returns the guess."""
     q = np.asarray(x, float).ravel()
@@ -131,10 +143,16 @@ def tangent_predictor(net: SpringNetwork, x: np.ndarray, fixed: np.ndarray,
     return (q + dq).reshape(-1, 2)
 
 
-def solve_steps(net: SpringNetwork, bcs: list[Dirichlet], n_steps: int = 10,
-                x0: np.ndarray | None = None, reaction_sets: dict | None = None,
-                min_step: float = 1e-4, newton_kw: dict | None = None,
-                callback=None) -> list[StepResult]:
+def solve_steps(
+    net: SpringNetwork,
+    bcs: list[Dirichlet],
+    n_steps: int = 10,
+    x0: np.ndarray | None = None,
+    reaction_sets: dict | None = None,
+    min_step: float = 1e-4,
+    newton_kw: dict | None = None,
+    callback=None,
+) -> list[StepResult]:
     """Load stepping t: 0 -> 1 in ``n_steps`` equal steps with step cutting.
 
     Each step starts from the last converged state, with the prescribed nodes moved to
@@ -167,7 +185,8 @@ def solve_steps(net: SpringNetwork, bcs: list[Dirichlet], n_steps: int = 10,
             if dt < min_step:
                 raise ConvergenceError(
                     f"Newton did not converge at load factor {t:.6g} + {2 * dt:.3g}; "
-                    f"step cut below min_step={min_step:g} (last residual {info.residual:.3e} N)")
+                    f"step cut below min_step={min_step:g} (last residual {info.residual:.3e} N)"
+                )
             continue
         dx_prev, dx_prev_dt = xn - x, dt
         x, t = xn, t + dt

@@ -111,16 +111,26 @@ def _sin_theta0(angles_deg):
     t = np.radians(np.asarray(angles_deg, float))
     s0 = abs(np.sin(t[0] - t[1]))
     if not np.all(np.isfinite(t)) or s0 < 1e-6:
-        raise ValueError(f"fibre angles {tuple(angles_deg)} deg: the two families must be finite "
-                         "and not parallel")
+        raise ValueError(
+            f"fibre angles {tuple(angles_deg)} deg: the two families must be finite "
+            "and not parallel"
+        )
     return s0, np.array([np.cos(t[0]), np.sin(t[0])]), np.array([np.cos(t[1]), np.sin(t[1])])
 
 
-def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
-                           angles_deg: tuple[float, float] = (45.0, -45.0),
-                           k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0,
-                           gamma_f: float = FRICTION_ANGLE, T_s: float = 0.0,
-                           eps_s: float = 1.0) -> dict:
+def lattice_from_continuum(
+    k_l: float,
+    k_s: float,
+    A_g: float,
+    spacing: float,
+    angles_deg: tuple[float, float] = (45.0, -45.0),
+    k4: float = 0.0,
+    k6: float = 0.0,
+    tau_f: float = 0.0,
+    gamma_f: float = FRICTION_ANGLE,
+    T_s: float = 0.0,
+    eps_s: float = 1.0,
+) -> dict:
     """Lattice stiffnesses for continuum moduli (module docstring), ready for
     :func:`hencky_lattice`: ``k_e`` (N/mm), ``k_sh``, ``k_sh4``, ``k_sh6``, ``k_b``, ``m_shf``
     (N mm), ``gamma_f`` (rad), ``f_slip`` (N) and ``eps_slip``.
@@ -132,36 +142,62 @@ def lattice_from_continuum(k_l: float, k_s: float, A_g: float, spacing: float,
     """
     s0 = _sin_theta0(angles_deg)[0]
     cell = s0 * spacing**2
-    return {"k_e": k_l * s0, "k_sh": k_s * cell, "k_b": A_g * s0,
-            "k_sh4": k4 * cell, "k_sh6": k6 * cell, "m_shf": tau_f * cell, "gamma_f": gamma_f,
-            "f_slip": T_s * s0 * spacing, "eps_slip": eps_s}
+    return {
+        "k_e": k_l * s0,
+        "k_sh": k_s * cell,
+        "k_b": A_g * s0,
+        "k_sh4": k4 * cell,
+        "k_sh6": k6 * cell,
+        "m_shf": tau_f * cell,
+        "gamma_f": gamma_f,
+        "f_slip": T_s * s0 * spacing,
+        "eps_slip": eps_s,
+    }
 
 
-def spanning_spacing(length: float, spacing: float,
-                     angles_deg: tuple[float, float] = (45.0, -45.0)) -> float:
+def spanning_spacing(
+    length: float, spacing: float, angles_deg: tuple[float, float] = (45.0, -45.0)
+) -> float:
     """The spacing nearest to ``spacing`` for which ``length`` is a whole number of column
     steps ``w = eps max(|L_x|, |M_x|)``, so that the held layers of :func:`hencky_lattice` sit
     on both specimen ends (exact for fibres at ±θ and at 0/90 degrees)."""
     if not (np.isfinite(spacing) and spacing > 0.0 and np.isfinite(length) and length > 0.0):
-        raise ValueError(f"spanning_spacing: length {length!r} and spacing {spacing!r} must be "
-                         "positive (mm)")
+        raise ValueError(
+            f"spanning_spacing: length {length!r} and spacing {spacing!r} must be positive (mm)"
+        )
     _, L, M = _sin_theta0(angles_deg)
     c = max(abs(L[0]), abs(M[0]))
     return float(length / (max(1, round(length / (spacing * c))) * c))
 
 
-def continuum_from_lattice(k_e: float, k_sh: float, k_b: float, spacing: float,
-                           angles_deg: tuple[float, float] = (45.0, -45.0),
-                           k_sh4: float = 0.0, k_sh6: float = 0.0, m_shf: float = 0.0,
-                           gamma_f: float = FRICTION_ANGLE, f_slip: float = 0.0,
-                           eps_slip: float = 1.0) -> dict:
+def continuum_from_lattice(
+    k_e: float,
+    k_sh: float,
+    k_b: float,
+    spacing: float,
+    angles_deg: tuple[float, float] = (45.0, -45.0),
+    k_sh4: float = 0.0,
+    k_sh6: float = 0.0,
+    m_shf: float = 0.0,
+    gamma_f: float = FRICTION_ANGLE,
+    f_slip: float = 0.0,
+    eps_slip: float = 1.0,
+) -> dict:
     """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g", "k4", "k6",
     "tau_f", "gamma_f", "T_s", "eps_s"}``."""
     s0 = _sin_theta0(angles_deg)[0]
     cell = s0 * spacing**2
-    return {"k_l": k_e / s0, "k_s": k_sh / cell, "A_g": k_b / s0,
-            "k4": k_sh4 / cell, "k6": k_sh6 / cell, "tau_f": m_shf / cell, "gamma_f": gamma_f,
-            "T_s": f_slip / (s0 * spacing), "eps_s": eps_slip}
+    return {
+        "k_l": k_e / s0,
+        "k_s": k_sh / cell,
+        "A_g": k_b / s0,
+        "k4": k_sh4 / cell,
+        "k6": k_sh6 / cell,
+        "tau_f": m_shf / cell,
+        "gamma_f": gamma_f,
+        "T_s": f_slip / (s0 * spacing),
+        "eps_s": eps_slip,
+    }
 
 
 def _crossings(length, width, eps, L, M, origin):
@@ -172,11 +208,15 @@ def _crossings(length, width, eps, L, M, origin):
     A, Bb = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1), indexing="ij")
     X = origin + eps * (A[..., None] * L + Bb[..., None] * M)
     tol = 1e-9 * max(length, width)
-    inside = ((X[..., 0] >= -tol) & (X[..., 0] <= length + tol)
-              & (X[..., 1] >= -tol) & (X[..., 1] <= width + tol))
+    inside = (
+        (X[..., 0] >= -tol)
+        & (X[..., 0] <= length + tol)
+        & (X[..., 1] >= -tol)
+        & (X[..., 1] <= width + tol)
+    )
     ia, ib = np.nonzero(inside.any(1))[0], np.nonzero(inside.any(0))[0]
-    inside = inside[ia[0]:ia[-1] + 1, ib[0]:ib[-1] + 1]
-    X = X[ia[0]:ia[-1] + 1, ib[0]:ib[-1] + 1]
+    inside = inside[ia[0] : ia[-1] + 1, ib[0] : ib[-1] + 1]
+    X = X[ia[0] : ia[-1] + 1, ib[0] : ib[-1] + 1]
     grid = -np.ones(inside.shape, np.int64)
     grid[inside] = np.arange(inside.sum())
     return grid, X[inside]
@@ -195,20 +235,29 @@ def _triples(grid, d1, d2):
     """Triples (g[X+d1], g[X], g[X+d2]) present in the grid (d = (da, db) in {-1,0,1})."""
     pad = np.pad(grid, 1, constant_values=-1)
     na, nb = grid.shape
-    c = pad[1:na + 1, 1:nb + 1]
-    n1 = pad[1 + d1[0]:na + 1 + d1[0], 1 + d1[1]:nb + 1 + d1[1]]
-    n2 = pad[1 + d2[0]:na + 1 + d2[0], 1 + d2[1]:nb + 1 + d2[1]]
+    c = pad[1 : na + 1, 1 : nb + 1]
+    n1 = pad[1 + d1[0] : na + 1 + d1[0], 1 + d1[1] : nb + 1 + d1[1]]
+    n2 = pad[1 + d2[0] : na + 1 + d2[0], 1 + d2[1] : nb + 1 + d2[1]]
     ok = (c >= 0) & (n1 >= 0) & (n2 >= 0)
     return np.stack([n1[ok], c[ok], n2[ok]], 1)
 
 
-def hencky_lattice(length: float, width: float, spacing: float,
-                   angles_deg: tuple[float, float] = (45.0, -45.0), k_e: float = 1.0,
-                   k_sh: float = 1.0, k_b: float = 1.0,
-                   origin: tuple[float, float] = (0.0, 0.0),
-                   k_sh4: float = 0.0, k_sh6: float = 0.0, m_shf: float = 0.0,
-                   gamma_f: float = FRICTION_ANGLE, f_slip: float = 0.0,
-                   eps_slip: float = 1.0) -> Lattice:
+def hencky_lattice(
+    length: float,
+    width: float,
+    spacing: float,
+    angles_deg: tuple[float, float] = (45.0, -45.0),
+    k_e: float = 1.0,
+    k_sh: float = 1.0,
+    k_b: float = 1.0,
+    origin: tuple[float, float] = (0.0, 0.0),
+    k_sh4: float = 0.0,
+    k_sh6: float = 0.0,
+    m_shf: float = 0.0,
+    gamma_f: float = FRICTION_ANGLE,
+    f_slip: float = 0.0,
+    eps_slip: float = 1.0,
+) -> Lattice:
     """Build the Hencky-type fabric lattice of the module docstring.
 
     Parameters
@@ -237,18 +286,35 @@ def hencky_lattice(length: float, width: float, spacing: float,
     rot = np.concatenate(bend + [shear])
     nb = len(bend[0]) + len(bend[1])
     k_rot = np.concatenate([np.full(nb, float(k_b)), np.full(len(shear), k_sh / 4.0)])
-    k_rot4, k_rot6, m_fric = (np.concatenate([np.zeros(nb), np.full(len(shear), k / 4.0)])
-                              for k in (k_sh4, k_sh6, m_shf))
+    k_rot4, k_rot6, m_fric = (
+        np.concatenate([np.zeros(nb), np.full(len(shear), k / 4.0)]) for k in (k_sh4, k_sh6, m_shf)
+    )
     phi0 = np.concatenate([np.zeros(nb), np.full(len(shear), np.nan)])
-    net = SpringNetwork(X, ext, k_e, l0=spacing, rot=rot, k_rot=k_rot, phi0=phi0,
-                        k_rot4=k_rot4, k_rot6=k_rot6, m_fric=m_fric, phi_f=gamma_f,
-                        f_slip=f_slip, eps_slip=eps_slip)
+    net = SpringNetwork(
+        X,
+        ext,
+        k_e,
+        l0=spacing,
+        rot=rot,
+        k_rot=k_rot,
+        phi0=phi0,
+        k_rot4=k_rot4,
+        k_rot6=k_rot6,
+        m_fric=m_fric,
+        phi_f=gamma_f,
+        f_slip=f_slip,
+        eps_slip=eps_slip,
+    )
     ref = net.turning_angles(X)
     net.phi0[nb:] = ref[nb:]
     w = spacing * max(abs(L[0]), abs(M[0]))
     tol = 1e-6 * spacing
     clamp = np.nonzero(X[:, 0] <= X[:, 0].min() + w + tol)[0]
     grip = np.nonzero(X[:, 0] >= X[:, 0].max() - w - tol)[0]
-    sets = {"stretch_l": np.arange(len(ext_l)), "stretch_m": len(ext_l) + np.arange(len(ext_m)),
-            "bending": np.arange(nb), "shear": nb + np.arange(len(shear))}
+    sets = {
+        "stretch_l": np.arange(len(ext_l)),
+        "stretch_m": len(ext_l) + np.arange(len(ext_m)),
+        "bending": np.arange(nb),
+        "shear": nb + np.arange(len(shear)),
+    }
     return Lattice(net, grid, L, M, float(spacing), clamp, grip, sets)

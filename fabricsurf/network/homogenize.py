@@ -58,8 +58,13 @@ class Chain:
     is_bend: np.ndarray
 
 
-def pantographic_chain(n: int, eps: float = EPS_B, k_e: float = TABLE3["k_e"],
-                       k_r1: float = TABLE3["k_r1"], k_r2: float = TABLE3["k_r2"]) -> Chain:
+def pantographic_chain(
+    n: int,
+    eps: float = EPS_B,
+    k_e: float = TABLE3["k_e"],
+    k_r1: float = TABLE3["k_r1"],
+    k_r2: float = TABLE3["k_r2"],
+) -> Chain:
     """Straight chain: axis nodes 0..n at (k eps, 0), side nodes L_k = n+1+2k, R_k = L_k+1.
 
     Springs as in one beam of the 2D cell [B (20)] (``bipantographic.SEGMENTS``, ``R2``):
@@ -76,8 +81,9 @@ def pantographic_chain(n: int, eps: float = EPS_B, k_e: float = TABLE3["k_e"],
     ext = np.concatenate([np.stack(p, 1) for p in ((a, lft), (a, rgt), (lft, b), (rgt, b))])
     piv = np.concatenate([np.stack((a, s, b), 1) for s in (rgt, lft)])
     m = np.arange(1, n)
-    bend = np.concatenate([np.stack((lft[m - 1], m, rgt[m]), 1),
-                           np.stack((rgt[m - 1], m, lft[m]), 1)])
+    bend = np.concatenate(
+        [np.stack((lft[m - 1], m, rgt[m]), 1), np.stack((rgt[m - 1], m, lft[m]), 1)]
+    )
     rot = np.concatenate([piv, bend])
     k_rot = np.concatenate([np.full(len(piv), k_r1), np.full(len(bend), k_r2)])
     net = SpringNetwork(X, ext, k_e, l0=eps / np.sqrt(3.0), rot=rot, k_rot=k_rot)
@@ -99,8 +105,8 @@ def relax(ch: Chain, axis: np.ndarray) -> np.ndarray:
     half = np.sqrt(np.maximum(l0**2 - (ell / 2) ** 2, (0.05 * l0) ** 2))
     nrm = np.stack([-d[:, 1], d[:, 0]], 1) / ell[:, None]
     mid = 0.5 * (axis[1:] + axis[:-1])
-    x[n + 1::2] = mid + half[:, None] * nrm
-    x[n + 2::2] = mid - half[:, None] * nrm
+    x[n + 1 :: 2] = mid + half[:, None] * nrm
+    x[n + 2 :: 2] = mid - half[:, None] * nrm
     fixed = np.zeros((len(x), 2), bool)
     fixed[: n + 1] = True
     scale = ch.net.k_ext.max() * ch.eps + ch.net.k_rot.max() / ch.eps  # force scale (N)
@@ -169,8 +175,9 @@ def a_theta_series(k_e: float, k_r1: float, k_r2: float, eps: float) -> float:
     return k_r2 * b / (k_r2 + b)
 
 
-def a_rho_from_chain(ch: Chain, wavelength: int, rho: float = 1.0, amp: float = 1e-4,
-                     margin: int = 10) -> float:
+def a_rho_from_chain(
+    ch: Chain, wavelength: int, rho: float = 1.0, amp: float = 1e-4, margin: int = 10
+) -> float:
     """a_rho(rho) from rho(s) = rho + amp cos(q s), q = 2 pi / (wavelength eps): axis nodes
     at chi(s) = rho s + amp sin(q s) / q, window = whole wavelengths. The uniform part, the
     mean of W_u(rho + amp cos) = W_u + W_u'' amp^2 / 4 + O(amp^4), is removed with the
@@ -203,8 +210,10 @@ def coefficients(rho: np.ndarray | float, K_E: float, K_F: float) -> tuple:
     """(a_theta(rho), a_rho(rho)) of [B (2)] (N mm)."""
     x = np.asarray(rho) ** 2 * C**2
     d = K_E - 8 * K_F * C**2
-    return (K_E * K_F * (x - 1) / (x * d - K_E),
-            K_E * K_F * x / ((1 - x) * (8 * K_F + np.asarray(rho) ** 2 * d)))
+    return (
+        K_E * K_F * (x - 1) / (x * d - K_E),
+        K_E * K_F * x / ((1 - x) * (8 * K_F + np.asarray(rho) ** 2 * d)),
+    )
 
 
 def _richardson(f, h: float) -> float:
@@ -212,8 +221,13 @@ def _richardson(f, h: float) -> float:
     return (4 * f(h / 2) - f(h)) / 3
 
 
-def identify_macro(k_e: float = TABLE3["k_e"], k_r1: float = TABLE3["k_r1"],
-                   k_r2: float = TABLE3["k_r2"], eps: float = EPS_B, n: int = 80) -> dict:
+def identify_macro(
+    k_e: float = TABLE3["k_e"],
+    k_r1: float = TABLE3["k_r1"],
+    k_r2: float = TABLE3["k_r2"],
+    eps: float = EPS_B,
+    n: int = 80,
+) -> dict:
     """Effective [B (2)] moduli of the lattice at finite eps by energy matching on a chain.
 
     Returns K_S (N/mm), a_theta, a_rho (rho = 1, Richardson-extrapolated to kappa eps,
@@ -227,5 +241,12 @@ def identify_macro(k_e: float = TABLE3["k_e"], k_r1: float = TABLE3["k_r1"],
     a_r = _richardson(lambda h: a_rho_from_chain(ch, round(2 * np.pi / h)), np.pi / 12)
     K_E, K_F = moduli_from_coefficients(a_t, a_r)
     asym = {"K_S": k_r1 / eps**2, "K_E": k_e * eps**2, "K_F": k_r2}
-    return {"K_S": k_s_from_chain(ch), "a_theta": a_t, "a_rho": a_r, "K_E": K_E, "K_F": K_F,
-            "feasible": bool(np.isfinite(K_E)), "asymptotic": asym}
+    return {
+        "K_S": k_s_from_chain(ch),
+        "a_theta": a_t,
+        "a_rho": a_r,
+        "K_E": K_E,
+        "K_F": K_F,
+        "feasible": bool(np.isfinite(K_E)),
+        "asymptotic": asym,
+    }

@@ -63,8 +63,11 @@ class MumpsLU:
 
         A = sp.csr_matrix(A)
         it = PETSc.IntType
-        self.mat = PETSc.Mat().createAIJ(size=A.shape, comm=PETSc.COMM_SELF,
-                                         csr=(A.indptr.astype(it), A.indices.astype(it), A.data))
+        self.mat = PETSc.Mat().createAIJ(
+            size=A.shape,
+            comm=PETSc.COMM_SELF,
+            csr=(A.indptr.astype(it), A.indices.astype(it), A.data),
+        )
         self.ksp = PETSc.KSP().create(PETSc.COMM_SELF)
         self.ksp.setOperators(self.mat)
         self.ksp.setType("preonly")
@@ -98,8 +101,12 @@ def factorise(A: sp.spmatrix):
     try:
         return MumpsLU(A)
     except (ImportError, RuntimeError):
-        return spla.splu(sp.csc_matrix(A), permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                         options={"SymmetricMode": True})
+        return spla.splu(
+            sp.csc_matrix(A),
+            permc_spec="NATURAL",
+            diag_pivot_thresh=0.0,
+            options={"SymmetricMode": True},
+        )
 
 
 class FreeDofSolver:
@@ -111,8 +118,15 @@ class FreeDofSolver:
     refactorised. ``stats`` counts factorisations and Krylov iterations.
     """
 
-    def __init__(self, X: np.ndarray, H: sp.csr_matrix, free: np.ndarray,
-                 reuse: bool = True, rtol: float = 1e-10, max_krylov: int = 25) -> None:
+    def __init__(
+        self,
+        X: np.ndarray,
+        H: sp.csr_matrix,
+        free: np.ndarray,
+        reuse: bool = True,
+        rtol: float = 1e-10,
+        max_krylov: int = 25,
+    ) -> None:
         order = nested_dissection(np.asarray(X, float), node_graph(H))
         dofs = np.stack([2 * order, 2 * order + 1], 1).ravel()
         self.perm = dofs[free[dofs]]  # free dofs in elimination order
@@ -143,8 +157,17 @@ class FreeDofSolver:
                 its[0] += 1
 
             M = spla.LinearOperator(A.shape, matvec=self.lu.solve)
-            y, info = spla.gmres(A, b, tol=self.rtol, atol=0.0, restart=self.max_krylov,
-                                 maxiter=1, M=M, callback=count, callback_type="pr_norm")
+            y, info = spla.gmres(
+                A,
+                b,
+                tol=self.rtol,
+                atol=0.0,
+                restart=self.max_krylov,
+                maxiter=1,
+                M=M,
+                callback=count,
+                callback_type="pr_norm",
+            )
             self.stats["krylov_iterations"] += its[0]
             if info != 0:
                 y = None

@@ -22,8 +22,7 @@ import numpy as np
 
 def _arm(grid: np.ndarray, x: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
     """Difference p_{+1} - p (forward, else backward) along ``axis``; NaN if none."""
-    pad = np.pad(grid, [(1, 1) if ax == axis else (0, 0) for ax in range(2)],
-                 constant_values=-1)
+    pad = np.pad(grid, [(1, 1) if ax == axis else (0, 0) for ax in range(2)], constant_values=-1)
     sl = [slice(None), slice(None)]
     sl[axis] = slice(2, None)
     nxt = pad[tuple(sl)]
@@ -61,7 +60,13 @@ def grid_fields(grid: np.ndarray, X: np.ndarray, x: np.ndarray, spacing: float) 
     la, lb = np.linalg.norm(da, axis=-1), np.linalg.norm(db, axis=-1)
     cos = np.clip(np.einsum("...i,...i", da, db) / (la * lb), -1.0, 1.0)
     return {
-        "X": Xg[..., 0], "Y": Xg[..., 1], "ux": ug[..., 0], "uy": ug[..., 1],
-        "rho_x": la / spacing, "rho_y": lb / spacing, "shear": np.pi / 2 - np.arccos(cos),
-        "du_da": _arm(grid, u, 0)[0] / spacing, "du_db": _arm(grid, u, 1)[0] / spacing,
+        "X": Xg[..., 0],
+        "Y": Xg[..., 1],
+        "ux": ug[..., 0],
+        "uy": ug[..., 1],
+        "rho_x": la / spacing,
+        "rho_y": lb / spacing,
+        "shear": np.pi / 2 - np.arccos(cos),
+        "du_da": _arm(grid, u, 0)[0] / spacing,
+        "du_db": _arm(grid, u, 1)[0] / spacing,
     }

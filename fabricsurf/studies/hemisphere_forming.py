@@ -27,9 +27,13 @@ from fabricsurf.model.terms import (
 )
 from fabricsurf.verification.drapes.fishnet import bisector_shear
 
-KINEMATIC = {"shear": {"k_s": 1e-2}, "crossover_friction": {"tau_f": 0.0},
-             "shear_locking": {"k4": 0.0, "k6": 0.0},
-             "normal_bending": {"k_b": 0.05}, "twist": {"k_t": 0.05}}
+KINEMATIC = {
+    "shear": {"k_s": 1e-2},
+    "crossover_friction": {"tau_f": 0.0},
+    "shear_locking": {"k4": 0.0, "k6": 0.0},
+    "normal_bending": {"k_b": 0.05},
+    "twist": {"k_t": 0.05},
+}
 """The inextensible, shear-free limit (stiff fibres kept): shear and bending a hundredth and
 less of the fibres' moduli times the punch radius."""
 TOUCH_FRACTION = 0.01
@@ -61,28 +65,39 @@ def forming_model(params: dict, k_b: float, k_t: float) -> list:
     out-of-plane rigidities, which the in-plane fit cannot give."""
     fs, sh = params["fibre_stretch"], params["shear"]
     fr = params.get("crossover_friction", {"tau_f": 0.0})
-    return [FibreStretch(k_l=fs["k_l"], k_m=fs["k_m"]), Shear(k_s=sh["k_s"]),
-            CrossoverFriction(tau_f=fr["tau_f"]), ShearLocking(k4=0.0, k6=0.0),
-            NormalBending(k_b=k_b), Twist(k_t=k_t)]
+    return [
+        FibreStretch(k_l=fs["k_l"], k_m=fs["k_m"]),
+        Shear(k_s=sh["k_s"]),
+        CrossoverFriction(tau_f=fr["tau_f"]),
+        ShearLocking(k4=0.0, k6=0.0),
+        NormalBending(k_b=k_b),
+        Twist(k_t=k_t),
+    ]
 
 
 def fitted_values(params: dict, k_bend: float) -> dict:
     """The fitted model's moduli for :func:`reform` (shear and crossover friction of the fit,
     the assumed bending and twist ``k_bend``)."""
-    return {"shear": params["shear"],
-            "crossover_friction": params.get("crossover_friction", {"tau_f": 0.0}),
-            "normal_bending": {"k_b": k_bend}, "twist": {"k_t": k_bend}}
+    return {
+        "shear": params["shear"],
+        "crossover_friction": params.get("crossover_friction", {"tau_f": 0.0}),
+        "normal_bending": {"k_b": k_bend},
+        "twist": {"k_t": k_bend},
+    }
 
 
 def effect_variants(params: dict, k_bend: float) -> dict[str, dict]:
     """The variants of the fitted model whose effect demos/demo_forming.py shows: the bending
     weakened tenfold, and shear locking with k₄ chosen so that the model locks at 40°."""
     k4 = params["shear"]["k_s"] / math.radians(40.0) ** 2
-    return {"bending / 10": {**fitted_values(params, k_bend),
-                             "normal_bending": {"k_b": 0.1 * k_bend},
-                             "twist": {"k_t": 0.1 * k_bend}},
-            "locking at 40 deg": {**fitted_values(params, k_bend),
-                                  "shear_locking": {"k4": k4}}}
+    return {
+        "bending / 10": {
+            **fitted_values(params, k_bend),
+            "normal_bending": {"k_b": 0.1 * k_bend},
+            "twist": {"k_t": 0.1 * k_bend},
+        },
+        "locking at 40 deg": {**fitted_values(params, k_bend), "shear_locking": {"k4": k4}},
+    }
 
 
 HOLDER = {"holder_pressure": 1e-2, "friction": 0.3}
@@ -92,13 +107,16 @@ the punch (docs/forming.md). Their die has clearance and lip R/5 (:func:`experim
 meshes must resolve them (h ≤ R/5) for the punch force to converge."""
 
 
-def experiment(R: float, blank: float, h: float, angle: float, model: list, comm,
-               **tooling) -> HemispherePlugin:
+def experiment(
+    R: float, blank: float, h: float, angle: float, model: list, comm, **tooling
+) -> HemispherePlugin:
     """The plug-in with its default tools (mm) and :data:`HOLDER`, ``tooling`` over them."""
     opts = HemispherePlugin.parse_options(
-        {"tooling": {"punch_radius": R, **HOLDER, **tooling}}, 1.0, "forming")
-    return HemispherePlugin(PluginSetup("hemisphere", blank, blank, (angle, -angle), opts),
-                             model, h, comm)
+        {"tooling": {"punch_radius": R, **HOLDER, **tooling}}, 1.0, "forming"
+    )
+    return HemispherePlugin(
+        PluginSetup("hemisphere", blank, blank, (angle, -angle), opts), model, h, comm
+    )
 
 
 def set_moduli(e: HemispherePlugin, values: dict) -> None:
@@ -108,8 +126,7 @@ def set_moduli(e: HemispherePlugin, values: dict) -> None:
         terms[name].set(**v)
 
 
-def reform(e: HemispherePlugin, values: dict, stroke: float, steps: int,
-           label: str = "") -> dict:
+def reform(e: HemispherePlugin, values: dict, stroke: float, steps: int, label: str = "") -> dict:
     """Set moduli ({term: {modulus: value}}), form to ``stroke`` (each step's line logged,
     prefixed with ``label``); the reduced results."""
     set_moduli(e, values)
@@ -127,24 +144,35 @@ def reform(e: HemispherePlugin, values: dict, stroke: float, steps: int,
     def largest(values) -> float:
         return float(np.abs(values[on] - kin).max()) if on.any() else float("nan")
 
-    return {"stroke_mm": list(e.stroke), "punch_force_N": list(e.force),
-            "newton_iterations": list(its), "attempts": list(e.stepper.attempts),
-            "step_log": StrokeLog.totals(e.steps),
-            "seconds": time.perf_counter() - t0,
-            "max_shear_deg": e.max_shear_deg(), **e.area_fractions(),
-            "diagonal_shear_deg": prof["shear_recovered_deg"].tolist(),
-            "profile": {"X_mm": prof["X"][on].tolist(), "arc_length_mm": prof["arc"][on].tolist(),
-                        "shear_deg": prof["shear_recovered_deg"][on].tolist(),
-                        "shear_per_element_deg": prof["shear_deg"][on].tolist(),
-                        "kinematic_shear_deg": kin.tolist()},
-            "fibre_profile": {"X_mm": fib["X"].tolist(), "arc_length_mm": fib["arc"].tolist(),
-                              "shear_deg": fib["shear_recovered_deg"].tolist(),
-                              "on_punch": (fib["gap"] < TOUCH_FRACTION * e.R).tolist()},
-            "diagonal_shear_max_diff_deg": largest(prof["shear_recovered_deg"]),
-            "points_on_punch": int(on.sum()),
-            "centres_max_diff_deg": float(c_diff.max()) if c_on.any() else float("nan"),
-            "centres_on_punch": int(c_on.sum()),
-            "per_element_max_diff_deg": largest(prof["shear_deg"])}
+    return {
+        "stroke_mm": list(e.stroke),
+        "punch_force_N": list(e.force),
+        "newton_iterations": list(its),
+        "attempts": list(e.stepper.attempts),
+        "step_log": StrokeLog.totals(e.steps),
+        "seconds": time.perf_counter() - t0,
+        "max_shear_deg": e.max_shear_deg(),
+        **e.area_fractions(),
+        "diagonal_shear_deg": prof["shear_recovered_deg"].tolist(),
+        "profile": {
+            "X_mm": prof["X"][on].tolist(),
+            "arc_length_mm": prof["arc"][on].tolist(),
+            "shear_deg": prof["shear_recovered_deg"][on].tolist(),
+            "shear_per_element_deg": prof["shear_deg"][on].tolist(),
+            "kinematic_shear_deg": kin.tolist(),
+        },
+        "fibre_profile": {
+            "X_mm": fib["X"].tolist(),
+            "arc_length_mm": fib["arc"].tolist(),
+            "shear_deg": fib["shear_recovered_deg"].tolist(),
+            "on_punch": (fib["gap"] < TOUCH_FRACTION * e.R).tolist(),
+        },
+        "diagonal_shear_max_diff_deg": largest(prof["shear_recovered_deg"]),
+        "points_on_punch": int(on.sum()),
+        "centres_max_diff_deg": float(c_diff.max()) if c_on.any() else float("nan"),
+        "centres_on_punch": int(c_on.sum()),
+        "per_element_max_diff_deg": largest(prof["shear_deg"]),
+    }
 
 
 def shear_grid(e: HemispherePlugin, n: int = 41) -> np.ndarray:
@@ -166,8 +194,7 @@ def _plt():
     return plt
 
 
-def figures(out: Path, grid: np.ndarray, blank: float, cases: dict[str, dict],
-            R: float) -> None:
+def figures(out: Path, grid: np.ndarray, blank: float, cases: dict[str, dict], R: float) -> None:
     """Shear map (the quarter mirrored to the blank), diagonal profiles against the fishnet
     drape, punch force against stroke (rank 0)."""
     plt = _plt()
@@ -186,8 +213,11 @@ def figures(out: Path, grid: np.ndarray, blank: float, cases: dict[str, dict],
         ax.plot(p["arc_length_mm"], p["shear_deg"], "o-", ms=3, label=name)
     first = next(iter(cases.values()))["profile"]
     ax.plot(first["arc_length_mm"], first["kinematic_shear_deg"], "k--", label="fishnet drape")
-    ax.set(xlabel="arc length from the pole (mm)", ylabel="shear angle (deg)",
-           title="diagonal (fibre bisector), on the punch")
+    ax.set(
+        xlabel="arc length from the pole (mm)",
+        ylabel="shear angle (deg)",
+        title="diagonal (fibre bisector), on the punch",
+    )
     ax.legend(fontsize=8)
     fig.savefig(out / "diagonal_shear.png", dpi=120, bbox_inches="tight")
     plt.close(fig)

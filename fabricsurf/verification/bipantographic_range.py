@@ -48,11 +48,18 @@ def stretch_history(test: BiasExtension) -> list[dict]:
     return next((f.history for f in test.followers if isinstance(f, PenaltyFollower)), [])
 
 
-def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
-              limit_stretch: float | None = None, grading: float = 0.6,
-              comm: MPI.Comm = MPI.COMM_WORLD, moduli: dict | None = None,
-              local_penalty: bool = False,
-              snes_options: dict | None = RANGE_OPTIONS) -> dict:
+def run_range(
+    clamp: str,
+    level: int,
+    ubar: float = 50.0,
+    steps: int = 20,
+    limit_stretch: float | None = None,
+    grading: float = 0.6,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    moduli: dict | None = None,
+    local_penalty: bool = False,
+    snes_options: dict | None = RANGE_OPTIONS,
+) -> dict:
     """Eq. (2) (Table 3 moduli, or ``moduli``: K_S, K_E, K_F) on the graded mesh of ``level``
     to ``ubar`` in ``steps`` steps; returns the curves, the largest stretch per step, Newton
     iterations, times, and the failure (step, load, reason) if the path could not be
@@ -62,8 +69,13 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
     run is logged at PROGRESS in one line when done, its steps at DEBUG."""
     model = bipantographic(limit_stretch=limit_stretch, **(moduli or {}))
     t0 = time.perf_counter()
-    test = BiasExtension(model, clamp=clamp, specimen=graded_specimen(level, grading, comm=comm),
-                         snes_options=snes_options, comm=comm)
+    test = BiasExtension(
+        model,
+        clamp=clamp,
+        specimen=graded_specimen(level, grading, comm=comm),
+        snes_options=snes_options,
+        comm=comm,
+    )
     setup = time.perf_counter() - t0
     if local_penalty:
         bending = [t for t in test.model if isinstance(t, PantographBending)]  # its own
@@ -84,21 +96,39 @@ def run_range(clamp: str, level: int, ubar: float = 50.0, steps: int = 20,
         failure = e.as_dict()
         res = e.partial if e.partial is not None and e.partial.ubar else None
     V = test.problem.V
-    out = {"clamp": clamp, "level": level, "limit_stretch": limit_stretch,
-           "local_penalty": local_penalty,
-           "moduli": {t.name: t.values() for t in model},
-           "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
-           "setup_seconds": setup, "step_seconds": step_times,
-           "stretch": [{"ubar": u, **h} for u, h in zip(loads, stretch_history(test))],
-           "failure": failure,
-           "domain_errors": test.solver.domain_errors}
+    out = {
+        "clamp": clamp,
+        "level": level,
+        "limit_stretch": limit_stretch,
+        "local_penalty": local_penalty,
+        "moduli": {t.name: t.values() for t in model},
+        "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs,
+        "setup_seconds": setup,
+        "step_seconds": step_times,
+        "stretch": [{"ubar": u, **h} for u, h in zip(loads, stretch_history(test))],
+        "failure": failure,
+        "domain_errors": test.solver.domain_errors,
+    }
     if res is not None:
-        out |= {"ubar": res.ubar, "force": res.force, "angle_A_deg": res.angle_A_deg,
-                "angle_B_deg": res.angle_B_deg, "newton": res.newton, "seconds": res.seconds}
-    rank0(logger, comm, f"[range] {clamp} level {level}: "
-                        + (f"failed: {failure['message']}" if failure else
-                           f"ū = {ubar} mm reached, force {res.force[-1]:.4f} N, "
-                           f"{sum(res.newton)} Newton iterations, {res.seconds:.1f} s"))
+        out |= {
+            "ubar": res.ubar,
+            "force": res.force,
+            "angle_A_deg": res.angle_A_deg,
+            "angle_B_deg": res.angle_B_deg,
+            "newton": res.newton,
+            "seconds": res.seconds,
+        }
+    rank0(
+        logger,
+        comm,
+        f"[range] {clamp} level {level}: "
+        + (
+            f"failed: {failure['message']}"
+            if failure
+            else f"ū = {ubar} mm reached, force {res.force[-1]:.4f} N, "
+            f"{sum(res.newton)} Newton iterations, {res.seconds:.1f} s"
+        ),
+    )
     return out
 
 
@@ -109,8 +139,14 @@ def values_at(run: dict, loads: list[float]) -> list[dict]:
         k = int(np.argmin(np.abs(np.array(run["ubar"]) - u)))
         if abs(run["ubar"][k] - u) > 1e-9:
             raise ValueError(f"ū = {u} is not a step load of the run")
-        rows.append({"ubar": u, "force": run["force"][k], "angle_A_deg": run["angle_A_deg"][k],
-                     "angle_B_deg": run["angle_B_deg"][k]})
+        rows.append(
+            {
+                "ubar": u,
+                "force": run["force"][k],
+                "angle_A_deg": run["angle_A_deg"][k],
+                "angle_B_deg": run["angle_B_deg"][k],
+            }
+        )
     return rows
 
 

@@ -88,8 +88,9 @@ def fabric_omega2(q: np.ndarray, k2: float, A: float, rho: float = 1.0) -> np.nd
     return (k2 * q**2 + A * q**4) / rho
 
 
-def hencky_omega2(q: np.ndarray, eps: float, k2: float, A: float = 0.0,
-                  rho: float = 1.0) -> np.ndarray:
+def hencky_omega2(
+    q: np.ndarray, eps: float, k2: float, A: float = 0.0, rho: float = 1.0
+) -> np.ndarray:
     """Hencky lattice along a fibre: rho ω² = k (2/ε)² sin²(qε/2) + A (2/ε)⁴ sin⁴(qε/2).
 
     The discrete analogue of :func:`fabric_omega2` (eq. 12 of Mühlhaus & Oka 1996 for each spring
@@ -117,15 +118,16 @@ def fit_order(x: np.ndarray, err: np.ndarray) -> float:
     return float(np.polyfit(np.log(x), np.log(np.abs(err)), 1)[0])
 
 
-def bloch_omega2(H: sp.spmatrix, X: np.ndarray, i0: int, q: np.ndarray, e: np.ndarray,
-                 mass: float) -> tuple[np.ndarray, np.ndarray]:
+def bloch_omega2(
+    H: sp.spmatrix, X: np.ndarray, i0: int, q: np.ndarray, e: np.ndarray, mass: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Longitudinal and transverse ω²(q) of a 2D lattice from its Hessian (Bloch analysis).
 
     For a wave u_j = U exp(iq e·X_j), uniform across the fibres normal to e, the dynamical matrix
     of an interior node i0 is Σ_j H[i0, j] exp(iq e·(X_j - X_i0)) (2x2 blocks of the Hessian
     rows of i0). Projections on e and on e rotated +90° give ω² for the two polarisations.
     """
-    rows = sp.csr_matrix(H)[2 * i0:2 * i0 + 2].tocoo()
+    rows = sp.csr_matrix(H)[2 * i0 : 2 * i0 + 2].tocoo()
     phase = (X[rows.col // 2] - X[i0]) @ e
     t = np.array([-e[1], e[0]])
     pair = [np.outer(e, e), np.outer(t, t)]
@@ -178,10 +180,16 @@ class GradientContinuum1D:
 
         hf = ufl.avg(h)
         Kb = d(u, 2) * d(v, 2) * dx + (ip(2) + s1 / hf * jmp(d(u, 1)) * jmp(d(v, 1))) * dS
-        Kc = (d(u, 3) * d(v, 3) * dx
-              + (ip(3) + s1 / hf * jmp(d(u, 2)) * jmp(d(v, 2))
-                 + s0 / hf**3 * jmp(d(u, 1)) * jmp(d(v, 1))) * dS
-              + (-(d(u, 3) * d(v, 2) + d(v, 3) * d(u, 2)) * n + s1 / h * d(u, 2) * d(v, 2)) * ds)
+        Kc = (
+            d(u, 3) * d(v, 3) * dx
+            + (
+                ip(3)
+                + s1 / hf * jmp(d(u, 2)) * jmp(d(v, 2))
+                + s0 / hf**3 * jmp(d(u, 1)) * jmp(d(v, 1))
+            )
+            * dS
+            + (-(d(u, 3) * d(v, 2) + d(v, 3) * d(u, 2)) * n + s1 / h * d(u, 2) * d(v, 2)) * ds
+        )
         self.K = fem.form(c["a"] * d(u, 1) * d(v, 1) * dx + c["b"] * Kb + c["c"] * Kc)
         self.M = fem.form(c["rho"] * u * v * dx)
         imap = self.V.dofmap.index_map
@@ -190,7 +198,8 @@ class GradientContinuum1D:
         xs = comm.gather(x, root=0)
         self.x = np.concatenate(xs) if comm.rank == 0 else None
         bd = fem.locate_dofs_geometrical(
-            self.V, lambda p: np.isclose(p[0], 0.0) | np.isclose(p[0], L))
+            self.V, lambda p: np.isclose(p[0], 0.0) | np.isclose(p[0], L)
+        )
         bd = imap.local_to_global(bd[bd < self.r1 - self.r0].astype(np.int32))
         bds = comm.gather(bd, root=0)
         self.bdofs = np.unique(np.concatenate(bds)) if comm.rank == 0 else None
@@ -209,8 +218,9 @@ class GradientContinuum1D:
         n = self.V.dofmap.index_map.size_global
         return sp.csr_matrix((vv, (r, cc)), shape=(n, n))
 
-    def modes(self, a: float, b: float, c: float, rho: float, n_modes: int
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def modes(
+        self, a: float, b: float, c: float, rho: float, n_modes: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Solve K v = ω² M v (dense, rank 0) and pick the mode closest to each sin(nπx/L).
 
         Returns (ω² of modes n = 1..n_modes, their overlaps with the sines in the M-norm,
@@ -238,6 +248,6 @@ class GradientContinuum1D:
     def function(self, vec: np.ndarray) -> fem.Function:
         """A dolfinx Function with the owned entries of a global dof vector (e.g. a mode)."""
         f = fem.Function(self.V)
-        f.x.array[: self.r1 - self.r0] = vec[self.r0:self.r1]
+        f.x.array[: self.r1 - self.r0] = vec[self.r0 : self.r1]
         f.x.scatter_forward()
         return f

@@ -65,6 +65,7 @@ def _rhs(eps: float):
     def f(sig, y):
         th, dth = y[0], y[1]
         return np.vstack([dth, -eps * (1.0 - sig) * np.cos(th), np.cos(th), -np.sin(th)])
+
     return f
 
 
@@ -72,8 +73,9 @@ def _bc(ya, yb):
     return np.array([ya[0], yb[1], ya[2], ya[3]])
 
 
-def solve_elastica(length: float, c: float, nodes: int = 101, tol: float = 1e-10,
-                   continuation: int = 8) -> Elastica:
+def solve_elastica(
+    length: float, c: float, nodes: int = 101, tol: float = 1e-10, continuation: int = 8
+) -> Elastica:
     """The heavy elastica of overhang ``length`` and bending length ``c`` (module docstring),
     in the unit arclength σ = s/L with ε = (L/c)³; raises RuntimeError if it fails."""
     if not (length > 0 and c > 0 and math.isfinite(length / c)):
@@ -90,8 +92,7 @@ def solve_elastica(length: float, c: float, nodes: int = 101, tol: float = 1e-10
             mesh, y0 = sol.x, sol.y
         sol = solve_bvp(_rhs(eps), _bc, mesh, y0, tol=tol, max_nodes=100000)
         if not sol.success:
-            raise RuntimeError(f"elastica: solve_bvp failed at (L/c)^3 = {eps:.4g}: "
-                               f"{sol.message}")
+            raise RuntimeError(f"elastica: solve_bvp failed at (L/c)^3 = {eps:.4g}: {sol.message}")
     return Elastica(float(length), float(c), sol)
 
 

@@ -54,9 +54,14 @@ class Hypar:
     k_b: float = 1.0
 
     def model(self) -> list[Term]:
-        return [FibreStretch(k_l=self.k, k_m=self.k), ShearGradient(A_Gamma=self.A_Gamma),
-                Twist(k_t=self.k_t), GeodesicBending(A_g=self.A_g),
-                StretchGradient(A_s=self.A_s), NormalBending(k_b=self.k_b)]
+        return [
+            FibreStretch(k_l=self.k, k_m=self.k),
+            ShearGradient(A_Gamma=self.A_Gamma),
+            Twist(k_t=self.k_t),
+            GeodesicBending(A_g=self.A_g),
+            StretchGradient(A_s=self.A_s),
+            NormalBending(k_b=self.k_b),
+        ]
 
     def placement(self, x):
         """r(θ) as a UFL expression (d = 0)."""
@@ -68,8 +73,11 @@ class Hypar:
 
     def displacement_np(self, X: np.ndarray) -> np.ndarray:
         """u at points X (n×2)."""
-        r = (np.outer(X[:, 0] * X[:, 1], self.a) + np.outer(X[:, 0], self.b)
-             + np.outer(X[:, 1], self.c))
+        r = (
+            np.outer(X[:, 0] * X[:, 1], self.a)
+            + np.outer(X[:, 0], self.b)
+            + np.outer(X[:, 1], self.c)
+        )
         r[:, :2] -= X
         return r
 
@@ -79,7 +87,7 @@ class Hypar:
         L, M = kn.fibre_directions(0.0, 90.0)
         w_lam = self.k * (kn.lam(F, L) - 1)
         w_mu = self.k * (kn.mu(F, M) - 1)
-        return (w_lam * ufl.dot(L, nu) * kn.l_dir(F, L) + w_mu * ufl.dot(M, nu) * kn.m_dir(F, M))
+        return w_lam * ufl.dot(L, nu) * kn.l_dir(F, L) + w_mu * ufl.dot(M, nu) * kn.m_dir(F, M)
 
     def corner_force(self, corner) -> np.ndarray:
         return CORNER_SIGNS[tuple(corner)] * self.A_Gamma * self.a
@@ -88,8 +96,9 @@ class Hypar:
 def loaded_problem(specimen, hyp: Hypar, prefix: str) -> tuple[FabricProblem, Callable]:
     """The problem with the edge tractions and corner forces of the exact solution as dead
     loads, scaled by a factor s; returns it and ``set_load(s)``."""
-    p = FabricProblem(specimen, hyp.model(), d=3, fibre_angles=(0.0, 90.0), prefix=prefix,
-                      snes_options=TIGHT)
+    p = FabricProblem(
+        specimen, hyp.model(), d=3, fibre_angles=(0.0, 90.0), prefix=prefix, snes_options=TIGHT
+    )
     x = ufl.SpatialCoordinate(p.msh)
     s = fem.Constant(p.msh, 0.0)
     nu = ufl.FacetNormal(p.msh)
@@ -118,8 +127,11 @@ def solve_dirichlet(specimen, hyp: Hypar) -> tuple[FabricProblem, float]:
     """
     p, _ = loaded_problem(specimen, hyp, "fabricsurf_hypar_dirichlet_")
     g = fem.Function(p.V)
-    g.interpolate(fem.Expression(hyp.displacement(ufl.SpatialCoordinate(p.msh)),
-                                 p.V.element.interpolation_points()))
+    g.interpolate(
+        fem.Expression(
+            hyp.displacement(ufl.SpatialCoordinate(p.msh)), p.V.element.interpolation_points()
+        )
+    )
     for edge in specimen.edge_tags:
         p.fix_function(edge, g)
     reason, _ = p.solve()
@@ -168,4 +180,3 @@ def computed_corner_forces(p: FabricProblem) -> dict:
     pts = np.array(list(CORNER_SIGNS))
     vals = eval_points(qh, pts)
     return {c: CORNER_SIGNS[c] * vals[k] for k, c in enumerate(CORNER_SIGNS)}
-

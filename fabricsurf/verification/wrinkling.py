@@ -83,13 +83,18 @@ def amplitude(e, n: int = 81, band: float = 1.0) -> dict:
             continue
         dr = rho[s] - (a + 0.5 * band)
         smooth = [np.ones(s.sum()), dr, dr**2]
-        A = np.column_stack(smooth + [f * np.cos(4.0 * k * phi[s]) for k in HARMONICS
-                                      for f in (1.0, dr)])
+        A = np.column_stack(
+            smooth + [f * np.cos(4.0 * k * phi[s]) for k in HARMONICS for f in (1.0, dr)]
+        )
         c, *_ = np.linalg.lstsq(A, z[s], rcond=None)
         residual[s] = z[s] - A @ c
         bands.append((float(a), int(s.sum()), float(np.abs(residual[s]).max())))
-    return {"points": P, "residual": residual, "bands": bands,
-            "amplitude": float(np.nanmax(np.abs(residual))) if bands else 0.0}
+    return {
+        "points": P,
+        "residual": residual,
+        "bands": bands,
+        "amplitude": float(np.nanmax(np.abs(residual))) if bands else 0.0,
+    }
 
 
 def bending_stiffness(e) -> float:
@@ -122,8 +127,14 @@ def buckling(e, n: int = 81) -> dict:
     hoop = float(N.mean()) if len(N) else 0.0
     D = bending_stiffness(e)
     cr = {k: v * math.pi**2 * D / b**2 for k, v in PLATE_K.items()}
-    return {"hoop": hoop, "N_cr": cr, "D": D, "b": b, "points": int(strip.sum()),
-            "ratio": -hoop / cr["simply supported"]}
+    return {
+        "hoop": hoop,
+        "N_cr": cr,
+        "D": D,
+        "b": b,
+        "points": int(strip.sum()),
+        "ratio": -hoop / cr["simply supported"],
+    }
 
 
 def _marked(e, expr, P: np.ndarray) -> np.ndarray:
@@ -144,8 +155,7 @@ def membrane_marks(e, P: np.ndarray) -> np.ndarray:
     return (rho >= r0) & (rho < r0 + b) & (force < -e.wrinkling.threshold())
 
 
-def envelope(P: np.ndarray, wrinkled: np.ndarray, flange: np.ndarray, radius: float
-             ) -> np.ndarray:
+def envelope(P: np.ndarray, wrinkled: np.ndarray, flange: np.ndarray, radius: float) -> np.ndarray:
     """The wrinkled region as an envelope: flange points within ``radius`` of a point whose
     residual exceeds the bound. A wrinkle is a wave, its residual passing through zero between
     crests, so the points above the bound alone are a set of stripes, not the region."""
@@ -176,14 +186,25 @@ def compare(e, bound: float, curvatures: tuple[float, ...] | None = None, n: int
     region = envelope(P, wrinkled, flange, float(e.tools.lip.value))
 
     def row(kind: str, marked: np.ndarray, area: float, **extra) -> dict:
-        return {"kind": kind, **extra, "area": area, "points": int(marked.sum()),
-                "on_flange": int((marked & flange).sum()),
-                "overlap": int((marked & wrinkled).sum()),
-                "in_region": int((marked & region).sum())}
+        return {
+            "kind": kind,
+            **extra,
+            "area": area,
+            "points": int(marked.sum()),
+            "on_flange": int((marked & flange).sum()),
+            "overlap": int((marked & wrinkled).sum()),
+            "in_region": int((marked & region).sum()),
+        }
 
     first = membrane_marks(e, P)
-    rows = [row("membrane force", first, e.area_fractions()["wrinkle"],
-                threshold=e.wrinkling.threshold())]
+    rows = [
+        row(
+            "membrane force",
+            first,
+            e.area_fractions()["wrinkle"],
+            threshold=e.wrinkling.threshold(),
+        )
+    ]
     ind, kin = e.indicators, e.problem.energy.kin
     flag = ind.wrinkle(kin, e.problem.energy.tension_fields())
     area = fem.form(flag * e.problem.dx)
@@ -191,15 +212,23 @@ def compare(e, bound: float, curvatures: tuple[float, ...] | None = None, n: int
     try:
         for k in curvatures or ():
             ind.curvature.value = k
-            fraction = e.copies * e.comm.allreduce(fem.assemble_scalar(area)) / \
-                forming_blank.area(e.setup)
+            fraction = (
+                e.copies * e.comm.allreduce(fem.assemble_scalar(area)) / forming_blank.area(e.setup)
+            )
             rows.append(row("curvature", _marked(e, flag, P), fraction, curvature=k))
     finally:
         ind.curvature.value = own
-    return {"amplitude": amp["amplitude"], "bands": amp["bands"], "points": P,
-            "residual": amp["residual"], "marked": first,
-            "reference_area": float(wrinkled.mean()), "reference_points": int(wrinkled.sum()),
-            "region_points": int(region.sum()), "indicator": rows}
+    return {
+        "amplitude": amp["amplitude"],
+        "bands": amp["bands"],
+        "points": P,
+        "residual": amp["residual"],
+        "marked": first,
+        "reference_area": float(wrinkled.mean()),
+        "reference_points": int(wrinkled.sum()),
+        "region_points": int(region.sum()),
+        "indicator": rows,
+    }
 
 
 def draw_map(path, result: dict, blank: float, R: float) -> None:
@@ -216,14 +245,25 @@ def draw_map(path, result: dict, blank: float, R: float) -> None:
     fig, ax = plt.subplots(figsize=(5, 4.2))
     half = 0.5 * blank
     lim = float(np.nanmax(np.abs(res))) if np.isfinite(res).any() else 1.0
-    im = ax.imshow(res.reshape(n, n), origin="lower", extent=(0, half, 0, half), cmap="RdBu",
-                   vmin=-lim, vmax=lim)
+    im = ax.imshow(
+        res.reshape(n, n),
+        origin="lower",
+        extent=(0, half, 0, half),
+        cmap="RdBu",
+        vmin=-lim,
+        vmax=lim,
+    )
     marked = result["marked"]
     ax.plot(P[marked, 0], P[marked, 1], "k.", ms=2, label="indicator (membrane force)")
     ax.add_patch(plt.Circle((0, 0), R, fill=False, color="k", ls="--"))
     fig.colorbar(im, label="wrinkle: deviation from the long-wave field (mm)")
-    ax.set(xlabel="x (mm, reference)", ylabel="y (mm, reference)", xlim=(0, half),
-           ylim=(0, half), title="flange wrinkles and the indicator")
+    ax.set(
+        xlabel="x (mm, reference)",
+        ylabel="y (mm, reference)",
+        xlim=(0, half),
+        ylim=(0, half),
+        title="flange wrinkles and the indicator",
+    )
     ax.legend(fontsize=8, loc="upper right")
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)

@@ -33,9 +33,15 @@ def norms(e, msh, qdeg: int = 6) -> dict[str, float]:
     return out
 
 
-def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
-                       angles: tuple[float, float] = (30.0, -60.0), penalty: float = 8.0,
-                       comm=None) -> tuple[dict[str, float], int]:
+def manufactured_solve(
+    model: list[Term],
+    u_exact: Callable,
+    n: int,
+    d: int,
+    angles: tuple[float, float] = (30.0, -60.0),
+    penalty: float = 8.0,
+    comm=None,
+) -> tuple[dict[str, float], int]:
     """Solve the manufactured problem on a structured n×n unit square; return the error norms of
     u_h − u_e and the Newton iterations."""
     from mpi4py import MPI
@@ -50,9 +56,15 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     ue = u_exact(x)
     nrm = ufl.FacetNormal(msh)
     L, M = fibre_directions(*angles)
-    E = EnergyForm(model, u, L, M, sp.facet_tags,
-                   normal_derivative={EVERYWHERE: ufl.grad(ue) * nrm},
-                   penalty=penalty)
+    E = EnergyForm(
+        model,
+        u,
+        L,
+        M,
+        sp.facet_tags,
+        normal_derivative={EVERYWHERE: ufl.grad(ue) * nrm},
+        penalty=penalty,
+    )
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     R = E.residual(v)
     load = ufl.replace(R, {u: ue})
@@ -60,8 +72,14 @@ def manufactured_solve(model: list[Term], u_exact: Callable, n: int, d: int,
     g.interpolate(fem.Expression(ue, V.element.interpolation_points()))
     bc = fem.dirichletbc(g, fem.locate_dofs_topological(V, 1, boundary_facets(msh)))
     # meshes of at most a few thousand cells: compiling the kernels costs more than running them
-    solver = SNESSolver(R - load, E.jacobian(du, v), u, [bc], prefix=f"fabricsurf_mms{d}_",
-                        options={"compile": "fast"})
+    solver = SNESSolver(
+        R - load,
+        E.jacobian(du, v),
+        u,
+        [bc],
+        prefix=f"fabricsurf_mms{d}_",
+        options={"compile": "fast"},
+    )
     reason, its = solver.solve()
     if reason <= 0:
         raise RuntimeError(f"manufactured problem (n = {n}, d = {d}) did not converge: {reason}")
@@ -78,8 +96,13 @@ def in_plane_model() -> list[Term]:
         StretchGradient,
     )
 
-    return [FibreStretch(k_l=1.0, k_m=2.0), Shear(k_s=1.0), GeodesicBending(A_g=1.0),
-            StretchGradient(A_s=0.5), ShearGradient(A_Gamma=0.7)]
+    return [
+        FibreStretch(k_l=1.0, k_m=2.0),
+        Shear(k_s=1.0),
+        GeodesicBending(A_g=1.0),
+        StretchGradient(A_s=0.5),
+        ShearGradient(A_Gamma=0.7),
+    ]
 
 
 def full_3d_model() -> list[Term]:
@@ -96,5 +119,10 @@ def u_2d(x):
 
 def u_3d(x):
     """A smooth displacement with an out-of-plane bulge."""
-    return ufl.as_vector((0.1 * ufl.sin(2 * x[0] + x[1]), 0.1 * ufl.cos(x[0] - 2 * x[1]),
-                          0.2 * ufl.sin(ufl.pi * x[0]) * ufl.sin(ufl.pi * x[1])))
+    return ufl.as_vector(
+        (
+            0.1 * ufl.sin(2 * x[0] + x[1]),
+            0.1 * ufl.cos(x[0] - 2 * x[1]),
+            0.2 * ufl.sin(ufl.pi * x[0]) * ufl.sin(ufl.pi * x[1]),
+        )
+    )

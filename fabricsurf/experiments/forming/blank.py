@@ -29,10 +29,12 @@ from fabricsurf.geometry.fibre_blank import fibre_blank, mirrored_quarter
 
 SHAPES = ("square", "rectangle", "circle")
 DOMAINS = ("auto", "quarter", "full")
-KEYS = {"blank": "outline of the blank: square | rectangle | circle (default square; a circle's "
-                 "diameter is length = width)",
-        "blank_domain": "auto | quarter | full: the quarter with mirror conditions (squares "
-                        "with fibres at ±θ or 0/90 only) or the full blank (default auto)"}
+KEYS = {
+    "blank": "outline of the blank: square | rectangle | circle (default square; a circle's "
+    "diameter is length = width)",
+    "blank_domain": "auto | quarter | full: the quarter with mirror conditions (squares "
+    "with fibres at ±θ or 0/90 only) or the full blank (default auto)",
+}
 MIN_FIBRE_ANGLE_DEG = 30.0
 """The fibre lines must be at least this far apart: the fibre lattice of edge h spaces the
 fibres of one family h sin α apart, and below h/2 its triangles are slivers (aspect ratio above
@@ -41,9 +43,10 @@ fibres of one family h sin α apart, and below h/2 its triangles are slivers (as
 
 def parse(tables: dict, where: str) -> dict:
     """``[tooling] blank`` and ``blank_domain``, checked (unknown values name key and value)."""
-    return {"blank": choice_option(tables, "tooling", "blank", SHAPES, "square", where),
-            "blank_domain": choice_option(tables, "tooling", "blank_domain", DOMAINS, "auto",
-                                          where)}
+    return {
+        "blank": choice_option(tables, "tooling", "blank", SHAPES, "square", where),
+        "blank_domain": choice_option(tables, "tooling", "blank_domain", DOMAINS, "auto", where),
+    }
 
 
 def shape(setup: PluginSetup) -> str:
@@ -82,10 +85,12 @@ def domain(setup: PluginSetup) -> str:
     symmetric = shape(setup) == "square" and blank_angle(tuple(setup.fibre_angles_deg)) is not None
     asked = setup.options.get("blank_domain", "auto")
     if asked == "quarter" and not symmetric:
-        raise DataError(f"hemisphere: [tooling] blank_domain = 'quarter' needs a square blank "
-                        f"with fibres at ±θ or [0, 90] (mirror-symmetric about both mid-lines); "
-                        f"this is a {shape(setup)} with fibre_angles_deg = "
-                        f"{list(setup.fibre_angles_deg)}: use 'full' or 'auto'")
+        raise DataError(
+            f"hemisphere: [tooling] blank_domain = 'quarter' needs a square blank "
+            f"with fibres at ±θ or [0, 90] (mirror-symmetric about both mid-lines); "
+            f"this is a {shape(setup)} with fibre_angles_deg = "
+            f"{list(setup.fibre_angles_deg)}: use 'full' or 'auto'"
+        )
     return "quarter" if symmetric and asked != "full" else "full"
 
 
@@ -93,26 +98,34 @@ def check_specimen(setup: PluginSetup, where: str) -> None:
     """The blank's outline and size against the die, and the fibre pair against the mesh."""
     o, s = setup.options, shape(setup)
     if s == "circle" and setup.length != setup.width:
-        raise DataError(f"{where}: [tooling] blank = 'circle' needs length = width (its "
-                        f"diameter), not {setup.length:g} × {setup.width:g} mm")
+        raise DataError(
+            f"{where}: [tooling] blank = 'circle' needs length = width (its "
+            f"diameter), not {setup.length:g} × {setup.width:g} mm"
+        )
     if s == "square":
         forming_options.check_specimen(setup, where)
     else:
         R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
         if inner_half(setup) <= R + c:
-            raise DataError(f"{where}: the {s} blank {setup.length:g} × {setup.width:g} mm "
-                            f"must be wider everywhere than the die opening with its lip, "
-                            f"2(R + clearance + die_lip) = {2 * (R + c):g} mm")
+            raise DataError(
+                f"{where}: the {s} blank {setup.length:g} × {setup.width:g} mm "
+                f"must be wider everywhere than the die opening with its lip, "
+                f"2(R + clearance + die_lip) = {2 * (R + c):g} mm"
+            )
         if max(setup.length, setup.width) > forming_options.MAX_BLANK_RATIO * R:
-            raise DataError(f"{where}: [tooling] punch_radius = {R:g} mm is implausibly small "
-                            f"for a {max(setup.length, setup.width):g} mm blank (at most "
-                            f"{forming_options.MAX_BLANK_RATIO:g} punch radii wide)")
+            raise DataError(
+                f"{where}: [tooling] punch_radius = {R:g} mm is implausibly small "
+                f"for a {max(setup.length, setup.width):g} mm blank (at most "
+                f"{forming_options.MAX_BLANK_RATIO:g} punch radii wide)"
+            )
     gap = fibre_line_gap_deg(tuple(setup.fibre_angles_deg))
     if gap < MIN_FIBRE_ANGLE_DEG:
-        raise DataError(f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the fibre "
-                        f"lines are {gap:g}° apart, closer than the fibre-aligned mesh resolves "
-                        f"(its cells would be slivers of width h·sin {gap:g}° < h/2); the "
-                        f"fibres must be at least {MIN_FIBRE_ANGLE_DEG:g}° apart")
+        raise DataError(
+            f"{where}: fibre_angles_deg = {list(setup.fibre_angles_deg)}: the fibre "
+            f"lines are {gap:g}° apart, closer than the fibre-aligned mesh resolves "
+            f"(its cells would be slivers of width h·sin {gap:g}° < h/2); the "
+            f"fibres must be at least {MIN_FIBRE_ANGLE_DEG:g}° apart"
+        )
 
 
 MAX_H_PER_R = 0.5
@@ -126,9 +139,11 @@ def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
     of its radius)."""
     R = setup.options["punch_radius"]
     if h > MAX_H_PER_R * R:
-        raise DataError(f"hemisphere: h = {h:g} mm is more than {MAX_H_PER_R:g} of the punch "
-                        f"radius ({R:g} mm): the mesh cannot follow the punch's cap; give "
-                        f"h ≤ {MAX_H_PER_R * R:g} mm (default R/6; R/10 resolves the tools)")
+        raise DataError(
+            f"hemisphere: h = {h:g} mm is more than {MAX_H_PER_R:g} of the punch "
+            f"radius ({R:g} mm): the mesh cannot follow the punch's cap; give "
+            f"h ≤ {MAX_H_PER_R * R:g} mm (default R/6; R/10 resolves the tools)"
+        )
     if domain(setup) == "quarter":
         forming_options.check_mesh(setup, h, default)
         return
@@ -136,11 +151,13 @@ def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
     n = int(2 * area(setup) / (h * h * sin_a))
     if n > forming_options.MAX_ELEMENTS:
         what = f"the default h = R/6 = {h:g} mm" if default else f"h = {h:g} mm"
-        raise DataError(f"hemisphere: {what} would mesh the full {shape(setup)} blank with "
-                        f"about {n:,} cells, more than {forming_options.MAX_ELEMENTS:,}: give a "
-                        f"larger h (at least "
-                        f"{math.sqrt(2 * area(setup) / (sin_a * forming_options.MAX_ELEMENTS)):.3g}"
-                        " mm)")
+        raise DataError(
+            f"hemisphere: {what} would mesh the full {shape(setup)} blank with "
+            f"about {n:,} cells, more than {forming_options.MAX_ELEMENTS:,}: give a "
+            f"larger h (at least "
+            f"{math.sqrt(2 * area(setup) / (sin_a * forming_options.MAX_ELEMENTS)):.3g}"
+            " mm)"
+        )
 
 
 def check_stroke(setup: PluginSetup, stroke: float) -> None:
@@ -210,14 +227,24 @@ def pin_rigid_motions(p, R: float, rotation: bool) -> tuple[dict, tuple | None]:
     return {k: d for k, (d, _) in pins.items()}, vertex
 
 
-def record(setup: PluginSetup, specimen, domain_: str, rotation_vertex: tuple | None, h: float
-           ) -> dict:
+def record(
+    setup: PluginSetup, specimen, domain_: str, rotation_vertex: tuple | None, h: float
+) -> dict:
     """What a run computed on: mesh kind, h asked and used, blank, domain, how the rigid
     motions were removed, cells (the experiment's ``discretisation``)."""
-    how = ("mirror conditions on x = 0 and y = 0" if domain_ == "quarter" else
-           "pole pinned in-plane" + ("" if rotation_vertex is None else
-                                     ", u_x = 0 at (%.6g, %.6g)" % tuple(rotation_vertex)))
-    return {"mesh_kind": specimen.kind, "h_requested": float(h), "h_used": float(specimen.h),
-            "blank": shape(setup), "domain": domain_, "rigid_motions": how,
-            "mesh_note": specimen.note,
-            "cells": int(specimen.mesh.topology.index_map(2).size_global)}
+    how = (
+        "mirror conditions on x = 0 and y = 0"
+        if domain_ == "quarter"
+        else "pole pinned in-plane"
+        + ("" if rotation_vertex is None else ", u_x = 0 at (%.6g, %.6g)" % tuple(rotation_vertex))
+    )
+    return {
+        "mesh_kind": specimen.kind,
+        "h_requested": float(h),
+        "h_used": float(specimen.h),
+        "blank": shape(setup),
+        "domain": domain_,
+        "rigid_motions": how,
+        "mesh_note": specimen.note,
+        "cells": int(specimen.mesh.topology.index_map(2).size_global),
+    }

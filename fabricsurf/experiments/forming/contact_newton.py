@@ -64,9 +64,16 @@ class ContactSolver(SNESSolver):
     matrices into AIJ rows took most of their assembly (docs/forming.md, "Performance"); MUMPS
     factors it the same way."""
 
-    def __init__(self, *args, tools: StrokeTools, u_n: fem.Function, dissipation,
-                 tool_friction: tuple | None = None, fallback: dict | None = None,
-                 **kw) -> None:
+    def __init__(
+        self,
+        *args,
+        tools: StrokeTools,
+        u_n: fem.Function,
+        dissipation,
+        tool_friction: tuple | None = None,
+        fallback: dict | None = None,
+        **kw,
+    ) -> None:
         super().__init__(*args, **kw)
         self.tools, self.u_n = tools, u_n
         self._dissipation = fem.form(dissipation)
@@ -113,8 +120,9 @@ class ContactSolver(SNESSolver):
         forms = self._friction()
         if forms is not None:
             a = forms[1]
-            _cpp.fem.petsc.assemble_matrix(A, a, _cpp.fem.pack_constants(a),
-                                           _cpp.fem.pack_coefficients(a), self.bcs)
+            _cpp.fem.petsc.assemble_matrix(
+                A, a, _cpp.fem.pack_constants(a), _cpp.fem.pack_coefficients(a), self.bcs
+            )
             A.assemble()
 
     def _predict(self, s: float) -> None:
@@ -142,6 +150,7 @@ class ContactSolver(SNESSolver):
             its += more
         if reason > 0:
             self.u_prev, self.s_prev, self.s_n = self.u_n.x.array.copy(), self.s_n, s
-            self.dissipated += self.comm.allreduce(fem.assemble_scalar(self._dissipation),
-                                                   op=MPI.SUM)
+            self.dissipated += self.comm.allreduce(
+                fem.assemble_scalar(self._dissipation), op=MPI.SUM
+            )
         return reason, its

@@ -69,15 +69,19 @@ def _slips(tools, r, r_n):
 
 def potential_density(tools, r, r_n):
     """Σ μ p_n (√(|Δr_t|² + ε²) − ε) over punch and lip (N/mm per unit reference area)."""
-    return sum(limit * (ufl.sqrt(ufl.dot(t, t) + tools.eps**2) - tools.eps)
-               for limit, t in _slips(tools, r, r_n))
+    return sum(
+        limit * (ufl.sqrt(ufl.dot(t, t) + tools.eps**2) - tools.eps)
+        for limit, t in _slips(tools, r, r_n)
+    )
 
 
 def dissipation_density(tools, r, r_n):
     """Σ τ·Δr_t = μ p_n |Δr_t|² / √(|Δr_t|² + ε²) over punch and lip: the step's dissipation
     (N/mm per unit reference area)."""
-    return sum(limit * ufl.dot(t, t) / ufl.sqrt(ufl.dot(t, t) + tools.eps**2)
-               for limit, t in _slips(tools, r, r_n))
+    return sum(
+        limit * ufl.dot(t, t) / ufl.sqrt(ufl.dot(t, t) + tools.eps**2)
+        for limit, t in _slips(tools, r, r_n)
+    )
 
 
 def punch_force_density(tools, r, r_n):

@@ -44,15 +44,26 @@ class Indicators:
     @classmethod
     def from_options(cls, msh, options: dict) -> Indicators:
         """From the plug-in's ``[tooling]`` options (forming_options.parse)."""
-        return cls(msh, options["wrinkle_tension"], options["wrinkle_curvature"],
-                   options["locking_angle_deg"])
+        return cls(
+            msh,
+            options["wrinkle_tension"],
+            options["wrinkle_curvature"],
+            options["locking_angle_deg"],
+        )
 
     def wrinkle(self, kin, tensions: dict):
         """1 where a fibre is compressed beyond T_w and bends beyond κ_w, else 0 (UFL);
         ``tensions`` holds ``tension_l`` and ``tension_m`` (EnergyForm.tension_fields)."""
-        flags = [ufl.conditional(ufl.And(ufl.lt(tensions[f"tension_{f}"], -self.tension),
-                                         ufl.gt(abs(K), self.curvature)), 1.0, 0.0)
-                 for f, K in (("l", kin.K_L), ("m", kin.K_M))]
+        flags = [
+            ufl.conditional(
+                ufl.And(
+                    ufl.lt(tensions[f"tension_{f}"], -self.tension), ufl.gt(abs(K), self.curvature)
+                ),
+                1.0,
+                0.0,
+            )
+            for f, K in (("l", kin.K_L), ("m", kin.K_M))
+        ]
         return ufl.max_value(*flags)
 
     def locked(self, kin):
@@ -81,8 +92,11 @@ def membrane_parts(kin, tensions: dict) -> tuple:
     """(T_l, T_m, l·m): the fibre tensions (N/mm, UFL) and the cosine of the fibres' angle,
     which define the fibres' membrane force N = T_l l⊗l + T_m m⊗m (the shear term's stress
     left out)."""
-    return (tensions["tension_l"], tensions["tension_m"],
-            ufl.dot(l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)))
+    return (
+        tensions["tension_l"],
+        tensions["tension_m"],
+        ufl.dot(l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)),
+    )
 
 
 def least_principal(T_l, T_m, c):

@@ -27,22 +27,22 @@ TOOL_KEYS = {
     "holder_gap": "gap between holder and die (mm, default R/50)",
     "holder_pressure": "pressure of the holder on the flange (N/mm², default 1e-3)",
     "contact_stiffness": "penalty k_c (N/mm³, default 100)",
-    "friction": "Coulomb coefficient between the flange and holder and die's face "
-                "(default 0)",
+    "friction": "Coulomb coefficient between the flange and holder and die's face (default 0)",
     "punch_friction": "Coulomb coefficient between the sheet and the punch (default 0)",
     "die_friction": "Coulomb coefficient between the sheet and the die's lip (default 0)",
     "friction_slip_rate": "slip rate below which friction is regularised (mm of slip per "
-                          "mm of stroke, default 0.01)",
+    "mm of stroke, default 0.01)",
     "locking_angle_deg": "shear angle beyond which the fabric jams (deg, default 50)",
-    "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, "
-                       "default 1e-3)",
+    "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, default 1e-3)",
     "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 1/R: "
-                         "bent more sharply than the punch)",
+    "bent more sharply than the punch)",
 }
 """The tools' keys of the ``[tooling]`` table (the blank's: forming/blank.py)."""
 
-MATERIAL_KEYS = {"areal_density_g_m2": "areal density for self-weight (g/m², gravity 9.81 m/s² "
-                                       "along −z; default: no self-weight)"}
+MATERIAL_KEYS = {
+    "areal_density_g_m2": "areal density for self-weight (g/m², gravity 9.81 m/s² "
+    "along −z; default: no self-weight)"
+}
 """The plug-in's keys of the ``[material]`` table."""
 
 DEFAULTS = {"clearance": 0.2, "die_lip": 0.2, "holder_gap": 0.02}
@@ -52,15 +52,25 @@ CONTACT_STIFFNESS = 100.0
 """Default penalty k_c (N/mm³): a contact pressure p gives a penetration p / k_c."""
 LOCKING_ANGLE_DEG = 50.0
 """Default locking angle (woven fabrics lock at about 40–55°, Cao et al. 2008)."""
-PLAIN_DEFAULTS = {"contact_stiffness": CONTACT_STIFFNESS, "holder_pressure": 1e-3,
-                  "friction_slip_rate": 1e-2, "locking_angle_deg": LOCKING_ANGLE_DEG,
-                  "wrinkle_tension": 1e-3}
+PLAIN_DEFAULTS = {
+    "contact_stiffness": CONTACT_STIFFNESS,
+    "holder_pressure": 1e-3,
+    "friction_slip_rate": 1e-2,
+    "locking_angle_deg": LOCKING_ANGLE_DEG,
+    "wrinkle_tension": 1e-3,
+}
 """Defaults of the options in their own units (N/mm³, N/mm², mm/mm, deg, N/mm)."""
-RANGES = {"clearance": (0.0, 1.0, "R"), "die_lip": (0.0, 1.0, "R"),
-          "holder_pressure": (0.0, 1.0, "N/mm²"), "contact_stiffness": (0.0, 1e6, "N/mm³"),
-          "friction": (0.0, 2.0, ""), "punch_friction": (0.0, 2.0, ""),
-          "die_friction": (0.0, 2.0, ""), "friction_slip_rate": (0.0, 1.0, "mm/mm"),
-          "locking_angle_deg": (0.0, 90.0, "deg")}
+RANGES = {
+    "clearance": (0.0, 1.0, "R"),
+    "die_lip": (0.0, 1.0, "R"),
+    "holder_pressure": (0.0, 1.0, "N/mm²"),
+    "contact_stiffness": (0.0, 1e6, "N/mm³"),
+    "friction": (0.0, 2.0, ""),
+    "punch_friction": (0.0, 2.0, ""),
+    "die_friction": (0.0, 2.0, ""),
+    "friction_slip_rate": (0.0, 1.0, "mm/mm"),
+    "locking_angle_deg": (0.0, 90.0, "deg"),
+}
 """(low, high, unit) of each option: low excluded (the Coulomb coefficients: included), high
 included; "R": in punch radii."""
 FRICTION_KEYS = ("friction", "punch_friction", "die_friction")
@@ -81,8 +91,10 @@ def _ranged(out: dict, key: str, where: str, R: float) -> None:
     closed = key in FRICTION_KEYS
     if v < low * scale or (v == low * scale and not closed) or v > high * scale:
         lo = f"{low:g} ≤" if closed else f"{low:g} <"
-        raise DataError(f"{where}: [tooling] {key} = {v:g} is outside its plausible range "
-                        f"{lo} {key} ≤ {high:g}{' ' + unit if unit else ''}{shown}")
+        raise DataError(
+            f"{where}: [tooling] {key} = {v:g} is outside its plausible range "
+            f"{lo} {key} ≤ {high:g}{' ' + unit if unit else ''}{shown}"
+        )
 
 
 def parse(tables: dict, length_scale: float, where: str) -> dict:
@@ -99,20 +111,26 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
     for key in RANGES:
         _ranged(out, key, where, R)
     if out["holder_gap"] > out["die_lip"]:
-        raise DataError(f"{where}: [tooling] holder_gap = {out['holder_gap']:g} mm is wider "
-                        f"than the die's lip ({out['die_lip']:g} mm): the holder would not "
-                        f"hold the flange; plausible range 0 < holder_gap ≤ die_lip")
+        raise DataError(
+            f"{where}: [tooling] holder_gap = {out['holder_gap']:g} mm is wider "
+            f"than the die's lip ({out['die_lip']:g} mm): the holder would not "
+            f"hold the flange; plausible range 0 < holder_gap ≤ die_lip"
+        )
     sink = out["holder_pressure"] / out["contact_stiffness"]
     if sink > PENETRATION_FRACTION * out["holder_gap"]:
         need = out["holder_pressure"] / (PENETRATION_FRACTION * out["holder_gap"])
-        raise DataError(f"{where}: [tooling] contact_stiffness = {out['contact_stiffness']:g} "
-                        f"N/mm³ lets the holder's pressure sink the flange {sink:.3g} mm into "
-                        f"the die, more than a tenth of holder_gap ({out['holder_gap']:g} mm); "
-                        f"plausible range {need:.3g} ≤ contact_stiffness ≤ "
-                        f"{RANGES['contact_stiffness'][1]:g} N/mm³")
+        raise DataError(
+            f"{where}: [tooling] contact_stiffness = {out['contact_stiffness']:g} "
+            f"N/mm³ lets the holder's pressure sink the flange {sink:.3g} mm into "
+            f"the die, more than a tenth of holder_gap ({out['holder_gap']:g} mm); "
+            f"plausible range {need:.3g} ≤ contact_stiffness ≤ "
+            f"{RANGES['contact_stiffness'][1]:g} N/mm³"
+        )
     out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
-    out["wrinkle_curvature"] = number_option(tables, "tooling", "wrinkle_curvature", where,
-                                             1.0 / R * length_scale) / length_scale
+    out["wrinkle_curvature"] = (
+        number_option(tables, "tooling", "wrinkle_curvature", where, 1.0 / R * length_scale)
+        / length_scale
+    )
     return out
 
 
@@ -122,14 +140,18 @@ def check_specimen(setup: PluginSetup, where: str) -> None:
     o = setup.options
     R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
     if setup.length != setup.width or setup.length <= 2 * (R + c):
-        raise DataError(f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
-                        f"a square wider than the die opening with its lip, 2(R + clearance"
-                        f" + die_lip) = {2 * (R + c):g} mm")
+        raise DataError(
+            f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
+            f"a square wider than the die opening with its lip, 2(R + clearance"
+            f" + die_lip) = {2 * (R + c):g} mm"
+        )
     if setup.length > MAX_BLANK_RATIO * R:
-        raise DataError(f"{where}: [tooling] punch_radius = {R:g} mm is implausibly small "
-                        f"for a {setup.length:g} mm blank (at most {MAX_BLANK_RATIO:g} punch "
-                        f"radii wide; plausible range punch_radius ≥ "
-                        f"{setup.length / MAX_BLANK_RATIO:g} mm): is it in another unit?")
+        raise DataError(
+            f"{where}: [tooling] punch_radius = {R:g} mm is implausibly small "
+            f"for a {setup.length:g} mm blank (at most {MAX_BLANK_RATIO:g} punch "
+            f"radii wide; plausible range punch_radius ≥ "
+            f"{setup.length / MAX_BLANK_RATIO:g} mm): is it in another unit?"
+        )
 
 
 def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
@@ -138,10 +160,12 @@ def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
     n = 2 * math.ceil(0.5 * setup.length / h) ** 2
     if n > MAX_ELEMENTS:
         what = f"the default h = R/6 = {h:g} mm" if default else f"h = {h:g} mm"
-        raise DataError(f"hemisphere: {what} would mesh the quarter of the {setup.length:g} mm "
-                        f"blank with about {n:,} cells, more than {MAX_ELEMENTS:,}: give a "
-                        f"larger h (at least {setup.length / math.sqrt(2 * MAX_ELEMENTS):.3g} "
-                        "mm)")
+        raise DataError(
+            f"hemisphere: {what} would mesh the quarter of the {setup.length:g} mm "
+            f"blank with about {n:,} cells, more than {MAX_ELEMENTS:,}: give a "
+            f"larger h (at least {setup.length / math.sqrt(2 * MAX_ELEMENTS):.3g} "
+            "mm)"
+        )
 
 
 def unheld_edge(o: dict, blank: float) -> str | None:
@@ -154,11 +178,13 @@ def unheld_edge(o: dict, blank: float) -> str | None:
     full = o["punch_radius"] + o["clearance"] + 3.0 * o["die_lip"]
     if 0.5 * blank >= full:
         return None
-    return (f"hemisphere: the middle of the {blank:g} mm blank's sides ({0.5 * blank:g} mm "
-            f"from the axis) lies inside the radius where the holder's pressure is full "
-            f"(R + clearance + 3 die_lip = {full:g} mm): the flange there is held by the "
-            "holder's gap alone and may buckle (wrinkles, cut steps); a blank of side at least "
-            f"{2.0 * full:g} mm is held all round")
+    return (
+        f"hemisphere: the middle of the {blank:g} mm blank's sides ({0.5 * blank:g} mm "
+        f"from the axis) lies inside the radius where the holder's pressure is full "
+        f"(R + clearance + 3 die_lip = {full:g} mm): the flange there is held by the "
+        "holder's gap alone and may buckle (wrinkles, cut steps); a blank of side at least "
+        f"{2.0 * full:g} mm is held all round"
+    )
 
 
 def max_stroke(o: dict, blank: float) -> float:
@@ -174,7 +200,9 @@ def max_stroke(o: dict, blank: float) -> float:
 def check_stroke(o: dict, blank: float, stroke: float) -> None:
     top = max_stroke(o, blank)
     if not (math.isfinite(stroke) and 0.0 < stroke <= top):
-        raise DataError(f"hemisphere: stroke {stroke:g} mm is outside 0 < stroke ≤ {top:.4g} mm:"
-                        f" a {blank:g} mm blank would be drawn over the die's lip (radius "
-                        f"{o['punch_radius'] + o['clearance'] + o['die_lip']:g} mm to the die's "
-                        "face) before that, even with its fibres sheared to the limit")
+        raise DataError(
+            f"hemisphere: stroke {stroke:g} mm is outside 0 < stroke ≤ {top:.4g} mm:"
+            f" a {blank:g} mm blank would be drawn over the die's lip (radius "
+            f"{o['punch_radius'] + o['clearance'] + o['die_lip']:g} mm to the die's "
+            "face) before that, even with its fibres sheared to the limit"
+        )

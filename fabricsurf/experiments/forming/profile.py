@@ -21,8 +21,10 @@ def element_centres(e) -> np.ndarray:
     behaves as a pin-jointed net of cell size h) and jumps between elements: there an
     element's value stands for its mean."""
     if e.theta is None or forming_blank.shape(e.setup) != "square":
-        raise ValueError("element_centres: only on the aligned quarter's mesh (a square "
-                         "blank with fibres at ±θ or 0/90)")
+        raise ValueError(
+            "element_centres: only on the aligned quarter's mesh (a square "
+            "blank with fibres at ±θ or 0/90)"
+        )
     half = 0.5 * e.setup.length
     if e.theta == 0.0:
         d = half / square_divisions(half, e.h)
@@ -31,8 +33,9 @@ def element_centres(e) -> np.ndarray:
     return np.arange(dx, half, 2.0 * dx)
 
 
-def profile(e, direction_deg: float, X: np.ndarray | None = None,
-            n: int = 40) -> dict[str, np.ndarray]:
+def profile(
+    e, direction_deg: float, X: np.ndarray | None = None, n: int = 40
+) -> dict[str, np.ndarray]:
     """Along the reference ray from the pole at ``direction_deg`` (``diagonal_deg``:
     the fibres' bisector, the benchmarks' diagonal; a fibre's angle: that fibre), at
     reference distances ``X`` (default n points to the blank's edge): X, the arc length
@@ -48,12 +51,15 @@ def profile(e, direction_deg: float, X: np.ndarray | None = None,
     pts = np.column_stack([X * math.cos(t), X * math.sin(t)])
     kin = e.problem.energy.kin
     gam = interpolate_expression(kin.gamma * (180.0 / math.pi), e._S)
-    rec = nodal_average(kin.gamma * (180.0 / math.pi), e.specimen.mesh,
-                        CELL_QUADRATURE_DEGREE)
+    rec = nodal_average(kin.gamma * (180.0 / math.pi), e.specimen.mesh, CELL_QUADRATURE_DEGREE)
     r = np.column_stack([pts, np.zeros(n)]) + eval_points(e.problem.u, pts)
     r[:, 2] -= float(e.tools.stroke.value) - e.R
     dist = np.linalg.norm(r, axis=1)
     phi = np.arccos(np.clip(r[:, 2] / dist, -1.0, 1.0))
-    return {"X": X, "arc": e.R * phi, "shear_deg": eval_points(gam, pts)[:, 0],
-            "shear_recovered_deg": eval_points(rec, pts)[:, 0],
-            "gap": np.where(r[:, 2] > 0, dist - e.R, np.inf)}
+    return {
+        "X": X,
+        "arc": e.R * phi,
+        "shear_deg": eval_points(gam, pts)[:, 0],
+        "shear_recovered_deg": eval_points(rec, pts)[:, 0],
+        "gap": np.where(r[:, 2] > 0, dist - e.R, np.inf),
+    }

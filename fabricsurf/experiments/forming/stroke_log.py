@@ -27,37 +27,56 @@ logger = logging.getLogger(__name__)
 class StrokeLog:
     """Records of the steps of one run (:attr:`records`), written as they converge."""
 
-    def __init__(self, comm: MPI.Comm, active_set: Callable[[], np.ndarray],
-                 fallbacks: Callable[[], int], label: str = "") -> None:
+    def __init__(
+        self,
+        comm: MPI.Comm,
+        active_set: Callable[[], np.ndarray],
+        fallbacks: Callable[[], int],
+        label: str = "",
+    ) -> None:
         self.comm, self.active_set, self.fallbacks = comm, active_set, fallbacks
         self.label = label
         self.records: list[dict] = []
         self._active, self._fallbacks = active_set(), fallbacks()
         self._t = time.perf_counter()
 
-    def step(self, k: int, stroke: float, force: float, iterations: int, attempts: int,
-             steps: int) -> dict:
+    def step(
+        self, k: int, stroke: float, force: float, iterations: int, attempts: int, steps: int
+    ) -> dict:
         """Record requested step ``k`` (0-based) of ``steps``, converged at ``stroke``."""
         now, fb = self.active_set(), self.fallbacks()
         changes = self.comm.allreduce(int(np.count_nonzero(now != self._active)), op=MPI.SUM)
         t = time.perf_counter()
         seconds = self.comm.allreduce(t - self._t, op=MPI.MAX)
-        rec = {"step": k + 1, "stroke_mm": stroke, "punch_force_N": force,
-               "newton_iterations": int(iterations), "attempts": int(attempts),
-               "fallbacks": fb - self._fallbacks, "contact_changes": changes,
-               "seconds": seconds}
+        rec = {
+            "step": k + 1,
+            "stroke_mm": stroke,
+            "punch_force_N": force,
+            "newton_iterations": int(iterations),
+            "attempts": int(attempts),
+            "fallbacks": fb - self._fallbacks,
+            "contact_changes": changes,
+            "seconds": seconds,
+        }
         self.records.append(rec)
         self._active, self._fallbacks, self._t = now, fb, t
-        rank0(logger, self.comm, f"{self.label}step {k + 1}/{steps}: stroke {stroke:.4g} mm, "
-              f"force {force:.4g} N, {iterations} Newton iterations, {attempts - 1} cuts, "
-              f"{rec['fallbacks']} l2 repeats, {changes} contact changes, {seconds:.1f} s")
+        rank0(
+            logger,
+            self.comm,
+            f"{self.label}step {k + 1}/{steps}: stroke {stroke:.4g} mm, "
+            f"force {force:.4g} N, {iterations} Newton iterations, {attempts - 1} cuts, "
+            f"{rec['fallbacks']} l2 repeats, {changes} contact changes, {seconds:.1f} s",
+        )
         return rec
 
     @staticmethod
     def totals(r: list[dict]) -> dict:
         """Totals over step records: iterations, cuts, repeats, changes, seconds."""
-        return {"steps": len(r), "newton_iterations": sum(x["newton_iterations"] for x in r),
-                "cuts": sum(x["attempts"] - 1 for x in r),
-                "fallbacks": sum(x["fallbacks"] for x in r),
-                "contact_changes": sum(x["contact_changes"] for x in r),
-                "seconds": sum(x["seconds"] for x in r)}
+        return {
+            "steps": len(r),
+            "newton_iterations": sum(x["newton_iterations"] for x in r),
+            "cuts": sum(x["attempts"] - 1 for x in r),
+            "fallbacks": sum(x["fallbacks"] for x in r),
+            "contact_changes": sum(x["contact_changes"] for x in r),
+            "seconds": sum(x["seconds"] for x in r),
+        }

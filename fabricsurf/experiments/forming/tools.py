@@ -64,13 +64,25 @@ class Tools:
     (forming_friction.py). :attr:`r_n`, the placement of the last converged state, is set by
     the ContactProblem that carries the tools (the punch's friction enters the punch force)."""
 
-    def __init__(self, msh, R: float, opening: float, gap: float, lip: float,
-                 k_c: float, pressure: float, friction: float = 0.0,
-                 slip_rate: float = 1e-2, weight: float = 0.0, punch_friction: float = 0.0,
-                 die_friction: float = 0.0) -> None:
+    def __init__(
+        self,
+        msh,
+        R: float,
+        opening: float,
+        gap: float,
+        lip: float,
+        k_c: float,
+        pressure: float,
+        friction: float = 0.0,
+        slip_rate: float = 1e-2,
+        weight: float = 0.0,
+        punch_friction: float = 0.0,
+        die_friction: float = 0.0,
+    ) -> None:
         self.R = float(R)
-        self.radius, self.opening, self.gap, self.lip = (fem.Constant(msh, float(v))
-                                                         for v in (R, opening, gap, lip))
+        self.radius, self.opening, self.gap, self.lip = (
+            fem.Constant(msh, float(v)) for v in (R, opening, gap, lip)
+        )
         self.stroke = fem.Constant(msh, 0.0)
         self.k_c = fem.Constant(msh, float(k_c))
         self.p_h = fem.Constant(msh, float(pressure))
@@ -87,11 +99,20 @@ class Tools:
     def from_options(cls, msh, o: dict) -> Tools:
         """The tools of the hemisphere plug-in's checked options (forming_options.parse)."""
         R = o["punch_radius"]
-        return cls(msh, R, R + o["clearance"], o["holder_gap"], o["die_lip"],
-                   o["contact_stiffness"], o["holder_pressure"], o.get("friction", 0.0),
-                   o.get("friction_slip_rate", 1e-2),
-                   weight_per_area(o.get("areal_density_g_m2", 0.0)),
-                   o.get("punch_friction", 0.0), o.get("die_friction", 0.0))
+        return cls(
+            msh,
+            R,
+            R + o["clearance"],
+            o["holder_gap"],
+            o["die_lip"],
+            o["contact_stiffness"],
+            o["holder_pressure"],
+            o.get("friction", 0.0),
+            o.get("friction_slip_rate", 1e-2),
+            weight_per_area(o.get("areal_density_g_m2", 0.0)),
+            o.get("punch_friction", 0.0),
+            o.get("die_friction", 0.0),
+        )
 
     def tool_friction(self) -> bool:
         """Whether the punch or the die's lip has friction (its forms are then assembled)."""
@@ -108,8 +129,10 @@ class Tools:
         rho = self._rho(r)
         dist = ufl.sqrt(rho**2 + dz**2)
         cap = ufl.gt(dz, 0.0)
-        return (ufl.conditional(cap, dist - self.radius, rho - self.radius),
-                ufl.conditional(cap, dz / dist, 0.0))
+        return (
+            ufl.conditional(cap, dist - self.radius, rho - self.radius),
+            ufl.conditional(cap, dz / dist, 0.0),
+        )
 
     def punch_normal(self, r, stroke):
         """(signed distance to the punch with its pole at ``stroke``, its outward normal)."""
@@ -140,9 +163,11 @@ class Tools:
 
     def penetrations(self, r) -> dict:
         """⟨−d⟩ of each tool (mm)."""
-        return {"punch": ufl.max_value(-self.punch(r)[0], 0.0),
-                "die": ufl.max_value(-self._plate(r, 1.0), 0.0),
-                "holder": ufl.max_value(-self._plate(r, -1.0), 0.0)}
+        return {
+            "punch": ufl.max_value(-self.punch(r)[0], 0.0),
+            "die": ufl.max_value(-self._plate(r, 1.0), 0.0),
+            "holder": ufl.max_value(-self._plate(r, -1.0), 0.0),
+        }
 
     def holder_weight(self, r):
         """w(ρ) of the holder pressure (module docstring)."""
@@ -152,8 +177,11 @@ class Tools:
     def energy_density(self, r):
         """½ k_c Σ ⟨−d⟩² − p_h w r_z + q r_z (N/mm per unit reference area; q the self-weight
         per unit reference area, N/mm², gravity along −z)."""
-        return (0.5 * self.k_c * sum(p**2 for p in self.penetrations(r).values())
-                - self.p_h * self.holder_weight(r) * r[2] + self.weight * r[2])
+        return (
+            0.5 * self.k_c * sum(p**2 for p in self.penetrations(r).values())
+            - self.p_h * self.holder_weight(r) * r[2]
+            + self.weight * r[2]
+        )
 
     def _slip_and_limit(self, r, r_n):
         """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(ρ_n), the limit traction)."""
@@ -201,14 +229,16 @@ class ContactProblem(FabricProblem):
     Jacobian are the variations of that one energy (``ufl.derivative``). Its linear solver is
     :data:`LINEAR_SOLVER` unless ``snes_options`` say otherwise."""
 
-    def __init__(self, specimen, model: list[Term], tools: Tools,
-                 fallback: dict | None = None, **kw) -> None:
+    def __init__(
+        self, specimen, model: list[Term], tools: Tools, fallback: dict | None = None, **kw
+    ) -> None:
         kw["snes_options"] = {**LINEAR_SOLVER, **(kw.get("snes_options") or {})}
         super().__init__(specimen, model, **kw)
         self.tools, self.fallback = tools, fallback
         self.u_n = fem.Function(self.V, name="u_n")
-        self.dx = ufl.Measure("dx", domain=self.msh,
-                              metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE})
+        self.dx = ufl.Measure(
+            "dx", domain=self.msh, metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE}
+        )
         tools.r_n = placement(self.u_n)
 
     def _release(self) -> None:
@@ -229,8 +259,7 @@ class ContactProblem(FabricProblem):
         self.fix(edge, [0.0 if i == axis else None for i in range(3)])
         n = ufl.FacetNormal(self.msh)
         dn = ufl.grad(self.u) * n
-        self.clamp_gradient(edge, ufl.as_vector([dn[i] if i == axis else 0.0
-                                                 for i in range(3)]))
+        self.clamp_gradient(edge, ufl.as_vector([dn[i] if i == axis else 0.0 for i in range(3)]))
 
     def extra_energy(self):
         return self.contact_energy() + self.friction_energy()
@@ -238,16 +267,31 @@ class ContactProblem(FabricProblem):
     def tool_friction(self) -> tuple:
         """(residual, Jacobian) of the punch's and the lip's friction potentials
         (forming_friction.py): variations of one energy, like the main forms."""
-        phi = forming_friction.potential_density(self.tools, placement(self.u),
-                                                 placement(self.u_n)) * self.dx
+        phi = (
+            forming_friction.potential_density(self.tools, placement(self.u), placement(self.u_n))
+            * self.dx
+        )
         dP = ufl.derivative(phi, self.u, ufl.TestFunction(self.V))
         return dP, ufl.derivative(dP, self.u, ufl.TrialFunction(self.V))
 
     def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
         r, r_n = placement(self.u), placement(self.u_n)
-        dissipation = (self.tools.dissipation_density(r, r_n)
-                       + forming_friction.dissipation_density(self.tools, r, r_n)) * self.dx
-        return ContactSolver(F, J, self.u, self.bcs, self.prefix, self.snes_options,
-                             nodal_forces, self.energy.multipliers, tools=self.tools,
-                             fallback=self.fallback, u_n=self.u_n, dissipation=dissipation,
-                             tool_friction=self.tool_friction())
+        dissipation = (
+            self.tools.dissipation_density(r, r_n)
+            + forming_friction.dissipation_density(self.tools, r, r_n)
+        ) * self.dx
+        return ContactSolver(
+            F,
+            J,
+            self.u,
+            self.bcs,
+            self.prefix,
+            self.snes_options,
+            nodal_forces,
+            self.energy.multipliers,
+            tools=self.tools,
+            fallback=self.fallback,
+            u_n=self.u_n,
+            dissipation=dissipation,
+            tool_friction=self.tool_friction(),
+        )

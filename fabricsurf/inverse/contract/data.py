@@ -60,20 +60,27 @@ def _check_keys(t: dict, plugin) -> None:
         allowed[""].add(table)
     for key, value in t.items():
         if key not in allowed[""]:
-            raise DataError(f"experiment.toml: unknown key or table '{key}' (known: "
-                            f"{', '.join(sorted(allowed['']))})")
+            raise DataError(
+                f"experiment.toml: unknown key or table '{key}' (known: "
+                f"{', '.join(sorted(allowed['']))})"
+            )
         if key == "source":
-            bad = [k for k, v in value.items() if not isinstance(v, str)] if isinstance(
-                value, dict) else ["(not a table)"]
+            bad = (
+                [k for k, v in value.items() if not isinstance(v, str)]
+                if isinstance(value, dict)
+                else ["(not a table)"]
+            )
             if bad:
                 raise DataError(f"experiment.toml: [source] {bad[0]} must be free text")
             continue
         if isinstance(value, dict):
             extra = sorted(set(value) - allowed.get(key, set()))
             if extra:
-                raise DataError(f"experiment.toml: unknown key [{key}] {extra[0]} for test "
-                                f"'{plugin.name}' (known in [{key}]: "
-                                f"{', '.join(sorted(allowed.get(key, ()))) or 'none'})")
+                raise DataError(
+                    f"experiment.toml: unknown key [{key}] {extra[0]} for test "
+                    f"'{plugin.name}' (known in [{key}]: "
+                    f"{', '.join(sorted(allowed.get(key, ()))) or 'none'})"
+                )
         elif key != "name":
             raise DataError(f"experiment.toml: '{key}' must be a table [{key}]")
 
@@ -83,8 +90,10 @@ def _item(values: list, i: int, label: str) -> float:
     such as '45' where a number belongs is the common case)."""
     v = values[i]
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-        raise DataError(f"experiment.toml: {label}[{i}] = {v!r} must be a finite number"
-                        + (" (written without quotes)" if isinstance(v, str) else ""))
+        raise DataError(
+            f"experiment.toml: {label}[{i}] = {v!r} must be a finite number"
+            + (" (written without quotes)" if isinstance(v, str) else "")
+        )
     return float(v)
 
 
@@ -93,8 +102,10 @@ def _setup(t: dict, plugin, test: str, ls: float) -> PluginSetup:
     width = number_option(t, "specimen", "width", "experiment.toml") * ls
     angles = _get(t, "specimen", "fibre_angles_deg")
     if not isinstance(angles, list) or len(angles) != 2:
-        raise DataError(f"experiment.toml: [specimen] fibre_angles_deg = {angles!r} must be "
-                        "a list of two angles")
+        raise DataError(
+            f"experiment.toml: [specimen] fibre_angles_deg = {angles!r} must be "
+            "a list of two angles"
+        )
     angles = tuple(_item(angles, i, "[specimen] fibre_angles_deg") for i in range(2))
     checks.fibre_angles(angles)
     setup = PluginSetup(test, length, width, angles, plugin.parse_options(t, ls, "experiment.toml"))
@@ -114,8 +125,10 @@ def _force_file(d: Path, gname: str, ls: float, fs: float) -> tuple:
 def _path_from_toml(t: dict, scale: float) -> tuple[np.ndarray, np.ndarray]:
     path = t.get("loading", {}).get("path")
     if path is None:
-        raise DataError("experiment.toml: a field-only experiment needs its load path: "
-                        "[loading] path = [value per step, steps numbered from 1]")
+        raise DataError(
+            "experiment.toml: a field-only experiment needs its load path: "
+            "[loading] path = [value per step, steps numbered from 1]"
+        )
     if not isinstance(path, list) or not path:
         raise DataError(f"experiment.toml: [loading] path = {path!r} must be a non-empty list")
     vals = [_item(path, i, "[loading] path") for i in range(len(path))]
@@ -139,36 +152,53 @@ def load_experiment(directory: str | Path) -> Experiment:
     fname, gname, sname = data.get("field"), data.get("force"), data.get("shear")
     for key, v in (("field", fname), ("force", gname), ("shear", sname)):
         if v is not None and (not isinstance(v, str) or not v.strip()):
-            raise DataError(f"experiment.toml: [data] {key} = {v!r} must be a file name in "
-                            f'quotes, e.g. {key} = "{key}.csv"')
+            raise DataError(
+                f"experiment.toml: [data] {key} = {v!r} must be a file name in "
+                f'quotes, e.g. {key} = "{key}.csv"'
+            )
     if fname is None and gname is None and sname is None:
-        raise DataError("experiment.toml: [data] needs field = \"...\", force = \"...\" or "
-                        "shear = \"...\" (or several)")
+        raise DataError(
+            'experiment.toml: [data] needs field = "...", force = "..." or '
+            'shear = "..." (or several)'
+        )
     if gname is not None and not plugin.has_reaction:
-        raise DataError(f"experiment.toml: [data] force: the '{plugin.name}' test measures no "
-                        "reaction; give its load path as [loading] path")
+        raise DataError(
+            f"experiment.toml: [data] force: the '{plugin.name}' test measures no "
+            "reaction; give its load path as [loading] path"
+        )
     pscale = ls if plugin.path_unit == "length" else 1.0
     if gname is not None:
         if "path" in t.get("loading", {}):
-            raise DataError("experiment.toml: [loading] path and [data] force both give the "
-                            "load path; keep one")
+            raise DataError(
+                "experiment.toml: [loading] path and [data] force both give the load path; keep one"
+            )
         steps, path, force = _force_file(d, str(gname), pscale, fs)
     else:
         (steps, path), force = _path_from_toml(t, pscale), None
-    plugin.check_path(steps, path, str(gname) if gname is not None
-                      else "experiment.toml: [loading] path")
-    noise = {k: (number_option(t, "data", k, "experiment.toml") * s if k in data else None)
-             for k, s in (("noise_std", ls), ("force_noise_std", fs), ("shear_noise_deg", 1.0))}
+    plugin.check_path(
+        steps, path, str(gname) if gname is not None else "experiment.toml: [loading] path"
+    )
+    noise = {
+        k: (number_option(t, "data", k, "experiment.toml") * s if k in data else None)
+        for k, s in (("noise_std", ls), ("force_noise_std", fs), ("shear_noise_deg", 1.0))
+    }
     checks.noise_keys(noise, {"field": fname, "force": gname, "shear": sname})
     name = t.get("name", d.name)
     if not isinstance(name, str) or not name.strip():
         raise DataError(f"experiment.toml: name = {name!r} must be a non-empty string")
-    exp = Experiment(name, setup, steps, path, force,
-                     noise_std=noise["noise_std"], force_noise_std=noise["force_noise_std"],
-                     shear_noise_deg=noise["shear_noise_deg"],
-                     source=dict(t.get("source", {})), directory=str(d.resolve()),
-                     files=tuple(str(d / f) for f in ("experiment.toml", fname, gname, sname)
-                                 if f is not None))
+    exp = Experiment(
+        name,
+        setup,
+        steps,
+        path,
+        force,
+        noise_std=noise["noise_std"],
+        force_noise_std=noise["force_noise_std"],
+        shear_noise_deg=noise["shear_noise_deg"],
+        source=dict(t.get("source", {})),
+        directory=str(d.resolve()),
+        files=tuple(str(d / f) for f in ("experiment.toml", fname, gname, sname) if f is not None),
+    )
     if fname is not None:
         _read_field(exp, d / str(fname), ls, plugin.d)
     if sname is not None:
@@ -176,8 +206,14 @@ def load_experiment(directory: str | Path) -> Experiment:
         zero_shear(exp, str(sname))
     checks.magnitudes(exp, lu)
     if force is not None:
-        checks.tensile_forces(plugin, [int(k) for k in steps], force, str(gname),
-                              noise["force_noise_std"], label="numbered")
+        checks.tensile_forces(
+            plugin,
+            [int(k) for k in steps],
+            force,
+            str(gname),
+            noise["force_noise_std"],
+            label="numbered",
+        )
     check_field_moves(exp, str(fname) if fname is not None else "")  # before: its remedy
     checks.zero_data(exp, fname and str(fname), gname and str(gname))
     return exp
@@ -196,33 +232,46 @@ def check_field_moves(exp: Experiment, name: str) -> None:
     if not exp.has_field:
         return
     size = max(exp.length, exp.width)
-    still = [k for k, s in enumerate(exp.steps)
-             if exp.path[k] != 0 and len(rows := exp.step_rows(s))
-             and np.abs(exp.u[rows]).max() <= STILL * size]
+    still = [
+        k
+        for k, s in enumerate(exp.steps)
+        if exp.path[k] != 0
+        and len(rows := exp.step_rows(s))
+        and np.abs(exp.u[rows]).max() <= STILL * size
+    ]
     if not still:
         return
     label = get_test(exp.test).path_label
-    steps = ", ".join(str(int(exp.steps[k])) for k in still[:8]) + (", …" if len(still) > 8
-                                                                     else "")
+    steps = ", ".join(str(int(exp.steps[k])) for k in still[:8]) + (", …" if len(still) > 8 else "")
     path = ", ".join(f"{exp.path[k]:g}" for k in still[:8]) + (", …" if len(still) > 8 else "")
     every = len(still) == len(np.unique(exp.field_step))
-    raise DataError(f"{name or 'the field'}: every displacement of step"
-                    f"{'s' * (len(still) > 1)} {steps}{' (all its steps)' * every} is 0 while "
-                    f"the {label} is {path}: nothing moved in the data though the load did; "
-                    "check the displacement columns (ux, uy: not strains or coordinates) and "
-                    "that each step's images are the loaded ones, not the reference image")
+    raise DataError(
+        f"{name or 'the field'}: every displacement of step"
+        f"{'s' * (len(still) > 1)} {steps}{' (all its steps)' * every} is 0 while "
+        f"the {label} is {path}: nothing moved in the data though the load did; "
+        "check the displacement columns (ux, uy: not strains or coordinates) and "
+        "that each step's images are the loaded ones, not the reference image"
+    )
 
 
 def _read_field(exp: Experiment, path: Path, ls: float, d: int) -> None:
     f = read_csv(path, FIELD_COLUMNS, optional=("uz",))
     name = path.name
     if d == 3 and "uz" not in f:
-        raise DataError(f"{name}: no column uz; the '{exp.test}' test is out of plane (its "
-                        "data are the deflection uz): give step,X,Y,ux,uy,uz")
+        raise DataError(
+            f"{name}: no column uz; the '{exp.test}' test is out of plane (its "
+            "data are the deflection uz): give step,X,Y,ux,uy,uz"
+        )
     f["step"] = checks.steps(f["step"], f["_line"], name)
     f["X"], f["Y"] = f["X"] * ls, f["Y"] * ls
-    checks.field_rows(f, exp.steps, exp.length, exp.width, name,
-                      "the force file" if exp.has_force else "[loading] path")
+    checks.field_rows(
+        f,
+        exp.steps,
+        exp.length,
+        exp.width,
+        name,
+        "the force file" if exp.has_force else "[loading] path",
+    )
     comps = ["ux", "uy"] + (["uz"] if "uz" in f else [])
     u = np.column_stack([f[c] for c in comps]) * ls
     checks.field_displacements(u, f["_line"], max(exp.length, exp.width), name)

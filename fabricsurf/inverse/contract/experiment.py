@@ -77,10 +77,18 @@ class Experiment:
         return np.flatnonzero(self.shear_step == step)
 
 
-def template(length: float, width: float, displacements, points: np.ndarray,
-             angles: tuple[float, float] = (45.0, -45.0), clamp: str = "gradient",
-             name: str = "synthetic", test: str = "bias_extension",
-             options: dict | None = None, force: bool = True) -> Experiment:
+def template(
+    length: float,
+    width: float,
+    displacements,
+    points: np.ndarray,
+    angles: tuple[float, float] = (45.0, -45.0),
+    clamp: str = "gradient",
+    name: str = "synthetic",
+    test: str = "bias_extension",
+    options: dict | None = None,
+    force: bool = True,
+) -> Experiment:
     """An Experiment with the geometry and loading filled in and zero measurements.
 
     ``displacements``: the load path (one value per step); ``points``: field points (may be
@@ -90,6 +98,13 @@ def template(length: float, width: float, displacements, points: np.ndarray,
     opts = {"clamp": clamp} if options is None else dict(options)
     setup = PluginSetup(test, float(length), float(width), tuple(angles), opts)
     pts = np.asarray(points, float).reshape(-1, 2)
-    return Experiment(name, setup, steps, d, np.zeros(len(d)) if force else None,
-                      np.repeat(steps, len(pts)), np.tile(pts, (len(d), 1)),
-                      np.zeros((len(d) * len(pts), 2)))
+    return Experiment(
+        name,
+        setup,
+        steps,
+        d,
+        np.zeros(len(d)) if force else None,
+        np.repeat(steps, len(pts)),
+        np.tile(pts, (len(d), 1)),
+        np.zeros((len(d) * len(pts), 2)),
+    )

@@ -21,21 +21,31 @@ def read_shear(exp, path: Path, ls: float, plugin) -> None:
     ``path``; the test must take shear data (``plugin.takes_shear``)."""
     name = path.name
     if not plugin.takes_shear:
-        raise DataError(f"experiment.toml: [data] shear = \"{name}\": the '{plugin.name}' test "
-                        "takes no measured shear angles (docs/contracts.md: the hemisphere "
-                        "does)")
+        raise DataError(
+            f"experiment.toml: [data] shear = \"{name}\": the '{plugin.name}' test "
+            "takes no measured shear angles (docs/contracts.md: the hemisphere "
+            "does)"
+        )
     f = read_csv(path, SHEAR_COLUMNS)
     f["step"] = checks.steps(f["step"], f["_line"], name)
     f["X"], f["Y"] = f["X"] * ls, f["Y"] * ls
-    checks.field_rows(f, exp.steps, exp.length, exp.width, name,
-                      "the force file" if exp.has_force else "[loading] path")
+    checks.field_rows(
+        f,
+        exp.steps,
+        exp.length,
+        exp.width,
+        name,
+        "the force file" if exp.has_force else "[loading] path",
+    )
     _inside_circle(exp, f, name)
     big = np.flatnonzero(np.abs(f["shear_deg"]) >= MAX_SHEAR_DEG)
     if len(big):
         i = big[0]
-        raise DataError(f"{name} line {f['_line'][i]}: shear_deg = {f['shear_deg'][i]:g} is "
-                        f"not a shear angle (|γ| < {MAX_SHEAR_DEG:g}°; the column is in "
-                        "degrees)")
+        raise DataError(
+            f"{name} line {f['_line'][i]}: shear_deg = {f['shear_deg'][i]:g} is "
+            f"not a shear angle (|γ| < {MAX_SHEAR_DEG:g}°; the column is in "
+            "degrees)"
+        )
     exp.shear_step = f["step"]
     exp.shear_X = np.column_stack([f["X"], f["Y"]])
     exp.shear = f["shear_deg"].astype(float)
@@ -50,14 +60,18 @@ def _inside_circle(exp, f: dict, name: str) -> None:
     out = np.flatnonzero(beyond > 1e-9 * r)
     if len(out):
         i = out[0]
-        raise DataError(f"{name} line {f['_line'][i]}: point (X, Y) = ({f['X'][i]:g}, "
-                        f"{f['Y'][i]:g}) mm lies {beyond[i]:.3g} mm outside the circular blank "
-                        f"(diameter {exp.length:g} mm, centre ({r:g}, {0.5 * exp.width:g}) mm)")
+        raise DataError(
+            f"{name} line {f['_line'][i]}: point (X, Y) = ({f['X'][i]:g}, "
+            f"{f['Y'][i]:g}) mm lies {beyond[i]:.3g} mm outside the circular blank "
+            f"(diameter {exp.length:g} mm, centre ({r:g}, {0.5 * exp.width:g}) mm)"
+        )
 
 
 def zero_shear(exp, name: str | None) -> None:
     """All measured shear angles 0 without ``shear_noise_deg``: no misfit scale."""
     if exp.has_shear and exp.shear_noise_deg is None and not np.any(exp.shear):
-        raise DataError(f"{name}: every shear angle is 0 and [data] shear_noise_deg is not "
-                        "given, so the misfit has no shear scale (the default is 1 % of the "
-                        "largest |shear_deg|); give shear_noise_deg (deg)")
+        raise DataError(
+            f"{name}: every shear angle is 0 and [data] shear_noise_deg is not "
+            "given, so the misfit has no shear scale (the default is 1 % of the "
+            "largest |shear_deg|); give shear_noise_deg (deg)"
+        )

@@ -30,7 +30,7 @@ from fabricsurf.errors import DataError
 
 
 def broken_link(path: Path) -> str | None:
-    """"loops" or "dangles" when ``path`` is a symbolic link that loops or leads nowhere, else
+    """ "loops" or "dangles" when ``path`` is a symbolic link that loops or leads nowhere, else
     None."""
     if not path.is_symlink() or path.exists():
         return None
@@ -48,17 +48,22 @@ def require_file(path: Path) -> None:
     name = path.name
     link = broken_link(path)
     if link == "loops":
-        raise DataError(f"{name}: a symbolic link that loops ({name} -> "
-                        f"{os.readlink(path)}) in {path.parent}, not a file")
+        raise DataError(
+            f"{name}: a symbolic link that loops ({name} -> "
+            f"{os.readlink(path)}) in {path.parent}, not a file"
+        )
     if link:
-        raise DataError(f"{name}: a symbolic link to {os.readlink(path)}, which does not exist "
-                        f"(in {path.parent})")
+        raise DataError(
+            f"{name}: a symbolic link to {os.readlink(path)}, which does not exist "
+            f"(in {path.parent})"
+        )
     if path.is_dir():
         raise DataError(f"{name}: a directory, not a file (in {path.parent})")
     kind = special_file(path)
     if kind:
-        raise DataError(f"{name}: {kind}, not a regular file (in {path.parent}); give the "
-                        "data as a file")
+        raise DataError(
+            f"{name}: {kind}, not a regular file (in {path.parent}); give the data as a file"
+        )
     raise DataError(f"{name}: file not found in {path.parent}")
 
 
@@ -67,9 +72,15 @@ def special_file(path: Path) -> str | None:
     socket or device: reading it could block or never end), else None."""
     if not path.exists() or path.is_file() or path.is_dir():
         return None
-    return ("a named pipe (FIFO)" if path.is_fifo() else "a socket" if path.is_socket()
-            else "a device" if path.is_char_device() or path.is_block_device()
-            else "not a regular file")
+    return (
+        "a named pipe (FIFO)"
+        if path.is_fifo()
+        else "a socket"
+        if path.is_socket()
+        else "a device"
+        if path.is_char_device() or path.is_block_device()
+        else "not a regular file"
+    )
 
 
 def read_toml(path: Path) -> dict:
@@ -90,19 +101,21 @@ def _decode(path: Path) -> str:
         text = raw.decode("utf-16") if utf16 else raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         if utf16:
-            raise DataError(f"{path.name}: not valid UTF-16 despite its byte-order mark "
-                            "(save the file as UTF-8)") from None
+            raise DataError(
+                f"{path.name}: not valid UTF-16 despite its byte-order mark "
+                "(save the file as UTF-8)"
+            ) from None
         line = raw[: e.start].count(b"\n") + 1
-        byte = raw[e.start: e.start + 1]
-        raise DataError(f"{path.name} line {line}: byte 0x{byte[0]:02x} is not UTF-8 ("
-                        f"{byte.decode('cp1252', errors='replace')!r} in Windows-1252/Latin-1?): "
-                        "save the file as UTF-8") from None
+        byte = raw[e.start : e.start + 1]
+        raise DataError(
+            f"{path.name} line {line}: byte 0x{byte[0]:02x} is not UTF-8 ("
+            f"{byte.decode('cp1252', errors='replace')!r} in Windows-1252/Latin-1?): "
+            "save the file as UTF-8"
+        ) from None
     if "\0" in text:  # valid UTF-8 (or UTF-16) with NUL characters: not text as given
         line = text[: text.index("\0")].count("\n") + 1
-        guess = ("UTF-16 without its byte-order mark?" if not utf16
-                 else "UTF-32?")
-        raise DataError(f"{path.name} line {line}: NUL bytes ({guess}): save the file as "
-                        "UTF-8")
+        guess = "UTF-16 without its byte-order mark?" if not utf16 else "UTF-32?"
+        raise DataError(f"{path.name} line {line}: NUL bytes ({guess}): save the file as UTF-8")
     return text
 
 
@@ -120,8 +133,13 @@ def _fast(text: str, columns: tuple[str, ...], optional: tuple[str, ...]) -> dic
     any file it does not take: the row-by-row reader then reads it or names the error."""
     text = text.replace("\r\n", "\n").rstrip()
     head, _, body = text.partition("\n")
-    if (not body or '"' in text or "\r" in text or not head.strip()
-            or re.search(r"\n[ \t]*\n", text)):
+    if (
+        not body
+        or '"' in text
+        or "\r" in text
+        or not head.strip()
+        or re.search(r"\n[ \t]*\n", text)
+    ):
         return None
     delimiter = ";" if head.count(";") > head.count(",") else ","
     header = [h.strip() for h in head.split(delimiter)]
@@ -158,14 +176,17 @@ def read_csv(path: Path, columns: tuple[str, ...], optional: tuple[str, ...] = (
     head = numbered[0][1]
     delimiter = ";" if head.count(";") > head.count(",") else ","
     if delimiter == "," and "\t" in head and "," not in head:
-        raise DataError(f"{name} line 1: tab-separated header; expected comma- (or "
-                        f"semicolon-) separated columns {','.join(columns)}")
+        raise DataError(
+            f"{name} line 1: tab-separated header; expected comma- (or "
+            f"semicolon-) separated columns {','.join(columns)}"
+        )
     rows = list(csv.reader(io.StringIO("\n".join(s for _, s in numbered)), delimiter=delimiter))
     header = [h.strip() for h in rows[0]]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise DataError(f"{name}: missing column(s) {', '.join(missing)}; header is "
-                        f"{delimiter.join(header)}")
+        raise DataError(
+            f"{name}: missing column(s) {', '.join(missing)}; header is {delimiter.join(header)}"
+        )
     dup = [c for c in set(header) if header.count(c) > 1 and c in (*columns, *optional)]
     if dup:
         raise DataError(f"{name} line 1: column {dup[0]} appears twice")
@@ -183,10 +204,14 @@ def read_csv(path: Path, columns: tuple[str, ...], optional: tuple[str, ...] = (
             cell = row[header.index(c)].strip()
             v = _number(cell, comma)
             if not math.isfinite(v):
-                hint = (" (a decimal comma: separate the columns with ';' or write the decimal "
-                        "point '.')" if not comma and re.fullmatch(r"[-+]?\d+,\d+", cell)
-                        else "")
-                raise DataError(f"{name} line {line}: column {c} = {cell!r} is not a finite "
-                                f"number{hint}")
+                hint = (
+                    " (a decimal comma: separate the columns with ';' or write the decimal "
+                    "point '.')"
+                    if not comma and re.fullmatch(r"[-+]?\d+,\d+", cell)
+                    else ""
+                )
+                raise DataError(
+                    f"{name} line {line}: column {c} = {cell!r} is not a finite number{hint}"
+                )
             out[c][i] = v
     return out

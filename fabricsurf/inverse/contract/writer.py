@@ -37,8 +37,7 @@ def _plugin_tables(plugin, options: dict) -> dict[str, dict]:
     for table, k in [(t, k) for t, kv in tables.items() for k in kv]:
         if _parsed(plugin, tables) is not None:
             break
-        rest = {t: {q: v for q, v in d.items() if (t, q) != (table, k)}
-                for t, d in tables.items()}
+        rest = {t: {q: v for q, v in d.items() if (t, q) != (table, k)} for t, d in tables.items()}
         parsed = _parsed(plugin, rest)
         if parsed is not None and parsed.get(k) == tables[table][k]:
             tables = rest
@@ -58,9 +57,14 @@ def toml_text(exp: Experiment) -> str:
     plugin = get_test(exp.test)
     tables: dict[str, dict] = {
         "units": {"length": "mm", "force": "N"},
-        "specimen": {"length": exp.length, "width": exp.width,
-                     "fibre_angles_deg": [float(a) for a in exp.fibre_angles_deg]},
-        "loading": {"test": exp.test}, "data": {}}
+        "specimen": {
+            "length": exp.length,
+            "width": exp.width,
+            "fibre_angles_deg": [float(a) for a in exp.fibre_angles_deg],
+        },
+        "loading": {"test": exp.test},
+        "data": {},
+    }
     for table, kv in _plugin_tables(plugin, exp.setup.options).items():
         tables.setdefault(table, {}).update(kv)
     if not exp.has_force:
@@ -90,8 +94,9 @@ def _table(path: Path, header: list[str], steps, *columns) -> None:
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        w.writerows([s, *map(repr, row)] for s, row in zip(
-            np.asarray(steps).astype(int).tolist(), rows))
+        w.writerows(
+            [s, *map(repr, row)] for s, row in zip(np.asarray(steps).astype(int).tolist(), rows)
+        )
 
 
 def write_files(directory: str | Path, exp: Experiment) -> None:
@@ -102,14 +107,14 @@ def write_files(directory: str | Path, exp: Experiment) -> None:
     d = Path(directory)
     (d / "experiment.toml").write_text(toml_text(exp))
     if exp.has_force:
-        _table(d / "force.csv", ["step", "displacement", "force"], exp.steps, exp.path,
-               exp.force)
+        _table(d / "force.csv", ["step", "displacement", "force"], exp.steps, exp.path, exp.force)
     if exp.has_field:
         comps = ["ux", "uy", "uz"][: exp.u.shape[1]]
         _table(d / "field.csv", ["step", "X", "Y", *comps], exp.field_step, exp.X, exp.u)
     if exp.has_shear:
-        _table(d / "shear.csv", ["step", "X", "Y", "shear_deg"], exp.shear_step, exp.shear_X,
-               exp.shear)
+        _table(
+            d / "shear.csv", ["step", "X", "Y", "shear_deg"], exp.shear_step, exp.shear_X, exp.shear
+        )
 
 
 def write_experiment(directory: str | Path, exp: Experiment, overwrite: bool = False) -> Path:

@@ -29,8 +29,9 @@ class Labels:
     max_effects: str = "max_effects"
 
 
-def library_labels(baseline: list[str], candidates: list[str] | None,
-                   fixed: list[str] | None) -> Labels:
+def library_labels(
+    baseline: list[str], candidates: list[str] | None, fixed: list[str] | None
+) -> Labels:
     """The names of :func:`~fabricsurf.inverse.diagnosis.diagnose.diagnose`'s arguments."""
     return Labels(f"candidates {candidates}", f"fixed {fixed}", f"baseline {baseline}")
 
@@ -51,52 +52,69 @@ def check_names(names: list[str] | None, label: str) -> None:
         raise InputError(f"{label}: names no effect")
     bad = [n for n in names if n not in EFFECTS]
     if bad:
-        raise InputError(f"{label}: unknown term '{bad[0]}'; valid terms are: "
-                         f"{', '.join(EFFECTS)}")
+        raise InputError(f"{label}: unknown term '{bad[0]}'; valid terms are: {', '.join(EFFECTS)}")
     dup = [n for n in names if names.count(n) > 1]
     if dup:
         raise InputError(f"{label}: '{dup[0]}' is given twice")
 
 
-def check_fixed(fixed: list[str] | None, baseline: list[str], params: dict,
-                labels: Labels) -> None:
+def check_fixed(fixed: list[str] | None, baseline: list[str], params: dict, labels: Labels) -> None:
     """Fixed terms are baseline terms with every modulus given, and leave one term free."""
     if fixed is None:
         return
     outside = [n for n in fixed if n not in baseline]
     if outside:
-        raise InputError(f"{labels.fixed}: '{outside[0]}' is not a baseline term "
-                         f"({labels.baseline}); only baseline terms can be held fixed")
+        raise InputError(
+            f"{labels.fixed}: '{outside[0]}' is not a baseline term "
+            f"({labels.baseline}); only baseline terms can be held fixed"
+        )
     if set(fixed) == set(baseline):
-        raise InputError(f"{labels.fixed}: every baseline term ({labels.baseline}) is fixed, so "
-                         "the baseline has no modulus to fit; leave at least one free "
-                         "(compare evaluates a model with given moduli)")
-    missing = [f"{n}.{p}" for n in fixed for p in EFFECTS[n].parameters()
-               if p not in params.get(n, {})]
+        raise InputError(
+            f"{labels.fixed}: every baseline term ({labels.baseline}) is fixed, so "
+            "the baseline has no modulus to fit; leave at least one free "
+            "(compare evaluates a model with given moduli)"
+        )
+    missing = [
+        f"{n}.{p}" for n in fixed for p in EFFECTS[n].parameters() if p not in params.get(n, {})
+    ]
     if missing:
-        raise InputError(f"{labels.fixed}: a fixed term is held at its moduli from "
-                         f"{labels.params}, and {', '.join(missing)} is not given "
-                         f"{labels.params_where}; give the known moduli of every fixed term")
+        raise InputError(
+            f"{labels.fixed}: a fixed term is held at its moduli from "
+            f"{labels.params}, and {', '.join(missing)} is not given "
+            f"{labels.params_where}; give the known moduli of every fixed term"
+        )
 
 
-def check_candidates(candidates: list[str] | None, baseline: list[str], visible: list[str],
-                     labels: Labels) -> None:
+def check_candidates(
+    candidates: list[str] | None, baseline: list[str], visible: list[str], labels: Labels
+) -> None:
     """Candidates the data can see (``visible``), not all of them in the baseline."""
     if candidates is None:
         return
     hidden = [c for c in candidates if c not in visible]
     if hidden:
-        raise InputError(f"{labels.candidates}: these data cannot see {', '.join(hidden)} "
-                         "(planar data cannot see out-of-plane effects)")
+        raise InputError(
+            f"{labels.candidates}: these data cannot see {', '.join(hidden)} "
+            "(planar data cannot see out-of-plane effects)"
+        )
     if all(c in baseline for c in candidates):
-        raise InputError(f"{labels.candidates}: every candidate is already in the baseline "
-                         f"({labels.baseline}), so nothing would be tested; name effects "
-                         "that are not in the baseline")
+        raise InputError(
+            f"{labels.candidates}: every candidate is already in the baseline "
+            f"({labels.baseline}), so nothing would be tested; name effects "
+            "that are not in the baseline"
+        )
 
 
-def check_choices(baseline: list[str], candidates: list[str] | None, fixed: list[str] | None,
-                  params: dict, visible: list[str], confirm: int, max_effects: int,
-                  labels: Labels) -> None:
+def check_choices(
+    baseline: list[str],
+    candidates: list[str] | None,
+    fixed: list[str] | None,
+    params: dict,
+    visible: list[str],
+    confirm: int,
+    max_effects: int,
+    labels: Labels,
+) -> None:
     """Every check above, in the order a user reads the options."""
     check_rounds(confirm, max_effects, labels)
     check_names(baseline, labels.baseline)

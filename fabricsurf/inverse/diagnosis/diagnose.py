@@ -64,12 +64,16 @@ from fabricsurf.model.terms import EFFECTS, make_term
 logger = logging.getLogger(__name__)
 
 
-def full_model(baseline: list[str], params: dict | None = None,
-               visible: list[str] | None = None) -> list:
+def full_model(
+    baseline: list[str], params: dict | None = None, visible: list[str] | None = None
+) -> list:
     """Baseline + every visible effect, in vocabulary order; the candidates at modulus 0."""
     params = params or {}
-    visible = visible if visible is not None else [n for n in EFFECTS if EFFECTS[n].in_plane
-                                                   and not EFFECTS[n].signed]
+    visible = (
+        visible
+        if visible is not None
+        else [n for n in EFFECTS if EFFECTS[n].in_plane and not EFFECTS[n].signed]
+    )
     model = []
     for n in EFFECTS:
         if n not in baseline and n not in visible:
@@ -81,8 +85,9 @@ def full_model(baseline: list[str], params: dict | None = None,
     return model
 
 
-def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
-           cand: dict[str, list[int]]) -> dict[str, tuple[float, float]]:
+def scores(
+    r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int], cand: dict[str, list[int]]
+) -> dict[str, tuple[float, float]]:
     """Linearised χ² reduction and modulus estimate per candidate (module docstring)."""
     Q = la.thin_q(Jr[:, base] * vals[base], "diagnose: the candidates' scores")
     out = {}
@@ -95,8 +100,9 @@ def scores(r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int],
     return out
 
 
-def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: list[int],
-                       idx: list[int]) -> np.ndarray:
+def gauss_newton_start(
+    r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: list[int], idx: list[int]
+) -> np.ndarray:
     """The linearised refit: one Gauss–Newton step in the fitted moduli and the candidate's
     (together) from the current optimum, each modulus kept positive (at most a factor e^1.5
     down, as the fit's own step limit)."""
@@ -108,8 +114,15 @@ def gauss_newton_start(r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: lis
     return v
 
 
-def _refit(fs: ForwardSet, cur: FitResult, free: list[int], idx: list[int], estimate: float,
-           gn: np.ndarray, warm: np.ndarray | None = None) -> FitResult:
+def _refit(
+    fs: ForwardSet,
+    cur: FitResult,
+    free: list[int],
+    idx: list[int],
+    estimate: float,
+    gn: np.ndarray,
+    warm: np.ndarray | None = None,
+) -> FitResult:
     """Nested refit from the current optimum, the candidate at its best start (among them,
     with ``warm``, the moduli a coarser mesh found for it)."""
     extra = [gn]
@@ -130,8 +143,15 @@ def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
     return unc.wald(rf.values[idx], st.cov[np.ix_(pos, pos)], st.dof)
 
 
-def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int,
-                verbose: bool | None = None, warm: np.ndarray | None = None):
+def _rank_round(
+    fs,
+    cur: FitResult,
+    free: list[int],
+    cand: dict,
+    confirm: int,
+    verbose: bool | None = None,
+    warm: np.ndarray | None = None,
+):
     # verbose: unused, kept for beyond.py's positional call until it is converted
     fs.set_values(cur.values)
     r, Jr = fs.residuals(fs.run(sens=True))
@@ -148,35 +168,52 @@ def _rank_round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int,
     small = r.size <= ranks.SPREAD_RESIDUALS  # the refits are gathered on every rank
     refits = dict(zip(chosen, ranks.spread(fs, chosen, refit) if small else map(refit, chosen)))
     for c in order:
-        row = {"effect": c, "score": sc[c][0], "linearised_modulus": sc[c][1],
-               "refit_misfit": None, "significant": None}
+        row = {
+            "effect": c,
+            "score": sc[c][0],
+            "linearised_modulus": sc[c][1],
+            "refit_misfit": None,
+            "significant": None,
+        }
         if c in refits:
             rf = refits[c]
             F, p = candidate_wald(rf, cand[c])
-            row.update(refit_misfit=rf.misfit["combined"], refit_chi2=rf.chi2,
-                       refit_params=rf.params()[c],
-                       refit_std={k: s for k, s in rf.std_dict().items()
-                                  if k.startswith(c + ".")},
-                       wald_F=F, wald_p=p,
-                       share_of_excess=sg.share_of_excess(cur.chi2, len(free), rf.chi2, n),
-                       f_test_passed=sg.f_test(cur.chi2, len(free), rf.chi2,
-                                               len(free) + len(cand[c]), n),
-                       significant=sg.significant(cur.chi2, len(free), rf.chi2,
-                                                  len(free) + len(cand[c]), n, wald_p=p))
+            row.update(
+                refit_misfit=rf.misfit["combined"],
+                refit_chi2=rf.chi2,
+                refit_params=rf.params()[c],
+                refit_std={k: s for k, s in rf.std_dict().items() if k.startswith(c + ".")},
+                wald_F=F,
+                wald_p=p,
+                share_of_excess=sg.share_of_excess(cur.chi2, len(free), rf.chi2, n),
+                f_test_passed=sg.f_test(cur.chi2, len(free), rf.chi2, len(free) + len(cand[c]), n),
+                significant=sg.significant(
+                    cur.chi2, len(free), rf.chi2, len(free) + len(cand[c]), n, wald_p=p
+                ),
+            )
         rows.append(row)
-    rows.sort(key=lambda q: (1, -q["score"]) if q["refit_misfit"] is None
-              else (0, q["refit_misfit"]))
+    rows.sort(
+        key=lambda q: (1, -q["score"]) if q["refit_misfit"] is None else (0, q["refit_misfit"])
+    )
     return rows, refits
 
 
-def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
-             h: float | list[float] | None = None,
-             params: dict | None = None, confirm: int = 2, max_effects: int = 2,
-             check_discretisation: bool = True, comm: MPI.Comm = MPI.COMM_WORLD,
-             candidates: list[str] | None = None,
-             fixed: list[str] | None = None,
-             grip_depths: list[float] | None = None,
-             warm_start: dict | None = None, *, verbose: bool | None = None) -> Diagnosis:
+def diagnose(
+    exps: Experiment | list[Experiment],
+    baseline: list[str],
+    h: float | list[float] | None = None,
+    params: dict | None = None,
+    confirm: int = 2,
+    max_effects: int = 2,
+    check_discretisation: bool = True,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    candidates: list[str] | None = None,
+    fixed: list[str] | None = None,
+    grip_depths: list[float] | None = None,
+    warm_start: dict | None = None,
+    *,
+    verbose: bool | None = None,
+) -> Diagnosis:
     """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
 
     ``candidates``: the effects to consider (default: every effect the data can see);
@@ -193,44 +230,99 @@ def diagnose(exps: Experiment | list[Experiment], baseline: list[str],
     logs that progress at DEBUG (:func:`fabricsurf.log.detail`); otherwise it does nothing.
     """
     with detail(verbose is False):
-        return _diagnose(exps, baseline, h, params, confirm, max_effects, check_discretisation,
-                         comm, candidates, fixed, grip_depths, warm_start)
+        return _diagnose(
+            exps,
+            baseline,
+            h,
+            params,
+            confirm,
+            max_effects,
+            check_discretisation,
+            comm,
+            candidates,
+            fixed,
+            grip_depths,
+            warm_start,
+        )
 
 
-def _diagnose(exps, baseline, h, params, confirm, max_effects, check_discretisation, comm,
-              candidates, fixed, grip_depths, warm_start) -> Diagnosis:
+def _diagnose(
+    exps,
+    baseline,
+    h,
+    params,
+    confirm,
+    max_effects,
+    check_discretisation,
+    comm,
+    candidates,
+    fixed,
+    grip_depths,
+    warm_start,
+) -> Diagnosis:
     exps = exps if isinstance(exps, list) else [exps]
     visible = seen = visible_effects(exps)
-    check_choices(list(baseline), candidates, fixed, params or {}, visible, confirm,
-                  max_effects, library_labels(list(baseline), candidates, fixed))
+    check_choices(
+        list(baseline),
+        candidates,
+        fixed,
+        params or {},
+        visible,
+        confirm,
+        max_effects,
+        library_labels(list(baseline), candidates, fixed),
+    )
     check_unsigned(list(baseline) + list(candidates or []))
     planar_candidates(exps, candidates)
-    fit_preconditions(exps, [make_term(n, **(params or {}).get(n, {})) for n in baseline],
-                      list(fixed or []), "diagnose")
+    fit_preconditions(
+        exps,
+        [make_term(n, **(params or {}).get(n, {})) for n in baseline],
+        list(fixed or []),
+        "diagnose",
+    )
     visible = [n for n in visible if n in baseline or not EFFECTS[n].signed]
     for e in exps:  # a field that did not move is refused here too, not only when loaded
-        check_field_moves(e, e.files[1] if len(e.files) > 1 and e.has_field else
-                          f"the field of experiment '{e.name}'")
+        check_field_moves(
+            e,
+            e.files[1]
+            if len(e.files) > 1 and e.has_field
+            else f"the field of experiment '{e.name}'",
+        )
     fixed = list(fixed or [])
     if candidates is not None:
         visible = [n for n in visible if n in candidates or n in baseline]
-    grip = None if grip_depths is None else grip_profile(
-        exps, grip_depths, lambda: full_model(baseline, params, visible),
-        [n for n in baseline if n not in fixed], h, comm)
+    grip = (
+        None
+        if grip_depths is None
+        else grip_profile(
+            exps,
+            grip_depths,
+            lambda: full_model(baseline, params, visible),
+            [n for n in baseline if n not in fixed],
+            h,
+            comm,
+        )
+    )
     exps = exps if grip is None else [with_depth(e, grip["best_mm"]) for e in exps]
     with ForwardSet(exps, full_model(baseline, params, visible), h=h, comm=comm) as fs:
         idx_of = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in EFFECTS}
         free = sorted(i for n in baseline if n not in fixed for i in idx_of[n])
         t0 = MPI.Wtime()
-        warm = None if warm_start is None else np.array(
-            [warm_start.get(t.name, {}).get(p, 0.0) for t, p in fs.params])
+        warm = (
+            None
+            if warm_start is None
+            else np.array([warm_start.get(t.name, {}).get(p, 0.0) for t, p in fs.params])
+        )
         cur = base = fit(fs, free, space="linear", scale_start=warm is None)
         t_fit = MPI.Wtime() - t0
         terms, path, rankings, added = list(baseline), [], [], []
         tie = None
         path.append({"terms": list(terms), "misfit": cur.misfit["combined"], "chi2": cur.chi2})
-        rank0(logger, comm,
-              f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}")
+        rank0(
+            logger,
+            comm,
+            f"[diagnose] baseline {'+'.join(terms)}: misfit {cur.misfit['combined']:.4g}",
+        )
         while True:
             cand = {n: idx_of[n] for n in visible if n not in terms and idx_of[n]}
             ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
@@ -255,19 +347,43 @@ def _diagnose(exps, baseline, h, params, confirm, max_effects, check_discretisat
             cur.check_mesh(fs)
             chi2_h = cur.chi2_h
         ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
-        invisible = [{"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
-                     for n in EFFECTS if n not in seen and n not in baseline]
-        invisible += [{"effect": n, "reason": SIGNED_REASON}
-                      for n in seen if EFFECTS[n].signed and n not in baseline]
-        invisible += look_alikes(terms + [q["effect"] for r in rankings for q in r
-                                          if q["significant"]], exps)
+        invisible = [
+            {"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
+            for n in EFFECTS
+            if n not in seen and n not in baseline
+        ]
+        invisible += [
+            {"effect": n, "reason": SIGNED_REASON}
+            for n in seen
+            if EFFECTS[n].signed and n not in baseline
+        ]
+        invisible += look_alikes(
+            terms + [q["effect"] for r in rankings for q in r if q["significant"]], exps
+        )
         return Diagnosis(
-            baseline=list(baseline), base_fit=base, final_fit=cur, terms=terms,
-            ranking=rankings[0] if rankings else [], rounds=rankings,
-            verdict=added[0] if added else None, adequate=ok, path=path,
-            not_identifiable=invisible, discretisation_chi2=chi2_h,
-            unexplained=None if ok else where_unexplained(
-                exps, cur, best_lead(rankings[-1], cur, len(free)) if rankings and not
-                any(q["significant"] for q in rankings[-1]) else None),
-            fit_seconds=t_fit, noise_known=fs.noise_known, grip_depth=grip, tie=tie,
-            meshes=fs.meshes())
+            baseline=list(baseline),
+            base_fit=base,
+            final_fit=cur,
+            terms=terms,
+            ranking=rankings[0] if rankings else [],
+            rounds=rankings,
+            verdict=added[0] if added else None,
+            adequate=ok,
+            path=path,
+            not_identifiable=invisible,
+            discretisation_chi2=chi2_h,
+            unexplained=None
+            if ok
+            else where_unexplained(
+                exps,
+                cur,
+                best_lead(rankings[-1], cur, len(free))
+                if rankings and not any(q["significant"] for q in rankings[-1])
+                else None,
+            ),
+            fit_seconds=t_fit,
+            noise_known=fs.noise_known,
+            grip_depth=grip,
+            tie=tie,
+            meshes=fs.meshes(),
+        )

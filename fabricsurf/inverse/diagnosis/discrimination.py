@@ -79,9 +79,14 @@ class Design:
         return next((q for q in self.ranked if q.get("separation") is not None), None)
 
     def as_dict(self) -> dict:
-        return {"effects": self.effects, "suggested": self.suggested(),
-                "as_measured": self.as_measured, "candidates": self.ranked,
-                "z_critical": Z_CRIT, "figure": "tie_difference_map.png"}
+        return {
+            "effects": self.effects,
+            "suggested": self.suggested(),
+            "as_measured": self.as_measured,
+            "candidates": self.ranked,
+            "z_critical": Z_CRIT,
+            "figure": "tie_difference_map.png",
+        }
 
 
 def _grid(length: float, width: float, n: int) -> np.ndarray:
@@ -95,17 +100,37 @@ def _grid(length: float, width: float, n: int) -> np.ndarray:
     return np.array([(a, b) for a in x for b in y])
 
 
-def _like(e0: Experiment, key: str, description: str, length: float, width: float,
-          path: np.ndarray, angles, test: str | None = None, options: dict | None = None
-          ) -> Candidate:
+def _like(
+    e0: Experiment,
+    key: str,
+    description: str,
+    length: float,
+    width: float,
+    path: np.ndarray,
+    angles,
+    test: str | None = None,
+    options: dict | None = None,
+) -> Candidate:
     """A candidate with ``e0``'s noise, steps and points per step (module docstring); the
     field where ``e0`` has none only for the key "field_data" (on 50 points a step)."""
-    n = (len(e0.field_step) // max(len(e0.steps), 1) if e0.has_field
-         else 50 if key == "field_data" else 0)
-    exp = template(length, width, path, _grid(length, width, n), angles=angles,
-                   name=key, test=test or e0.test,
-                   options=dict(e0.setup.options) if options is None else options,
-                   force=e0.has_force)
+    n = (
+        len(e0.field_step) // max(len(e0.steps), 1)
+        if e0.has_field
+        else 50
+        if key == "field_data"
+        else 0
+    )
+    exp = template(
+        length,
+        width,
+        path,
+        _grid(length, width, n),
+        angles=angles,
+        name=key,
+        test=test or e0.test,
+        options=dict(e0.setup.options) if options is None else options,
+        force=e0.has_force,
+    )
     s_u, s_F = mf.scales(e0)
     exp.noise_std = e0.noise_std or (s_u if e0.has_field else None)
     exp.force_noise_std = e0.force_noise_std or (s_F if e0.has_force else None)
@@ -118,14 +143,34 @@ def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
     frame's exact solution is a homogeneous shear, in which every second-gradient energy
     vanishes, so it cannot separate two of them)."""
     L, W, ang, path = e0.length, e0.width, e0.fibre_angles_deg, np.asarray(e0.path, float)
-    out = [_like(e0, "larger_displacement", f"the same {e0.test} test to twice the "
-                 f"displacement ({2 * path[-1]:.3g} mm)", L, W, 2.0 * path, ang)]
+    out = [
+        _like(
+            e0,
+            "larger_displacement",
+            f"the same {e0.test} test to twice the displacement ({2 * path[-1]:.3g} mm)",
+            L,
+            W,
+            2.0 * path,
+            ang,
+        )
+    ]
     for v in get_test(e0.test).separating_variants(e0.setup, path, first_gradient):
-        out.append(_like(e0, v.key, v.description, v.length, v.width, v.path, v.angles,
-                         v.test, v.options))
+        out.append(
+            _like(e0, v.key, v.description, v.length, v.width, v.path, v.angles, v.test, v.options)
+        )
     if not e0.has_field:
-        out.append(_like(e0, "field_data", f"the same {e0.test} test with the displacement "
-                         "field measured (the data give forces only)", L, W, path, ang))
+        out.append(
+            _like(
+                e0,
+                "field_data",
+                f"the same {e0.test} test with the displacement "
+                "field measured (the data give forces only)",
+                L,
+                W,
+                path,
+                ang,
+            )
+        )
     return out
 
 
@@ -147,13 +192,18 @@ def separation(exp: Experiment, pa: Prediction, pb: Prediction) -> dict:
     rb, Jb = mf.residuals(exp, pb)
     delta = rb - ra
     n_force = len(exp.steps) if exp.has_force else 0
-    force = float(delta[len(delta) - n_force:] @ delta[len(delta) - n_force:])
+    force = float(delta[len(delta) - n_force :] @ delta[len(delta) - n_force :])
     S = float(delta @ delta)
     Sr = min(float(np.sum(_off(Ja, delta) ** 2)), float(np.sum(_off(Jb, delta) ** 2)))
-    return {"separation_fixed_moduli": S, "field": S - force, "force": force,
-            "separation": Sr, "expected_z": 0.5 * math.sqrt(Sr),
-            "separates": 0.5 * math.sqrt(Sr) > Z_CRIT,
-            "data_factor": (2.0 * Z_POWER) ** 2 / Sr if Sr > 0 else math.inf}
+    return {
+        "separation_fixed_moduli": S,
+        "field": S - force,
+        "force": force,
+        "separation": Sr,
+        "expected_z": 0.5 * math.sqrt(Sr),
+        "separates": 0.5 * math.sqrt(Sr) > Z_CRIT,
+        "data_factor": (2.0 * Z_POWER) ** 2 / Sr if Sr > 0 else math.inf,
+    }
 
 
 def _model(rf: FitResult) -> list:
@@ -175,18 +225,25 @@ def where_they_differ(exp: Experiment, du: np.ndarray, blocks: int = 3) -> dict:
     """The region (blocks × blocks over the specimen) with the largest Σ(Δu/s_u)²."""
     ix = np.minimum((exp.X[:, 0] / exp.length * blocks).astype(int), blocks - 1)
     iy = np.minimum((exp.X[:, 1] / exp.width * blocks).astype(int), blocks - 1)
-    tot = np.bincount(iy * blocks + ix, weights=np.nan_to_num(du**2),
-                      minlength=blocks * blocks)
+    tot = np.bincount(iy * blocks + ix, weights=np.nan_to_num(du**2), minlength=blocks * blocks)
     k = int(np.argmax(tot))
     i, j = k % blocks, k // blocks
-    return {"x_mm": [exp.length * i / blocks, exp.length * (i + 1) / blocks],
-            "y_mm": [exp.width * j / blocks, exp.width * (j + 1) / blocks],
-            "share_of_separation": float(tot[k] / max(tot.sum(), 1e-300))}
+    return {
+        "x_mm": [exp.length * i / blocks, exp.length * (i + 1) / blocks],
+        "y_mm": [exp.width * j / blocks, exp.width * (j + 1) / blocks],
+        "share_of_separation": float(tot[k] / max(tot.sum(), 1e-300)),
+    }
 
 
-def design(exps: list[Experiment], ra: FitResult, rb: FitResult, effects: list[str],
-           h: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
-           keys: list[str] | None = None) -> Design:
+def design(
+    exps: list[Experiment],
+    ra: FitResult,
+    rb: FitResult,
+    effects: list[str],
+    h: float | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    keys: list[str] | None = None,
+) -> Design:
     """Rank the candidate experiments (``keys``: a subset of them) by the separation of the
     refits ``ra`` and ``rb`` of the tied ``effects`` at the data's mesh size ``h`` (module
     docstring)."""
@@ -204,26 +261,34 @@ def design(exps: list[Experiment], ra: FitResult, rb: FitResult, effects: list[s
     for c in candidates(e0, any(make_term(n).order < 2 for n in effects)):
         if keys is not None and c.key not in keys:
             continue
-        row = {"key": c.key, "description": c.description, "test": c.exp.test,
-               "specimen_mm": [c.exp.length, c.exp.width],
-               "fibre_angles_deg": list(c.exp.fibre_angles_deg),
-               "path": [float(x) for x in c.exp.path]}
+        row = {
+            "key": c.key,
+            "description": c.description,
+            "test": c.exp.test,
+            "specimen_mm": [c.exp.length, c.exp.width],
+            "fibre_angles_deg": list(c.exp.fibre_angles_deg),
+            "path": [float(x) for x in c.exp.path],
+        }
         try:
             pa, pb = _predict(c, ra, rb, h, comm)
         except (LoadStepError, ValueError) as e:
             rows.append(row | {"separation": None, "failed": str(e)})
             continue
         rows.append(row | separation(c.exp, pa, pb))
-        diff[c.key] = (c.description, c.exp, np.linalg.norm(pa.u - pb.u, axis=1)
-                       / mf.scales(c.exp)[0])
+        diff[c.key] = (
+            c.description,
+            c.exp,
+            np.linalg.norm(pa.u - pb.u, axis=1) / mf.scales(c.exp)[0],
+        )
     rows.sort(key=lambda q: -1.0 if q["separation"] is None else -q["separation"])
     if rows and rows[0]["key"] in diff:
         maps.append(diff[rows[0]["key"]])
     return Design(list(effects), own, rows, maps)
 
 
-def separate_tie(d: Diagnosis, exps: list[Experiment], h: float | None = None,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[Diagnosis, Design | None]:
+def separate_tie(
+    d: Diagnosis, exps: list[Experiment], h: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD
+) -> tuple[Diagnosis, Design | None]:
     """For a diagnosis ``d`` that ends in a tie: the experiments that would separate its first
     two members (:func:`design` of their refits, at the data's mesh size ``h``) and a copy of
     ``d`` that holds them as its ``separating_experiment``; ``d`` itself is left as it was.

@@ -69,12 +69,16 @@ class Budget:
                 raise ValueError(f"mesh budget: {name} = {v!r} must be a whole number ≥ 1")
         s = self.seconds
         if s is not None and not (isinstance(s, (int, float)) and math.isfinite(s) and s > 0):
-            raise ValueError(f"mesh budget: seconds = {s!r} must be a finite time > 0 (s) or "
-                             "None (no limit)")
+            raise ValueError(
+                f"mesh budget: seconds = {s!r} must be a finite time > 0 (s) or None (no limit)"
+            )
 
     def as_dict(self) -> dict:
-        return {"max_dofs": int(self.max_dofs), "max_cells": int(self.max_cells),
-                "seconds": self.seconds}
+        return {
+            "max_dofs": int(self.max_dofs),
+            "max_cells": int(self.max_cells),
+            "seconds": self.seconds,
+        }
 
 
 def level_record(d: Diagnosis, seconds: float) -> dict:
@@ -82,15 +86,25 @@ def level_record(d: Diagnosis, seconds: float) -> dict:
     f = d.final_fit
     n, p = f.misfit["n"], len(f.names)
     meshes, chi2_h = d.meshes or [], d.discretisation_chi2
-    return {"h": [m["h"] for m in meshes], "mesh_kind": [m["mesh_kind"] for m in meshes],
-            "cells": sum(m["cells"] for m in meshes), "dofs": sum(m["dofs"] for m in meshes),
-            "seconds": seconds, "chi2_h": chi2_h,
-            "noise_band": (sg.adequacy_bound(n, p) - 1.0) * max(n - p, 1),
-            "discretisation_misfit": None if chi2_h is None else math.sqrt(chi2_h / max(n, 1)),
-            "too_coarse": d.too_coarse(), "verdict": d.verdict, "terms": list(d.terms),
-            "adequate": d.adequate, "misfit": f.misfit["combined"],
-            "moduli": {k: {"value": m["value"], "ci95": m.get("ci95")}
-                       for k, m in f.as_dict()["moduli"].items()}}
+    return {
+        "h": [m["h"] for m in meshes],
+        "mesh_kind": [m["mesh_kind"] for m in meshes],
+        "cells": sum(m["cells"] for m in meshes),
+        "dofs": sum(m["dofs"] for m in meshes),
+        "seconds": seconds,
+        "chi2_h": chi2_h,
+        "noise_band": (sg.adequacy_bound(n, p) - 1.0) * max(n - p, 1),
+        "discretisation_misfit": None if chi2_h is None else math.sqrt(chi2_h / max(n, 1)),
+        "too_coarse": d.too_coarse(),
+        "verdict": d.verdict,
+        "terms": list(d.terms),
+        "adequate": d.adequate,
+        "misfit": f.misfit["combined"],
+        "moduli": {
+            k: {"value": m["value"], "ci95": m.get("ci95")}
+            for k, m in f.as_dict()["moduli"].items()
+        },
+    }
 
 
 def _why_not(level: dict, spent: float, last: float, budget: Budget) -> str | None:
@@ -98,15 +112,21 @@ def _why_not(level: dict, spent: float, last: float, budget: Budget) -> str | No
     dofs, cells = 4 * level["dofs"], 16 * level["cells"]
     h = ", ".join(f"{x / 2:.4g}" for x in level["h"])
     if dofs > budget.max_dofs:
-        return (f"the mesh budget is spent: h = {h} mm would have about {dofs:,} unknowns, "
-                f"more than max_dofs = {budget.max_dofs:,} (--max-dofs)")
+        return (
+            f"the mesh budget is spent: h = {h} mm would have about {dofs:,} unknowns, "
+            f"more than max_dofs = {budget.max_dofs:,} (--max-dofs)"
+        )
     if cells > budget.max_cells:
-        return (f"the mesh budget is spent: the h/2 check of h = {h} mm would have about "
-                f"{cells:,} cells, more than max_cells = {budget.max_cells:,} (--max-elements)")
+        return (
+            f"the mesh budget is spent: the h/2 check of h = {h} mm would have about "
+            f"{cells:,} cells, more than max_cells = {budget.max_cells:,} (--max-elements)"
+        )
     if budget.seconds is not None and spent + LEVEL_GROWTH * last > budget.seconds:
-        return (f"the time budget is spent: {spent:.0f} s used, a level at h = {h} mm would "
-                f"take about {LEVEL_GROWTH * last:.0f} s more, beyond {budget.seconds:g} s "
-                "(--time-budget)")
+        return (
+            f"the time budget is spent: {spent:.0f} s used, a level at h = {h} mm would "
+            f"take about {LEVEL_GROWTH * last:.0f} s more, beyond {budget.seconds:g} s "
+            "(--time-budget)"
+        )
     return None
 
 
@@ -116,9 +136,14 @@ def warm_params(d: Diagnosis, params: dict | None) -> dict:
     return {**(params or {}), **{t: fitted[t] for t in d.baseline}}
 
 
-def diagnose_on_mesh(exps: Experiment | list[Experiment], baseline: list[str],
-                     h: float | None = None, budget: Budget | None = None,
-                     comm: MPI.Comm = MPI.COMM_WORLD, **kw) -> Diagnosis:
+def diagnose_on_mesh(
+    exps: Experiment | list[Experiment],
+    baseline: list[str],
+    h: float | None = None,
+    budget: Budget | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    **kw,
+) -> Diagnosis:
     """:func:`~.diagnose.diagnose` at ``h`` (default: each test's own), then on meshes refined
     by 2 while the h/2 check says the mesh is too coarse and ``budget`` allows (module
     docstring). ``kw``: the other arguments of :func:`~.diagnose.diagnose`. Returns the last
@@ -145,18 +170,29 @@ def diagnose_on_mesh(exps: Experiment | list[Experiment], baseline: list[str],
             kw["grip_depths"] = None
         hs, params, warm = [x / 2 for x in hs], warm_params(d, params), d.final_fit.params()
     d.grip_depth = grip
-    d.mesh_selection = {"budget": budget.as_dict(), "levels": levels,
-                        "refinements": len(levels) - 1, "stopped": stopped,
-                        "seconds": comm.allreduce(MPI.Wtime() - t_start, op=MPI.MAX)}
+    d.mesh_selection = {
+        "budget": budget.as_dict(),
+        "levels": levels,
+        "refinements": len(levels) - 1,
+        "stopped": stopped,
+        "seconds": comm.allreduce(MPI.Wtime() - t_start, op=MPI.MAX),
+    }
     if stopped:
         rank0(logger, comm, f"[mesh] not refined further: {stopped}")
     return d
 
 
 def _say(comm: MPI.Comm, k: int, q: dict) -> None:
-    check = ("not measured" if q["chi2_h"] is None else
-             f"h/2 check chi2_h = {q['chi2_h']:.4g} against the noise band "
-             f"{q['noise_band']:.4g} ({'too coarse' if q['too_coarse'] else 'fine enough'})")
-    rank0(logger, comm, f"[mesh] level {k}: h = {', '.join(f'{x:.4g}' for x in q['h'])} mm "
-          f"({', '.join(str(x) for x in q['mesh_kind'])}), {q['dofs']:,} unknowns, "
-          f"{q['seconds']:.1f} s: verdict {q['verdict']}, adequate {q['adequate']}; " + check)
+    check = (
+        "not measured"
+        if q["chi2_h"] is None
+        else f"h/2 check chi2_h = {q['chi2_h']:.4g} against the noise band "
+        f"{q['noise_band']:.4g} ({'too coarse' if q['too_coarse'] else 'fine enough'})"
+    )
+    rank0(
+        logger,
+        comm,
+        f"[mesh] level {k}: h = {', '.join(f'{x:.4g}' for x in q['h'])} mm "
+        f"({', '.join(str(x) for x in q['mesh_kind'])}), {q['dofs']:,} unknowns, "
+        f"{q['seconds']:.1f} s: verdict {q['verdict']}, adequate {q['adequate']}; " + check,
+    )

@@ -41,16 +41,20 @@ def check_depths(exps: list[Experiment], depths: list[float], where: str) -> Non
     """Reject an empty list, negative or non-finite depths, depths the plug-in refuses (grips
     leaving less than half the specimen free) and data without a test that has grips."""
     if not depths or not all(math.isfinite(d) and d >= 0 for d in depths):
-        raise ValueError(f"{where}: grip depths {list(depths)} must be one or more finite "
-                         "depths ≥ 0 mm")
+        raise ValueError(
+            f"{where}: grip depths {list(depths)} must be one or more finite depths ≥ 0 mm"
+        )
     gripped = [e for e in exps if has_grips(e)]
     if not gripped:
-        raise ValueError(f"{where}: no experiment has grips of finite depth (tests "
-                         f"{sorted({e.test for e in exps})}); a grip depth needs a "
-                         "bias_extension experiment")
+        raise ValueError(
+            f"{where}: no experiment has grips of finite depth (tests "
+            f"{sorted({e.test for e in exps})}); a grip depth needs a "
+            "bias_extension experiment"
+        )
     for e in gripped:
-        get_test(e.test).check_specimen(with_depth(e, max(depths)).setup,
-                                        f"{where}, experiment '{e.name}'")
+        get_test(e.test).check_specimen(
+            with_depth(e, max(depths)).setup, f"{where}, experiment '{e.name}'"
+        )
 
 
 def with_depth(exp: Experiment, depth: float) -> Experiment:
@@ -68,9 +72,14 @@ def outside_grips(exp: Experiment, depth: float) -> Experiment:
     return replace(exp, field_step=exp.field_step[keep], X=exp.X[keep], u=exp.u[keep])
 
 
-def grip_profile(exps: list[Experiment], depths: list[float],
-                 make_model: Callable[[], list[Term]], free_terms: list[str],
-                 h: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+def grip_profile(
+    exps: list[Experiment],
+    depths: list[float],
+    make_model: Callable[[], list[Term]],
+    free_terms: list[str],
+    h: float | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> dict:
     """χ² of the baseline fit at each grip depth on common data (module docstring), each depth
     logged at PROGRESS.
 
@@ -82,16 +91,28 @@ def grip_profile(exps: list[Experiment], depths: list[float],
     common = [outside_grips(e, max(depths)) for e in exps]
     rows = []
     for d in sorted(set(float(x) for x in depths)):
-        with ForwardSet([with_depth(e, d) for e in common], make_model(), h=h,
-                        comm=comm) as fs:
+        with ForwardSet([with_depth(e, d) for e in common], make_model(), h=h, comm=comm) as fs:
             free = [i for i, (t, _) in enumerate(fs.params) if t.name in free_terms]
             res = fit(fs, free, space="linear")
-        rows.append({"depth_mm": d, "chi2": res.chi2, "misfit": res.misfit["combined"],
-                     "n": res.misfit["n"], "params": res.params()})
-        rank0(logger, comm, f"[grip depth] {d:g} mm: misfit {rows[-1]['misfit']:.4g} "
-                            f"(chi2 {res.chi2:.5g} over {rows[-1]['n']} data)")
+        rows.append(
+            {
+                "depth_mm": d,
+                "chi2": res.chi2,
+                "misfit": res.misfit["combined"],
+                "n": res.misfit["n"],
+                "params": res.params(),
+            }
+        )
+        rank0(
+            logger,
+            comm,
+            f"[grip depth] {d:g} mm: misfit {rows[-1]['misfit']:.4g} "
+            f"(chi2 {res.chi2:.5g} over {rows[-1]['n']} data)",
+        )
     if len({q["n"] for q in rows}) > 1:
-        raise RuntimeError(f"grip depth profile: the depths saw different data counts "
-                           f"{[q['n'] for q in rows]}; a point lies outside some mesh")
+        raise RuntimeError(
+            f"grip depth profile: the depths saw different data counts "
+            f"{[q['n'] for q in rows]}; a point lies outside some mesh"
+        )
     best = rows[int(np.argmin([q["chi2"] for q in rows]))]["depth_mm"]
     return {"profile": rows, "best_mm": best}

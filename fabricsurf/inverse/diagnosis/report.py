@@ -11,8 +11,13 @@ from fabricsurf.inverse.diagnosis.ties import Tie
 from fabricsurf.inverse.fitting.result import FitResult, strip_rows
 from fabricsurf.model.terms import EFFECTS
 
-UNCERTAINTY_KEYS = ("moduli", "identifiable_combinations", "weak_directions", "undetermined",
-                    "uncertainty")
+UNCERTAINTY_KEYS = (
+    "moduli",
+    "identifiable_combinations",
+    "weak_directions",
+    "undetermined",
+    "uncertainty",
+)
 """The keys of a fit's intervals (:meth:`~.fit.FitResult.as_dict`) in the final model."""
 
 
@@ -63,19 +68,22 @@ class Diagnosis:
     def too_coarse(self) -> bool:
         """The h/2 check says the mesh is too coarse for these data (:func:`~.sg.too_coarse`)."""
         return self.discretisation_chi2 is not None and sg.too_coarse(
-            self.discretisation_chi2, self.final_fit.misfit["n"], len(self.final_fit.names))
+            self.discretisation_chi2, self.final_fit.misfit["n"], len(self.final_fit.names)
+        )
 
     def outcome(self) -> str:
         if self.verdict is not None:
-            text = (f"add {self.verdict_text()}" + (" (a tie: the data cannot tell them apart)"
-                                                     if self.tied() else "")
-                    + ("" if self.adequate else " (still not adequate)"))
+            text = (
+                f"add {self.verdict_text()}"
+                + (" (a tie: the data cannot tell them apart)" if self.tied() else "")
+                + ("" if self.adequate else " (still not adequate)")
+            )
         else:
             text = "nothing missing" if self.adequate else "unexplained misfit"
         return text + self.mesh_note()
 
     def mesh_note(self) -> str:
-        """"" when the mesh is fine enough; else "refine h", with why the mesh selection (if it
+        """ "" when the mesh is fine enough; else "refine h", with why the mesh selection (if it
         ran) refined no further: its budget, spent."""
         if not self.too_coarse():
             return ""
@@ -87,29 +95,50 @@ class Diagnosis:
         n = f.misfit["n"]
         return {
             "contract_version": 2,
-            "baseline": {"terms": self.baseline, "misfit": b.misfit["combined"], "chi2": b.chi2,
-                         "n": b.misfit["n"], "params": b.params(), "std": b.as_dict()["std"]},
-            "ranking": self.ranking, "rounds": self.rounds, "verdict": self.verdict,
-            "tie": self.tied(), "tie_test": None if self.tie is None else self.tie.as_dict(),
+            "baseline": {
+                "terms": self.baseline,
+                "misfit": b.misfit["combined"],
+                "chi2": b.chi2,
+                "n": b.misfit["n"],
+                "params": b.params(),
+                "std": b.as_dict()["std"],
+            },
+            "ranking": self.ranking,
+            "rounds": self.rounds,
+            "verdict": self.verdict,
+            "tie": self.tied(),
+            "tie_test": None if self.tie is None else self.tie.as_dict(),
             "separating_experiment": self.separating_experiment,
-            "indistinguishable_from_verdict": self.alternatives, "adequate": self.adequate,
-            "outcome": self.outcome(), "path": self.path,
+            "indistinguishable_from_verdict": self.alternatives,
+            "adequate": self.adequate,
+            "outcome": self.outcome(),
+            "path": self.path,
             "final": {"terms": self.terms, "params": f.params(), "std": f.as_dict()["std"]}
             | {k: v for k, v in f.as_dict().items() if k in UNCERTAINTY_KEYS}
             | {"misfit": strip_rows(f.misfit)},
-            "not_identifiable": self.not_identifiable, "unexplained": self.unexplained,
+            "not_identifiable": self.not_identifiable,
+            "unexplained": self.unexplained,
             "discretisation": {
                 "chi2_h_vs_h2": self.discretisation_chi2,
-                "misfit": (None if self.discretisation_chi2 is None
-                           else float(np.sqrt(self.discretisation_chi2 / max(n, 1)))),
-                "too_coarse": self.too_coarse(), "meshes": self.meshes,
-                "mesh_selection": self.mesh_selection},
-            "significance": {"level": sg.LEVEL, "test": "Wald, cluster-robust covariance",
-                             "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
-                             "noise_known": self.noise_known,
-                             "rule": sg.__doc__.split("*Adequate*")[1].strip()},
+                "misfit": (
+                    None
+                    if self.discretisation_chi2 is None
+                    else float(np.sqrt(self.discretisation_chi2 / max(n, 1)))
+                ),
+                "too_coarse": self.too_coarse(),
+                "meshes": self.meshes,
+                "mesh_selection": self.mesh_selection,
+            },
+            "significance": {
+                "level": sg.LEVEL,
+                "test": "Wald, cluster-robust covariance",
+                "adequacy_bound": sg.adequacy_bound(n, len(f.names)),
+                "noise_known": self.noise_known,
+                "rule": sg.__doc__.split("*Adequate*")[1].strip(),
+            },
             "grip_depth": self.grip_depth,
-            "seconds": {"baseline_fit": self.fit_seconds}}
+            "seconds": {"baseline_fit": self.fit_seconds},
+        }
 
 
 def look_alikes(effects: list[str], exps: list) -> list[dict]:
@@ -118,9 +147,15 @@ def look_alikes(effects: list[str], exps: list) -> list[dict]:
     identify it), when the data are force curves of one specimen size only."""
     if any(e.has_field for e in exps) or len({(e.length, e.width) for e in exps}) > 1:
         return []
-    return [{"effect": n, "reason": "one force curve cannot tell it from "
-             + EFFECTS[n].look_alike["mechanism"]} | EFFECTS[n].look_alike
-            for n in dict.fromkeys(effects) if getattr(EFFECTS[n], "look_alike", None)]
+    return [
+        {
+            "effect": n,
+            "reason": "one force curve cannot tell it from " + EFFECTS[n].look_alike["mechanism"],
+        }
+        | EFFECTS[n].look_alike
+        for n in dict.fromkeys(effects)
+        if getattr(EFFECTS[n], "look_alike", None)
+    ]
 
 
 def _force_ranges(exp, per_step: list, s_F: float) -> list:
@@ -145,9 +180,13 @@ def _regions(exp, err: np.ndarray, s_u: float, blocks: int = 3) -> list:
         for j in range(blocks):
             sel = (ix == i) & (iy == j) & np.isfinite(err)
             if sel.any():
-                out.append({"x_mm": [exp.length * i / blocks, exp.length * (i + 1) / blocks],
-                            "y_mm": [exp.width * j / blocks, exp.width * (j + 1) / blocks],
-                            "rms_noise_units": float(np.sqrt(np.mean(err[sel] ** 2)) / s_u)})
+                out.append(
+                    {
+                        "x_mm": [exp.length * i / blocks, exp.length * (i + 1) / blocks],
+                        "y_mm": [exp.width * j / blocks, exp.width * (j + 1) / blocks],
+                        "rms_noise_units": float(np.sqrt(np.mean(err[sel] ** 2)) / s_u),
+                    }
+                )
     return sorted(out, key=lambda q: -q["rms_noise_units"])
 
 
@@ -159,10 +198,14 @@ def best_lead(rows: list, res: FitResult, p: int) -> dict | None:
         return None
     q = min(tried, key=lambda r: r["refit_chi2"])
     n, k = res.misfit["n"], len(q.get("refit_std") or {}) or 1
-    return {"effect": q["effect"], "refit_misfit": q["refit_misfit"],
-            "share_of_excess": sg.share_of_excess(res.chi2, p, q["refit_chi2"], n),
-            "f_test_passed": sg.f_test(res.chi2, p, q["refit_chi2"], p + k, n),
-            "wald_p": q.get("wald_p"), "wald_p_needed": 1.0 - sg.LEVEL}
+    return {
+        "effect": q["effect"],
+        "refit_misfit": q["refit_misfit"],
+        "share_of_excess": sg.share_of_excess(res.chi2, p, q["refit_chi2"], n),
+        "f_test_passed": sg.f_test(res.chi2, p, q["refit_chi2"], p + k, n),
+        "wald_p": q.get("wald_p"),
+        "wald_p_needed": 1.0 - sg.LEVEL,
+    }
 
 
 def where_unexplained(exps: list, res: FitResult, lead: dict | None = None) -> dict:
@@ -172,16 +215,22 @@ def where_unexplained(exps: list, res: FitResult, lead: dict | None = None) -> d
     out = []
     for exp, m in zip(exps, per):
         steps = sorted(m["per_step"], key=lambda q: -q["combined"])[:3]
-        item = {"experiment": exp.name,
-                "worst_steps": [{"step": q["step"], "load": q["load"],
-                                 "misfit": q["combined"]} for q in steps]}
+        item = {
+            "experiment": exp.name,
+            "worst_steps": [
+                {"step": q["step"], "load": q["load"], "misfit": q["combined"]} for q in steps
+            ],
+        }
         if exp.has_force:
             item["force_error_ranges"] = _force_ranges(exp, m["per_step"], m["s_F"])
         if exp.has_field:
             item["worst_regions"] = _regions(exp, m["row_error"], m["s_u"])[:3]
         out.append(item)
-    return {"experiments": out, "best_lead": lead,
-            "figure": "error_vs_step.png and error_map.png of the final model"}
+    return {
+        "experiments": out,
+        "best_lead": lead,
+        "figure": "error_vs_step.png and error_map.png of the final model",
+    }
 
 
 def _num(x: float | None) -> str:
@@ -199,16 +248,20 @@ def result_lines(u: dict) -> list[str]:
             lines.append(f"  {n} = {m['value']:.5g} (held)")
         elif m["identifiable"]:
             lo, hi = m["ci95"]
-            lines.append(f"  {n} = {m['value']:.5g}, 95 % interval [{lo:.4g}, {hi:.4g}] "
-                         f"(statistical σ {m['std_statistical']:.2g}, mesh "
-                         f"{_num(m['systematic_mesh'])}, model form "
-                         f"{_num(m['systematic_model'])})")
+            lines.append(
+                f"  {n} = {m['value']:.5g}, 95 % interval [{lo:.4g}, {hi:.4g}] "
+                f"(statistical σ {m['std_statistical']:.2g}, mesh "
+                f"{_num(m['systematic_mesh'])}, model form "
+                f"{_num(m['systematic_model'])})"
+            )
         else:
             lines.append(f"  {n} = {m['value']:.5g} (not determined by the data on its own)")
     for c in u["identifiable_combinations"]:
         lo, hi = c["ci95"]
-        lines.append(f"  determined combination: {c['combination']} = {c['value']:.5g}, "
-                     f"95 % interval [{lo:.4g}, {hi:.4g}]")
+        lines.append(
+            f"  determined combination: {c['combination']} = {c['value']:.5g}, "
+            f"95 % interval [{lo:.4g}, {hi:.4g}]"
+        )
     for c in u.get("undetermined", []):
         lines.append(f"  not determined by the data (rank-deficient Fisher matrix): {c}")
     for w in u["weak_directions"]:
@@ -219,17 +272,21 @@ def result_lines(u: dict) -> list[str]:
 def misfit_summary(label: str, m: dict) -> str:
     """The combined misfit of a misfit.json ``m`` and each experiment's, as the CLI prints
     them after compare and fit."""
-    parts = [f"{label}: combined misfit {m['combined']:.4g} (noise units), chi2 "
-             f"{m['chi2']:.5g} over {m['n']} data"]
+    parts = [
+        f"{label}: combined misfit {m['combined']:.4g} (noise units), chi2 "
+        f"{m['chi2']:.5g} over {m['n']} data"
+    ]
     for e in m["experiments"]:
-        bits = [f"field RMS {e['field_rms']:.4g} mm" if e["field_rms"] is not None else "",
-                f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else "",
-                f"shear RMS {e['shear_rms_deg']:.4g} deg" if e.get("shear_rms_deg") is not None
-                else ""]
-        parts.append(f"  {e['experiment']}: misfit {e['combined']:.4g}; "
-                     + ", ".join(b for b in bits if b)
-                     + (f"; points outside the mesh: {e['points_outside']}"
-                        if e["points_outside"] else ""))
+        bits = [
+            f"field RMS {e['field_rms']:.4g} mm" if e["field_rms"] is not None else "",
+            f"force RMS {e['force_rms']:.4g} N" if e["force_rms"] is not None else "",
+            f"shear RMS {e['shear_rms_deg']:.4g} deg" if e.get("shear_rms_deg") is not None else "",
+        ]
+        parts.append(
+            f"  {e['experiment']}: misfit {e['combined']:.4g}; "
+            + ", ".join(b for b in bits if b)
+            + (f"; points outside the mesh: {e['points_outside']}" if e["points_outside"] else "")
+        )
     return "\n".join(parts)
 
 
@@ -245,25 +302,39 @@ def tie_lines(d) -> list[str]:
                 f"{c['chi2'][1]:.6g}, difference {c['delta_chi2']:.3g} against a resolution "
                 f"of {c['resolution']:.3g} (Vuong z = {c['z']:.2f}, p = {c['p']:.3g}); their "
                 f"predictions differ by {c['prediction_difference']:.3g} noise units over all "
-                f"the data; cosine of their sensitivities {c['cosine']:.4f}")
+                f"the data; cosine of their sensitivities {c['cosine']:.4f}"
+            )
     sep = d.separating_experiment or {}
     best, own = sep.get("suggested"), sep.get("as_measured", {})
     if own:
         where = own.get("where_they_differ_most")
-        lines.append(f"  the data's own test separates them by S = {own['separation']:.3g} "
-                     f"(expected z ≈ √S/2 = {own['expected_z']:.2f})" + (
-                         f"; they differ most at x {where['x_mm'][0]:.3g}–{where['x_mm'][1]:.3g}"
-                         f" mm, y {where['y_mm'][0]:.3g}–{where['y_mm'][1]:.3g} mm "
-                         f"({where['share_of_separation']:.0%} of it)" if where else ""))
+        lines.append(
+            f"  the data's own test separates them by S = {own['separation']:.3g} "
+            f"(expected z ≈ √S/2 = {own['expected_z']:.2f})"
+            + (
+                f"; they differ most at x {where['x_mm'][0]:.3g}–{where['x_mm'][1]:.3g}"
+                f" mm, y {where['y_mm'][0]:.3g}–{where['y_mm'][1]:.3g} mm "
+                f"({where['share_of_separation']:.0%} of it)"
+                if where
+                else ""
+            )
+        )
     if best:
-        lines.append(f"separating experiment: {best['description']}: S = "
-                     f"{best['separation']:.3g}, expected z ≈ {best['expected_z']:.2f} "
-                     + ("(separates: above " if best["separates"] else "(not enough: below ")
-                     + f"{sep['z_critical']:.2f}); reliably (98 %) with "
-                     f"{best['data_factor']:.2g}× its points, steps or 1/noise²; map: "
-                     "tie_difference_map.png")
+        lines.append(
+            f"separating experiment: {best['description']}: S = "
+            f"{best['separation']:.3g}, expected z ≈ {best['expected_z']:.2f} "
+            + ("(separates: above " if best["separates"] else "(not enough: below ")
+            + f"{sep['z_critical']:.2f}); reliably (98 %) with "
+            f"{best['data_factor']:.2g}× its points, steps or 1/noise²; map: "
+            "tie_difference_map.png"
+        )
         for q in sep["candidates"][1:]:
-            lines.append(f"  then: {q['description']}: " + (
-                f"S = {q['separation']:.3g}" if q["separation"] is not None
-                else f"not run ({q['failed']})"))
+            lines.append(
+                f"  then: {q['description']}: "
+                + (
+                    f"S = {q['separation']:.3g}"
+                    if q["separation"] is not None
+                    else f"not run ({q['failed']})"
+                )
+            )
     return lines

@@ -58,15 +58,15 @@ def too_coarse(chi2_h: float, n: int, p: int) -> bool:
     return bool(chi2_h > (adequacy_bound(n, p) - 1.0) * max(n - p, 1))
 
 
-def adequate(chi2: float, n: int, p: int, chi2_h: float = 0.0, noise_known: bool = True
-             ) -> bool:
+def adequate(chi2: float, n: int, p: int, chi2_h: float = 0.0, noise_known: bool = True) -> bool:
     """The model explains the data at the noise level (module docstring; the discretisation
     credit ``chi2_h`` capped at the tolerance band). Without a stated noise level the scale
     was guessed (1 % of the largest value), so this is only indicative."""
     nu, bound = max(n - p, 1), adequacy_bound(n, p)
     credit = min(chi2_h, (bound - 1.0) * nu)
-    return bool((chi2 - credit) / nu <= bound) if noise_known else \
-        bool(reduced(chi2, n, p) <= bound)
+    return (
+        bool((chi2 - credit) / nu <= bound) if noise_known else bool(reduced(chi2, n, p) <= bound)
+    )
 
 
 def share_of_excess(chi2_base: float, p_base: int, chi2_new: float, n: int) -> float:
@@ -86,17 +86,19 @@ def f_statistic(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: i
 def f_test(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int) -> bool:
     """Part 1 of the rule: the F-test at :data:`LEVEL` against the residual variance left."""
     k, nu_new = max(p_new - p_base, 1), max(n - p_new, 1)
-    return bool(f_statistic(chi2_base, p_base, chi2_new, p_new, n)
-                > stats.f.ppf(LEVEL, k, nu_new))
+    return bool(f_statistic(chi2_base, p_base, chi2_new, p_new, n) > stats.f.ppf(LEVEL, k, nu_new))
 
 
-def significant(chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int,
-                wald_p: float | None = None) -> bool:
+def significant(
+    chi2_base: float, p_base: int, chi2_new: float, p_new: int, n: int, wald_p: float | None = None
+) -> bool:
     """The rule of the module docstring; ``wald_p``: the one-sided p-value of the added moduli
     on the correlated-residual model (None: the former two-part rule)."""
     if chi2_base - chi2_new <= 0:
         return False
     if wald_p is not None:
         return bool(wald_p < 1.0 - LEVEL) and f_test(chi2_base, p_base, chi2_new, p_new, n)
-    return (f_test(chi2_base, p_base, chi2_new, p_new, n)
-            and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS)
+    return (
+        f_test(chi2_base, p_base, chi2_new, p_new, n)
+        and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS
+    )

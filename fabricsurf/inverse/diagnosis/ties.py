@@ -67,12 +67,21 @@ class Tie:
         return self.members[1:]
 
     def as_dict(self) -> dict:
-        return {"level": sg.LEVEL, "test": "Vuong (non-nested), clustered over regions x load "
-                "steps, two-sided", "comparisons": self.comparisons}
+        return {
+            "level": sg.LEVEL,
+            "test": "Vuong (non-nested), clustered over regions x load steps, two-sided",
+            "comparisons": self.comparisons,
+        }
 
 
-def vuong(r_a: np.ndarray, r_b: np.ndarray, labels: np.ndarray | None, k_a: int = 1,
-          k_b: int = 1, noise_known: bool = True) -> dict:
+def vuong(
+    r_a: np.ndarray,
+    r_b: np.ndarray,
+    labels: np.ndarray | None,
+    k_a: int = 1,
+    k_b: int = 1,
+    noise_known: bool = True,
+) -> dict:
     """Vuong's z of model a against b (positive: a closer) on residuals in noise units, with
     the variance of Δχ² = χ²_b − χ²_a given the design, clustered over ``labels`` (None: every
     datum its own block), the stated noise as its floor; the two-sided p-value and the
@@ -94,35 +103,42 @@ def vuong(r_a: np.ndarray, r_b: np.ndarray, labels: np.ndarray | None, k_a: int 
     return {"delta_chi2": dchi2, "resolution": resolution, "z": z, "p": p, "blocks": G}
 
 
-def projected_cosine(ra: FitResult, rb: FitResult, base: list[int], ia: list[int],
-                     ib: list[int]) -> float:
+def projected_cosine(
+    ra: FitResult, rb: FitResult, base: list[int], ia: list[int], ib: list[int]
+) -> float:
     """cos between the candidates' sensitivities (dr/dp summed over each one's moduli, from its
     refit's Jacobian) projected off the fitted moduli ``base`` (from refit a's)."""
+
     def column(rf: FitResult, idx: list[int]) -> np.ndarray:
         return rf.J[:, [rf.free.index(i) for i in idx]].sum(axis=1)
 
-    Q = la.thin_q(ra.J[:, [ra.free.index(i) for i in base]], "ties: the fitted moduli's "
-                 "sensitivities")
+    Q = la.thin_q(
+        ra.J[:, [ra.free.index(i) for i in base]], "ties: the fitted moduli's sensitivities"
+    )
     sa, sb = column(ra, ia), column(rb, ib)
     sa, sb = sa - Q @ (Q.T @ sa), sb - Q @ (Q.T @ sb)
     na, nb = np.linalg.norm(sa), np.linalg.norm(sb)
     return float(sa @ sb / (na * nb)) if na > 0 and nb > 0 else 1.0
 
 
-def compare(fs, ra: FitResult, rb: FitResult, base: list[int], ia: list[int],
-            ib: list[int]) -> dict:
+def compare(
+    fs, ra: FitResult, rb: FitResult, base: list[int], ia: list[int], ib: list[int]
+) -> dict:
     """Refit a (the better) against refit b: Vuong's test, |δ| and the projected cosine."""
     labels = unc.blocks(fs, ra.prediction)
     out = vuong(ra.r, rb.r, labels, len(ia), len(ib), fs.noise_known)
-    return out | {"chi2": [ra.chi2, rb.chi2],
-                  "misfit": [ra.misfit["combined"], rb.misfit["combined"]],
-                  "prediction_difference": float(np.linalg.norm(ra.r - rb.r)),
-                  "cosine": projected_cosine(ra, rb, base, ia, ib),
-                  "tied": out["p"] > 1.0 - sg.LEVEL or out["z"] < 0}
+    return out | {
+        "chi2": [ra.chi2, rb.chi2],
+        "misfit": [ra.misfit["combined"], rb.misfit["combined"]],
+        "prediction_difference": float(np.linalg.norm(ra.r - rb.r)),
+        "cosine": projected_cosine(ra, rb, base, ia, ib),
+        "tied": out["p"] > 1.0 - sg.LEVEL or out["z"] < 0,
+    }
 
 
-def find_tie(fs, rows: list[dict], refits: dict[str, FitResult], base: list[int],
-             cand: dict[str, list[int]]) -> Tie:
+def find_tie(
+    fs, rows: list[dict], refits: dict[str, FitResult], base: list[int], cand: dict[str, list[int]]
+) -> Tie:
     """The best significant refit of a round (``rows`` sorted best first, one significant) and
     every other refitted candidate the data cannot tell from it (module docstring). A refit
     whose own modulus is not significant still ties when it fits as well: the data cannot
@@ -136,7 +152,8 @@ def find_tie(fs, rows: list[dict], refits: dict[str, FitResult], base: list[int]
         if c == best:
             continue
         row = {"effects": [best, c], "significant": bool(q["significant"])} | compare(
-            fs, refits[best], refits[c], base, cand[best], cand[c])
+            fs, refits[best], refits[c], base, cand[best], cand[c]
+        )
         comparisons.append(row)
         if row["tied"]:
             members.append(c)

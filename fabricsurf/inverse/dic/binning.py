@@ -36,8 +36,9 @@ def _cells(step: np.ndarray, X: np.ndarray, pitch: float) -> tuple[np.ndarray, i
     return inverse.ravel(), int(inverse.max()) + 1
 
 
-def bin_points(step: np.ndarray, X: np.ndarray, u: np.ndarray, pitch: float,
-               min_points: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def bin_points(
+    step: np.ndarray, X: np.ndarray, u: np.ndarray, pitch: float, min_points: int = 1
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(step, X, u, count) of the cells of ``pitch`` (mm) holding ≥ ``min_points`` points,
     sorted by step; X and u are the cells' mean positions and displacements."""
     cell, m = _cells(step, X, pitch)
@@ -75,8 +76,7 @@ def noise_estimate(step: np.ndarray, X: np.ndarray, u: np.ndarray) -> dict:
     size = spacing * math.sqrt(NOISE_CELL_POINTS)
     cell, m = _cells(step, X, size)
     n = np.bincount(cell, minlength=m).astype(float)
-    centre = np.column_stack([np.bincount(cell, X[:, k], m) / np.maximum(n, 1)
-                              for k in range(2)])
+    centre = np.column_stack([np.bincount(cell, X[:, k], m) / np.maximum(n, 1) for k in range(2)])
     d = X - centre[cell]
     basis = [np.ones(len(X)), d[:, 0], d[:, 1]]
     A = np.empty((m, 3, 3))
@@ -84,10 +84,9 @@ def noise_estimate(step: np.ndarray, X: np.ndarray, u: np.ndarray) -> dict:
         for j in range(i, 3):
             A[:, i, j] = A[:, j, i] = np.bincount(cell, basis[i] * basis[j], m)
     ok = n >= MIN_CELL_POINTS
-    ok &= np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(n, 1) * size ** 4
+    ok &= np.abs(np.linalg.det(A)) > 1e-12 * np.maximum(n, 1) * size**4
     if ok.sum() < MIN_CELLS:
-        return {"noise_std": None, "cells": int(ok.sum()), "cell_mm": size,
-                "per_component": []}
+        return {"noise_std": None, "cells": int(ok.sum()), "cell_mm": size, "per_component": []}
     dof = n[ok] - 3
     per = []
     for k in range(u.shape[1]):
@@ -97,5 +96,9 @@ def noise_estimate(step: np.ndarray, X: np.ndarray, u: np.ndarray) -> dict:
         s2 = np.maximum(rss, 0.0) / dof
         k_med = float(np.median(dof))
         per.append(float(np.median(s2) / (1 - 2 / (9 * k_med)) ** 3))
-    return {"noise_std": math.sqrt(float(np.mean(per))), "cells": int(ok.sum()),
-            "cell_mm": size, "per_component": [math.sqrt(p) for p in per]}
+    return {
+        "noise_std": math.sqrt(float(np.mean(per))),
+        "cells": int(ok.sum()),
+        "cell_mm": size,
+        "per_component": [math.sqrt(p) for p in per],
+    }

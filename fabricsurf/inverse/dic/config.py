@@ -19,8 +19,20 @@ from fabricsurf.inverse.dic.frame import GRIP_ANGLE, Frame
 from fabricsurf.inverse.dic.layouts import COORDINATES, LAYOUTS, Layout, custom_layout
 
 KEYS = {
-    "": {"name", "export", "columns", "units", "frame", "specimen", "loading", "steps",
-         "binning", "data", "source", "material"},
+    "": {
+        "name",
+        "export",
+        "columns",
+        "units",
+        "frame",
+        "specimen",
+        "loading",
+        "steps",
+        "binning",
+        "data",
+        "source",
+        "material",
+    },
     "export": {"layout", "files", "image_number", "encoding", "coordinates"},
     "units": {"coordinates", "mm_per_pixel", "force"},
     "frame": {"origin", "grip", "angle_deg", "y_down", "outside"},
@@ -67,66 +79,84 @@ def _check_keys(t: dict, where: str, plugin) -> None:
     allowed["loading"] = allowed.get("loading", set()) | {"test"}
     for key, value in t.items():
         if key not in allowed[""]:
-            raise DataError(f"{where}: unknown key or table '{key}' (known: "
-                            f"{', '.join(sorted(allowed['']))})")
+            raise DataError(
+                f"{where}: unknown key or table '{key}' (known: {', '.join(sorted(allowed['']))})"
+            )
         if key in allowed and key not in ("", "columns", "source") and isinstance(value, dict):
             extra = sorted(set(value) - allowed[key])
             if extra:
-                raise DataError(f"{where}: unknown key [{key}] {extra[0]} (known: "
-                                f"{', '.join(sorted(allowed[key]))})")
+                raise DataError(
+                    f"{where}: unknown key [{key}] {extra[0]} (known: "
+                    f"{', '.join(sorted(allowed[key]))})"
+                )
 
 
 def _int_list(value, key: str, where: str, minimum: int = 0) -> list[int]:
-    ok = isinstance(value, list) and all(isinstance(v, int) and not isinstance(v, bool)
-                                         and v >= minimum for v in value)
+    ok = isinstance(value, list) and all(
+        isinstance(v, int) and not isinstance(v, bool) and v >= minimum for v in value
+    )
     if not ok:
         raise DataError(f"{where}: {key} = {value!r} must be a list of integers ≥ {minimum}")
     return list(value)
 
 
 def _float_list(value, key: str, where: str, n: int) -> list[float]:
-    ok = isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                         and math.isfinite(v) for v in value)
+    ok = isinstance(value, list) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    )
     if not ok:
         raise DataError(f"{where}: {key} = {value!r} must be a list of finite numbers")
     if len(value) != n:
-        raise DataError(f"{where}: {key} has {len(value)} values, [steps] images has {n} (one "
-                        "value per load step)")
+        raise DataError(
+            f"{where}: {key} has {len(value)} values, [steps] images has {n} (one "
+            "value per load step)"
+        )
     return [float(v) for v in value]
 
 
 def _steps(t: dict, where: str) -> tuple[list[int], list[int]]:
     s = t.get("steps", {})
     if "images" not in s:
-        raise DataError(f"{where}: missing key [steps] images (the image number of each load "
-                        "step, in the order of the steps)")
+        raise DataError(
+            f"{where}: missing key [steps] images (the image number of each load "
+            "step, in the order of the steps)"
+        )
     images = _int_list(s["images"], "[steps] images", where)
     if not images:
         raise DataError(f"{where}: [steps] images is empty")
     for k in range(1, len(images)):
         if images[k] <= images[k - 1]:
-            raise DataError(f"{where}: [steps] images = {images}: steps out of order: step "
-                            f"{k + 1} is image {images[k]}, step {k} image {images[k - 1]} (the "
-                            "images of successive steps must be taken one after the other)")
+            raise DataError(
+                f"{where}: [steps] images = {images}: steps out of order: step "
+                f"{k + 1} is image {images[k]}, step {k} image {images[k - 1]} (the "
+                "images of successive steps must be taken one after the other)"
+            )
     refs = _int_list(s.get("reference_images", []), "[steps] reference_images", where)
     both = sorted(set(refs) & set(images))
     if both:
-        raise DataError(f"{where}: image {both[0]} is in both [steps] images and "
-                        "reference_images")
+        raise DataError(f"{where}: image {both[0]} is in both [steps] images and reference_images")
     return images, refs
 
 
 def _frame(t: dict, where: str, layout: Layout, scale: float) -> tuple[Frame, str]:
     f = t.get("frame", {})
     origin = f.get("origin", [0.0, 0.0])
-    if not (isinstance(origin, list) and len(origin) == 2 and all(
+    if not (
+        isinstance(origin, list)
+        and len(origin) == 2
+        and all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            for v in origin)):
-        raise DataError(f"{where}: [frame] origin = {origin!r} must be [x, y] (the export's "
-                        "coordinates of the specimen point X = Y = 0)")
+            for v in origin
+        )
+    ):
+        raise DataError(
+            f"{where}: [frame] origin = {origin!r} must be [x, y] (the export's "
+            "coordinates of the specimen point X = Y = 0)"
+        )
     grip = choice_option(t, "frame", "grip", tuple(GRIP_ANGLE), "left", where)
-    tilt = (number_option(t, "frame", "angle_deg", where, positive=False)
-            if "angle_deg" in f else None)
+    tilt = (
+        number_option(t, "frame", "angle_deg", where, positive=False) if "angle_deg" in f else None
+    )
     y_down = f.get("y_down", layout.y_down)
     if not isinstance(y_down, bool):
         raise DataError(f"{where}: [frame] y_down = {y_down!r} must be true or false")
@@ -140,15 +170,19 @@ def _units(t: dict, where: str, layout: Layout) -> tuple[str, float, float]:
     unit = choice_option(t, "units", "coordinates", ("mm", "m", "pixel"), layout.unit, where)
     if unit == "pixel":
         if "mm_per_pixel" not in u:
-            raise DataError(f"{where}: the coordinates are in pixels ({layout.name} layout"
-                            f"{'' if 'coordinates' not in u else ', [units] coordinates'}) but "
-                            "[units] mm_per_pixel is missing: give the scale (mm per pixel) "
-                            "from the calibration")
+            raise DataError(
+                f"{where}: the coordinates are in pixels ({layout.name} layout"
+                f"{'' if 'coordinates' not in u else ', [units] coordinates'}) but "
+                "[units] mm_per_pixel is missing: give the scale (mm per pixel) "
+                "from the calibration"
+            )
         scale = number_option(t, "units", "mm_per_pixel", where)
     else:
         if "mm_per_pixel" in u:
-            raise DataError(f"{where}: [units] mm_per_pixel is given but the coordinates are in "
-                            f"{unit}; remove it or set [units] coordinates = \"pixel\"")
+            raise DataError(
+                f"{where}: [units] mm_per_pixel is given but the coordinates are in "
+                f'{unit}; remove it or set [units] coordinates = "pixel"'
+            )
         scale = COORDINATE_SCALE[unit]
     force = choice_option(t, "units", "force", tuple(FORCE_UNITS), "N", where)
     return unit, scale, FORCE_UNITS[force]
@@ -159,10 +193,10 @@ def _setup(t: dict, where: str, plugin) -> PluginSetup:
     width = number_option(t, "specimen", "width", where)
     angles = t.get("specimen", {}).get("fibre_angles_deg")
     if not (isinstance(angles, list) and len(angles) == 2):
-        raise DataError(f"{where}: [specimen] fibre_angles_deg = {angles!r} must be a list of "
-                        "two angles")
-    angles = tuple(number_option({"s": {"a": a}}, "s", "a", where, positive=False)
-                   for a in angles)
+        raise DataError(
+            f"{where}: [specimen] fibre_angles_deg = {angles!r} must be a list of two angles"
+        )
+    angles = tuple(number_option({"s": {"a": a}}, "s", "a", where, positive=False) for a in angles)
     checks.fibre_angles(angles)
     setup = PluginSetup(plugin.name, length, width, angles, plugin.parse_options(t, 1.0, where))
     plugin.check_specimen(setup, where)
@@ -176,20 +210,24 @@ def _layout(t: dict, where: str) -> tuple[Layout, str]:
     name = export.get("layout")
     if name == "columns":
         if "coordinates" in export:
-            raise DataError(f"{where}: with layout = \"columns\" the coordinates are stated by "
-                            "[columns] coordinates, not [export] coordinates")
+            raise DataError(
+                f'{where}: with layout = "columns" the coordinates are stated by '
+                "[columns] coordinates, not [export] coordinates"
+            )
         return custom_layout(t.get("columns", {}), where), "[columns] coordinates"
     if name not in LAYOUTS:
-        raise DataError(f"{where}: [export] layout = {name!r} is not one of "
-                        f"{sorted(LAYOUTS) + ['columns']}")
+        raise DataError(
+            f"{where}: [export] layout = {name!r} is not one of {sorted(LAYOUTS) + ['columns']}"
+        )
     if "columns" in t:
-        raise DataError(f"{where}: a [columns] table goes with [export] layout = \"columns\"")
+        raise DataError(f'{where}: a [columns] table goes with [export] layout = "columns"')
     layout = LAYOUTS[name]
     if "coordinates" in export:
         coords = export["coordinates"]
         if coords not in COORDINATES:
-            raise DataError(f"{where}: [export] coordinates = {coords!r} is not one of "
-                            f"{list(COORDINATES)}")
+            raise DataError(
+                f"{where}: [export] coordinates = {coords!r} is not one of {list(COORDINATES)}"
+            )
         layout = replace(layout, coordinates=coords)
     return layout, "[export] coordinates"
 
@@ -199,19 +237,24 @@ IMAGE_NUMBER = {"last": r".*(?<!\d)(\d+)", "first": r"\D*(\d+)"}
 
 
 def _image_number(value, where: str) -> re.Pattern:
-    """"last" (default) or "first" integer of the file name, or a regular expression whose
+    """ "last" (default) or "first" integer of the file name, or a regular expression whose
     first group is the number (e.g. "-(\\d+)_" for VIC's Test-0012_0.csv)."""
     if not isinstance(value, str):
-        raise DataError(f"{where}: [export] image_number = {value!r} must be \"last\", "
-                        "\"first\" or a regular expression with one group")
+        raise DataError(
+            f'{where}: [export] image_number = {value!r} must be "last", '
+            '"first" or a regular expression with one group'
+        )
     try:
         pattern = re.compile(IMAGE_NUMBER.get(value, value))
     except re.error as e:
-        raise DataError(f"{where}: [export] image_number = {value!r} is not a regular "
-                        f"expression ({e})") from None
+        raise DataError(
+            f"{where}: [export] image_number = {value!r} is not a regular expression ({e})"
+        ) from None
     if pattern.groups < 1:
-        raise DataError(f"{where}: [export] image_number = {value!r} needs a group, e.g. "
-                        "\"-(\\d+)_\", around the image number")
+        raise DataError(
+            f"{where}: [export] image_number = {value!r} needs a group, e.g. "
+            '"-(\\d+)_", around the image number'
+        )
     return pattern
 
 
@@ -229,9 +272,11 @@ def read_spec(path: str | Path) -> ImportSpec:
     layout, coordinates_key = _layout(t, where)
     files = t.get("export", {}).get("files")
     if not isinstance(files, str) or not files.strip():
-        raise DataError(f"{where}: [export] files = {files!r} must be a file pattern, relative "
-                        "to the directory of this file or absolute, e.g. "
-                        "\"DICe_solution_*.txt\"")
+        raise DataError(
+            f"{where}: [export] files = {files!r} must be a file pattern, relative "
+            "to the directory of this file or absolute, e.g. "
+            '"DICe_solution_*.txt"'
+        )
     encoding = normalise(t.get("export", {}).get("encoding"), where)
     image_number = _image_number(t.get("export", {}).get("image_number", "last"), where)
     unit, scale, fscale = _units(t, where, layout)
@@ -239,39 +284,70 @@ def read_spec(path: str | Path) -> ImportSpec:
     images, refs = _steps(t, where)
     s = t["steps"]
     if "path" not in s:
-        raise DataError(f"{where}: missing key [steps] path (the load-path value of each step:"
-                        " the grip displacement in mm for a bias test)")
+        raise DataError(
+            f"{where}: missing key [steps] path (the load-path value of each step:"
+            " the grip displacement in mm for a bias test)"
+        )
     load = _float_list(s["path"], "[steps] path", where, len(images))
-    force = (None if "force" not in s else
-             [f * fscale for f in _float_list(s["force"], "[steps] force", where, len(images))])
+    force = (
+        None
+        if "force" not in s
+        else [f * fscale for f in _float_list(s["force"], "[steps] force", where, len(images))]
+    )
     if force is not None and not plugin.has_reaction:
         raise DataError(f"{where}: [steps] force: the '{plugin.name}' test measures no reaction")
     if force is not None:
         fnoise = t.get("data", {}).get("force_noise_std")
-        checks.tensile_forces(plugin, images, force, f"{where}: [steps] force",
-                              None if not isinstance(fnoise, (int, float)) else fnoise * fscale,
-                              "image")
+        checks.tensile_forces(
+            plugin,
+            images,
+            force,
+            f"{where}: [steps] force",
+            None if not isinstance(fnoise, (int, float)) else fnoise * fscale,
+            "image",
+        )
     b = t.get("binning", {})
     pitch = number_option(t, "binning", "pitch", where) if "pitch" in b else None
     setup = _setup(t, where, plugin)
     if pitch is not None and pitch > 0.5 * min(setup.length, setup.width):
-        raise DataError(f"{where}: [binning] pitch = {pitch:g} mm is more than half the "
-                        f"specimen's {min(setup.length, setup.width):g} mm side: the field would "
-                        "be one or two points across it (the pitch is in mm, like the specimen)")
+        raise DataError(
+            f"{where}: [binning] pitch = {pitch:g} mm is more than half the "
+            f"specimen's {min(setup.length, setup.width):g} mm side: the field would "
+            "be one or two points across it (the pitch is in mm, like the specimen)"
+        )
     min_points = b.get("min_points", 1)
     if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
-        raise DataError(f"{where}: [binning] min_points = {min_points!r} must be an integer "
-                        "≥ 1")
-    noise = {k: number_option(t, "data", k, where) if k in t.get("data", {}) else None
-             for k in ("noise_std", "force_noise_std")}
+        raise DataError(f"{where}: [binning] min_points = {min_points!r} must be an integer ≥ 1")
+    noise = {
+        k: number_option(t, "data", k, where) if k in t.get("data", {}) else None
+        for k in ("noise_std", "force_noise_std")
+    }
     name = t.get("name", path.parent.name)
     if not isinstance(name, str) or not name.strip():
         raise DataError(f"{where}: name = {name!r} must be a non-empty string")
     source = t.get("source", {})
     if not isinstance(source, dict) or any(not isinstance(v, str) for v in source.values()):
-        raise DataError(f"{where}: [source] holds free text only (key = \"text\")")
-    return ImportSpec(where, name, layout, files, image_number, path.parent, frame, outside,
-                      setup, images, refs, load, force, pitch, min_points,
-                      noise["noise_std"], None if noise["force_noise_std"] is None
-                      else noise["force_noise_std"] * fscale, dict(source), unit, encoding,
-                      coordinates_key)
+        raise DataError(f'{where}: [source] holds free text only (key = "text")')
+    return ImportSpec(
+        where,
+        name,
+        layout,
+        files,
+        image_number,
+        path.parent,
+        frame,
+        outside,
+        setup,
+        images,
+        refs,
+        load,
+        force,
+        pitch,
+        min_points,
+        noise["noise_std"],
+        None if noise["force_noise_std"] is None else noise["force_noise_std"] * fscale,
+        dict(source),
+        unit,
+        encoding,
+        coordinates_key,
+    )

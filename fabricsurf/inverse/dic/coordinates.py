@@ -62,8 +62,9 @@ def _pixel_key(px: np.ndarray, py: np.ndarray) -> np.ndarray:
     return ix * (1 << 31) + iy
 
 
-def _match(a: Anchor, data: dict[str, np.ndarray], ok: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, str] | None:
+def _match(
+    a: Anchor, data: dict[str, np.ndarray], ok: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, str] | None:
     """(indices into the anchor's kept rows, rows of this image, how) or None."""
     rows = np.flatnonzero(ok)
     if "px" in a.cols and "py" in data and "px" in data:
@@ -77,14 +78,24 @@ def _match(a: Anchor, data: dict[str, np.ndarray], ok: np.ndarray
     return None
 
 
-def compare(a: Anchor, image: int, name: str, data: dict[str, np.ndarray], ok: np.ndarray,
-            declared: str, key: str) -> dict:
+def compare(
+    a: Anchor,
+    image: int,
+    name: str,
+    data: dict[str, np.ndarray],
+    ok: np.ndarray,
+    declared: str,
+    key: str,
+) -> dict:
     """The evidence of this image against the anchor; a DataError when it contradicts the
     ``declared`` reading ("reference" or "deformed"; ``key`` is the key that sets it)."""
     m = _match(a, data, ok)
     if m is None:
-        return {"image": image, "checked": False,
-                "why": "row counts differ and the layout has no pixel position columns"}
+        return {
+            "image": image,
+            "checked": False,
+            "why": "row counts differ and the layout has no pixel position columns",
+        }
     ia, rb, how = m
     xa, ya, ua, va = (a.cols[r][ia] for r in ("x", "y", "u", "v"))
     xb, yb, ub, vb = (data[r][rb] for r in ("x", "y", "u", "v"))
@@ -94,24 +105,33 @@ def compare(a: Anchor, image: int, name: str, data: dict[str, np.ndarray], ok: n
     dx, dy, du, dv = xb - xa, yb - ya, ub - ua, vb - va
     moved = (np.abs(du) > 10 * tx) | (np.abs(dv) > 10 * ty)
     n = int(moved.sum())
-    out = {"image": image, "against_image": a.image, "matched": len(ia), "matched_by": how,
-           "moved": n}
+    out = {
+        "image": image,
+        "against_image": a.image,
+        "matched": len(ia),
+        "matched_by": how,
+        "moved": n,
+    }
     if n < MIN_MOVED:
         return out | {"checked": False, "why": f"fewer than {MIN_MOVED} points moved"}
     follows = float(np.mean((np.abs(dx - du) <= tx)[moved] & (np.abs(dy - dv) <= ty)[moved]))
     stays = float(np.mean((np.abs(dx) <= tx)[moved] & (np.abs(dy) <= ty)[moved]))
     out |= {"checked": True, "move_with_displacement": follows, "stay": stays}
     if declared == "reference" and follows >= DECISIVE:
-        raise DataError(f"{name}: x of image {image} − x of image {a.image} ({a.name}) equals "
-                        f"u of image {image} − u of image {a.image} (and y, v alike) to "
-                        f"{REL_TOL:g} of the values on {follows:.0%} of the {n} points that "
-                        f"moved, matched by {how}: these are deformed coordinates (each "
-                        f"point's position in its own image), read as reference ones; set "
-                        f"{key} = \"deformed\"")
+        raise DataError(
+            f"{name}: x of image {image} − x of image {a.image} ({a.name}) equals "
+            f"u of image {image} − u of image {a.image} (and y, v alike) to "
+            f"{REL_TOL:g} of the values on {follows:.0%} of the {n} points that "
+            f"moved, matched by {how}: these are deformed coordinates (each "
+            f"point's position in its own image), read as reference ones; set "
+            f'{key} = "deformed"'
+        )
     if declared == "deformed" and stays >= DECISIVE:
-        raise DataError(f"{name}: x of image {image} equals x of image {a.image} ({a.name}) "
-                        f"(and y alike) to {REL_TOL:g} of the values on {stays:.0%} of the {n} "
-                        f"points whose displacement changed, matched by {how}: these are "
-                        f"reference coordinates, read as deformed ones; set {key} = "
-                        "\"reference\"")
+        raise DataError(
+            f"{name}: x of image {image} equals x of image {a.image} ({a.name}) "
+            f"(and y alike) to {REL_TOL:g} of the values on {stays:.0%} of the {n} "
+            f"points whose displacement changed, matched by {how}: these are "
+            f"reference coordinates, read as deformed ones; set {key} = "
+            '"reference"'
+        )
     return out

@@ -20,8 +20,14 @@ import numpy as np
 
 from fabricsurf.errors import DataError
 
-ENCODINGS = {"utf-8": "utf-8-sig", "utf-16": "utf-16", "utf-16-le": "utf-16-le",
-             "utf-16-be": "utf-16-be", "latin-1": "latin-1", "cp1252": "cp1252"}
+ENCODINGS = {
+    "utf-8": "utf-8-sig",
+    "utf-16": "utf-16",
+    "utf-16-le": "utf-16-le",
+    "utf-16-be": "utf-16-be",
+    "latin-1": "latin-1",
+    "cp1252": "cp1252",
+}
 """[export] encoding values → the Python codec that reads them (utf-8 with or without BOM;
 utf-16 with a BOM; utf-16-le/-be without one)."""
 
@@ -44,11 +50,15 @@ def normalise(value, where: str) -> str | None:
     if value is None:
         return None
     key = str(value).strip().lower().replace("_", "-")
-    key = {"utf8": "utf-8", "latin1": "latin-1", "iso-8859-1": "latin-1",
-           "windows-1252": "cp1252", "utf16": "utf-16"}.get(key, key)
+    key = {
+        "utf8": "utf-8",
+        "latin1": "latin-1",
+        "iso-8859-1": "latin-1",
+        "windows-1252": "cp1252",
+        "utf16": "utf-16",
+    }.get(key, key)
     if not isinstance(value, str) or key not in ENCODINGS:
-        raise DataError(f"{where}: [export] encoding = {value!r} is not one of "
-                        f"{sorted(ENCODINGS)}")
+        raise DataError(f"{where}: [export] encoding = {value!r} is not one of {sorted(ENCODINGS)}")
     return key
 
 
@@ -60,8 +70,10 @@ def _declared(path: Path, raw: bytes, key: str) -> Encoding:
     if key.startswith("utf-16"):
         bom = raw[:2] in (codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)
         if key == "utf-16" and not bom:
-            raise DataError(f"{path.name}: [export] encoding = \"utf-16\" but the file has no "
-                            "byte-order mark: set \"utf-16-le\" or \"utf-16-be\"")
+            raise DataError(
+                f'{path.name}: [export] encoding = "utf-16" but the file has no '
+                'byte-order mark: set "utf-16-le" or "utf-16-be"'
+            )
         big = raw[:2] == codecs.BOM_UTF16_BE if key == "utf-16" else key.endswith("be")
         codec = "utf-16" if bom else ENCODINGS[key]  # "utf-16" reads and drops the BOM
         enc = Encoding(codec, key, 2, 2 if bom else 0, big)
@@ -71,10 +83,12 @@ def _declared(path: Path, raw: bytes, key: str) -> Encoding:
         raw.decode(enc.codec)
     except UnicodeDecodeError as e:
         buf = np.frombuffer(raw, np.uint8)
-        raise DataError(f"{path.name} line {_line_of(buf, e.start)}: byte 0x{raw[e.start]:02X} "
-                        f"at offset {e.start} cannot be read as {key} ({e.reason}), the "
-                        "[export] encoding given; check the key (utf-8, utf-16, latin-1, "
-                        "cp1252)") from None
+        raise DataError(
+            f"{path.name} line {_line_of(buf, e.start)}: byte 0x{raw[e.start]:02X} "
+            f"at offset {e.start} cannot be read as {key} ({e.reason}), the "
+            "[export] encoding given; check the key (utf-8, utf-16, latin-1, "
+            "cp1252)"
+        ) from None
     return enc
 
 
@@ -96,20 +110,23 @@ def detect(path: Path, raw: bytes, key: str | None) -> Encoding:
         first_bad = e.start
     buf = np.frombuffer(raw, np.uint8)
     if len(raw) > 1 and np.count_nonzero(buf[: min(len(buf), 4096)] == 0) > 0:
-        raise DataError(f"{path.name}: NUL bytes and no byte-order mark: UTF-16 without a BOM? "
-                        "set [export] encoding = \"utf-16-le\" (Windows) or \"utf-16-be\"")
+        raise DataError(
+            f"{path.name}: NUL bytes and no byte-order mark: UTF-16 without a BOM? "
+            'set [export] encoding = "utf-16-le" (Windows) or "utf-16-be"'
+        )
     ambiguous = np.flatnonzero((buf >= 0x80) & (buf <= 0x9F))
     if len(ambiguous):
         pos = int(ambiguous[0])
-        b = raw[pos:pos + 1]
+        b = raw[pos : pos + 1]
         try:
             windows = repr(b.decode("cp1252"))
         except UnicodeDecodeError:
             windows = "undefined"
-        raise DataError(f"{path.name} line {_line_of(buf, pos)}: not UTF-8 (byte "
-                        f"0x{raw[first_bad]:02X} at offset {first_bad}), and byte 0x{b[0]:02X} "
-                        f"reads as {windows} in cp1252 but as the control character "
-                        f"U+00{b[0]:02X} in latin-1: set [export] encoding = \"cp1252\" "
-                        "(Windows exports) or \"latin-1\"")
+        raise DataError(
+            f"{path.name} line {_line_of(buf, pos)}: not UTF-8 (byte "
+            f"0x{raw[first_bad]:02X} at offset {first_bad}), and byte 0x{b[0]:02X} "
+            f"reads as {windows} in cp1252 but as the control character "
+            f'U+00{b[0]:02X} in latin-1: set [export] encoding = "cp1252" '
+            '(Windows exports) or "latin-1"'
+        )
     return Encoding("latin-1", "latin-1/cp1252 (same text)")
-

@@ -23,14 +23,15 @@ _BLANKS = (32, 9, 13, 10)
 def _units(raw: bytes, enc: Encoding) -> np.ndarray:
     """The file as an array of code units (bytes, or 16-bit units for UTF-16)."""
     if enc.unit == 1:
-        return np.frombuffer(raw, np.uint8)[enc.bom:]
-    body = raw[enc.bom:]
+        return np.frombuffer(raw, np.uint8)[enc.bom :]
+    body = raw[enc.bom :]
     body = body[: len(body) - len(body) % 2]
     return np.frombuffer(body, ">u2" if enc.big_endian else "<u2")
 
 
-def fields_agree(raw: bytes, enc: Encoding, header_line: int, delimiter: str | None,
-                 width: int) -> bool:
+def fields_agree(
+    raw: bytes, enc: Encoding, header_line: int, delimiter: str | None, width: int
+) -> bool:
     """Whether every data line after the header (line ``header_line``, from 1) has exactly
     ``width`` fields. Memory: a boolean array of the file's size and the positions of its
     delimiters (one per field); the few lines of another count are looked at one by one."""
@@ -57,7 +58,7 @@ def fields_agree(raw: bytes, enc: Encoding, header_line: int, delimiter: str | N
     if len(odd) > MAX_ODD_LINES:
         return False
     for k in odd:  # blank and comment lines are not data
-        text = "".join(map(chr, buf[starts[k]:stops[k]].tolist())).strip()
+        text = "".join(map(chr, buf[starts[k] : stops[k]].tolist())).strip()
         if text and not text.startswith(("#", "*")):
             return False
     return True
@@ -78,7 +79,9 @@ def shifted_pair(cells: list[str], delimiter: str | None, extra: int) -> str:
     for k in range(len(cells) - 1):
         a, b = cells[k].strip().strip('"'), cells[k + 1].strip().strip('"')
         if _INT.fullmatch(a) and _DIGITS.fullmatch(b):
-            return (f"; fields {k + 1} and {k + 2} read '{a}' and '{b}': a decimal comma "
-                    f"({a},{b}) in a comma-separated file? Export with a decimal point, or "
-                    "with ';' between the columns")
+            return (
+                f"; fields {k + 1} and {k + 2} read '{a}' and '{b}': a decimal comma "
+                f"({a},{b}) in a comma-separated file? Export with a decimal point, or "
+                "with ';' between the columns"
+            )
     return ""

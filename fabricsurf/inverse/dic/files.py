@@ -29,14 +29,18 @@ def image_files(spec: ImportSpec) -> dict[int, Path]:
             continue
         m = spec.image_number.search(p.stem)
         if not m or not m.group(1).isdigit():
-            raise DataError(f"{p.name}: no image number in the file name by [export] "
-                            f"image_number = {spec.image_number.pattern!r} (files matched by "
-                            f"[export] files = {spec.files!r})")
+            raise DataError(
+                f"{p.name}: no image number in the file name by [export] "
+                f"image_number = {spec.image_number.pattern!r} (files matched by "
+                f"[export] files = {spec.files!r})"
+            )
         k = int(m.group(1))
         if k in found:
-            raise DataError(f"{p.name} and {found[k].name} both give image {k} (by [export] "
-                            f"image_number = {spec.image_number.pattern!r}: set it to pick "
-                            "the image number, e.g. \"first\" or \"-(\\d+)_\")")
+            raise DataError(
+                f"{p.name} and {found[k].name} both give image {k} (by [export] "
+                f"image_number = {spec.image_number.pattern!r}: set it to pick "
+                'the image number, e.g. "first" or "-(\\d+)_")'
+            )
         found[k] = p
     if not found:
         where = "" if Path(spec.files).is_absolute() else f" in {spec.root}"
@@ -44,13 +48,17 @@ def image_files(spec: ImportSpec) -> dict[int, Path]:
     known = set(spec.images) | set(spec.reference_images)
     for k, p in sorted(found.items()):
         if k not in known:
-            raise DataError(f"{p.name}: image {k} has no matching load step: it is in neither "
-                            f"[steps] images = {spec.images} nor reference_images = "
-                            f"{spec.reference_images} of {spec.where} (add it, or narrow "
-                            "[export] files)")
+            raise DataError(
+                f"{p.name}: image {k} has no matching load step: it is in neither "
+                f"[steps] images = {spec.images} nor reference_images = "
+                f"{spec.reference_images} of {spec.where} (add it, or narrow "
+                "[export] files)"
+            )
     missing = [k for k in spec.images + spec.reference_images if k not in found]
     if missing:
-        raise DataError(f"{spec.where}: image {missing[0]} of [steps] has no file among those "
-                        f"matching [export] files = {spec.files!r} (images found: "
-                        f"{sorted(found)[:10]}{' …' if len(found) > 10 else ''})")
+        raise DataError(
+            f"{spec.where}: image {missing[0]} of [steps] has no file among those "
+            f"matching [export] files = {spec.files!r} (images found: "
+            f"{sorted(found)[:10]}{' …' if len(found) > 10 else ''})"
+        )
     return found

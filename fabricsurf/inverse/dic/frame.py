@@ -53,8 +53,9 @@ class Frame:
         ox, oy = self.origin
         return self._axes(x - ox, y - oy)
 
-    def vectors(self, u: np.ndarray, v: np.ndarray, w: np.ndarray | None = None
-                ) -> tuple[np.ndarray, ...]:
+    def vectors(
+        self, u: np.ndarray, v: np.ndarray, w: np.ndarray | None = None
+    ) -> tuple[np.ndarray, ...]:
         """Specimen components (mm) of export displacements; w flips with y (right-handed)."""
         ux, uy = self._axes(u, v)
         if w is None:
@@ -75,11 +76,13 @@ class Frame:
         axis = math.degrees(0.5 * math.atan2(2 * cxy, cxx - cyy))
         off = (axis + 45.0) % 90.0 - 45.0
         if abs(off) > ANGLE_TOL_DEG:
-            raise DataError(f"{name}: the point cloud's long axis lies {off:+.2f}° from the "
-                            f"specimen's axes in the frame given ([frame] grip = "
-                            f"\"{self.grip}\", no angle_deg): a rotated camera frame needs its "
-                            f"angle: give [frame] angle_deg = {off:.2f} (counter-clockwise, as "
-                            "seen in the image), or angle_deg = 0 to keep the frame as given")
+            raise DataError(
+                f"{name}: the point cloud's long axis lies {off:+.2f}° from the "
+                f"specimen's axes in the frame given ([frame] grip = "
+                f'"{self.grip}", no angle_deg): a rotated camera frame needs its '
+                f"angle: give [frame] angle_deg = {off:.2f} (counter-clockwise, as "
+                "seen in the image), or angle_deg = 0 to keep the frame as given"
+            )
 
     def inverse_points(self, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Export coordinates of specimen points (for writing synthetic exports)."""

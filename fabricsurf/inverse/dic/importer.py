@@ -30,18 +30,27 @@ OUTLINE_TOL = 1e-6
 MAX_DISPLACEMENT = 10.0
 """Displacements beyond this many specimen sizes are a unit mix-up (the contract's limit,
 checks.field_displacements, here with the export's file and line)."""
+
+
 def _check_units(f: ExportFile, unit: str) -> None:
     """The unit tags of the header (``u [mm]``) must agree with each other and [units]."""
-    tagged = {r: UNITS[t.lower()] for r, t in f.units.items()
-              if t is not None and t.lower() in UNITS and r not in ("px", "py")}
+    tagged = {
+        r: UNITS[t.lower()]
+        for r, t in f.units.items()
+        if t is not None and t.lower() in UNITS and r not in ("px", "py")
+    }
     if len(set(tagged.values())) > 1:
         pairs = ", ".join(f"{r} in {t}" for r, t in tagged.items())
-        raise DataError(f"{f.path.name} line {f.header_line}: mixed units in the header "
-                        f"({pairs}); convert the export to one unit")
+        raise DataError(
+            f"{f.path.name} line {f.header_line}: mixed units in the header "
+            f"({pairs}); convert the export to one unit"
+        )
     if tagged and next(iter(tagged.values())) != unit:
         r, t = next(iter(tagged.items()))
-        raise DataError(f"{f.path.name} line {f.header_line}: the {r} column is in {t} but "
-                        f"[units] coordinates is \"{unit}\" (the layout's default or as given)")
+        raise DataError(
+            f"{f.path.name} line {f.header_line}: the {r} column is in {t} but "
+            f'[units] coordinates is "{unit}" (the layout\'s default or as given)'
+        )
 
 
 def _valid(f: ExportFile, spec: ImportSpec, d: int) -> np.ndarray:
@@ -72,23 +81,27 @@ def _duplicates(f: ExportFile, rows: np.ndarray) -> None:
     same = np.flatnonzero((np.diff(x[order]) == 0) & (np.diff(y[order]) == 0))
     if len(same):
         a, b = sorted((rows[order[same[0]]], rows[order[same[0] + 1]]))
-        raise DataError(f"{f.path.name} line {f.line_of(b)}: duplicated point (x, y) = "
-                        f"({f.data['x'][b]:g}, {f.data['y'][b]:g}), also on line {f.line_of(a)}")
+        raise DataError(
+            f"{f.path.name} line {f.line_of(b)}: duplicated point (x, y) = "
+            f"({f.data['x'][b]:g}, {f.data['y'][b]:g}), also on line {f.line_of(a)}"
+        )
 
 
 def _outline(f: ExportFile, rows: np.ndarray, X: np.ndarray, spec: ImportSpec) -> np.ndarray:
     """Mask of the points on the specimen; a point off it is an error (outside = "error")."""
     L, W = spec.setup.length, spec.setup.width
     tol = OUTLINE_TOL * max(L, W)
-    on = ((X[:, 0] >= -tol) & (X[:, 0] <= L + tol) & (X[:, 1] >= -tol) & (X[:, 1] <= W + tol))
+    on = (X[:, 0] >= -tol) & (X[:, 0] <= L + tol) & (X[:, 1] >= -tol) & (X[:, 1] <= W + tol)
     if spec.outside == "error" and not on.all():
         i = int(np.flatnonzero(~on)[0])
         r = rows[i]
-        raise DataError(f"{f.path.name} line {f.line_of(r)}: point (x, y) = ({f.data['x'][r]:g},"
-                        f" {f.data['y'][r]:g}) {spec.unit} lies at (X, Y) = ({X[i, 0]:.4g}, "
-                        f"{X[i, 1]:.4g}) mm, outside the specimen [0, {L:g}] x [0, {W:g}] mm "
-                        "(check [frame] origin, grip, angle_deg and [units]; or set [frame] "
-                        "outside = \"drop\" to drop such points, e.g. on the grips)")
+        raise DataError(
+            f"{f.path.name} line {f.line_of(r)}: point (x, y) = ({f.data['x'][r]:g},"
+            f" {f.data['y'][r]:g}) {spec.unit} lies at (X, Y) = ({X[i, 0]:.4g}, "
+            f"{X[i, 1]:.4g}) mm, outside the specimen [0, {L:g}] x [0, {W:g}] mm "
+            "(check [frame] origin, grip, angle_deg and [units]; or set [frame] "
+            'outside = "drop" to drop such points, e.g. on the grips)'
+        )
     return on
 
 
@@ -98,14 +111,17 @@ def _magnitudes(f: ExportFile, rows: np.ndarray, u: np.ndarray, spec: ImportSpec
     big = np.flatnonzero(np.abs(u).max(axis=1) > MAX_DISPLACEMENT * size)
     if len(big):
         i = big[0]
-        raise DataError(f"{f.path.name} line {f.line_of(rows[i])}: displacement of "
-                        f"{np.abs(u[i]).max():.3g} mm, more than "
-                        f"{MAX_DISPLACEMENT:g} times the specimen size ({size:g} "
-                        "mm): check [units] (coordinates, mm_per_pixel) and the columns")
+        raise DataError(
+            f"{f.path.name} line {f.line_of(rows[i])}: displacement of "
+            f"{np.abs(u[i]).max():.3g} mm, more than "
+            f"{MAX_DISPLACEMENT:g} times the specimen size ({size:g} "
+            "mm): check [units] (coordinates, mm_per_pixel) and the columns"
+        )
 
 
-def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool, ok: np.ndarray
-           ) -> tuple[np.ndarray, ...]:
+def _image(
+    f: ExportFile, spec: ImportSpec, d: int, first: bool, ok: np.ndarray
+) -> tuple[np.ndarray, ...]:
     """(X, u, counts) of one image's valid points (``ok``) in the specimen's frame."""
     rows = np.flatnonzero(ok)
     _duplicates(f, rows)
@@ -115,14 +131,20 @@ def _image(f: ExportFile, spec: ImportSpec, d: int, first: bool, ok: np.ndarray
         spec.frame.check_tilt(X[:, 0], X[:, 1], f.path.name)
     comps = spec.frame.vectors(data["u"], data["v"], data.get("w") if d == 3 else None)
     if d == 3 and len(comps) < 3:
-        raise DataError(f"{f.path.name}: no out-of-plane displacement column (the "
-                        f"{spec.layout.name} layout's w); the '{spec.setup.test}' test needs uz")
+        raise DataError(
+            f"{f.path.name}: no out-of-plane displacement column (the "
+            f"{spec.layout.name} layout's w); the '{spec.setup.test}' test needs uz"
+        )
     on = _outline(f, rows, X, spec)
     u = np.column_stack(comps)[on]
     _magnitudes(f, rows[on], u, spec)
-    counts = {"rows": f.n, "holes": int(f.n - len(rows)), "outside_dropped": int((~on).sum()),
-              "points": int(on.sum()),
-              "max_abs_u_mm": float(np.abs(u).max()) if len(u) else 0.0}
+    counts = {
+        "rows": f.n,
+        "holes": int(f.n - len(rows)),
+        "outside_dropped": int((~on).sum()),
+        "points": int(on.sum()),
+        "max_abs_u_mm": float(np.abs(u).max()) if len(u) else 0.0,
+    }
     return X[on], u, counts
 
 
@@ -142,8 +164,9 @@ class _Reading:
         misplaces the points, and its evidence is the message that helps."""
 
 
-def _read(spec: ImportSpec, path, image: int, d: int, state: _Reading
-          ) -> tuple[ExportFile, np.ndarray, dict]:
+def _read(
+    spec: ImportSpec, path, image: int, d: int, state: _Reading
+) -> tuple[ExportFile, np.ndarray, dict]:
     """One image read, its valid rows, and its coordinates checked and made reference."""
     f = read_export(path, image, spec.layout, spec.encoding)
     state.read += 1
@@ -153,19 +176,35 @@ def _read(spec: ImportSpec, path, image: int, d: int, state: _Reading
     if state.anchor is None:
         state.anchor = coordinates.anchor(image, path.name, f.data, ok)
     else:
-        state.evidence.append(coordinates.compare(state.anchor, image, path.name, f.data, ok,
-                                                  spec.layout.coordinates,
-                                                  spec.coordinates_key))
+        state.evidence.append(
+            coordinates.compare(
+                state.anchor,
+                image,
+                path.name,
+                f.data,
+                ok,
+                spec.layout.coordinates,
+                spec.coordinates_key,
+            )
+        )
     if spec.layout.coordinates == "deformed":
         coordinates.to_reference(f.data)
     if d == 2 and "w" in f.data:
-        state.dropped["w"] = ("planar test: the out-of-plane displacement column "
-                              f"{f.names['w']!r} is not used")
+        state.dropped["w"] = (
+            f"planar test: the out-of-plane displacement column {f.names['w']!r} is not used"
+        )
     return f, ok, extra
 
 
-def _collect(spec: ImportSpec, files: dict, images: list[int], d: int, tilt_first: bool,
-             report: list, state: _Reading) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _collect(
+    spec: ImportSpec,
+    files: dict,
+    images: list[int],
+    d: int,
+    tilt_first: bool,
+    report: list,
+    state: _Reading,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(step, X, u) of ``images`` (steps numbered from 1 in their order), binned when a
     pitch is given; one entry per image appended to ``report``."""
     steps, Xs, us = [], [], []
@@ -180,7 +219,7 @@ def _collect(spec: ImportSpec, files: dict, images: list[int], d: int, tilt_firs
             _not_empty(files[image].name, counts, spec)
         except DataError as e:
             if state.read == 1 and state.total > 1:  # the first image: its coordinates
-                state.pending = e                     # are checked with the next one first
+                state.pending = e  # are checked with the next one first
                 continue
             raise
         counts |= extra
@@ -190,10 +229,12 @@ def _collect(spec: ImportSpec, files: dict, images: list[int], d: int, tilt_firs
             s, X, u, _ = bin_points(s, X, u, spec.pitch, spec.min_points)
             counts["bins"] = len(X)
             if len(X) == 0:
-                raise DataError(f"{files[image].name}: no bin of [binning] pitch = "
-                                f"{spec.pitch:g} mm holds [binning] min_points = "
-                                f"{spec.min_points} points ({counts['points']} points on the "
-                                "specimen): lower min_points or enlarge the pitch")
+                raise DataError(
+                    f"{files[image].name}: no bin of [binning] pitch = "
+                    f"{spec.pitch:g} mm holds [binning] min_points = "
+                    f"{spec.min_points} points ({counts['points']} points on the "
+                    "specimen): lower min_points or enlarge the pitch"
+                )
         report.append({"file": files[image].name, "image": image} | counts)
         steps.append(s)
         Xs.append(X)
@@ -206,12 +247,16 @@ def _not_empty(name: str, counts: dict, spec: ImportSpec) -> None:
     if counts["points"]:
         return
     if counts["holes"] == counts["rows"]:
-        raise DataError(f"{name}: every one of its {counts['rows']} rows is a hole (NaN, empty "
-                        f"or the {spec.layout.name} layout's invalid marker): the correlation "
-                        "lost this image; leave it out of [steps] images")
-    raise DataError(f"{name}: no point left on the specimen ({counts['holes']} holes, "
-                    f"{counts['outside_dropped']} points outside it dropped by [frame] outside "
-                    "= \"drop\"): check [frame] origin, grip, angle_deg and [units]")
+        raise DataError(
+            f"{name}: every one of its {counts['rows']} rows is a hole (NaN, empty "
+            f"or the {spec.layout.name} layout's invalid marker): the correlation "
+            "lost this image; leave it out of [steps] images"
+        )
+    raise DataError(
+        f"{name}: no point left on the specimen ({counts['holes']} holes, "
+        f"{counts['outside_dropped']} points outside it dropped by [frame] outside "
+        '= "drop"): check [frame] origin, grip, angle_deg and [units]'
+    )
 
 
 def _extent(name: str, X: np.ndarray, spec: ImportSpec) -> None:
@@ -219,11 +264,16 @@ def _extent(name: str, X: np.ndarray, spec: ImportSpec) -> None:
     magnitude (mm_per_pixel, [units]), refused here rather than by the loader later."""
     L, W = spec.setup.length, spec.setup.width
     ex, ey = np.ptp(X[:, 0]), np.ptp(X[:, 1])
-    if len(np.unique(X, axis=0)) >= 4 and ex < checks.MIN_FIELD_EXTENT * L and \
-            ey < checks.MIN_FIELD_EXTENT * W:
-        raise DataError(f"{name}: the points span {ex:.3g} x {ey:.3g} mm of the {L:g} x {W:g} mm "
-                        f"specimen at {spec.frame.scale:g} mm per {spec.unit}: is the scale "
-                        "([units] mm_per_pixel, or the coordinates' unit) right?")
+    if (
+        len(np.unique(X, axis=0)) >= 4
+        and ex < checks.MIN_FIELD_EXTENT * L
+        and ey < checks.MIN_FIELD_EXTENT * W
+    ):
+        raise DataError(
+            f"{name}: the points span {ex:.3g} x {ey:.3g} mm of the {L:g} x {W:g} mm "
+            f"specimen at {spec.frame.scale:g} mm per {spec.unit}: is the scale "
+            "([units] mm_per_pixel, or the coordinates' unit) right?"
+        )
 
 
 def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
@@ -238,34 +288,50 @@ def import_dic(spec: ImportSpec) -> tuple[Experiment, dict]:
     state.total = len(spec.images) + len(spec.reference_images)
     refs = None
     if spec.reference_images:
-        refs = _collect(spec, files, spec.reference_images, d, True, report["reference"],
-                        state)
+        refs = _collect(spec, files, spec.reference_images, d, True, report["reference"], state)
     step, X, u = _collect(spec, files, spec.images, d, refs is None, report["files"], state)
     for e, i in zip(report["files"], steps_n):
         e["step"] = int(i)
     level = noise(spec, refs, report["reference"], step, X, u)
-    exp = Experiment(spec.name, spec.setup, steps_n, np.array(spec.path, float),
-                     None if spec.force is None else np.array(spec.force, float),
-                     step, X, u, noise_std=level["noise_std"],
-                     force_noise_std=spec.force_noise_std,
-                     source=spec.source | {"import": "fabricsurf import-dic from "
-                                           f"{spec.layout.source}; see dic_import.json"})
+    exp = Experiment(
+        spec.name,
+        spec.setup,
+        steps_n,
+        np.array(spec.path, float),
+        None if spec.force is None else np.array(spec.force, float),
+        step,
+        X,
+        u,
+        noise_std=level["noise_std"],
+        force_noise_std=spec.force_noise_std,
+        source=spec.source
+        | {"import": f"fabricsurf import-dic from {spec.layout.source}; see dic_import.json"},
+    )
     checks.magnitudes(exp, "mm")
-    report |= {"layout": spec.layout.name, "layout_source": spec.layout.source,
-               "unit": spec.unit, "frame": {"mm_per_unit": spec.frame.scale,
-                                            "y_down": spec.frame.y_down,
-                                            "origin": list(spec.frame.origin),
-                                            "grip": spec.frame.grip,
-                                            "angle_deg": spec.frame.tilt_deg,
-                                            "outside": spec.outside},
-               "binning": {"pitch_mm": spec.pitch, "min_points": spec.min_points},
-               "coordinates": {"read_as": spec.layout.coordinates,
-                               "converted": spec.layout.coordinates == "deformed",
-                               "evidence": state.evidence},
-               "dropped_columns": state.dropped,
-               "encoding": sorted({e["encoding"] for e in report["files"] + report["reference"]}),
-               "noise": level, "rows_written": len(X),
-               "points_read": int(sum(e["rows"] for e in report["files"])),
-               "holes": int(sum(e["holes"] for e in report["files"])),
-               "outside_dropped": int(sum(e["outside_dropped"] for e in report["files"]))}
+    report |= {
+        "layout": spec.layout.name,
+        "layout_source": spec.layout.source,
+        "unit": spec.unit,
+        "frame": {
+            "mm_per_unit": spec.frame.scale,
+            "y_down": spec.frame.y_down,
+            "origin": list(spec.frame.origin),
+            "grip": spec.frame.grip,
+            "angle_deg": spec.frame.tilt_deg,
+            "outside": spec.outside,
+        },
+        "binning": {"pitch_mm": spec.pitch, "min_points": spec.min_points},
+        "coordinates": {
+            "read_as": spec.layout.coordinates,
+            "converted": spec.layout.coordinates == "deformed",
+            "evidence": state.evidence,
+        },
+        "dropped_columns": state.dropped,
+        "encoding": sorted({e["encoding"] for e in report["files"] + report["reference"]}),
+        "noise": level,
+        "rows_written": len(X),
+        "points_read": int(sum(e["rows"] for e in report["files"])),
+        "holes": int(sum(e["holes"] for e in report["files"])),
+        "outside_dropped": int(sum(e["outside_dropped"] for e in report["files"])),
+    }
     return exp, report

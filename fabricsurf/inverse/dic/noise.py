@@ -30,8 +30,14 @@ def roundoff_images(spec: ImportSpec, entries: list[dict]) -> list[int]:
     return [e["image"] for e in entries if e["max_abs_u_mm"] <= ROUNDOFF * size]
 
 
-def noise(spec: ImportSpec, refs: tuple | None, ref_entries: list[dict], step: np.ndarray,
-          X: np.ndarray, u: np.ndarray) -> dict:
+def noise(
+    spec: ImportSpec,
+    refs: tuple | None,
+    ref_entries: list[dict],
+    step: np.ndarray,
+    X: np.ndarray,
+    u: np.ndarray,
+) -> dict:
     """{"noise_std", "method", "estimate"[, "roundoff_reference_images"]} (mm)."""
     if spec.noise_std is not None:
         return {"noise_std": spec.noise_std, "method": "given in [data] noise_std"}
@@ -40,22 +46,28 @@ def noise(spec: ImportSpec, refs: tuple | None, ref_entries: list[dict], step: n
     note = ""
     if flat:
         largest = max(e["max_abs_u_mm"] for e in ref_entries if e["image"] in flat)
-        note = (f"; reference image(s) {flat} hold round-off displacements only (largest |u| "
-                f"{largest:.2g} mm ≤ {ROUNDOFF:g} × the specimen size): zero-displacement "
-                "images without noise information, not used for it")
+        note = (
+            f"; reference image(s) {flat} hold round-off displacements only (largest |u| "
+            f"{largest:.2g} mm ≤ {ROUNDOFF:g} × the specimen size): zero-displacement "
+            "images without noise information, not used for it"
+        )
     useful = [k for k, e in enumerate(ref_entries, start=1) if e["image"] not in flat]
     if refs is not None and useful:
         keep = np.isin(refs[0], useful)
         est = noise_estimate(refs[0][keep], refs[1][keep], refs[2][keep])
-        method = ("estimated: local plane residuals of the reference images' displacements"
-                  + (" (binned as the data)" if spec.pitch else ""))
+        method = "estimated: local plane residuals of the reference images' displacements" + (
+            " (binned as the data)" if spec.pitch else ""
+        )
     else:
         est = noise_estimate(step, X, u)
         method = "estimated: local plane residuals of the written field, all steps"
     out = {"roundoff_reference_images": flat} if flat else {}
     if est["noise_std"] is None or est["noise_std"] < NO_SCATTER * size:
         why = "too few points" if est["noise_std"] is None else "the data show no scatter"
-        return out | {"noise_std": None, "estimate": est,
-                      "method": f"not estimated: {why}; give [data] noise_std (the contract's "
-                                "default applies: 1 % of the largest displacement)" + note}
+        return out | {
+            "noise_std": None,
+            "estimate": est,
+            "method": f"not estimated: {why}; give [data] noise_std (the contract's "
+            "default applies: 1 % of the largest displacement)" + note,
+        }
     return out | {"noise_std": est["noise_std"], "method": method + note, "estimate": est}

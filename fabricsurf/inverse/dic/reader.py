@@ -57,8 +57,9 @@ class ExportFile:
     def line_of(self, row: int) -> int:
         """The file's line number (from 1) of data row ``row`` (scanned once, when asked)."""
         if self._lines is None:
-            self._lines = np.array(list(_data_lines(self.path, self.header_line,
-                                                    self.encoding.codec)))
+            self._lines = np.array(
+                list(_data_lines(self.path, self.header_line, self.encoding.codec))
+            )
         return int(self._lines[row])
 
 
@@ -96,7 +97,7 @@ def _header_text(line: str) -> str:
     vector field 4 545 740`` prefix before its quoted names."""
     text = line.strip().lstrip("#*").strip()
     if text.startswith("DaVis") and '"' in text:
-        text = text[text.index('"'):]
+        text = text[text.index('"') :]
     return text
 
 
@@ -110,18 +111,22 @@ def find_header(path: Path, codec: str = "utf-8-sig") -> tuple[int, list[str], s
                     break
                 if _is_data(line):
                     if previous is None:
-                        raise DataError(f"{path.name} line {number}: data before any header "
-                                        "line (the column names)")
+                        raise DataError(
+                            f"{path.name} line {number}: data before any header "
+                            "line (the column names)"
+                        )
                     text = _header_text(previous[1])
                     d = _delimiter(text)
                     return previous[0], [c.strip() for c in _split(text, d)], d
                 if line.strip():
                     previous = (number, line)
     except UnicodeDecodeError as e:  # detect() read the whole file: not expected here
-        raise DataError(f"{path.name}: not {codec} text ({e.reason} at byte {e.start}); set "
-                        "[export] encoding") from None
-    raise DataError(f"{path.name}: no data line (a line of numbers) in its first "
-                    f"{MAX_PREAMBLE} lines")
+        raise DataError(
+            f"{path.name}: not {codec} text ({e.reason} at byte {e.start}); set [export] encoding"
+        ) from None
+    raise DataError(
+        f"{path.name}: no data line (a line of numbers) in its first {MAX_PREAMBLE} lines"
+    )
 
 
 def _data_lines(path: Path, header_line: int, codec: str):
@@ -133,8 +138,9 @@ def _data_lines(path: Path, header_line: int, codec: str):
                 yield number
 
 
-def _roles(path: Path, cells: list[str], layout: Layout, header_line: int
-           ) -> tuple[dict[str, int], dict[str, str | None], dict[str, str]]:
+def _roles(
+    path: Path, cells: list[str], layout: Layout, header_line: int
+) -> tuple[dict[str, int], dict[str, str | None], dict[str, str]]:
     names = [split_unit(c) for c in cells]
     index, units = {}, {}
     tags = dict(layout.tags)
@@ -147,25 +153,28 @@ def _roles(path: Path, cells: list[str], layout: Layout, header_line: int
             if role in OPTIONAL or role.startswith("flag"):
                 continue
             other = guess_layout({n for n, _ in names})
-            hint = f" (it looks like layout = \"{other}\")" if other else ""
-            raise DataError(f"{path.name} line {header_line}: no column {name!r} (the "
-                            f"{layout.name} layout's {role}); the header has "
-                            f"{', '.join(n for n, _ in names)}{hint}")
+            hint = f' (it looks like layout = "{other}")' if other else ""
+            raise DataError(
+                f"{path.name} line {header_line}: no column {name!r} (the "
+                f"{layout.name} layout's {role}); the header has "
+                f"{', '.join(n for n, _ in names)}{hint}"
+            )
         unit = names[hits[0]][1]
         if role in tags:
             given = tags[role]
             if unit is not None and unit.lower() != given.lower():
-                raise DataError(f"{path.name} line {header_line}: column {name!r} is in "
-                                f"[{unit}] but [columns] {ROLE_KEY.get(role, role)} = "
-                                f"\"{name} [{given}]\" says [{given}]: correct the unit in "
-                                "[columns] or the export")
+                raise DataError(
+                    f"{path.name} line {header_line}: column {name!r} is in "
+                    f"[{unit}] but [columns] {ROLE_KEY.get(role, role)} = "
+                    f'"{name} [{given}]" says [{given}]: correct the unit in '
+                    "[columns] or the export"
+                )
             unit = unit or given
         index[role], units[role] = hits[0], unit
     return index, units, {r: names[i][0] for r, i in index.items()}
 
 
-def read_export(path: Path, image: int, layout: Layout, encoding: str | None = None
-                ) -> ExportFile:
+def read_export(path: Path, image: int, layout: Layout, encoding: str | None = None) -> ExportFile:
     """Read one export file: the layout's columns as float arrays (NaN for holes).
     ``encoding``: the [export] encoding key, or None to detect it."""
     require_file(path)
@@ -178,9 +187,15 @@ def read_export(path: Path, image: int, layout: Layout, encoding: str | None = N
     if fields_agree(raw, enc, header_line, delim, len(cells)):
         del raw
         try:
-            table = np.loadtxt(path, delimiter=delim, skiprows=header_line, comments=COMMENT,
-                               usecols=[index[r] for r in roles], ndmin=2,
-                               encoding=enc.codec)
+            table = np.loadtxt(
+                path,
+                delimiter=delim,
+                skiprows=header_line,
+                comments=COMMENT,
+                usecols=[index[r] for r in roles],
+                ndmin=2,
+                encoding=enc.codec,
+            )
             data = {r: np.ascontiguousarray(table[:, k]) for k, r in enumerate(roles)}
             del table
         except ValueError:
@@ -201,13 +216,17 @@ def _cell_value(cell: str, comma: bool, where: str) -> float:
     try:
         return float(c.replace(",", ".") if comma else c)
     except ValueError:
-        hint = (" (a decimal comma in a comma-separated file: separate the columns with ';')"
-                if not comma and re.fullmatch(r"[-+]?\d+,\d+", c) else "")
+        hint = (
+            " (a decimal comma in a comma-separated file: separate the columns with ';')"
+            if not comma and re.fullmatch(r"[-+]?\d+,\d+", c)
+            else ""
+        )
         raise DataError(f"{where} = {cell.strip()!r} is not a number{hint}") from None
 
 
-def _slow_read(path: Path, header_line: int, delim: str | None, index: dict[str, int],
-               width: int, codec: str) -> dict[str, np.ndarray]:
+def _slow_read(
+    path: Path, header_line: int, delim: str | None, index: dict[str, int], width: int, codec: str
+) -> dict[str, np.ndarray]:
     """Line-by-line reading: empty and NaN cells are holes, other text an error."""
     comma = delim in (";", "\t", None)
     out = {r: array("d") for r in index}
@@ -220,10 +239,13 @@ def _slow_read(path: Path, header_line: int, delim: str | None, index: dict[str,
             while len(cells) > width and not cells[-1].strip():
                 cells.pop()  # a delimiter at the end of the row
             if len(cells) != width:
-                raise DataError(f"{path.name} line {number}: {len(cells)} fields, the header "
-                                f"(line {header_line}) has {width}"
-                                + shifted_pair(cells, delim, len(cells) - width))
+                raise DataError(
+                    f"{path.name} line {number}: {len(cells)} fields, the header "
+                    f"(line {header_line}) has {width}"
+                    + shifted_pair(cells, delim, len(cells) - width)
+                )
             for role, k in index.items():
-                out[role].append(_cell_value(cells[k], comma,
-                                             f"{path.name} line {number}: column {k + 1}"))
+                out[role].append(
+                    _cell_value(cells[k], comma, f"{path.name} line {number}: column {k + 1}")
+                )
     return {r: np.frombuffer(v, dtype=float).copy() for r, v in out.items()}

@@ -37,15 +37,25 @@ def _saved(params_file: str | Path | dict) -> dict:
     return json.loads(Path(params_file).read_text(encoding="utf-8"))
 
 
-OMITS_SIZE = ("the model-form part of a transfer to another specimen size (the params file "
-              "has no size_effects record: docs/uncertainty.md)")
-OMITS_SIZE_MODEL = ("the model-form part of a transfer to another specimen size (the model "
-                    "lacks the record's candidate terms: size_form.extended_model)")
+OMITS_SIZE = (
+    "the model-form part of a transfer to another specimen size (the params file "
+    "has no size_effects record: docs/uncertainty.md)"
+)
+OMITS_SIZE_MODEL = (
+    "the model-form part of a transfer to another specimen size (the model "
+    "lacks the record's candidate terms: size_form.extended_model)"
+)
 OMITS_SIZE_FIELD = "the size part (computed for the force only)"
 
 
-def _half_widths(g: np.ndarray, C: np.ndarray, tau: np.ndarray, shift: np.ndarray,
-                 t: float, size: np.ndarray | float = 0.0) -> tuple[np.ndarray, ...]:
+def _half_widths(
+    g: np.ndarray,
+    C: np.ndarray,
+    tau: np.ndarray,
+    shift: np.ndarray,
+    t: float,
+    size: np.ndarray | float = 0.0,
+) -> tuple[np.ndarray, ...]:
     """(statistical, model-form, mesh, combined) 95 % half-widths of quantities with
     sensitivities ``g`` (..., P) and size part ``size`` (module docstring)."""
     stat = t * np.sqrt(np.maximum(((g @ C) * g).sum(axis=-1), 0.0))
@@ -72,8 +82,10 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
     saved = _saved(params_file)
     cov = (saved.get("uncertainty") or {}).get("covariance")
     if cov is None:
-        raise ValueError("force_band: the params file has no covariance (a fit.json or "
-                         "model_best.json written by fit or diagnose)")
+        raise ValueError(
+            "force_band: the params file has no covariance (a fit.json or "
+            "model_best.json written by fit or diagnose)"
+        )
     vals = fm.values()
     for k, (t, p) in enumerate(fm.params):
         vals[k] = saved["params"].get(t.name, {}).get(p, vals[k])
@@ -89,10 +101,20 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
     shift = np.array([moduli[n].get("mesh_shift_h_to_h2") or 0.0 for n in cov["names"]])
     t = saved["uncertainty"]["statistics"]["t95"]
     included = ["statistical", "model_form", "mesh"] + (["size_form"] if record else [])
-    out = {"load": fm.exp.path.tolist(), "force": None, "lower": None, "upper": None,
-           "half_width": None, "parts": None, "parts_included": included,
-           "omits": omits, "size_effects": record,
-           "nonlinearity": None, "reliable": None, "field_half_width": None}
+    out = {
+        "load": fm.exp.path.tolist(),
+        "force": None,
+        "lower": None,
+        "upper": None,
+        "half_width": None,
+        "parts": None,
+        "parts_included": included,
+        "omits": omits,
+        "size_effects": record,
+        "nonlinearity": None,
+        "reliable": None,
+        "field_half_width": None,
+    }
     if fm.exp.has_field and pred.du is not None:
         out["field_half_width"] = _half_widths(pred.du, C, tau, shift, t)[3]
         if record:
@@ -102,11 +124,18 @@ def force_band(fm: ForwardModel, params_file: str | Path | dict, check: bool = T
     g = pred.dforce
     size = sz.band_half_width(fm, record, pred.force) if record else 0.0
     stat, model, mesh, half = _half_widths(g, C, tau, shift, t, size)
-    out |= {"force": pred.force.tolist(), "lower": (pred.force - half).tolist(),
-            "upper": (pred.force + half).tolist(), "half_width": half.tolist(),
-            "parts": {"statistical": stat.tolist(), "model_form": model.tolist(),
-                      "mesh": mesh.tolist(),
-                      "size_form": np.broadcast_to(size, half.shape).tolist()}}
+    out |= {
+        "force": pred.force.tolist(),
+        "lower": (pred.force - half).tolist(),
+        "upper": (pred.force + half).tolist(),
+        "half_width": half.tolist(),
+        "parts": {
+            "statistical": stat.tolist(),
+            "model_form": model.tolist(),
+            "mesh": mesh.tolist(),
+            "size_form": np.broadcast_to(size, half.shape).tolist(),
+        },
+    }
     if check:
         out["nonlinearity"] = linearity(fm, vals, idx, g, C, t, pred.force, half)
         out["reliable"] = bool(out["nonlinearity"] <= NONLINEAR)
@@ -123,12 +152,21 @@ def write_band(path: str | Path, band: dict, load_label: str = "displacement") -
     """The band as CSV with the columns ``<load_label>,force,lower,upper`` (the load path's
     unit, N); rank 0 writes (call it there)."""
     rows = np.column_stack([band["load"], band["force"], band["lower"], band["upper"]])
-    np.savetxt(path, rows, delimiter=",", fmt="%.6g",
-               header=f"{load_label},force,lower,upper", comments="")
+    np.savetxt(
+        path, rows, delimiter=",", fmt="%.6g", header=f"{load_label},force,lower,upper", comments=""
+    )
 
 
-def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
-              C: np.ndarray, t: float, force: np.ndarray, half: np.ndarray) -> float:
+def linearity(
+    fm: ForwardModel,
+    vals: np.ndarray,
+    idx: list[int],
+    g: np.ndarray,
+    C: np.ndarray,
+    t: float,
+    force: np.ndarray,
+    half: np.ndarray,
+) -> float:
     """max_k |F_k(p + Δp) − F_k(p) − g_k·Δp| / half-width_k, Δp the covariance's leading
     eigenvector at its 95 % extent (kept ≥ 0); the moduli are restored."""
     lam, V = la.eigh(C, "band: the covariance")
@@ -144,14 +182,28 @@ def linearity(fm: ForwardModel, vals: np.ndarray, idx: list[int], g: np.ndarray,
     return float(np.max(np.abs(f2 - force - lin) / np.maximum(half, 1e-300)))
 
 
-def predicted_band(saved: dict, model: list, length: float, width: float, path, h: float,
-                   clamp: str = "gradient", comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+def predicted_band(
+    saved: dict,
+    model: list,
+    length: float,
+    width: float,
+    path,
+    h: float,
+    clamp: str = "gradient",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> dict:
     """The force curve of a ``length`` × ``width`` bias specimen along the grip displacements
     ``path`` at the moduli of a saved fit, with its 95 % band (:func:`force_band`: statistical,
     model-form and mesh parts, the size part when the fit carries its ``size_effects`` record,
     and whether the linearisation holds): a prediction of another specimen size."""
-    exp = template(length, width, path, np.zeros((0, 2)), clamp=clamp,
-                   name=f"prediction {length:g} x {width:g} mm")
+    exp = template(
+        length,
+        width,
+        path,
+        np.zeros((0, 2)),
+        clamp=clamp,
+        name=f"prediction {length:g} x {width:g} mm",
+    )
     record = saved.get("size_effects")
     if record:
         model = sz.extended_model(model, {n.split(".")[0] for n in record["candidates"]})

@@ -72,10 +72,14 @@ class Comparison:
         out = {}
         for name, b in self.bands.items():
             field = b["field_half_width"]
-            out[name] = {"half_width": b["half_width"], "reliable": b["reliable"],
-                         "nonlinearity": b["nonlinearity"],
-                         "field_half_width_max": None if field is None else
-                         float(np.nanmax(np.asarray(field, float)))}
+            out[name] = {
+                "half_width": b["half_width"],
+                "reliable": b["reliable"],
+                "nonlinearity": b["nonlinearity"],
+                "field_half_width_max": None
+                if field is None
+                else float(np.nanmax(np.asarray(field, float))),
+            }
         return out
 
     def as_dict(self) -> dict:
@@ -101,21 +105,28 @@ def _check_params(model: list, params: dict) -> None:
     label = terms_label(model)
     for name, vals in params.items():
         if name not in by_name:
-            raise InputError(f"params: term '{name}' is not in the model ({label}); add it to "
-                             "the terms or remove it")
+            raise InputError(
+                f"params: term '{name}' is not in the model ({label}); add it to "
+                "the terms or remove it"
+            )
         unknown = [p for p in vals if p not in by_name[name].parameters()]
         if unknown:
-            raise InputError(f"params: term '{name}' has no parameter '{unknown[0]}' (it has "
-                             f"{', '.join(by_name[name].parameters())})")
+            raise InputError(
+                f"params: term '{name}' has no parameter '{unknown[0]}' (it has "
+                f"{', '.join(by_name[name].parameters())})"
+            )
     missing = [(t, p) for t in model for p in t.parameters() if p not in params.get(t.name, {})]
     if missing:
         named = ", ".join(f"{t.name}.{p}" for t, p in missing)
-        defaults = ", ".join(f"{t.name}.{p} = {_default(t, p):g} {_unit(t, p)}".rstrip()
-                             for t, p in missing)
+        defaults = ", ".join(
+            f"{t.name}.{p} = {_default(t, p):g} {_unit(t, p)}".rstrip() for t, p in missing
+        )
         them = "them" if len(missing) > 1 else "it"
-        raise InputError(f"params: gives no value for {named} of {label}, so compare would use "
-                         f"the default{'s' * (len(missing) > 1)} ({defaults}), nobody's "
-                         f"estimate; add {them} to params, or drop the term from the terms")
+        raise InputError(
+            f"params: gives no value for {named} of {label}, so compare would use "
+            f"the default{'s' * (len(missing) > 1)} ({defaults}), nobody's "
+            f"estimate; add {them} to params, or drop the term from the terms"
+        )
 
 
 def at_params(model: list, params: dict | None) -> list:
@@ -141,11 +152,13 @@ def _check_moduli(model: list, params: dict | None = None) -> None:
             if not math.isfinite(v) or abs(v) > MAX_MODULUS:
                 unit = _unit(t, p)
                 where = "params" if p in (params or {}).get(t.name, {}) else terms_label(model)
-                raise InputError(f"{where}: {t.name}.{p} = {v:.3g} {unit} is beyond any sheet "
-                                 f"(at most {MAX_MODULUS:.0e} {unit}: a 10 mm steel plate is "
-                                 "~2e6 N/mm, a near-inextensible fibre penalty ~1e9 N/mm; more "
-                                 "leaves the solver no digits for the other moduli); check the "
-                                 "value and its unit (moduli in N/mm and N·mm, lengths in mm)")
+                raise InputError(
+                    f"{where}: {t.name}.{p} = {v:.3g} {unit} is beyond any sheet "
+                    f"(at most {MAX_MODULUS:.0e} {unit}: a 10 mm steel plate is "
+                    "~2e6 N/mm, a near-inextensible fibre penalty ~1e9 N/mm; more "
+                    "leaves the solver no digits for the other moduli); check the "
+                    "value and its unit (moduli in N/mm and N·mm, lengths in mm)"
+                )
 
 
 def _check_h(exps: list[Experiment], h) -> None:
@@ -155,29 +168,37 @@ def _check_h(exps: list[Experiment], h) -> None:
         return
     if isinstance(h, (list, tuple)):
         if len(h) != len(exps):
-            raise InputError(f"h = {list(h)}: one element size per experiment, and there "
-                             f"are {len(exps)} experiments")
+            raise InputError(
+                f"h = {list(h)}: one element size per experiment, and there "
+                f"are {len(exps)} experiments"
+            )
         pairs = [(float(x), [e]) for x, e in zip(h, exps)]
     else:
         pairs = [(float(h), exps)]
     for x, es in pairs:
         limit = 0.5 * min(min(e.length, e.width) for e in es)
         if not (math.isfinite(x) and 0 < x <= limit):
-            raise InputError(f"h = {x:g}: must be a positive element size in mm, at most "
-                             f"{limit:g} (two elements across the narrowest specimen)")
+            raise InputError(
+                f"h = {x:g}: must be a positive element size in mm, at most "
+                f"{limit:g} (two elements across the narrowest specimen)"
+            )
 
 
 def _check_band(model: list, band: dict) -> None:
     """A band needs a saved fit with a covariance, of moduli all in the model."""
     if not has_covariance(band):
-        raise InputError("band: the saved fit has no covariance (a fit.json or "
-                         "model_best.json written by fit or diagnose); without one there is "
-                         "no band")
+        raise InputError(
+            "band: the saved fit has no covariance (a fit.json or "
+            "model_best.json written by fit or diagnose); without one there is "
+            "no band"
+        )
     names = {f"{t.name}.{p}" for t in model for p in t.parameters()}
     missing = sorted(set(band["uncertainty"]["covariance"]["names"]) - names)
     if missing:
-        raise InputError(f"band: the saved fit's moduli {missing} are not in the model "
-                         f"({terms_label(model)}); a band needs the fitted model's terms")
+        raise InputError(
+            f"band: the saved fit's moduli {missing} are not in the model "
+            f"({terms_label(model)}); a band needs the fitted model's terms"
+        )
 
 
 def records(fs) -> dict:
@@ -186,9 +207,13 @@ def records(fs) -> dict:
     return {m.exp.name: getattr(m.test, "discretisation", None) for m in fs.models}
 
 
-def compare_preconditions(exps: list[Experiment], model: list, h=None,
-                          params: dict | None = None, band: dict | None = None
-                          ) -> tuple[str, ...]:
+def compare_preconditions(
+    exps: list[Experiment],
+    model: list,
+    h=None,
+    params: dict | None = None,
+    band: dict | None = None,
+) -> tuple[str, ...]:
     """Every refusal of ``fabricsurf compare`` that concerns the data, the model and the
     moduli, before any solve (module docstring; every error an
     :class:`~fabricsurf.errors.InputError`). Returns the warnings that do not refuse."""
@@ -215,9 +240,14 @@ def compare_preconditions(exps: list[Experiment], model: list, h=None,
     return tuple(w for w in (unloading_warning(e, model) for e in exps) if w)
 
 
-def compare(exps: Experiment | list[Experiment], model: list, h=None,
-            params: dict | None = None, band: dict | str | Path | None = None,
-            comm: MPI.Comm = MPI.COMM_WORLD) -> Comparison:
+def compare(
+    exps: Experiment | list[Experiment],
+    model: list,
+    h=None,
+    params: dict | None = None,
+    band: dict | str | Path | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> Comparison:
     """The misfit of ``model`` against ``exps`` (one set of moduli for all) and its
     predictions, after :func:`compare_preconditions` (module docstring).
 
@@ -240,5 +270,4 @@ def compare(exps: Experiment | list[Experiment], model: list, h=None,
         meshes = fs.meshes()
         disc = records(fs)
         bands = None if band is None else {m.exp.name: force_band(m, band) for m in fs.models}
-    return Comparison("+".join(t.name for t in model), preds, misfit, meshes, disc, bands,
-                      warnings)
+    return Comparison("+".join(t.name for t in model), preds, misfit, meshes, disc, bands, warnings)

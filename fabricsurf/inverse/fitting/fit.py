@@ -40,7 +40,6 @@ from fabricsurf.log import detail, rank0
 logger = logging.getLogger(__name__)
 
 
-
 def _try(fm: Forward, free: list[int], vals: np.ndarray):
     fm.set_values(vals)
     try:
@@ -62,8 +61,9 @@ def _start(fm: Forward, free: list[int], vals: np.ndarray):
         pred = fm.run(sens=free)
     except LoadStepError as e:
         where = f" of experiment '{e.experiment}'" if e.experiment else ""
-        raise e.carrying(f"fit: the initial model ({moduli}) does not follow the load path"
-                         f"{where}: {e}") from None
+        raise e.carrying(
+            f"fit: the initial model ({moduli}) does not follow the load path{where}: {e}"
+        ) from None
     r, Jr = fm.residuals(pred)
     if not np.isfinite(r).all():
         raise LoadStepError(f"fit: the initial model ({moduli}) gives non-finite residuals")
@@ -85,8 +85,9 @@ def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
         terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
         if terms[0][0] < 0:  # the first term positive
             terms = [(-c, n) for c, n in terms]
-        out.append(" ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
-                            for c, n in terms).lstrip("+ "))
+        out.append(
+            " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}" for c, n in terms).lstrip("+ ")
+        )
     return out
 
 
@@ -125,17 +126,30 @@ def _preconditions(fm: Forward, free: list[int]) -> None:
         model = list({id(t): t for t, _ in fm.params}.values())
         active = [t for t in model if t.name in names or any(v > 0 for v in t.values().values())]
         held = [t.name for t in active if t.name not in names]
-        fit_preconditions(exps, active, held or None,  # a held signed modulus is fine
-                          start=[t for t in active if t.name in names])
-    signed = [f"{t.name}.{p}" for t, p in (fm.params[k] for k in free)
-              if p in getattr(t, "signed", ())]
+        fit_preconditions(
+            exps,
+            active,
+            held or None,  # a held signed modulus is fine
+            start=[t for t in active if t.name in names],
+        )
+    signed = [
+        f"{t.name}.{p}" for t, p in (fm.params[k] for k in free) if p in getattr(t, "signed", ())
+    ]
     positive_moduli([], [], signed)
     positive_moduli([fm.names[k] for k in free], fm.values()[free], [])
 
 
-def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
-        tol: float = 1e-6, max_step: float = 1.5, scale_start: bool = True,
-        space: str = "log", *, verbose: bool | None = None) -> FitResult:
+def fit(
+    fm: Forward,
+    free: list[int] | None = None,
+    max_iter: int = 20,
+    tol: float = 1e-6,
+    max_step: float = 1.5,
+    scale_start: bool = True,
+    space: str = "log",
+    *,
+    verbose: bool | None = None,
+) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
     free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
@@ -150,8 +164,15 @@ def fit(fm: Forward, free: list[int] | None = None, max_iter: int = 20,
         return _fit(fm, free, max_iter, tol, max_step, scale_start, space)
 
 
-def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_step: float,
-         scale_start: bool, space: str) -> FitResult:
+def _fit(
+    fm: Forward,
+    free: list[int] | None,
+    max_iter: int,
+    tol: float,
+    max_step: float,
+    scale_start: bool,
+    space: str,
+) -> FitResult:
     if space not in ("log", "linear"):
         raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
@@ -162,10 +183,18 @@ def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_ste
         vals = scan_terms(fm, free, vals)
         held = held_terms(fm, free)
         if held:
-            rank0(logger, fm.comm, f"  fit: {', '.join(held)} held at the given moduli in the "
-                  "scale scan (the experiments hardly see them)")
-        rank0(logger, fm.comm, "  fit: start after the scale scan: " + "  ".join(
-            f"{fm.names[k]} = {vals[k]:.4g}" for k in free))
+            rank0(
+                logger,
+                fm.comm,
+                f"  fit: {', '.join(held)} held at the given moduli in the "
+                "scale scan (the experiments hardly see them)",
+            )
+        rank0(
+            logger,
+            fm.comm,
+            "  fit: start after the scale scan: "
+            + "  ".join(f"{fm.names[k]} = {vals[k]:.4g}" for k in free),
+        )
     try:
         pred, rj, chi2 = _start(fm, free, vals)
     except LoadStepError as e:
@@ -173,8 +202,11 @@ def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_ste
         # hardly see, e.g. a cantilever's membrane, scanned down): start from those given
         if not scale_start or np.array_equal(vals, given):
             raise
-        rank0(logger, fm.comm, f"  fit: the scanned start fails ({e}); starting from the "
-              "given moduli instead")
+        rank0(
+            logger,
+            fm.comm,
+            f"  fit: the scanned start fails ({e}); starting from the given moduli instead",
+        )
         vals = given
         pred, rj, chi2 = _start(fm, free, vals)
     r, Jr = rj
@@ -194,8 +226,7 @@ def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_ste
         accepted = False
         while lam < LAMBDA_MAX:
             step = np.zeros(len(free))
-            step[act] = la.finite(np.linalg.solve(JTJ + lam * D, -g[act]),
-                                  "fit: the damped step")
+            step[act] = la.finite(np.linalg.solve(JTJ + lam * D, -g[act]), "fit: the damped step")
             if space == "log":
                 step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
             trial = vals.copy()
@@ -213,8 +244,12 @@ def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_ste
         at_bound = (space == "linear") & (~act | (vals[free] + step <= 0))
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
         hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
-        rank0(logger, fm.comm, f"  fit iteration {it}: chi2 = {chi2:.6g}  "
-              + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free))
+        rank0(
+            logger,
+            fm.comm,
+            f"  fit iteration {it}: chi2 = {chi2:.6g}  "
+            + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free),
+        )
         moving = space == "log" and np.max(dlog) >= max_step * (1 - 1e-9)  # cut: go on
         if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < STALL:
             break
@@ -222,8 +257,18 @@ def _fit(fm: Forward, free: list[int] | None, max_iter: int, tol: float, max_ste
     return _result(fm, free, vals, pred, r, Jr, chi2, it, fm.forward_runs - runs0, hist)
 
 
-def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
-            Jr: np.ndarray, chi2: float, it: int, runs: int, hist: list) -> FitResult:
+def _result(
+    fm: Forward,
+    free: list[int],
+    vals: np.ndarray,
+    pred,
+    r: np.ndarray,
+    Jr: np.ndarray,
+    chi2: float,
+    it: int,
+    runs: int,
+    hist: list,
+) -> FitResult:
     """The FitResult at the optimum: statistical covariance over blocks of residuals and the
     model-form spread between parts of the data (module docstring)."""
     labels = unc.blocks(fm, pred)
@@ -231,12 +276,30 @@ def _result(fm: Forward, free: list[int], vals: np.ndarray, pred, r: np.ndarray,
     std = np.zeros(len(vals))
     std[free] = np.sqrt(np.maximum(np.diag(stat.cov), 0.0))
     tau = systematic.model_form(Jr, r, systematic.parts(fm, pred), labels, fm.noise_known)
-    res = FitResult(list(fm.names), vals, std, chi2, fm.misfit(pred), pred, it, runs, hist,
-                    undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
-                    free=list(free), J=Jr, r=r, statistical=stat, model_form=tau)
+    res = FitResult(
+        list(fm.names),
+        vals,
+        std,
+        chi2,
+        fm.misfit(pred),
+        pred,
+        it,
+        runs,
+        hist,
+        undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
+        free=list(free),
+        J=Jr,
+        r=r,
+        statistical=stat,
+        model_form=tau,
+    )
     lost = res.lost()
     if lost:  # a null direction's zero variance is not a known modulus
         res.std[[k for k, n in enumerate(res.names) if n in lost]] = np.inf
-        rank0(logger, fm.comm, "  fit: not determined by the data (standard deviation "
-              f"undetermined, reported as null): {'; '.join(res.undetermined)}")
+        rank0(
+            logger,
+            fm.comm,
+            "  fit: not determined by the data (standard deviation "
+            f"undetermined, reported as null): {'; '.join(res.undetermined)}",
+        )
     return res

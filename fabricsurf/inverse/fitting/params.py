@@ -21,8 +21,11 @@ round-off and the Newton solve fails steps later (k_l = 1e308 overflows the ener
 
 OTHER_KINDS = (
     ({"combined", "chi2"}, "a misfit report (the misfit.json of compare, fit or diagnose)"),
-    ({"baseline", "verdict"}, "a diagnosis (diagnosis.json; its final model is saved as "
-                              "model_best.json by diagnose --add-best)"),
+    (
+        {"baseline", "verdict"},
+        "a diagnosis (diagnosis.json; its final model is saved as "
+        "model_best.json by diagnose --add-best)",
+    ),
     ({"error"}, "a failure report (failure.json)"),
     ({"ubar", "force"}, "the summary of a bias run (summary.json)"),
 )
@@ -59,56 +62,76 @@ def load_params(path: str | Path | None, terms: list[str] | None = None) -> dict
         return {}
     name = str(path)
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8-sig"),
-                          object_pairs_hook=_no_duplicates)
+        data = json.loads(
+            Path(path).read_text(encoding="utf-8-sig"), object_pairs_hook=_no_duplicates
+        )
     except OSError as e:
         raise InputError(f"--params {name}: cannot read ({e.strerror})") from None
     except _DuplicateKeyError as e:
-        raise InputError(f"--params {name}: key '{e}' is given twice in one object (JSON "
-                         "keeps only the last; remove one)") from None
+        raise InputError(
+            f"--params {name}: key '{e}' is given twice in one object (JSON "
+            "keeps only the last; remove one)"
+        ) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise InputError(f"--params {name}: not valid JSON ({e})") from None
     if isinstance(data, dict) and isinstance(data.get("params"), dict):
         data = data["params"]
     kind = _other_kind(data) if isinstance(data, dict) else None
     if kind:
-        raise InputError(f"--params {name}: this is {kind}, not a moduli file; give "
-                         '{"term": {"parameter": value}}, a fit.json or a model_best.json')
+        raise InputError(
+            f"--params {name}: this is {kind}, not a moduli file; give "
+            '{"term": {"parameter": value}}, a fit.json or a model_best.json'
+        )
     if not isinstance(data, dict) or not data:
-        raise InputError(f'--params {name}: expected {{"term": {{"parameter": value}}}}, got '
-                         f"{type(data).__name__}")
+        raise InputError(
+            f'--params {name}: expected {{"term": {{"parameter": value}}}}, got '
+            f"{type(data).__name__}"
+        )
     for term, vals in data.items():
         if term not in EFFECTS:
-            raise InputError(f"--params {name}: unknown term '{term}' (valid: "
-                             f"{', '.join(EFFECTS)})")
+            raise InputError(
+                f"--params {name}: unknown term '{term}' (valid: {', '.join(EFFECTS)})"
+            )
         if terms is not None and term not in terms:
-            raise InputError(f"--params {name}: term '{term}' is not in the model "
-                             f"({','.join(terms)}); add it to --terms or remove it")
+            raise InputError(
+                f"--params {name}: term '{term}' is not in the model "
+                f"({','.join(terms)}); add it to --terms or remove it"
+            )
         if not isinstance(vals, dict):
-            raise InputError(f'--params {name}: "{term}" must map parameters to values, e.g. '
-                             f'{{"{term}": {{"{EFFECTS[term].parameters()[0]}": 1.0}}}}')
+            raise InputError(
+                f'--params {name}: "{term}" must map parameters to values, e.g. '
+                f'{{"{term}": {{"{EFFECTS[term].parameters()[0]}": 1.0}}}}'
+            )
         if not vals:
-            raise InputError(f"--params {name}: term '{term}' gives no parameter (it has "
-                             f"{', '.join(EFFECTS[term].parameters())}); give its moduli, or "
-                             "leave it out and name it in --terms to start from the defaults")
+            raise InputError(
+                f"--params {name}: term '{term}' gives no parameter (it has "
+                f"{', '.join(EFFECTS[term].parameters())}); give its moduli, or "
+                "leave it out and name it in --terms to start from the defaults"
+            )
         for p, v in vals.items():
             if p not in EFFECTS[term].parameters():
-                raise InputError(f"--params {name}: term '{term}' has no parameter '{p}' (it "
-                                 f"has {', '.join(EFFECTS[term].parameters())})")
+                raise InputError(
+                    f"--params {name}: term '{term}' has no parameter '{p}' (it "
+                    f"has {', '.join(EFFECTS[term].parameters())})"
+                )
             ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
             signed = p in EFFECTS[term].signed
             if not ok or (v < 0 and not signed):
-                raise InputError(f"--params {name}: {term}.{p} = {v!r} must be a finite "
-                                 f"number{'' if signed else ' ≥ 0'} "
-                                 f"({EFFECTS[term].units.get(p, '')})")
+                raise InputError(
+                    f"--params {name}: {term}.{p} = {v!r} must be a finite "
+                    f"number{'' if signed else ' ≥ 0'} "
+                    f"({EFFECTS[term].units.get(p, '')})"
+                )
             if abs(v) > MAX_MODULUS:
                 unit = EFFECTS[term].units.get(p, "")
-                raise InputError(f"--params {name}: {term}.{p} = {v:.3g} {unit} is beyond any "
-                                 f"sheet (at most {MAX_MODULUS:.0e} {unit}: a 10 mm steel plate "
-                                 "is ~2e6 N/mm, a near-inextensible fibre penalty ~1e9 N/mm; "
-                                 "more leaves the solver no digits for the other moduli); "
-                                 "check the value and its unit (moduli in N/mm and N·mm, "
-                                 "lengths in mm)")
+                raise InputError(
+                    f"--params {name}: {term}.{p} = {v:.3g} {unit} is beyond any "
+                    f"sheet (at most {MAX_MODULUS:.0e} {unit}: a 10 mm steel plate "
+                    "is ~2e6 N/mm, a near-inextensible fibre penalty ~1e9 N/mm; "
+                    "more leaves the solver no digits for the other moduli); "
+                    "check the value and its unit (moduli in N/mm and N·mm, "
+                    "lengths in mm)"
+                )
     return data
 
 
@@ -137,7 +160,16 @@ def provenance(model: list[Term], inputs: list[str], h: list[float] | None = Non
 
     from fabricsurf import __version__
 
-    return {"terms": [t.name for t in model], "params": {t.name: t.values() for t in model},
-            "h_mm": h, "inputs": inputs, "ranks": MPI.COMM_WORLD.size,
-            "versions": {"fabricsurf": __version__, "dolfinx": dolfinx.__version__,
-                         "petsc4py": petsc4py.__version__, "python": platform.python_version()}}
+    return {
+        "terms": [t.name for t in model],
+        "params": {t.name: t.values() for t in model},
+        "h_mm": h,
+        "inputs": inputs,
+        "ranks": MPI.COMM_WORLD.size,
+        "versions": {
+            "fabricsurf": __version__,
+            "dolfinx": dolfinx.__version__,
+            "petsc4py": petsc4py.__version__,
+            "python": platform.python_version(),
+        },
+    }

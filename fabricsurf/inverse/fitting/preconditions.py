@@ -23,40 +23,62 @@ NOT_IN_LOOP: dict[str, str] = {}
 """Tests that have a plug-in but are not yet compared with measurements, and why (none now:
 the hemisphere's punch force and shear angles are in the loop, docs/forming.md)."""
 
+
 def terms_label(model: list) -> str:
     """How the library names a model's terms in a message."""
     return f"terms {[t.name for t in model]}"
 
 
-def positive_moduli(names: list[str], values, signed: list[str], params: str = "params",
-                    command: str = "fit", terms: str = "terms") -> None:
+def positive_moduli(
+    names: list[str],
+    values,
+    signed: list[str],
+    params: str = "params",
+    command: str = "fit",
+    terms: str = "terms",
+) -> None:
     """fit and diagnose step in log-moduli (positive): a modulus that may be negative
     (``signed``, a term's ``signed``) cannot be fitted there yet (compare and bias take it),
     and a starting modulus ``values`` ≤ 0 cannot move. ``params``: where the moduli came
     from; ``terms``: the terms as the caller names them."""
     if signed:
-        raise InputError(f"{terms}: {', '.join(signed)} "
-                         f"may be negative (signed), and {command} fits moduli in log scale, "
-                         "positive only; signed moduli can be compared (compare, bias) but not "
-                         "yet fitted (docs/usage.md, 'Adding your own effect')")
+        raise InputError(
+            f"{terms}: {', '.join(signed)} "
+            f"may be negative (signed), and {command} fits moduli in log scale, "
+            "positive only; signed moduli can be compared (compare, bias) but not "
+            "yet fitted (docs/usage.md, 'Adding your own effect')"
+        )
     for n, v in zip(names, values):
         if v <= 0:
-            raise InputError(f"{params}: {n} = {v:g}: fit and "
-                             "diagnose start from these moduli in log scale; give a "
-                             "positive starting value")
+            raise InputError(
+                f"{params}: {n} = {v:g}: fit and "
+                "diagnose start from these moduli in log scale; give a "
+                "positive starting value"
+            )
 
 
-def positive_start(model: list, params: str = "params", command: str = "fit",
-                   terms: str | None = None) -> None:
+def positive_start(
+    model: list, params: str = "params", command: str = "fit", terms: str | None = None
+) -> None:
     """:func:`positive_moduli` of every modulus of ``model``."""
     pairs = [(t, p, v) for t in model for p, v in t.values().items()]
-    positive_moduli([f"{t.name}.{p}" for t, p, _ in pairs], [v for *_, v in pairs],
-                    [f"{t.name}.{p}" for t in model for p in getattr(t, "signed", ())],
-                    params, command, terms or terms_label(model))
+    positive_moduli(
+        [f"{t.name}.{p}" for t, p, _ in pairs],
+        [v for *_, v in pairs],
+        [f"{t.name}.{p}" for t in model for p in getattr(t, "signed", ())],
+        params,
+        command,
+        terms or terms_label(model),
+    )
 
 
-def enough_data(exps: list, model: list, fixed: list[str] | None = None,
-                terms: str | None = None, remedy: str | None = None) -> None:
+def enough_data(
+    exps: list,
+    model: list,
+    fixed: list[str] | None = None,
+    terms: str | None = None,
+    remedy: str | None = None,
+) -> None:
     """Refuse a fit of more moduli than there are data (under-determined: its ± would be
     meaningless). Data: every force value, every field row times the components the test
     compares, and every measured shear angle. The moduli fitted: those of the terms of
@@ -71,19 +93,28 @@ def enough_data(exps: list, model: list, fixed: list[str] | None = None,
         ns = len(e.shear) if e.has_shear else 0
         n += nf + nu + ns
         rows = len(e.X)
-        counts.append(f"'{e.name}': " + ", ".join(
-            ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
-            + ([f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
-               if e.has_field else [])
-            + ([f"{ns} shear angle{'s' * (ns != 1)}"] if e.has_shear else [])))
+        counts.append(
+            f"'{e.name}': "
+            + ", ".join(
+                ([f"{nf} force value{'s' * (nf != 1)}"] if e.has_force else [])
+                + (
+                    [f"{rows} field row{'s' * (rows != 1)} x {comps} components"]
+                    if e.has_field
+                    else []
+                )
+                + ([f"{ns} shear angle{'s' * (ns != 1)}"] if e.has_shear else [])
+            )
+        )
     if n < len(free):
         if remedy is None:
             remedy = " (fewer terms, or fixed)" if fixed is not None else " (fewer terms)"
-        raise InputError(f"{terms or terms_label(model)}: {len(free)} moduli to fit "
-                         f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
-                         f"({'; '.join(counts)}): fewer data than moduli, the fit is "
-                         "under-determined; give more data (load steps, field points) or fit "
-                         "fewer moduli" + remedy)
+        raise InputError(
+            f"{terms or terms_label(model)}: {len(free)} moduli to fit "
+            f"({', '.join(free)}) from {n} measured value{'s' * (n != 1)} "
+            f"({'; '.join(counts)}): fewer data than moduli, the fit is "
+            "under-determined; give more data (load steps, field points) or fit "
+            "fewer moduli" + remedy
+        )
 
 
 def _origin(e) -> str:
@@ -97,20 +128,22 @@ def check_in_loop(exps: list, data: list | None = None) -> None:
     for e, d in zip(exps, data if data is not None else [_origin(e) for e in exps]):
         why = NOT_IN_LOOP.get(e.test)
         if why:
-            raise InputError(f"{d}/experiment.toml: [loading] test = \"{e.test}\": {why}")
+            raise InputError(f'{d}/experiment.toml: [loading] test = "{e.test}": {why}')
         plugin = get_test(e.test)
         why = plugin.field_not_compared if e.has_field else None
         if why:
-            raise InputError(f"{d}/experiment.toml: [data] field with [loading] test = "
-                             f"\"{e.test}\": {why}")
+            raise InputError(
+                f'{d}/experiment.toml: [data] field with [loading] test = "{e.test}": {why}'
+            )
         try:
             plugin.check_data(e.setup, e.steps, e.path, d)
         except DataError as err:
             raise InputError(str(err)) from None
 
 
-def check_terms_fit_data(exps: list, model: list, spec: str | None = None,
-                         option: str = "--terms") -> None:
+def check_terms_fit_data(
+    exps: list, model: list, spec: str | None = None, option: str = "--terms"
+) -> None:
     """Terms the data cannot carry, refused by name before any computation: an out-of-plane
     effect (normal bending, twist) on a planar test has no meaning there (it needs a placement
     in 3D), and a cantilever or a formed sheet without a second-gradient term has no bending
@@ -123,17 +156,21 @@ def check_terms_fit_data(exps: list, model: list, spec: str | None = None,
         planar = get_test(e.test).d == 2
         out_of_plane = [t.name for t in model if not t.in_plane]
         if planar and out_of_plane:
-            raise InputError(f"{label}: {', '.join(out_of_plane)} is an out-of-plane "
-                             f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
-                             "it has no out-of-plane placement, so its data cannot identify "
-                             f"it; remove it from {where} (or use out-of-plane data alone, "
-                             "e.g. a cantilever)")
+            raise InputError(
+                f"{label}: {', '.join(out_of_plane)} is an out-of-plane "
+                f"effect, and experiment '{e.name}' (test '{e.test}') is planar: "
+                "it has no out-of-plane placement, so its data cannot identify "
+                f"it; remove it from {where} (or use out-of-plane data alone, "
+                "e.g. a cantilever)"
+            )
         bends = get_test(e.test).bends
         if bends and not any(t.order == 2 for t in model):
-            raise InputError(f"{label}: experiment '{e.name}' is a {bends}, "
-                             "and no term has a second gradient, so the sheet would have no "
-                             "bending stiffness at all (its tangent is singular); add "
-                             "normal_bending (and twist)")
+            raise InputError(
+                f"{label}: experiment '{e.name}' is a {bends}, "
+                "and no term has a second gradient, so the sheet would have no "
+                "bending stiffness at all (its tangent is singular); add "
+                "normal_bending (and twist)"
+            )
 
 
 def planar_candidates(exps: list, cands: list[str] | None, option: str = "candidates") -> None:
@@ -145,16 +182,26 @@ def planar_candidates(exps: list, cands: list[str] | None, option: str = "candid
     pool = cands if cands is not None else visible_effects(exps)
     out_of_plane = [c for c in pool if c in in_plane_invisible()]
     if planar and len(planar) < len(exps) and out_of_plane:  # all planar: they cannot see it
-        given = f"{option} " + ",".join(cands) if cands is not None else (
-            f"no {option} given: the default candidates include")
-        raise InputError(f"{given}: {', '.join(out_of_plane)} cannot be tried on planar "
-                         f"experiment '{planar[0]}' (out-of-plane effects need a placement in "
-                         "3D); diagnose planar and out-of-plane data apart, or give "
-                         f"{option} without them")
+        given = (
+            f"{option} " + ",".join(cands)
+            if cands is not None
+            else (f"no {option} given: the default candidates include")
+        )
+        raise InputError(
+            f"{given}: {', '.join(out_of_plane)} cannot be tried on planar "
+            f"experiment '{planar[0]}' (out-of-plane effects need a placement in "
+            "3D); diagnose planar and out-of-plane data apart, or give "
+            f"{option} without them"
+        )
 
 
-def fit_preconditions(exps: list, model: list, fixed: list[str] | None = None,
-                      command: str = "fit", start: list | None = None) -> None:
+def fit_preconditions(
+    exps: list,
+    model: list,
+    fixed: list[str] | None = None,
+    command: str = "fit",
+    start: list | None = None,
+) -> None:
     """Every check above, in the command line's order, for a fit of ``model`` (its terms not
     in ``fixed``) to ``exps``, as the library names its arguments (the command line calls
     each with its options' names); ``start``: the terms whose starting moduli are checked
@@ -170,13 +217,14 @@ def visible_effects(exps: list[Experiment]) -> list[str]:
     field, or the force and shear angles of a test solved in 3D: a formed part). The
     vocabulary is the registry :data:`EFFECTS`: a user's registered effect is seen (and is a
     candidate by default) like a built-in, unless it has signed moduli."""
-    three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3)
-                  for e in exps)
+    three_d = any(get_test(e.test).d == 3 and (not e.has_field or e.u.shape[1] == 3) for e in exps)
     return [n for n in EFFECTS if three_d or EFFECTS[n].in_plane]
 
 
-SIGNED_REASON = ("a modulus that may be negative (signed): not a candidate, the diagnosis "
-                 "scores and fits moduli ≥ 0")
+SIGNED_REASON = (
+    "a modulus that may be negative (signed): not a candidate, the diagnosis "
+    "scores and fits moduli ≥ 0"
+)
 """Why an effect with a signed modulus is not among the candidates."""
 
 
@@ -186,7 +234,9 @@ def check_unsigned(names: list[str]) -> None:
     default candidates (and reported as not tried, :data:`SIGNED_REASON`)."""
     bad = [n for n in names if n in EFFECTS and EFFECTS[n].signed]
     if bad:
-        raise ValueError(f"diagnose: {', '.join(bad)} has moduli that may be negative "
-                         f"({', '.join(f'{n}.{p}' for n in bad for p in EFFECTS[n].signed)}); "
-                         "the diagnosis works with moduli ≥ 0, so signed effects can be "
-                         "compared but not diagnosed yet")
+        raise ValueError(
+            f"diagnose: {', '.join(bad)} has moduli that may be negative "
+            f"({', '.join(f'{n}.{p}' for n in bad for p in EFFECTS[n].signed)}); "
+            "the diagnosis works with moduli ≥ 0, so signed effects can be "
+            "compared but not diagnosed yet"
+        )

@@ -12,9 +12,11 @@ from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet, Prediction
 from fabricsurf.inverse.uncertainty import intervals, systematic
 from fabricsurf.inverse.uncertainty import statistical as unc
 
-OMITS_INTERVALS = ("the size part: moduli fitted on one specimen carry its share of effects "
-                   "with a length, wrong for another size (size_form.size_record; "
-                   "docs/uncertainty.md)")
+OMITS_INTERVALS = (
+    "the size part: moduli fitted on one specimen carry its share of effects "
+    "with a length, wrong for another size (size_form.size_record; "
+    "docs/uncertainty.md)"
+)
 """What the intervals of a fit on one specimen size leave out (:mod:`size_form`)."""
 
 
@@ -78,41 +80,73 @@ class FitResult:
             return {"moduli": {}, "identifiable_combinations": [], "weak_directions": []}
         free = self.free
         lost = self.lost()
-        size = None if self.size_effects is None else np.array(
-            [self.size_effects["moduli_half_width"].get(self.names[k], 0.0) for k in free])
+        size = (
+            None
+            if self.size_effects is None
+            else np.array(
+                [self.size_effects["moduli_half_width"].get(self.names[k], 0.0) for k in free]
+            )
+        )
         null = None if self.J is None else intervals.null_directions(self.J * self.values[free])
-        out = intervals.summarise([self.names[k] for k in free], self.values[free],
-                                  self.statistical.cov, self.statistical.t95(),
-                                  self.model_form, self.mesh_shift, lost, size, null)
+        out = intervals.summarise(
+            [self.names[k] for k in free],
+            self.values[free],
+            self.statistical.cov,
+            self.statistical.t95(),
+            self.model_form,
+            self.mesh_shift,
+            lost,
+            size,
+            null,
+        )
         for k, n in enumerate(self.names):
             if k not in free and self.values[k] > 0:  # held at a given modulus
                 out["moduli"][n] = {"value": float(self.values[k]), "fixed": True}
-        cov = {"names": [self.names[k] for k in free],
-               "statistical": self.statistical.cov.tolist()}
-        parts = ["statistical"] + [k for k, v in (("model_form", self.model_form),
-                                                  ("mesh", self.mesh_shift),
-                                                  ("size_form", self.size_effects))
-                                   if v is not None]
-        return out | {"statistics": self.statistical.as_dict(len(self.r)),
-                      "chi2_h_vs_h2": self.chi2_h, "covariance": cov,
-                      "interval_parts": parts,
-                      "interval_omits": [] if self.size_effects else [OMITS_INTERVALS]}
+        cov = {"names": [self.names[k] for k in free], "statistical": self.statistical.cov.tolist()}
+        parts = ["statistical"] + [
+            k
+            for k, v in (
+                ("model_form", self.model_form),
+                ("mesh", self.mesh_shift),
+                ("size_form", self.size_effects),
+            )
+            if v is not None
+        ]
+        return out | {
+            "statistics": self.statistical.as_dict(len(self.r)),
+            "chi2_h_vs_h2": self.chi2_h,
+            "covariance": cov,
+            "interval_parts": parts,
+            "interval_omits": [] if self.size_effects else [OMITS_INTERVALS],
+        }
 
     def as_dict(self) -> dict:
         m = strip_rows(self.misfit)
         u = self.uncertainty()
-        return {"terms": list(self.params()), "params": self.params(),
-                "std": self.std_dict(),
-                "moduli": u["moduli"],
-                "identifiable_combinations": u["identifiable_combinations"],
-                "weak_directions": u["weak_directions"],
-                "uncertainty": {k: u.get(k) for k in ("statistics", "chi2_h_vs_h2",
-                                                      "covariance", "interval_parts",
-                                                      "interval_omits")},
-                "chi2": self.chi2, "misfit": m, "iterations": self.iterations,
-                "forward_runs": self.forward_runs, "history": self.history,
-                "undetermined": self.undetermined} | (
-                    {"size_effects": self.size_effects} if self.size_effects else {})
+        return {
+            "terms": list(self.params()),
+            "params": self.params(),
+            "std": self.std_dict(),
+            "moduli": u["moduli"],
+            "identifiable_combinations": u["identifiable_combinations"],
+            "weak_directions": u["weak_directions"],
+            "uncertainty": {
+                k: u.get(k)
+                for k in (
+                    "statistics",
+                    "chi2_h_vs_h2",
+                    "covariance",
+                    "interval_parts",
+                    "interval_omits",
+                )
+            },
+            "chi2": self.chi2,
+            "misfit": m,
+            "iterations": self.iterations,
+            "forward_runs": self.forward_runs,
+            "history": self.history,
+            "undetermined": self.undetermined,
+        } | ({"size_effects": self.size_effects} if self.size_effects else {})
 
 
 Forward = ForwardModel | ForwardSet
@@ -124,4 +158,3 @@ def strip_rows(m: dict) -> dict:
     if "experiments" in out:
         out["experiments"] = [strip_rows(e) for e in out["experiments"]]
     return out
-

@@ -44,8 +44,10 @@ force curve sees (shear and stretch gradients are alternatives a caller may add)
 ALTERNATIVES = ("shear_gradient", "stretch_gradient")
 """Candidates in the order to try when the default ones are fitted terms already."""
 
-METHOD = ("profile over the length of each candidate size effect, the lengths the calibrating "
-          "data do not exclude transferred to the other size (docs/uncertainty.md)")
+METHOD = (
+    "profile over the length of each candidate size effect, the lengths the calibrating "
+    "data do not exclude transferred to the other size (docs/uncertainty.md)"
+)
 
 LEVEL = 0.95
 
@@ -71,8 +73,9 @@ def extended_model(model: list, candidates) -> list:
     new = []
     for c in candidates:
         if c not in EFFECTS:
-            raise ValueError(f"size candidates: '{c}' is not in the vocabulary "
-                             f"({', '.join(EFFECTS)})")
+            raise ValueError(
+                f"size candidates: '{c}' is not in the vocabulary ({', '.join(EFFECTS)})"
+            )
         if c not in have:
             t = make_term(c)
             t.set(**{p: 0.0 for p in t.parameters()})
@@ -96,21 +99,27 @@ def threshold(chi2_min: float, n: int, p: int) -> float:
     return float(stats.f.ppf(LEVEL, 1, nu) * chi2_min / nu)
 
 
-def _refit_at(fm, fit_fn, candidate: str, fitted: list[str], ell: float, k_ref: float,
-              start: np.ndarray) -> tuple[dict, np.ndarray, int]:
+def _refit_at(
+    fm, fit_fn, candidate: str, fitted: list[str], ell: float, k_ref: float, start: np.ndarray
+) -> tuple[dict, np.ndarray, int]:
     """The fitted moduli refitted from ``start`` with the candidate held at k_ref ℓ²: its
     profile row, the refitted values and the number of residuals (raises LoadStepError)."""
     vals = start.copy()
     vals[fm.names.index(candidate)] = k_ref * ell**2
     fm.set_values(vals)
     res = fit_fn(fm, [fm.names.index(n) for n in fitted])
-    row = {"length": ell, "value": float(k_ref * ell**2), "chi2": float(res.chi2),
-           "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted}}
+    row = {
+        "length": ell,
+        "value": float(k_ref * ell**2),
+        "chi2": float(res.chi2),
+        "moduli": {m: float(res.values[fm.names.index(m)]) for m in fitted},
+    }
     return row, res.values.copy(), len(res.r)
 
 
-def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float,
-            grid: list[float]) -> tuple[list[dict], int]:
+def profile(
+    fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float, grid: list[float]
+) -> tuple[list[dict], int]:
     """χ² and refitted moduli at each length of ``grid`` for the candidate modulus
     ``candidate`` of ``fm`` (held at k_ref ℓ²), and the number of residuals;
     ``fit_fn(fm, free)`` returns a FitResult. Stops at a length whose run fails or whose χ²
@@ -130,16 +139,27 @@ def profile(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_re
     return rows, n
 
 
-def refine(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref: float,
-           rows: list[dict], level: float) -> list[dict]:
+def refine(
+    fm,
+    fit_fn,
+    fitted: list[str],
+    chi2_fit: float,
+    candidate: str,
+    k_ref: float,
+    rows: list[dict],
+    level: float,
+) -> list[dict]:
     """``rows`` with up to REFINE more lengths at the end of the interval not excluded, where
     the secant of χ²(ℓ) between the longest length with χ² ≤ ``level`` (or the fit itself,
     ℓ = 0) and the next longer one crosses ``level``, or at their midpoint when the secant
     moves less than a tenth of the way (the grid's factor 2 would otherwise leave up to half the
     interval's last length out of the envelope)."""
     base = fm.values()
-    zero = {"length": 0.0, "chi2": chi2_fit,
-            "moduli": {m: float(base[fm.names.index(m)]) for m in fitted}}
+    zero = {
+        "length": 0.0,
+        "chi2": chi2_fit,
+        "moduli": {m: float(base[fm.names.index(m)]) for m in fitted},
+    }
     try:
         for _ in range(REFINE):
             a = max([zero] + [r for r in rows if r["chi2"] <= level], key=lambda r: r["length"])
@@ -161,27 +181,39 @@ def refine(fm, fit_fn, fitted: list[str], chi2_fit: float, candidate: str, k_ref
     return sorted(rows, key=lambda r: r["length"])
 
 
-def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
-                candidates=SIZE_CANDIDATES, k_ref: float | None = None) -> dict:
+def size_record(
+    fm,
+    fitted: list[str],
+    chi2_fit: float,
+    h: float,
+    width: float,
+    candidates=SIZE_CANDIDATES,
+    k_ref: float | None = None,
+) -> dict:
     """The size part's record for a forward model ``fm`` of the calibrating data whose model
     is :func:`extended_model` at the fitted moduli (as set; ``fitted`` their names, ``chi2_fit``
     their χ²): per candidate its profile and the lengths not excluded (module docstring)."""
 
     vals = fm.values()
     if k_ref is None and "shear.k_s" not in fm.names:
-        raise ValueError("size form: the model has no shear.k_s to scale the candidates' "
-                         "lengths by; give k_ref (N/mm)")
+        raise ValueError(
+            "size form: the model has no shear.k_s to scale the candidates' "
+            "lengths by; give k_ref (N/mm)"
+        )
     k_ref = k_ref or float(vals[fm.names.index("shear.k_s")])
 
     def fit_fn(f, free):
         with detail():  # a profile's many fits: their iterations are detail (DEBUG)
-            return fit(f, free, scale_start=False, space="linear", tol=PROFILE_TOL,
-                       max_iter=PROFILE_ITER)
+            return fit(
+                f, free, scale_start=False, space="linear", tol=PROFILE_TOL, max_iter=PROFILE_ITER
+            )
 
     if not any(t.name in candidates and f"{t.name}.{p}" not in fitted for t, p in fm.params):
-        raise ValueError(f"size form: none of the candidates {list(candidates)} is in the "
-                         "model unfitted (extend it with extended_model; a fitted effect is "
-                         "no candidate)")
+        raise ValueError(
+            f"size form: none of the candidates {list(candidates)} is in the "
+            "model unfitted (extend it with extended_model; a fitted effect is "
+            "no candidate)"
+        )
     cands = {}
     for t, p in fm.params:
         name = f"{t.name}.{p}"
@@ -189,31 +221,55 @@ def size_record(fm, fitted: list[str], chi2_fit: float, h: float, width: float,
             continue
         rows, n = profile(fm, fit_fn, fitted, chi2_fit, name, k_ref, lengths(h, width))
         chi2_min = min([chi2_fit] + [r["chi2"] for r in rows])
-        rows = refine(fm, fit_fn, fitted, chi2_fit, name, k_ref, rows,
-                      chi2_min + threshold(chi2_min, n, len(fitted)))
+        rows = refine(
+            fm,
+            fit_fn,
+            fitted,
+            chi2_fit,
+            name,
+            k_ref,
+            rows,
+            chi2_min + threshold(chi2_min, n, len(fitted)),
+        )
         chi2_min = min([chi2_fit] + [r["chi2"] for r in rows])
         allow = threshold(chi2_min, n, len(fitted))
         for r in rows:
             r["excluded"] = bool(r["chi2"] - chi2_min > allow)
-        cands[name] = {"profile": rows, "residuals": n, "chi2_allowed": chi2_min + allow,
-                       "longest_not_excluded": max([r["length"] for r in rows
-                                                    if not r["excluded"]], default=0.0)}
-    return {"method": METHOD, "fitted": list(fitted), "chi2_fit": chi2_fit, "k_ref": k_ref,
-            "candidates": cands, "moduli_half_width": moduli_half_width(cands, fm, fitted)}
+        cands[name] = {
+            "profile": rows,
+            "residuals": n,
+            "chi2_allowed": chi2_min + allow,
+            "longest_not_excluded": max(
+                [r["length"] for r in rows if not r["excluded"]], default=0.0
+            ),
+        }
+    return {
+        "method": METHOD,
+        "fitted": list(fitted),
+        "chi2_fit": chi2_fit,
+        "k_ref": k_ref,
+        "candidates": cands,
+        "moduli_half_width": moduli_half_width(cands, fm, fitted),
+    }
 
 
 def allowed(record: dict) -> list[tuple[str, dict]]:
     """(candidate, profile row) of every length the data do not exclude."""
-    return [(c, r) for c, v in record["candidates"].items() for r in v["profile"]
-            if not r["excluded"]]
+    return [
+        (c, r) for c, v in record["candidates"].items() for r in v["profile"] if not r["excluded"]
+    ]
 
 
 def moduli_half_width(cands: dict, fm, fitted: list[str]) -> dict:
     """{modulus: max |p_ℓ − p̂|} over the lengths not excluded."""
     vals = fm.values()
     rec = {"candidates": cands}
-    return {m: max([abs(r["moduli"][m] - vals[fm.names.index(m)]) for _, r in allowed(rec)],
-                   default=0.0) for m in fitted}
+    return {
+        m: max(
+            [abs(r["moduli"][m] - vals[fm.names.index(m)]) for _, r in allowed(rec)], default=0.0
+        )
+        for m in fitted
+    }
 
 
 def band_half_width(fm, record: dict, force: np.ndarray) -> np.ndarray:

@@ -52,8 +52,12 @@ def _preds(fm):
 def common_factor(fm, preds) -> float:
     """Best common factor of all moduli for the reactions (1 if not applicable)."""
     exps = fm.experiments
-    if not all(e.has_force and get_test(e.test).path_unit == "length"
-               and get_test(e.test).reaction_scales_with_moduli for e in exps):
+    if not all(
+        e.has_force
+        and get_test(e.test).path_unit == "length"
+        and get_test(e.test).reaction_scales_with_moduli
+        for e in exps
+    ):
         return 1.0
     num = den = 0.0
     for e, p in zip(exps, preds):
@@ -86,8 +90,7 @@ def held_terms(fm, free: list[int]) -> list[str]:
     ``weak_terms``, e.g. a cantilever's membrane): the scan keeps their given moduli."""
     exps = fm.experiments
     names = {fm.params[i][0].name for i in free}
-    return sorted(n for n in names
-                  if exps and all(n in get_test(e.test).weak_terms for e in exps))
+    return sorted(n for n in names if exps and all(n in get_test(e.test).weak_terms for e in exps))
 
 
 def scan_terms(fm, free: list[int], vals: np.ndarray) -> np.ndarray:
@@ -128,8 +131,15 @@ def natural_scale(fm, cur: np.ndarray, free: list[int], idx: list[int]) -> float
     return s
 
 
-def candidate_start(fm, cur: np.ndarray, free: list[int], idx: list[int], estimate: float,
-                    chi2_cur: float, extra: list[np.ndarray] = ()) -> np.ndarray:
+def candidate_start(
+    fm,
+    cur: np.ndarray,
+    free: list[int],
+    idx: list[int],
+    estimate: float,
+    chi2_cur: float,
+    extra: list[np.ndarray] = (),
+) -> np.ndarray:
     """The best start for a candidate's moduli ``idx`` added to the fitted ``cur`` (of χ²
     ``chi2_cur`` on ``fm``'s mesh); ``extra``: further complete starting vectors (e.g. the
     linearised refit). Ranked on the scout mesh; the winner replaces the fitted model itself

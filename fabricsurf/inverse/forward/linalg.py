@@ -35,7 +35,8 @@ def finite(x: np.ndarray, what: str) -> np.ndarray:
         raise NumericalError(
             f"{what}: {bad} of {a.size} entries are NaN or infinite (a linear-algebra routine "
             "failed, e.g. LAPACK could not allocate its workspace under a memory limit, or the "
-            "residuals or sensitivities are not finite)")
+            "residuals or sensitivities are not finite)"
+        )
     return x
 
 
@@ -46,12 +47,14 @@ def r_factor(J: np.ndarray, what: str = "QR of the Jacobian") -> np.ndarray:
     finite(J, what + " (its input)")
     R = np.zeros((0, p))
     for start in range(0, n, CHUNK):
-        R = np.linalg.qr(np.vstack([R, J[start:start + CHUNK]]), mode="r")
+        R = np.linalg.qr(np.vstack([R, J[start : start + CHUNK]]), mode="r")
     finite(R, what)
     nJ, nR = float(np.linalg.norm(J)), float(np.linalg.norm(R))
     if abs(nR - nJ) > NORM_TOL * max(nJ, 1e-300):
-        raise NumericalError(f"{what}: the R factor has norm {nR:.6g}, the Jacobian {nJ:.6g} "
-                             "(LAPACK returned an unwritten or wrong result)")
+        raise NumericalError(
+            f"{what}: the R factor has norm {nR:.6g}, the Jacobian {nJ:.6g} "
+            "(LAPACK returned an unwritten or wrong result)"
+        )
     return R
 
 
@@ -61,13 +64,16 @@ def thin_q(J: np.ndarray, what: str) -> np.ndarray:
     Q = finite(np.linalg.qr(finite(J, what + " (its input)"))[0], what)
     k = Q.shape[1]
     if abs(float(np.sum(Q * Q)) - k) > NORM_TOL * max(k, 1):
-        raise NumericalError(f"{what}: the Q factor is not orthonormal (LAPACK returned an "
-                             "unwritten or wrong result)")
+        raise NumericalError(
+            f"{what}: the Q factor is not orthonormal (LAPACK returned an "
+            "unwritten or wrong result)"
+        )
     return Q
 
 
-def right_singular(J: np.ndarray, what: str = "SVD of the Jacobian"
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def right_singular(
+    J: np.ndarray, what: str = "SVD of the Jacobian"
+) -> tuple[np.ndarray, np.ndarray]:
     """(σ, Vᵀ): J's p singular values (zeros appended when N < p), largest first, and its right
     singular vectors (rows of the p × p Vᵀ), from the SVD of :func:`r_factor`."""
     p = J.shape[1]
@@ -81,7 +87,7 @@ def right_singular(J: np.ndarray, what: str = "SVD of the Jacobian"
 
 def singular_values(J: np.ndarray, what: str = "SVD of the Jacobian") -> np.ndarray:
     """J's min(N, p) singular values, largest first (:func:`right_singular`)."""
-    return right_singular(J, what)[0][:min(J.shape)]
+    return right_singular(J, what)[0][: min(J.shape)]
 
 
 def gram_pinv(J: np.ndarray, what: str = "(JᵀJ)⁺") -> np.ndarray:
@@ -108,6 +114,13 @@ def eigh(A: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
 def block_sums(values: np.ndarray, inverse: np.ndarray, groups: int) -> np.ndarray:
     """Σ over the rows of each group: (groups × p) from ``values`` (N × p) and each row's group
     index ``inverse`` (one pass per column, O(N) memory; ``np.add.at`` is ~30× slower)."""
-    return np.column_stack([np.bincount(inverse, weights=values[:, k], minlength=groups)
-                            for k in range(values.shape[1])]) if values.shape[1] else \
-        np.zeros((groups, 0))
+    return (
+        np.column_stack(
+            [
+                np.bincount(inverse, weights=values[:, k], minlength=groups)
+                for k in range(values.shape[1])
+            ]
+        )
+        if values.shape[1]
+        else np.zeros((groups, 0))
+    )

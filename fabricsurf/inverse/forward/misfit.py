@@ -21,9 +21,11 @@ from fabricsurf.inverse.contract.experiment import Experiment
 
 def noise_known(exp: Experiment) -> bool:
     """Whether the data state the noise of every kind of measurement they contain."""
-    return ((not exp.has_field or exp.noise_std is not None)
-            and (not exp.has_force or exp.force_noise_std is not None)
-            and (not exp.has_shear or exp.shear_noise_deg is not None))
+    return (
+        (not exp.has_field or exp.noise_std is not None)
+        and (not exp.has_force or exp.force_noise_std is not None)
+        and (not exp.has_shear or exp.shear_noise_deg is not None)
+    )
 
 
 def shear_scale(exp: Experiment) -> float:
@@ -45,10 +47,10 @@ def _shear_parts(exp: Experiment, pred) -> tuple[np.ndarray, np.ndarray | None]:
 def scales(exp: Experiment) -> tuple[float, float]:
     """(s_u, s_F): the noise levels, or 1 % of the largest measured value (module docstring;
     the largest value is only sought when it is needed: a pass over 10⁶ rows per call)."""
-    s_u = exp.noise_std or (0.01 * float(np.sqrt(np.max(np.einsum("ij,ij->i", exp.u, exp.u))))
-                            if exp.has_field else 0.0)
-    s_F = exp.force_noise_std or (0.01 * float(np.max(np.abs(exp.force)))
-                                  if exp.has_force else 0.0)
+    s_u = exp.noise_std or (
+        0.01 * float(np.sqrt(np.max(np.einsum("ij,ij->i", exp.u, exp.u)))) if exp.has_field else 0.0
+    )
+    s_F = exp.force_noise_std or (0.01 * float(np.max(np.abs(exp.force))) if exp.has_force else 0.0)
     return max(s_u, 1e-300), max(s_F, 1e-300)
 
 
@@ -94,26 +96,51 @@ def misfit(exp: Experiment, pred) -> dict:
         g2 = float(np.sum(gerr[grows] ** 2))
         fk = float(dF[k]) if dF is not None else 0.0
         n = c * len(rows) + (1 if dF is not None else 0) + len(grows)
-        row = {"step": int(s), "load": float(exp.path[k]),
-               "field_rms": float(np.sqrt(e2 / max(c * len(rows), 1))) if len(rows) else None,
-               "combined": float(np.sqrt(((e2 / s_u**2 if len(rows) else 0.0) + (fk / s_F) ** 2
-                                          + (g2 / s_g**2 if len(grows) else 0.0)) / max(n, 1)))}
+        row = {
+            "step": int(s),
+            "load": float(exp.path[k]),
+            "field_rms": float(np.sqrt(e2 / max(c * len(rows), 1))) if len(rows) else None,
+            "combined": float(
+                np.sqrt(
+                    (
+                        (e2 / s_u**2 if len(rows) else 0.0)
+                        + (fk / s_F) ** 2
+                        + (g2 / s_g**2 if len(grows) else 0.0)
+                    )
+                    / max(n, 1)
+                )
+            ),
+        }
         if exp.has_shear:
             row["shear_rms_deg"] = float(np.sqrt(g2 / len(grows))) if len(grows) else None
         if dF is not None:
-            row |= {"force_model": float(pred.force[k]), "force_meas": float(exp.force[k]),
-                    "force_error": fk}
+            row |= {
+                "force_model": float(pred.force[k]),
+                "force_meas": float(exp.force[k]),
+                "force_error": fk,
+            }
         per_step.append(row)
     field_rms = float(np.sqrt(np.mean(err[inside] ** 2) / c)) if inside.any() else None
     return {
         "field_rms": field_rms,
         "force_rms": float(np.sqrt(np.mean(dF**2))) if dF is not None else None,
-        "combined": float(np.sqrt(np.mean(r**2))), "chi2": float(np.sum(r**2)), "n": int(r.size),
-        "s_u": s_u if exp.has_field else None, "s_F": s_F if exp.has_force else None,
+        "combined": float(np.sqrt(np.mean(r**2))),
+        "chi2": float(np.sum(r**2)),
+        "n": int(r.size),
+        "s_u": s_u if exp.has_field else None,
+        "s_F": s_F if exp.has_force else None,
         "points_outside": int(np.count_nonzero(~inside) + np.count_nonzero(~gin)),
-        "per_step": per_step, "row_error": err} | ({
+        "per_step": per_step,
+        "row_error": err,
+    } | (
+        {
             "shear_rms_deg": float(np.sqrt(np.mean(gerr[gin] ** 2))) if gin.any() else None,
-            "s_shear_deg": s_g, "shear_error": gerr} if exp.has_shear else {})
+            "s_shear_deg": s_g,
+            "shear_error": gerr,
+        }
+        if exp.has_shear
+        else {}
+    )
 
 
 def converged_steps(exp: Experiment, pred) -> list[dict]:
@@ -123,7 +150,8 @@ def converged_steps(exp: Experiment, pred) -> list[dict]:
         sel = exp.step_rows(s)
         fk = None if pred.force is None else float(pred.force[k])
         if (fk is not None and not np.isfinite(fk)) or (
-                len(sel) and not np.isfinite(pred.u[sel]).all()):
+            len(sel) and not np.isfinite(pred.u[sel]).all()
+        ):
             break
         c = pred.u.shape[1]
         row = {"step": int(s), "load": float(exp.path[k])}

@@ -38,8 +38,10 @@ class Observers(Owner):
         if exp.has_shear:
             gamma = test.shear_angle()
             if gamma is None:
-                raise ValueError(f"experiment '{exp.name}': the '{exp.test}' test gives no "
-                                 "shear angle to compare with its shear data")
+                raise ValueError(
+                    f"experiment '{exp.name}': the '{exp.test}' test gives no "
+                    "shear angle to compare with its shear data"
+                )
             S = fem.FunctionSpace(test.problem.msh, ("DG", 2))
             self._w = fem.Function(V)
             pts = S.element.interpolation_points()

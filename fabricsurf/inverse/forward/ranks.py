@@ -83,9 +83,11 @@ def local_cells() -> float:
     except ValueError:
         value = math.nan
     if not value >= 0:
-        raise InputError(f"environment variable {ENVIRONMENT}={text!r}: give a number of cells "
-                         f">= 0 (0: solve every mesh distributed over the ranks; unset: "
-                         f"{LOCAL_CELLS})")
+        raise InputError(
+            f"environment variable {ENVIRONMENT}={text!r}: give a number of cells "
+            f">= 0 (0: solve every mesh distributed over the ranks; unset: "
+            f"{LOCAL_CELLS})"
+        )
     return value
 
 
@@ -174,8 +176,12 @@ def agree(comm: MPI.Comm, local: bool, run: Callable[[], T], *, ignore=("seconds
     if len(set(comm.allgather(mine))) > 1:
         global differed
         differed += 1
-        rank0(logger, comm, "rank-local solves differ between ranks: rank 0's values taken",
-              level=logging.DEBUG)
+        rank0(
+            logger,
+            comm,
+            "rank-local solves differ between ranks: rank 0's values taken",
+            level=logging.DEBUG,
+        )
         out = comm.bcast(out if comm.rank == 0 else None, root=0)
     return out
 
@@ -232,8 +238,12 @@ def spread(fm, items: list, evaluate: Callable[[object], T]) -> list[T]:
     raised on every rank (the first item's that failed)."""
     comm = getattr(fm, "comm", MPI.COMM_SELF)
     models = list(getattr(fm, "models", [fm]))
-    if comm.size == 1 or _alone or len(items) < comm.size or \
-            not all(getattr(m, "local", False) for m in models):
+    if (
+        comm.size == 1
+        or _alone
+        or len(items) < comm.size
+        or not all(getattr(m, "local", False) for m in models)
+    ):
         # one rank, distributed, already spread, or too few items to keep every rank busy
         # (each is then evaluated on every rank, and may share its own inner trials)
         return [evaluate(x) for x in items]

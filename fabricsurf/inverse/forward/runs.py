@@ -55,13 +55,21 @@ class ForwardModel(Owner):
     :meth:`close` closes its plug-in and its coarse scout.
     """
 
-    def __init__(self, exp: Experiment, model: list[Term], h: float | None = None,
-                 comm: MPI.Comm = MPI.COMM_WORLD, local: bool | None = None) -> None:
+    def __init__(
+        self,
+        exp: Experiment,
+        model: list[Term],
+        h: float | None = None,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        local: bool | None = None,
+    ) -> None:
         foreign = [t.name for t in model if t.name not in EFFECTS]
         if foreign:
-            raise ValueError(f"compare/fit: terms {foreign} are not in the vocabulary "
-                             f"({', '.join(EFFECTS)}); the exact sensitivities assume an "
-                             "energy linear in each modulus")
+            raise ValueError(
+                f"compare/fit: terms {foreign} are not in the vocabulary "
+                f"({', '.join(EFFECTS)}); the exact sensitivities assume an "
+                "energy linear in each modulus"
+            )
         plugin = get_test(exp.test)
         self.exp, self.model, self.comm = exp, model, comm
         self.h = float(h or plugin.default_h(exp.setup))
@@ -70,6 +78,7 @@ class ForwardModel(Owner):
         self.solve_comm = ranks.solve_comm(comm, cells, local)
         self.local = self.solve_comm is not comm
         """Whether this model solves its mesh whole on every rank (local.py)."""
+
         def build():  # the plug-in and its observers: every form compiled here
             test = plugin(exp.setup, model, self.h, self.solve_comm)
             try:
@@ -83,16 +92,22 @@ class ForwardModel(Owner):
         self.model = self.test.model  # the plug-in's own terms: set_values sets these
         energy = getattr(self.test.problem, "energy", None)
         if energy is not None and {id(t) for t in self.model} - {id(t) for t, _ in energy.bound}:
-            raise ValueError(f"experiment plug-in '{exp.test}' builds its forms from other terms "
-                             "than its own self.model, so a fit would not reach them; build "
-                             "them from self.model (experiments/base.py)")
+            raise ValueError(
+                f"experiment plug-in '{exp.test}' builds its forms from other terms "
+                "than its own self.model, so a fit would not reach them; build "
+                "them from self.model (experiments/base.py)"
+            )
         self.components = min(exp.u.shape[1], plugin.d)
-        self.ignored = (["uz (the planar test cannot predict it)"]
-                        if exp.u.shape[1] > plugin.d and exp.has_field else [])
+        self.ignored = (
+            ["uz (the planar test cannot predict it)"]
+            if exp.u.shape[1] > plugin.d and exp.has_field
+            else []
+        )
         self.params = [(t, p) for t in self.model for p in t.parameters()]
         self.names = [f"{t.name}.{p}" for t, p in self.params]
-        self.bc_dofs = np.concatenate(
-            [bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(np.int32)
+        self.bc_dofs = np.concatenate([bc.dof_indices()[0] for bc in self.test.problem.bcs]).astype(
+            np.int32
+        )
         self.affine = self.test.problem.extra_energy() is not None
         """A residual part no modulus multiplies (the tools' contact): ∂R/∂p = R(e_k) − R(0)."""
         self.forward_runs = 0
@@ -110,8 +125,9 @@ class ForwardModel(Owner):
         :meth:`set_values` keeps at this model's values) on a mesh ``factor`` times coarser,
         built once: a cheap scout for starting values (same forms, so nothing is compiled)."""
         if self._coarse is None:
-            self._coarse = ForwardModel(self.exp, self.model, self.h * factor, self.comm,
-                                        local=self._local_request)
+            self._coarse = ForwardModel(
+                self.exp, self.model, self.h * factor, self.comm, local=self._local_request
+            )
         return self._coarse
 
     def mesh(self) -> dict:
@@ -119,10 +135,14 @@ class ForwardModel(Owner):
         where the plug-in keeps a discretisation record, the mesh kind and the h it used."""
         msh, V = self.test.problem.msh, self.test.problem.V
         rec = getattr(self.test, "discretisation", None) or {}
-        return {"experiment": self.exp.name, "h": self.h,
-                "cells": int(msh.topology.index_map(msh.topology.dim).size_global),
-                "dofs": int(V.dofmap.index_map.size_global * V.dofmap.index_map_bs),
-                "mesh_kind": rec.get("mesh_kind"), "h_used": rec.get("h_used", self.h)}
+        return {
+            "experiment": self.exp.name,
+            "h": self.h,
+            "cells": int(msh.topology.index_map(msh.topology.dim).size_global),
+            "dofs": int(V.dofmap.index_map.size_global * V.dofmap.index_map_bs),
+            "mesh_kind": rec.get("mesh_kind"),
+            "h_used": rec.get("h_used", self.h),
+        }
 
     # -- parameters ----------------------------------------------------------------------
     def values(self) -> np.ndarray:
@@ -199,8 +219,12 @@ class ForwardModel(Owner):
                 if dF is not None:
                     dF[k, j] = dfj
 
-        stepper = LoadStepper(sol, self.test.set_load, ws.recording(converged, len(exp.path)),
-                              predictor=ws.predictor())
+        stepper = LoadStepper(
+            sol,
+            self.test.set_load,
+            ws.recording(converged, len(exp.path)),
+            predictor=ws.predictor(),
+        )
         try:
             iters = stepper.run(exp.path)
         except LoadStepError as e:
@@ -209,11 +233,11 @@ class ForwardModel(Owner):
                 force[done:] = np.nan
             for s in exp.steps[done:]:
                 u[exp.step_rows(s)] = np.nan
-            raise e.carrying(partial=Prediction(u, force, shear=shear),
-                             experiment=exp.name) from e
+            raise e.carrying(partial=Prediction(u, force, shear=shear), experiment=exp.name) from e
         self.forward_runs += 1
-        return Prediction(u, force, du, dF, int(sum(iters)), time.perf_counter() - t0,
-                          shear, dshear)
+        return Prediction(
+            u, force, du, dF, int(sum(iters)), time.perf_counter() - t0, shear, dshear
+        )
 
     def residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
         return mf.residuals(self.exp, pred)
@@ -226,9 +250,14 @@ class ForwardSet(Owner):
     """Several experiments, one set of moduli: runs, stacked residuals, joint misfit;
     :meth:`close` closes every model and the coarse scouts."""
 
-    def __init__(self, exps: list[Experiment], model: list[Term],
-                 h: float | list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
-                 local: bool | None = None) -> None:
+    def __init__(
+        self,
+        exps: list[Experiment],
+        model: list[Term],
+        h: float | list[float] | None = None,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        local: bool | None = None,
+    ) -> None:
         if not exps:
             raise ValueError("no experiments given")
         hs = list(h) if isinstance(h, (list, tuple)) else [h] * len(exps)
@@ -246,9 +275,13 @@ class ForwardSet(Owner):
     def coarse(self, factor: float = 2.0) -> ForwardSet:
         """Every experiment on a mesh ``factor`` times coarser (:meth:`ForwardModel.coarse`)."""
         if self._coarse is None:
-            self._coarse = ForwardSet(self.experiments, self.model,
-                                      [m.h * factor for m in self.models], self.comm,
-                                      local=self._local_request)
+            self._coarse = ForwardSet(
+                self.experiments,
+                self.model,
+                [m.h * factor for m in self.models],
+                self.comm,
+                local=self._local_request,
+            )
         return self._coarse
 
     @property
@@ -296,5 +329,9 @@ class ForwardSet(Owner):
         """Overall misfit and one entry per experiment (its own misfit dict and name)."""
         per = [{"experiment": m.exp.name} | m.misfit(p) for m, p in zip(self.models, preds)]
         r, _ = self.residuals(preds)
-        return {"combined": float(np.sqrt(np.mean(r**2))), "chi2": float(r @ r), "n": int(r.size),
-                "experiments": per}
+        return {
+            "combined": float(np.sqrt(np.mean(r**2))),
+            "chi2": float(r @ r),
+            "n": int(r.size),
+            "experiments": per,
+        }

@@ -79,8 +79,9 @@ class WarmStart:
         self.starts = {"corrected": 0, "uncorrected": 0, "cold": 0}
 
     # -- recording ----------------------------------------------------------------------
-    def recording(self, converged: Callable[[int, float, int], None], steps: int
-                  ) -> Callable[[int, float, int], None]:
+    def recording(
+        self, converged: Callable[[int, float, int], None], steps: int
+    ) -> Callable[[int, float, int], None]:
         """``converged`` followed by recording the step's state; a run that follows all
         ``steps`` replaces the stored one (a failed run leaves it as it was)."""
         self._run = {"p": self._model().values(), "u": [], "du": {}}

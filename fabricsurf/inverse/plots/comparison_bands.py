@@ -17,8 +17,7 @@ from fabricsurf.inverse.fitting.band import write_band
 from fabricsurf.inverse.plots import figures, outputs
 
 
-def write_band_files(out: Path, exps: list, bands: dict, comm: MPI.Comm = MPI.COMM_WORLD
-                     ) -> None:
+def write_band_files(out: Path, exps: list, bands: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """The files of ``bands`` ({experiment name: band}, :func:`~.band.force_band`) of the
     experiments ``exps`` into ``out`` (module docstring); rank 0 writes, every rank calls."""
     for exp in exps:
@@ -26,9 +25,15 @@ def write_band_files(out: Path, exps: list, bands: dict, comm: MPI.Comm = MPI.CO
         pre = "" if len(exps) == 1 else f"{outputs.slug(exp.name)}_"
         if band["force"] is not None:
             on_rank0(comm, write_band, out / f"{pre}force_band.csv", band, "load")
-            on_rank0(comm, figures.force_band, band, out / f"{pre}force_band.png",
-                     f"{exp.name}: prediction at the saved fit", (exp.path, exp.force),
-                     xlabel=get_test(exp.test).path_label)
+            on_rank0(
+                comm,
+                figures.force_band,
+                band,
+                out / f"{pre}force_band.png",
+                f"{exp.name}: prediction at the saved fit",
+                (exp.path, exp.force),
+                xlabel=get_test(exp.test).path_label,
+            )
         field = band["field_half_width"]
         if field is not None:
             field = np.asarray(field, float)

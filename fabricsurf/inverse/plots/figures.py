@@ -44,8 +44,9 @@ def bins(exp: Experiment, n: int) -> tuple[int, int]:
     return nx, max(2, round(nx / aspect))
 
 
-def binned(exp: Experiment, X: np.ndarray, values: np.ndarray, shape: tuple[int, int]
-           ) -> tuple[np.ndarray, np.ndarray]:
+def binned(
+    exp: Experiment, X: np.ndarray, values: np.ndarray, shape: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
     """(mean of ``values`` per bin, points per bin), each (ny × nx), NaN mean in an empty bin
     or one whose points have no finite value; O(n) (bincount)."""
     nx, ny = shape
@@ -63,23 +64,31 @@ def binned(exp: Experiment, X: np.ndarray, values: np.ndarray, shape: tuple[int,
 def _field(ax, exp: Experiment, rows: np.ndarray, values: np.ndarray, shape, **style):
     """The values at the points ``rows`` on ``ax``: a scatter, or the binned image (module
     docstring); returns the mappable."""
-    ax.set(xlim=(0, exp.length), ylim=(0, exp.width), aspect="equal", xlabel="X (mm)",
-           ylabel="Y (mm)")
+    ax.set(
+        xlim=(0, exp.length), ylim=(0, exp.width), aspect="equal", xlabel="X (mm)", ylabel="Y (mm)"
+    )
     if shape is None:
         return ax.scatter(exp.X[rows, 0], exp.X[rows, 1], c=values, s=18, **style)
     mean, _ = binned(exp, exp.X[rows], values, shape)
-    return ax.imshow(mean, origin="lower", extent=(0, exp.length, 0, exp.width),
-                     interpolation="nearest", **style)
+    return ax.imshow(
+        mean, origin="lower", extent=(0, exp.length, 0, exp.width), interpolation="nearest", **style
+    )
 
 
 def _density(fig, ax, exp: Experiment, rows: np.ndarray, shape, step: int) -> None:
     """Points per bin of one step (the data's density; white where there are none)."""
     _, count = binned(exp, exp.X[rows], np.zeros(len(rows)), shape)
-    im = ax.imshow(np.where(count > 0, count, np.nan), origin="lower", cmap="Greys",
-                   extent=(0, exp.length, 0, exp.width), interpolation="nearest")
+    im = ax.imshow(
+        np.where(count > 0, count, np.nan),
+        origin="lower",
+        cmap="Greys",
+        extent=(0, exp.length, 0, exp.width),
+        interpolation="nearest",
+    )
     ax.set(aspect="equal", xlabel="X (mm)", ylabel="Y (mm)")
-    ax.set_title(f"points per bin, step {step} ({len(rows)} points, "
-                 f"{shape[0]}×{shape[1]} bins)", fontsize=8)
+    ax.set_title(
+        f"points per bin, step {step} ({len(rows)} points, {shape[0]}×{shape[1]} bins)", fontsize=8
+    )
     fig.colorbar(im, ax=ax, label="points per bin", shrink=0.8)
 
 
@@ -89,8 +98,9 @@ def _shape(exp: Experiment, steps: list[int]):
     return None if n <= SCATTER_MAX else bins(exp, n)
 
 
-def error_map(exp: Experiment, preds: list[tuple[str, object]], steps: list[int],
-              path: Path) -> None:
+def error_map(
+    exp: Experiment, preds: list[tuple[str, object]], steps: list[int], path: Path
+) -> None:
     """|u_model − u_meas| (mm) over the specimen: one row per model, one column per step (a
     binned image and the points' density for large fields: module docstring)."""
     plt = _plt()
@@ -98,16 +108,17 @@ def error_map(exp: Experiment, preds: list[tuple[str, object]], steps: list[int]
     vmax = max(float(np.nanmax(e)) for e in errs) or 1.0
     shape = _shape(exp, steps)
     cols = len(steps) + (shape is not None)
-    fig, axes = plt.subplots(len(preds), cols, squeeze=False,
-                             figsize=(4.2 * cols, 2.6 * len(preds) + 0.6))
+    fig, axes = plt.subplots(
+        len(preds), cols, squeeze=False, figsize=(4.2 * cols, 2.6 * len(preds) + 0.6)
+    )
     for i, ((label, _), e) in enumerate(zip(preds, errs)):
         for j, s in enumerate(steps):
             rows = exp.step_rows(s)
-            sc = _field(axes[i, j], exp, rows, e[rows], shape, cmap="viridis", vmin=0.0,
-                        vmax=vmax)
-            axes[i, j].set_title(f"{label}: step {s}" + (" (bin means)" if shape else ""),
-                                 fontsize=8)
-    fig.colorbar(sc, ax=axes[:, :len(steps)], label="|u_model − u_meas| (mm)")
+            sc = _field(axes[i, j], exp, rows, e[rows], shape, cmap="viridis", vmin=0.0, vmax=vmax)
+            axes[i, j].set_title(
+                f"{label}: step {s}" + (" (bin means)" if shape else ""), fontsize=8
+            )
+    fig.colorbar(sc, ax=axes[:, : len(steps)], label="|u_model − u_meas| (mm)")
     if shape is not None:
         _density(fig, axes[0, -1], exp, exp.step_rows(steps[-1]), shape, steps[-1])
         for ax in axes[1:, -1]:
@@ -123,10 +134,10 @@ def field_band(exp: Experiment, half: np.ndarray, path: Path) -> None:
     step = int(exp.steps[-1])
     rows = exp.step_rows(step)
     shape = _shape(exp, [step])
-    fig, axes = plt.subplots(1, 1 + (shape is not None), squeeze=False,
-                             figsize=(5.5 * (1 + (shape is not None)), 3.6))
-    sc = _field(axes[0, 0], exp, rows, np.linalg.norm(half[rows], axis=1), shape,
-                cmap="magma")
+    fig, axes = plt.subplots(
+        1, 1 + (shape is not None), squeeze=False, figsize=(5.5 * (1 + (shape is not None)), 3.6)
+    )
+    sc = _field(axes[0, 0], exp, rows, np.linalg.norm(half[rows], axis=1), shape, cmap="magma")
     axes[0, 0].set_title(f"{exp.name}: 95 % band of u, step {step}", fontsize=9)
     fig.colorbar(sc, ax=axes[0, 0], label="half-width (mm)")
     if shape is not None:
@@ -151,20 +162,29 @@ def force_curves(exp: Experiment, preds: list[tuple[str, object]], path: Path) -
     plt.close(fig)
 
 
-def force_band(band: dict, path: Path, title: str, measured: tuple | None = None,
-               xlabel: str = "grip displacement (mm)") -> None:
+def force_band(
+    band: dict,
+    path: Path,
+    title: str,
+    measured: tuple | None = None,
+    xlabel: str = "grip displacement (mm)",
+) -> None:
     """A predicted force curve with its 95 % band (:func:`~fabricsurf.inverse.fitting.band.
     force_band`), and measured points ``(load, force)`` when given; the title says whether the
     linearisation held."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    ax.fill_between(band["load"], band["lower"], band["upper"], color="C0", alpha=0.3,
-                    label="95 % band")
+    ax.fill_between(
+        band["load"], band["lower"], band["upper"], color="C0", alpha=0.3, label="95 % band"
+    )
     ax.plot(band["load"], band["force"], "C0-", label="prediction")
     if measured is not None:
         ax.plot(*measured, "ko", ms=3, label="measured")
-    note = {True: "linear band checked", False: "band unreliable (nonlinear)",
-            None: "linearity not checked"}[band["reliable"]]
+    note = {
+        True: "linear band checked",
+        False: "band unreliable (nonlinear)",
+        None: "linearity not checked",
+    }[band["reliable"]]
     ax.set(xlabel=xlabel, ylabel="force (N)", title=f"{title}\n{note}")
     ax.legend()
     fig.tight_layout()
@@ -176,24 +196,37 @@ def error_vs_step(exp: Experiment, misfits: list[tuple[str, dict]], path: Path) 
     """Field RMS error (mm), |force error| (N) and shear RMS error (deg) per step, with the
     noise levels."""
     plt = _plt()
-    panels = [k for k, has in (("field", exp.has_field), ("force", exp.has_force),
-                               ("shear", exp.has_shear)) if has]
+    panels = [
+        k
+        for k, has in (("field", exp.has_field), ("force", exp.has_force), ("shear", exp.has_shear))
+        if has
+    ]
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 3.8), squeeze=False)
     for ax, kind in zip(axes[0], panels):
         for label, m in misfits:
             if kind == "force":
                 y = [abs(s["force_error"]) for s in m["per_step"]]
             else:
-                y = [s[f"{kind}_rms" + ("_deg" if kind == "shear" else "")] or np.nan
-                     for s in m["per_step"]]
+                y = [
+                    s[f"{kind}_rms" + ("_deg" if kind == "shear" else "")] or np.nan
+                    for s in m["per_step"]
+                ]
             ax.semilogy(exp.steps, y, "o-", label=label)
-        noise = {"field": exp.noise_std, "force": exp.force_noise_std,
-                 "shear": exp.shear_noise_deg}[kind]
+        noise = {
+            "field": exp.noise_std,
+            "force": exp.force_noise_std,
+            "shear": exp.shear_noise_deg,
+        }[kind]
         if noise:
             ax.axhline(noise, color="k", ls="--", label="noise std")
-        ax.set(xlabel="step", ylabel={"field": "field RMS error (mm)",
-                                      "force": "|force error| (N)",
-                                      "shear": "shear RMS error (deg)"}[kind])
+        ax.set(
+            xlabel="step",
+            ylabel={
+                "field": "field RMS error (mm)",
+                "force": "|force error| (N)",
+                "shear": "shear RMS error (deg)",
+            }[kind],
+        )
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -221,21 +254,23 @@ def default_steps(exp: Experiment) -> list[int]:
     return sorted(set(s))
 
 
-def difference_map(maps: list[tuple[str, Experiment, np.ndarray]], effects: list[str],
-                   path: Path) -> None:
+def difference_map(
+    maps: list[tuple[str, Experiment, np.ndarray]], effects: list[str], path: Path
+) -> None:
     """|u_a − u_b|/s_u of two tied models' predictions at the last step of each experiment of
     ``maps`` (title, experiment, value per field row): where the data cannot separate them and
     where the suggested experiment would (:mod:`~fabricsurf.inverse.diagnosis.discrimination`)."""
     plt = _plt()
-    fig, axes = plt.subplots(1, max(len(maps), 1), squeeze=False,
-                             figsize=(4.8 * max(len(maps), 1), 3.4))
+    fig, axes = plt.subplots(
+        1, max(len(maps), 1), squeeze=False, figsize=(4.8 * max(len(maps), 1), 3.4)
+    )
     for ax, (title, exp, values) in zip(axes[0], maps):
         rows = exp.step_rows(exp.steps[-1])
-        sc = _field(ax, exp, rows, values[rows], _shape(exp, [int(exp.steps[-1])]),
-                    cmap="magma", vmin=0.0)
+        sc = _field(
+            ax, exp, rows, values[rows], _shape(exp, [int(exp.steps[-1])]), cmap="magma", vmin=0.0
+        )
         ax.set_title(f"{title}\nlast step (max {np.nanmax(values[rows]):.3g})", fontsize=8)
-        fig.colorbar(sc, ax=ax, shrink=0.8,
-                     label=f"|u({effects[0]}) − u({effects[1]})| / noise")
+        fig.colorbar(sc, ax=ax, shrink=0.8, label=f"|u({effects[0]}) − u({effects[1]})| / noise")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

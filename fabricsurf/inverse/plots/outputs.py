@@ -47,10 +47,21 @@ def _per_point(path: Path, exp, pred, err) -> None:
     cols = np.column_stack([exp.X[:, :2], exp.u[:, :c], pred.u, err])
     fmt = "%d" + ",%.10g" * cols.shape[1] + "\n"
     with open(path, "w", newline="") as fh:
-        fh.write(",".join(["step", "X_mm", "Y_mm", *(f"{k}_meas_mm" for k in comps),
-                           *(f"{k}_model_mm" for k in comps), "error_mm"]) + "\n")
+        fh.write(
+            ",".join(
+                [
+                    "step",
+                    "X_mm",
+                    "Y_mm",
+                    *(f"{k}_meas_mm" for k in comps),
+                    *(f"{k}_model_mm" for k in comps),
+                    "error_mm",
+                ]
+            )
+            + "\n"
+        )
         for a in range(0, len(cols), CSV_BLOCK):
-            block = np.column_stack([exp.field_step[a:a + CSV_BLOCK], cols[a:a + CSV_BLOCK]])
+            block = np.column_stack([exp.field_step[a : a + CSV_BLOCK], cols[a : a + CSV_BLOCK]])
             fh.write((fmt * len(block)) % tuple(block.ravel()))
 
 
@@ -58,8 +69,9 @@ def _figures(out: Path, exp, preds: list, misfits: list, steps, stem: str) -> No
     pred = preds[-1][1]
     if exp.has_field:
         _per_point(out / f"{stem}per_point.csv", exp, pred, misfits[-1][1]["row_error"])
-        figures.error_map(exp, preds, steps or figures.default_steps(exp),
-                          out / f"{stem}error_map.png")
+        figures.error_map(
+            exp, preds, steps or figures.default_steps(exp), out / f"{stem}error_map.png"
+        )
     if exp.has_force:
         figures.force_curves(exp, preds, out / f"{stem}force.png")
     if exp.has_shear:
@@ -68,10 +80,16 @@ def _figures(out: Path, exp, preds: list, misfits: list, steps, stem: str) -> No
     figures.error_vs_step(exp, misfits, out / f"{stem}error_vs_step.png")
 
 
-def write_comparison(out: Path, exps: list, preds: list[tuple[str, list]],
-                     misfits: list[tuple[str, dict]], steps: list[int] | None = None,
-                     stem: str = "", extra: dict | None = None,
-                     comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+def write_comparison(
+    out: Path,
+    exps: list,
+    preds: list[tuple[str, list]],
+    misfits: list[tuple[str, dict]],
+    steps: list[int] | None = None,
+    stem: str = "",
+    extra: dict | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> None:
     """``preds``/``misfits``: (label, per-experiment list / joint misfit dict) per model; the
     last one is the model reported in ``{stem}misfit.json``. One experiment: files
     ``{stem}error_map.png`` etc.; several: prefixed by each experiment's name."""
@@ -85,10 +103,16 @@ def write_comparison(out: Path, exps: list, preds: list[tuple[str, list]],
 
 
 def _field_band_csv(path: Path, exp, half: np.ndarray) -> None:
-    comps = ["ux", "uy", "uz"][:half.shape[1]]
+    comps = ["ux", "uy", "uz"][: half.shape[1]]
     rows = np.column_stack([exp.field_step, exp.X[:, :2], half])
-    np.savetxt(path, rows, delimiter=",", fmt="%.6g", comments="",
-               header=",".join(["step", "X_mm", "Y_mm", *(f"{c}_half_width_mm" for c in comps)]))
+    np.savetxt(
+        path,
+        rows,
+        delimiter=",",
+        fmt="%.6g",
+        comments="",
+        header=",".join(["step", "X_mm", "Y_mm", *(f"{c}_half_width_mm" for c in comps)]),
+    )
 
 
 def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
@@ -101,8 +125,10 @@ def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> 
     in the model."""
     missing = sorted(set(saved["uncertainty"]["covariance"]["names"]) - set(fs.names))
     if missing:
-        raise ValueError(f"the saved fit's moduli {missing} are not in the model; a band "
-                         "needs the fitted model's terms")
+        raise ValueError(
+            f"the saved fit's moduli {missing} are not in the model; a band "
+            "needs the fitted model's terms"
+        )
     bands = {}
     for m in fs.models:
         band = force_band(m, saved)
@@ -110,16 +136,24 @@ def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> 
         pre = "" if len(fs.models) == 1 else f"{slug(exp.name)}_"
         if band["force"] is not None:
             on_rank0(comm, write_band, out / f"{pre}force_band.csv", band, "load")
-            on_rank0(comm, figures.force_band, band, out / f"{pre}force_band.png",
-                     f"{exp.name}: prediction at the saved fit", (exp.path, exp.force),
-                     xlabel=get_test(exp.test).path_label)
+            on_rank0(
+                comm,
+                figures.force_band,
+                band,
+                out / f"{pre}force_band.png",
+                f"{exp.name}: prediction at the saved fit",
+                (exp.path, exp.force),
+                xlabel=get_test(exp.test).path_label,
+            )
         field = band["field_half_width"]
         if field is not None:
             field = np.asarray(field, float)
             on_rank0(comm, _field_band_csv, out / f"{pre}field_band.csv", exp, field)
             on_rank0(comm, figures.field_band, exp, field, out / f"{pre}field_band.png")
-        bands[exp.name] = {"half_width": band["half_width"], "reliable": band["reliable"],
-                           "nonlinearity": band["nonlinearity"],
-                           "field_half_width_max": None if field is None else
-                           float(np.nanmax(field))}
+        bands[exp.name] = {
+            "half_width": band["half_width"],
+            "reliable": band["reliable"],
+            "nonlinearity": band["nonlinearity"],
+            "field_half_width_max": None if field is None else float(np.nanmax(field)),
+        }
     return bands

@@ -28,15 +28,30 @@ def part_points(blank: float, radius: float, n: int) -> np.ndarray:
     return pts + c
 
 
-def hemisphere_template(blank: float, tooling: dict, strokes, points: np.ndarray,
-                        angles: tuple[float, float] = (45.0, -45.0),
-                        name: str = "hemisphere", shear_steps=None) -> Experiment:
+def hemisphere_template(
+    blank: float,
+    tooling: dict,
+    strokes,
+    points: np.ndarray,
+    angles: tuple[float, float] = (45.0, -45.0),
+    name: str = "hemisphere",
+    shear_steps=None,
+) -> Experiment:
     """A hemisphere experiment with zero measurements: the punch force at every stroke of
     ``strokes`` and the shear angle at ``points`` (n×2, the data's frame) at the steps
     ``shear_steps`` (default: the last). ``tooling``: the [tooling] keys (mm, N)."""
     opts = HemispherePlugin.parse_options({"tooling": dict(tooling)}, 1.0, "tooling")
-    exp = template(blank, blank, strokes, np.zeros((0, 2)), angles, name=name,
-                   test="hemisphere", options=opts, force=True)
+    exp = template(
+        blank,
+        blank,
+        strokes,
+        np.zeros((0, 2)),
+        angles,
+        name=name,
+        test="hemisphere",
+        options=opts,
+        force=True,
+    )
     steps = exp.steps[-1:] if shear_steps is None else np.asarray(shear_steps, dtype=np.int64)
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     exp.shear_step = np.repeat(steps, len(pts))
@@ -45,8 +60,9 @@ def hemisphere_template(blank: float, tooling: dict, strokes, points: np.ndarray
     return exp
 
 
-def forming_data(exp: Experiment, model: list[Term], h: float,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
+def forming_data(
+    exp: Experiment, model: list[Term], h: float, comm: MPI.Comm = MPI.COMM_WORLD
+) -> Experiment:
     """Fill ``exp`` with the punch force and shear angles of ``model`` on a mesh of size h."""
     from fabricsurf.inverse.forward.runs import ForwardModel
 
@@ -59,8 +75,9 @@ def forming_data(exp: Experiment, model: list[Term], h: float,
     return exp
 
 
-def add_forming_noise(exp: Experiment, force_noise_std: float, shear_noise_deg: float,
-                      seed: int) -> Experiment:
+def add_forming_noise(
+    exp: Experiment, force_noise_std: float, shear_noise_deg: float, seed: int
+) -> Experiment:
     """Independent Gaussian noise on every force (N) and shear angle (deg), the same draw on
     every rank; the noise levels are recorded in the data."""
     rng = np.random.default_rng(seed)

@@ -17,20 +17,28 @@ from fabricsurf.inverse.contract.experiment import Experiment, template
 from fabricsurf.model.slip import SLIP_STRAIN
 from fabricsurf.model.terms import Term
 
-__all__ = ["add_noise", "continuum_data", "correlated_field", "grid_points", "lattice_data",
-           "noisy_copy", "rewrite_in_m_kn", "template"]  # template: the experiment to fill in
+__all__ = [
+    "add_noise",
+    "continuum_data",
+    "correlated_field",
+    "grid_points",
+    "lattice_data",
+    "noisy_copy",
+    "rewrite_in_m_kn",
+    "template",
+]  # template: the experiment to fill in
 
 
-def grid_points(length: float, width: float, nx: int, ny: int, margin: float = 0.05
-                ) -> np.ndarray:
+def grid_points(length: float, width: float, nx: int, ny: int, margin: float = 0.05) -> np.ndarray:
     """An nx × ny grid of measurement points inside the specimen (a DIC-like point cloud)."""
     x = np.linspace(margin * length, (1 - margin) * length, nx)
     y = np.linspace(margin * width, (1 - margin) * width, ny)
     return np.array([(a, b) for a in x for b in y])
 
 
-def correlated_field(points: np.ndarray, length: float, rng: np.random.Generator,
-                     components: int) -> np.ndarray:
+def correlated_field(
+    points: np.ndarray, length: float, rng: np.random.Generator, components: int
+) -> np.ndarray:
     """Zero-mean Gaussian random field of unit variance at ``points`` with the squared-
     exponential correlation exp(−|x − x'|²/(2 ℓ²)), ℓ = ``length``: the smoothing of DIC
     subsets. One independent field per component (Cholesky factor of the correlation matrix,
@@ -47,8 +55,13 @@ MAX_CORRELATED_POINTS = 8000
 """The largest point cloud per step that gets a correlated field (a dense Cholesky factor)."""
 
 
-def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: int,
-              correlation_length: float = 0.0) -> Experiment:
+def add_noise(
+    exp: Experiment,
+    noise_std: float,
+    force_noise_std: float,
+    seed: int,
+    correlation_length: float = 0.0,
+) -> Experiment:
     """Gaussian noise on every displacement component and force (same draw on every rank).
     ``correlation_length`` > 0 (mm): the displacement noise is a Gaussian random field of that
     correlation length (:func:`correlated_field`), drawn independently at every step, as DIC
@@ -59,11 +72,14 @@ def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: i
         for s in exp.steps:
             rows = exp.step_rows(s)
             if len(rows) > MAX_CORRELATED_POINTS:
-                raise ValueError(f"add_noise: {len(rows)} points at step {s}: a correlated "
-                                 f"field is drawn for at most {MAX_CORRELATED_POINTS}")
+                raise ValueError(
+                    f"add_noise: {len(rows)} points at step {s}: a correlated "
+                    f"field is drawn for at most {MAX_CORRELATED_POINTS}"
+                )
             if len(rows):
-                noise[rows] = noise_std * correlated_field(exp.X[rows, :2], correlation_length,
-                                                           rng, exp.u.shape[1])
+                noise[rows] = noise_std * correlated_field(
+                    exp.X[rows, :2], correlation_length, rng, exp.u.shape[1]
+                )
         exp.u = exp.u + noise
     else:
         exp.u = exp.u + rng.normal(0.0, noise_std, exp.u.shape)
@@ -75,14 +91,20 @@ def add_noise(exp: Experiment, noise_std: float, force_noise_std: float, seed: i
     return exp
 
 
-def noisy_copy(exp: Experiment, noise_std: float, force_noise_std: float, seed: int,
-               correlation_length: float = 0.0) -> Experiment:
+def noisy_copy(
+    exp: Experiment,
+    noise_std: float,
+    force_noise_std: float,
+    seed: int,
+    correlation_length: float = 0.0,
+) -> Experiment:
     """:func:`add_noise` on a copy: ``exp`` (clean data, drawn on again) stays as it is."""
     return add_noise(replace(exp), noise_std, force_noise_std, seed, correlation_length)
 
 
-def continuum_data(exp: Experiment, model: list[Term], h: float,
-                   comm: MPI.Comm = MPI.COMM_WORLD) -> Experiment:
+def continuum_data(
+    exp: Experiment, model: list[Term], h: float, comm: MPI.Comm = MPI.COMM_WORLD
+) -> Experiment:
     """Fill ``exp`` with the continuum solution of ``model`` on a mesh of size ``h``."""
     from fabricsurf.experiments import get_test
     from fabricsurf.inverse.forward.runs import ForwardModel
@@ -98,9 +120,19 @@ def continuum_data(exp: Experiment, model: list[Term], h: float,
     return exp
 
 
-def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: float,
-                 every: int = 1, k4: float = 0.0, k6: float = 0.0, tau_f: float = 0.0,
-                 T_s: float = 0.0, eps_s: float = SLIP_STRAIN) -> Experiment:
+def lattice_data(
+    exp: Experiment,
+    spacing: float,
+    k_l: float,
+    k_s: float,
+    A_g: float,
+    every: int = 1,
+    k4: float = 0.0,
+    k6: float = 0.0,
+    tau_f: float = 0.0,
+    T_s: float = 0.0,
+    eps_s: float = SLIP_STRAIN,
+) -> Experiment:
     """Replace ``exp`` by the Hencky lattice's response (Barchiesi et al. 2020 clamps: two held
     layers).
 
@@ -117,22 +149,26 @@ def lattice_data(exp: Experiment, spacing: float, k_l: float, k_s: float, A_g: f
 
     angles = tuple(exp.fibre_angles_deg)
     spacing = hencky.spanning_spacing(exp.length, spacing, angles)
-    k = hencky.lattice_from_continuum(k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6,
-                                      tau_f=tau_f, T_s=T_s, eps_s=eps_s)
+    k = hencky.lattice_from_continuum(
+        k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6, tau_f=tau_f, T_s=T_s, eps_s=eps_s
+    )
     lat = hencky.hencky_lattice(exp.length, exp.width, spacing, angles, **k)
     X = lat.net.X
     span = (float(X[:, 0].min()), float(X[:, 0].max()))
     if not np.allclose(span, (0.0, exp.length), atol=1e-6 * exp.length):
-        raise ValueError(f"lattice_data: at fibre angles {angles} deg the lattice spans x = "
-                         f"{span[0]:.4g}..{span[1]:.4g} mm, not the specimen's 0..{exp.length:g}"
-                         " mm (its grip layer would not sit on the specimen's end)")
+        raise ValueError(
+            f"lattice_data: at fibre angles {angles} deg the lattice spans x = "
+            f"{span[0]:.4g}..{span[1]:.4g} mm, not the specimen's 0..{exp.length:g}"
+            " mm (its grip layer would not sit on the specimen's end)"
+        )
     held = np.zeros(len(X), bool)
     held[np.concatenate([lat.clamp, lat.grip])] = True
     nodes = np.flatnonzero(~held)[::every]
     u, force = [], []
     for d in exp.path:
-        res = solve_steps(lat.net, lat.bias_bcs(float(d)), n_steps=4,
-                          reaction_sets={"grip": lat.grip})[-1]
+        res = solve_steps(
+            lat.net, lat.bias_bcs(float(d)), n_steps=4, reaction_sets={"grip": lat.grip}
+        )[-1]
         u.append((res.x - X)[nodes])
         force.append(res.reactions["grip"][0])
     steps = exp.steps
@@ -147,8 +183,11 @@ def rewrite_in_m_kn(directory: str | Path) -> None:
     m and kN: the numbers change, not the data (a user's units, for the loader to convert)."""
     directory = Path(directory)
     toml = directory / "experiment.toml"
-    text = toml.read_text().replace('length = "mm"', 'length = "m"').replace(
-        'force = "N"', 'force = "kN"')
+    text = (
+        toml.read_text()
+        .replace('length = "mm"', 'length = "m"')
+        .replace('force = "N"', 'force = "kN"')
+    )
     lines = []
     for line in text.splitlines():
         key = line.split("=")[0].strip()

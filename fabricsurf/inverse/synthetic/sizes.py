@@ -39,16 +39,18 @@ NOISE = 0.01
 """Force noise: this share of the largest force of each curve (as the woven demo's unit)."""
 
 
-def curve(length: float, width: float, fabric: str, effect: str, steps: int, seed: int
-          ) -> tuple[Experiment, Experiment]:
+def curve(
+    length: float, width: float, fabric: str, effect: str, steps: int, seed: int
+) -> tuple[Experiment, Experiment]:
     """(noisy, clean) force-only lattice curves of a ``length`` × ``width`` specimen."""
     from fabricsurf.inverse.synthetic.generate import add_noise, lattice_data
 
     k_l, k_s, strain = FABRICS[fabric]
     l_b, spacing = HIDDEN[effect]
     path = np.linspace(strain * length / steps, strain * length, steps)
-    exp = template(length, width, path, np.zeros((0, 2)),
-                   name=f"{fabric} {effect} {length:g} x {width:g} mm")
+    exp = template(
+        length, width, path, np.zeros((0, 2)), name=f"{fabric} {effect} {length:g} x {width:g} mm"
+    )
     exp = lattice_data(exp, spacing, k_l=k_l, k_s=k_s, A_g=k_s * l_b**2, every=10**9)
     clean = replace(exp, field_step=np.zeros(0, int), X=np.zeros((0, 2)), u=np.zeros((0, 2)))
     s_F = NOISE * float(np.max(np.abs(clean.force)))
@@ -60,13 +62,21 @@ def base_model(fabric: str, k_s: float | None = None) -> list:
     from fabricsurf.model.terms import parse_terms
 
     k_l, k_s0, _ = FABRICS[fabric]
-    return parse_terms("fibre_stretch,shear", {"fibre_stretch": {"k_l": k_l, "k_m": k_l},
-                                              "shear": {"k_s": k_s0 if k_s is None else k_s}})
+    return parse_terms(
+        "fibre_stretch,shear",
+        {"fibre_stretch": {"k_l": k_l, "k_m": k_l}, "shear": {"k_s": k_s0 if k_s is None else k_s}},
+    )
 
 
-def pair_coverage(calib: Experiment, other: Experiment, fabric: str, h: float,
-                  comm: MPI.Comm = MPI.COMM_WORLD, candidates=None,
-                  other_clean: np.ndarray | None = None) -> dict:
+def pair_coverage(
+    calib: Experiment,
+    other: Experiment,
+    fabric: str,
+    h: float,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    candidates=None,
+    other_clean: np.ndarray | None = None,
+) -> dict:
     """Fit the shear modulus on ``calib`` (mesh h), estimate the size part there, predict
     ``other`` (h scaled with the size: the same mesh in the specimen's units) with its band,
     and count the points of ``other`` inside it, with and without the size part, and those of
@@ -85,23 +95,30 @@ def pair_coverage(calib: Experiment, other: Experiment, fabric: str, h: float,
     fitted = base_model(fabric, float(res.values[free[0]]))
     ext = sz.extended_model(fitted, candidates or sz.SIZE_CANDIDATES)
     with ForwardModel(calib, ext, h=h, comm=comm) as fm:
-        res.size_effects = sz.size_record(fm, ["shear.k_s"], res.chi2, h, calib.width,
-                                          candidates or sz.SIZE_CANDIDATES)
+        res.size_effects = sz.size_record(
+            fm, ["shear.k_s"], res.chi2, h, calib.width, candidates or sz.SIZE_CANDIDATES
+        )
     scale = other.length / calib.length
-    band = predicted_band(res.as_dict(), fitted, other.length, other.width, other.path,
-                          h * scale, comm=comm)
+    band = predicted_band(
+        res.as_dict(), fitted, other.length, other.width, other.path, h * scale, comm=comm
+    )
     F, half = np.array(band["force"]), np.array(band["half_width"])
     p = band["parts"]
     without = np.sqrt(np.square(p["statistical"]) + np.square(p["model_form"])) + p["mesh"]
     err = np.abs(other.force - F)
     fmax = float(np.max(np.abs(other.force)))
-    return {"k_s": float(res.values[free[0]]), "k_s_ci95": res.as_dict()["moduli"][
-                "shear.k_s"]["ci95"], "points": len(F),
-            "coverage": float(np.mean(err <= half)),
-            "coverage_without_size": float(np.mean(err <= without)),
-            "mean_half_width_pct": 100 * float(np.mean(half)) / fmax,
-            "mean_half_width_without_pct": 100 * float(np.mean(without)) / fmax,
-            "max_error_pct": 100 * float(np.max(err)) / fmax,
-            "coverage_clean": None if other_clean is None else float(
-                np.mean(np.abs(np.asarray(other_clean) - F) <= half)),
-            "size_effects": res.size_effects, "reliable": band["reliable"]}
+    return {
+        "k_s": float(res.values[free[0]]),
+        "k_s_ci95": res.as_dict()["moduli"]["shear.k_s"]["ci95"],
+        "points": len(F),
+        "coverage": float(np.mean(err <= half)),
+        "coverage_without_size": float(np.mean(err <= without)),
+        "mean_half_width_pct": 100 * float(np.mean(half)) / fmax,
+        "mean_half_width_without_pct": 100 * float(np.mean(without)) / fmax,
+        "max_error_pct": 100 * float(np.max(err)) / fmax,
+        "coverage_clean": None
+        if other_clean is None
+        else float(np.mean(np.abs(np.asarray(other_clean) - F) <= half)),
+        "size_effects": res.size_effects,
+        "reliable": band["reliable"],
+    }

@@ -59,8 +59,13 @@ def null_directions(Jt: np.ndarray) -> np.ndarray:
     return Vt[sv <= RANK_TOL * top].T
 
 
-def half_width(sd: np.ndarray, t: float, tau: np.ndarray | None, shift: np.ndarray | None,
-               size: np.ndarray | None = None) -> np.ndarray:
+def half_width(
+    sd: np.ndarray,
+    t: float,
+    tau: np.ndarray | None,
+    shift: np.ndarray | None,
+    size: np.ndarray | None = None,
+) -> np.ndarray:
     """The combined 95 % half-width of the module docstring."""
     tau = np.zeros_like(sd) if tau is None else tau
     shift = np.zeros_like(sd) if shift is None else shift
@@ -70,8 +75,7 @@ def half_width(sd: np.ndarray, t: float, tau: np.ndarray | None, shift: np.ndarr
 
 def _text(v: np.ndarray, names: list[str]) -> str:
     terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
-    return " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}"
-                    for c, n in terms).lstrip("+ ")
+    return " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}" for c, n in terms).lstrip("+ ")
 
 
 def _log_cov(values, cov, tau, shift):
@@ -96,15 +100,19 @@ def _determined_basis(null: np.ndarray | None, which: list[int]) -> np.ndarray:
     return U[:, rank:]
 
 
-def combinations(names, values, cov, t, tau, shift, which: list[int],
-                 null: np.ndarray | None = None) -> list[dict]:
+def combinations(
+    names, values, cov, t, tau, shift, which: list[int], null: np.ndarray | None = None
+) -> list[dict]:
     """The determined combinations of the moduli ``which`` (module docstring); ``null``: the
     null directions of all the moduli ``names`` (:func:`null_directions`; None: none known)."""
     if len(which) < 2:
         return []
-    C, t2, s = _log_cov(values[which], cov[np.ix_(which, which)],
-                        None if tau is None else tau[which],
-                        None if shift is None else shift[which])
+    C, t2, s = _log_cov(
+        values[which],
+        cov[np.ix_(which, which)],
+        None if tau is None else tau[which],
+        None if shift is None else shift[which],
+    )
     Q = _determined_basis(null, which)
     if Q.shape[1] == 0:
         return []
@@ -117,18 +125,23 @@ def combinations(names, values, cov, t, tau, shift, which: list[int],
         v = V[:, k]
         w = v / v.sum() if abs(v.sum()) > 0.1 * np.abs(v).sum() else v / np.abs(v).max()
         sd = float(np.sqrt(max(w @ C @ w, 0.0)))
-        half = float(np.sqrt((t * sd) ** 2 + Z95**2 * (np.abs(w) @ np.sqrt(t2)) ** 2)
-                     + MESH_FACTOR * abs(w @ s))
+        half = float(
+            np.sqrt((t * sd) ** 2 + Z95**2 * (np.abs(w) @ np.sqrt(t2)) ** 2)
+            + MESH_FACTOR * abs(w @ s)
+        )
         if half >= 1.0:
             continue
         logv = float(w @ np.log(values[which]))
         sub = [names[i] for i in which]
-        out.append({"combination": " · ".join(f"{n}^{c:.3g}" for c, n in zip(w, sub)
-                                              if abs(c) > 1e-3),
-                    "weights": {n: float(c) for c, n in zip(w, sub)},
-                    "value": float(np.exp(logv)),
-                    "ci95": [float(np.exp(logv - half)), float(np.exp(logv + half))],
-                    "std_log": sd})
+        out.append(
+            {
+                "combination": " · ".join(f"{n}^{c:.3g}" for c, n in zip(w, sub) if abs(c) > 1e-3),
+                "weights": {n: float(c) for c, n in zip(w, sub)},
+                "value": float(np.exp(logv)),
+                "ci95": [float(np.exp(logv - half)), float(np.exp(logv + half))],
+                "std_log": sd,
+            }
+        )
     return out
 
 
@@ -140,14 +153,27 @@ def weak_directions(names, values, cov) -> list[dict]:
     C, _, _ = _log_cov(values[pos], cov[np.ix_(pos, pos)], None, None)
     lam, V = la.eigh(C, "intervals: the log-moduli covariance")
     sub = [names[i] for i in pos]
-    return [{"direction": _text(V[:, k] * np.sign(V[np.argmax(np.abs(V[:, k])), k]), sub),
-             "std_log": float(np.sqrt(max(lam[k], 0.0)))}
-            for k in range(len(pos))[::-1] if Z95 * np.sqrt(max(lam[k], 0.0)) > WEAK]
+    return [
+        {
+            "direction": _text(V[:, k] * np.sign(V[np.argmax(np.abs(V[:, k])), k]), sub),
+            "std_log": float(np.sqrt(max(lam[k], 0.0))),
+        }
+        for k in range(len(pos))[::-1]
+        if Z95 * np.sqrt(max(lam[k], 0.0)) > WEAK
+    ]
 
 
-def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
-              tau: np.ndarray | None, shift: np.ndarray | None, lost: set[str],
-              size: np.ndarray | None = None, null: np.ndarray | None = None) -> dict:
+def summarise(
+    names: list[str],
+    values: np.ndarray,
+    cov: np.ndarray,
+    t: float,
+    tau: np.ndarray | None,
+    shift: np.ndarray | None,
+    lost: set[str],
+    size: np.ndarray | None = None,
+    null: np.ndarray | None = None,
+) -> dict:
     """{"moduli": {name: {value, ci95, std_statistical, systematic_mesh, systematic_model,
     [systematic_size,] identifiable}}, "identifiable_combinations", "weak_directions"} for the
     fitted moduli; ``lost``: the moduli in a null direction of the Fisher matrix; ``size``: the
@@ -158,19 +184,21 @@ def summarise(names: list[str], values: np.ndarray, cov: np.ndarray, t: float,
     moduli, weak = {}, []
     for i, n in enumerate(names):
         ok = bool(n not in lost and np.isfinite(half[i]) and values[i] - half[i] > 0)
-        moduli[n] = {"value": float(values[i]),
-                     "ci95": [float(max(values[i] - half[i], 0.0)), float(values[i] + half[i])],
-                     "std_statistical": None if n in lost else float(sd[i]),
-                     "systematic_mesh": None if shift is None else float(
-                         MESH_FACTOR * abs(shift[i])),
-                     "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),
-                     "systematic_model": None if tau is None else float(tau[i]),
-                     "identifiable": ok}
+        moduli[n] = {
+            "value": float(values[i]),
+            "ci95": [float(max(values[i] - half[i], 0.0)), float(values[i] + half[i])],
+            "std_statistical": None if n in lost else float(sd[i]),
+            "systematic_mesh": None if shift is None else float(MESH_FACTOR * abs(shift[i])),
+            "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),
+            "systematic_model": None if tau is None else float(tau[i]),
+            "identifiable": ok,
+        }
         if size is not None:
             moduli[n]["systematic_size"] = float(size[i])
         if not ok and values[i] > 0:
             weak.append(i)
-    return {"moduli": moduli,
-            "identifiable_combinations": combinations(names, values, cov, t, tau, shift, weak,
-                                                      null),
-            "weak_directions": weak_directions(names, values, cov)}
+    return {
+        "moduli": moduli,
+        "identifiable_combinations": combinations(names, values, cov, t, tau, shift, weak, null),
+        "weak_directions": weak_directions(names, values, cov),
+    }

@@ -87,10 +87,15 @@ class Statistical:
         return float(stats.t.ppf(0.975, max(self.dof, 1)))
 
     def as_dict(self, n: int) -> dict:
-        return {"method": "cluster-robust sandwich over regions x load steps",
-                "blocks": self.n_blocks, "dof": self.dof, "t95": self.t95(),
-                "design_effect": self.design_effect, "n": n,
-                "n_effective": self.n_effective}
+        return {
+            "method": "cluster-robust sandwich over regions x load steps",
+            "blocks": self.n_blocks,
+            "dof": self.dof,
+            "t95": self.t95(),
+            "design_effect": self.design_effect,
+            "n": n,
+            "n_effective": self.n_effective,
+        }
 
 
 def _meat(J: np.ndarray, r: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, int]:
@@ -100,8 +105,9 @@ def _meat(J: np.ndarray, r: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray,
     return la.finite(scores.T @ scores, "uncertainty: the sandwich's block scores"), len(uniq)
 
 
-def sandwich(J: np.ndarray, r: np.ndarray, labels: np.ndarray | None,
-             noise_known: bool = True) -> Statistical:
+def sandwich(
+    J: np.ndarray, r: np.ndarray, labels: np.ndarray | None, noise_known: bool = True
+) -> Statistical:
     """The cluster-robust covariance of the module docstring (``labels``: one block label per
     residual; None: the classical covariance, scaled by χ²/ν when the noise is not known)."""
     n, P = J.shape

@@ -74,7 +74,8 @@ def parts(fm, preds) -> list[np.ndarray]:
     are several, else the load steps."""
     preds = preds if isinstance(preds, list) else [preds]
     if not all(isinstance(p, Prediction) for p in preds) or not all(
-            hasattr(m, "exp") for m in _models(fm)):
+        hasattr(m, "exp") for m in _models(fm)
+    ):
         return []
     idx = residual_steps(fm, preds)
     exp_of = idx // 10**6
@@ -82,8 +83,13 @@ def parts(fm, preds) -> list[np.ndarray]:
     return [key == k for k in np.unique(key)]
 
 
-def model_form(J: np.ndarray, r: np.ndarray, masks: list[np.ndarray],
-               labels: np.ndarray | None, noise_known: bool) -> np.ndarray | None:
+def model_form(
+    J: np.ndarray,
+    r: np.ndarray,
+    masks: list[np.ndarray],
+    labels: np.ndarray | None,
+    noise_known: bool,
+) -> np.ndarray | None:
     """τ per modulus (module docstring); None when fewer than two parts determine them (a
     part that does not determine every modulus alone is left out)."""
     fits = []

@@ -37,8 +37,9 @@ def fishnet_shear_at(net: fishnet.Net, points: np.ndarray) -> np.ndarray:
     return RegularGridInterpolator((k, k), fishnet.node_shear(net))(uv)
 
 
-def drapes_at(R: float, points: np.ndarray, angles_deg: tuple[float, float],
-              a: float | None = None) -> dict[str, np.ndarray]:
+def drapes_at(
+    R: float, points: np.ndarray, angles_deg: tuple[float, float], a: float | None = None
+) -> dict[str, np.ndarray]:
     """Both drapes' γ (deg) at reference points (rows, mm), cell size ``a`` (default R/100), and
     the polar angle (deg) of each point draped by the Goursat net (a point is on the cap of the
     punch below 90°). The nets reach as far along the fibres as the farthest point."""
@@ -49,8 +50,11 @@ def drapes_at(R: float, points: np.ndarray, angles_deg: tuple[float, float],
     net = goursat_drape.hemisphere(R, tuple(angles_deg), a, reach + a)
     x = net.position_at(points)
     polar = np.degrees(np.arccos(np.clip(x[:, 2] / np.linalg.norm(x, axis=1), -1.0, 1.0)))
-    return {"fishnet_deg": np.degrees(fishnet_shear_at(fish, points)),
-            "goursat_deg": np.degrees(net.shear_at(points)), "polar_deg": polar}
+    return {
+        "fishnet_deg": np.degrees(fishnet_shear_at(fish, points)),
+        "goursat_deg": np.degrees(net.shear_at(points)),
+        "polar_deg": polar,
+    }
 
 
 def differences(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
@@ -59,8 +63,9 @@ def differences(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
     return {"max_deg": float(np.abs(d).max()), "rms_deg": float(np.sqrt(np.mean(d * d)))}
 
 
-def cap_grid(R: float, angles_deg: tuple[float, float], spacing: float, polar_max_deg: float
-             ) -> np.ndarray:
+def cap_grid(
+    R: float, angles_deg: tuple[float, float], spacing: float, polar_max_deg: float
+) -> np.ndarray:
     """Reference points of a square grid (``spacing``) over the quarter x, y ≥ 0 whose draped
     position lies at a polar angle below ``polar_max_deg`` (the Goursat net's, cell R/20: the
     region only, not the compared values)."""
@@ -74,18 +79,27 @@ def cap_grid(R: float, angles_deg: tuple[float, float], spacing: float, polar_ma
     return pts[polar < polar_max_deg]
 
 
-def drape_agreement(R: float, a: float, angles_deg: tuple[float, float], points: np.ndarray
-                    ) -> dict[str, float]:
+def drape_agreement(
+    R: float, a: float, angles_deg: tuple[float, float], points: np.ndarray
+) -> dict[str, float]:
     """The two drapes at cell size ``a`` against each other at reference points: max and RMS
     of the difference (deg), and the largest shear (deg) for scale."""
     d = drapes_at(R, points, angles_deg, a)
-    return {**differences(d["fishnet_deg"], d["goursat_deg"]), "points": len(points),
-            "largest_shear_deg": float(np.abs(d["fishnet_deg"]).max())}
+    return {
+        **differences(d["fishnet_deg"], d["goursat_deg"]),
+        "points": len(points),
+        "largest_shear_deg": float(np.abs(d["fishnet_deg"]).max()),
+    }
 
 
-def shear_difference_map(R: float, points: np.ndarray, shear_deg: np.ndarray,
-                         angles_deg: tuple[float, float] = (45.0, -45.0),
-                         on: np.ndarray | None = None, a: float | None = None) -> dict:
+def shear_difference_map(
+    R: float,
+    points: np.ndarray,
+    shear_deg: np.ndarray,
+    angles_deg: tuple[float, float] = (45.0, -45.0),
+    on: np.ndarray | None = None,
+    a: float | None = None,
+) -> dict:
     """A continuum result's shear angles (deg) at reference points (rows, mm) against both
     drapes, over the points marked ``on`` (on the punch; default all): the drapes' values there
     and the max and RMS differences continuum − fishnet, continuum − Goursat and fishnet −
@@ -94,16 +108,21 @@ def shear_difference_map(R: float, points: np.ndarray, shear_deg: np.ndarray,
     shear_deg = np.asarray(shear_deg, float)
     on = np.ones(len(points), bool) if on is None else np.asarray(on, bool)
     if len(shear_deg) != len(points) or len(on) != len(points):
-        raise ValueError(f"drape map: {len(points)} points, {len(shear_deg)} shear angles, "
-                         f"{len(on)} flags")
+        raise ValueError(
+            f"drape map: {len(points)} points, {len(shear_deg)} shear angles, {len(on)} flags"
+        )
     if not on.any():
         raise ValueError("drape map: no point on the punch to compare")
     pts, fe = points[on], shear_deg[on]
     d = drapes_at(R, pts, angles_deg, a)
-    return {"points": pts, "continuum_deg": fe, **d,
-            "continuum_vs_fishnet": differences(fe, d["fishnet_deg"]),
-            "continuum_vs_goursat": differences(fe, d["goursat_deg"]),
-            "fishnet_vs_goursat": differences(d["fishnet_deg"], d["goursat_deg"])}
+    return {
+        "points": pts,
+        "continuum_deg": fe,
+        **d,
+        "continuum_vs_fishnet": differences(fe, d["fishnet_deg"]),
+        "continuum_vs_goursat": differences(fe, d["goursat_deg"]),
+        "fishnet_vs_goursat": differences(d["fishnet_deg"], d["goursat_deg"]),
+    }
 
 
 def summary(result: dict) -> dict:
@@ -116,13 +135,28 @@ def draw_difference_map(path: Path, result: dict, R: float) -> None:
     """Three panels over the compared points (reference blank): the continuum's shear, its
     difference from the fishnet and from the Goursat net (deg). Call on one rank."""
     fe = result["continuum_deg"]
-    draw_panels(path, result["points"], R, fe, "continuum shear (deg)",
-                [(fe - result["fishnet_deg"], "continuum − fishnet (deg)"),
-                 (fe - result["goursat_deg"], "continuum − Goursat net (deg)")])
+    draw_panels(
+        path,
+        result["points"],
+        R,
+        fe,
+        "continuum shear (deg)",
+        [
+            (fe - result["fishnet_deg"], "continuum − fishnet (deg)"),
+            (fe - result["goursat_deg"], "continuum − Goursat net (deg)"),
+        ],
+    )
 
 
-def draw_panels(path: Path, points: np.ndarray, R: float, shear: np.ndarray, label: str,
-                diffs: list[tuple[np.ndarray, str]], title: str = "") -> None:
+def draw_panels(
+    path: Path,
+    points: np.ndarray,
+    R: float,
+    shear: np.ndarray,
+    label: str,
+    diffs: list[tuple[np.ndarray, str]],
+    title: str = "",
+) -> None:
     """A shear map and difference maps side by side over reference ``points``, the punch's
     outline dashed; the differences on one symmetric colour scale. Call on one rank."""
     import matplotlib
@@ -133,7 +167,8 @@ def draw_panels(path: Path, points: np.ndarray, R: float, shear: np.ndarray, lab
     p = points
     lim = max(float(np.abs(v).max()) for v, _ in diffs)
     panels = [(shear, label, {"cmap": "viridis"})] + [
-        (v, t, {"cmap": "coolwarm", "vmin": -lim, "vmax": lim}) for v, t in diffs]
+        (v, t, {"cmap": "coolwarm", "vmin": -lim, "vmax": lim}) for v, t in diffs
+    ]
     fig, axes = plt.subplots(1, len(panels), figsize=(4.4 * len(panels), 4))
     for ax, (v, text, kw) in zip(axes, panels):
         im = ax.tricontourf(p[:, 0], p[:, 1], v, levels=21, **kw)

@@ -92,12 +92,21 @@ def drape(R: float, a: float, n: int, angles_deg: tuple[float, float] = (0.0, 90
     if not 0 < a < 2 * R or n < 1:
         raise ValueError(f"fishnet: need 0 < a < 2R and n ≥ 1 (a = {a}, R = {R}, n = {n})")
     L, M = unit(angles_deg[0]), unit(angles_deg[1])
-    return close_net(R, a, angles_deg, {(0, s): generator(R, a, s * L, n) for s in (1, -1)}
-                     | {(1, s): generator(R, a, s * M, n) for s in (1, -1)})
+    return close_net(
+        R,
+        a,
+        angles_deg,
+        {(0, s): generator(R, a, s * L, n) for s in (1, -1)}
+        | {(1, s): generator(R, a, s * M, n) for s in (1, -1)},
+    )
 
 
-def close_net(R: float, a: float, angles_deg: tuple[float, float],
-              generators: dict[tuple[int, int], np.ndarray]) -> Net:
+def close_net(
+    R: float,
+    a: float,
+    angles_deg: tuple[float, float],
+    generators: dict[tuple[int, int], np.ndarray],
+) -> Net:
     """The net of nodes |i|, |j| ≤ n closed cell by cell from its four generator halves,
     ``generators[(f, s)]`` the n + 1 nodes from the pole along family f (0: L, 1: M) in the
     sense s = ±1, on the sphere of radius R centred at the origin, consecutive chords a (the
@@ -117,9 +126,17 @@ def close_net(R: float, a: float, angles_deg: tuple[float, float],
                     x[r, c] = close_cell(x[r - si, c - sj], x[r - si, c], x[r, c - sj])
     k = np.arange(-n, n + 1)
     ref = a * (k[:, None, None] * L + k[None, :, None] * M)
-    return Net(R, a, n, tuple(angles_deg), x, ref, cell_shear(x, L, M),
-               0.25 * (ref[:-1, :-1] + ref[1:, :-1] + ref[:-1, 1:] + ref[1:, 1:]),
-               0.25 * (x[:-1, :-1] + x[1:, :-1] + x[:-1, 1:] + x[1:, 1:]))
+    return Net(
+        R,
+        a,
+        n,
+        tuple(angles_deg),
+        x,
+        ref,
+        cell_shear(x, L, M),
+        0.25 * (ref[:-1, :-1] + ref[1:, :-1] + ref[:-1, 1:] + ref[1:, 1:]),
+        0.25 * (x[:-1, :-1] + x[1:, :-1] + x[:-1, 1:] + x[1:, 1:]),
+    )
 
 
 def cell_shear(x: np.ndarray, L: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -141,8 +158,9 @@ def node_shear(net: Net) -> np.ndarray:
     return math.acos(float(np.dot(L, M))) - np.arccos(np.clip(cos_t, -1.0, 1.0))
 
 
-def line_profile(net: Net, direction_deg: float, z_min: float = 0.0
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def line_profile(
+    net: Net, direction_deg: float, z_min: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """(arc length from the pole, shear angle in rad) of the cells whose reference centre lies
     on the ray from the pole at ``direction_deg`` in the blank plane, on the punch (z ≥ z_min),
     sorted by arc length."""
@@ -159,12 +177,15 @@ def line_profile(net: Net, direction_deg: float, z_min: float = 0.0
 def edge_lengths(net: Net) -> np.ndarray:
     """Lengths of all net edges (both families)."""
     x = net.x
-    return np.concatenate([np.linalg.norm(x[1:] - x[:-1], axis=-1).ravel(),
-                           np.linalg.norm(x[:, 1:] - x[:, :-1], axis=-1).ravel()])
+    return np.concatenate(
+        [
+            np.linalg.norm(x[1:] - x[:-1], axis=-1).ravel(),
+            np.linalg.norm(x[:, 1:] - x[:, :-1], axis=-1).ravel(),
+        ]
+    )
 
 
-def chebyshev_shear(R: float, u: float, v: float, steps: int, theta0: float = math.pi / 2
-                    ) -> float:
+def chebyshev_shear(R: float, u: float, v: float, steps: int, theta0: float = math.pi / 2) -> float:
     """γ(u, v) of the Chebyshev net with geodesic generators on a sphere of radius R: Hazzidakis'
     equation γ_uv = K sin(θ0 − γ), γ = 0 on u = 0 and v = 0 (module docstring), marched on a
     ``steps`` × ``steps`` grid by the second-order box scheme (the source at the cell centre,
@@ -182,8 +203,9 @@ def chebyshev_shear(R: float, u: float, v: float, steps: int, theta0: float = ma
     return float(g[-1, -1])
 
 
-def bisector_shear(R: float, X: np.ndarray, theta_deg: float = 45.0, a: float | None = None
-                   ) -> np.ndarray:
+def bisector_shear(
+    R: float, X: np.ndarray, theta_deg: float = 45.0, a: float | None = None
+) -> np.ndarray:
     """γ (rad) of the fishnet drape of fibres at ±θ at reference distances ``X`` from the pole
     along their bisector (the blank's x axis, the forming benchmarks' diagonal): the nodal
     shear of the nodes (i, i), at X = 2 a i cos θ, interpolated linearly. The net's side ``a``
@@ -193,8 +215,9 @@ def bisector_shear(R: float, X: np.ndarray, theta_deg: float = 45.0, a: float | 
     step = 2.0 * a * math.cos(math.radians(theta_deg))
     n = math.ceil(X.max() / step) + 2
     if n * a >= 0.5 * math.pi * R * 0.999:
-        raise ValueError(f"fishnet: the bisector to X = {X.max():g} leaves the hemisphere "
-                         f"(R = {R:g})")
+        raise ValueError(
+            f"fishnet: the bisector to X = {X.max():g} leaves the hemisphere (R = {R:g})"
+        )
     net = drape(R, a, n, (theta_deg, -theta_deg))
     g = node_shear(net)
     i = np.arange(n)

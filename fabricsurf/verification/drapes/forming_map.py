@@ -39,8 +39,13 @@ def contact_map(e: HemispherePlugin, n: int = 41) -> dict[str, np.ndarray]:
     dist = np.linalg.norm(r, axis=1)
     gap = np.where(r[:, 2] > 0, dist - e.R, np.inf)
     band = (e.domain == "quarter") & (e.theta == 0.0) & (pts.min(axis=1) < e.h)
-    return {"points": pts, "shear_deg": eval_points(rec, pts)[:, 0], "gap": gap,
-            "on": gap < TOUCH_FRACTION * e.R, "mirror_band": band}
+    return {
+        "points": pts,
+        "shear_deg": eval_points(rec, pts)[:, 0],
+        "gap": gap,
+        "on": gap < TOUCH_FRACTION * e.R,
+        "mirror_band": band,
+    }
 
 
 def _grid(e: HemispherePlugin, n: int) -> np.ndarray:
@@ -61,21 +66,36 @@ def compare_with_drapes(e: HemispherePlugin, n: int = 41, a: float | None = None
     on the punch outside the mirror band, the drapes' fibres at the experiment's angles;
     ``excluded``: the points on the punch in the band."""
     m = contact_map(e, n)
-    out = shear_difference_map(e.R, m["points"], m["shear_deg"], tuple(e.setup.fibre_angles_deg),
-                               m["on"] & ~m["mirror_band"], a)
+    out = shear_difference_map(
+        e.R,
+        m["points"],
+        m["shear_deg"],
+        tuple(e.setup.fibre_angles_deg),
+        m["on"] & ~m["mirror_band"],
+        a,
+    )
     return {**out, "excluded": int((m["on"] & m["mirror_band"]).sum())}
 
 
-def compare_with_generator_drape(e: HemispherePlugin, n: int = 41, a: float | None = None
-                                 ) -> dict:
+def compare_with_generator_drape(e: HemispherePlugin, n: int = 41, a: float | None = None) -> dict:
     """:func:`contact_map` against the drape closed from the continuum's own fibres through
     the pole (generator_drape.compare), cell ``a`` (default R/40), over the points on the punch
     outside the mirror band that the generators' contact covers."""
     if e.domain == "quarter":
-        raise ValueError("generator drape: the quarter's fibres through the pole are mirror "
-                         "lines of the set-up, so geodesics: compare_with_drapes is the check")
+        raise ValueError(
+            "generator drape: the quarter's fibres through the pole are mirror "
+            "lines of the set-up, so geodesics: compare_with_drapes is the check"
+        )
     m = contact_map(e, n)
     a = e.R / 40.0 if a is None else a
-    return generator_drape.compare(m["points"], m["shear_deg"], m["on"] & ~m["mirror_band"],
-                                   e.problem.u, float(e.tools.stroke.value), e.R,
-                                   tuple(e.setup.fibre_angles_deg), a, TOUCH_FRACTION * e.R)
+    return generator_drape.compare(
+        m["points"],
+        m["shear_deg"],
+        m["on"] & ~m["mirror_band"],
+        e.problem.u,
+        float(e.tools.stroke.value),
+        e.R,
+        tuple(e.setup.fibre_angles_deg),
+        a,
+        TOUCH_FRACTION * e.R,
+    )

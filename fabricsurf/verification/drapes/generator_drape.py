@@ -31,8 +31,9 @@ SAMPLES_PER_CHORD = 8
 """Points at which the continuum's fibre line is evaluated per chord of the net."""
 
 
-def fibre_line(u, stroke: float, R: float, direction: np.ndarray, reach: float, a: float
-               ) -> tuple[np.ndarray, np.ndarray]:
+def fibre_line(
+    u, stroke: float, R: float, direction: np.ndarray, reach: float, a: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The deformed material line X = t · direction, 0 ≤ t ≤ reach, relative to the centre of
     the punch's cap (c = (0, 0, s − R)): (t, positions); the part inside the mesh (collective:
     the same on every rank)."""
@@ -59,8 +60,9 @@ def chord_nodes(r: np.ndarray, R: float, a: float, n: int | None = None) -> np.n
         if j == len(p):
             if n is None:
                 break
-            raise ValueError(f"generator drape: the fibre line ends after {len(nodes) - 1} of "
-                             f"{n} chords")
+            raise ValueError(
+                f"generator drape: the fibre line ends after {len(nodes) - 1} of {n} chords"
+            )
         d0, d1 = np.linalg.norm(p[j - 1] - last), np.linalg.norm(p[j] - last)
         w = (a - d0) / (d1 - d0)
         x = (1 - w) * p[j - 1] + w * p[j]
@@ -80,9 +82,15 @@ def on_cap(r: np.ndarray, R: float, touch: float) -> int:
     return int(np.flatnonzero(on)[-1]) + 1 if on.any() else 0
 
 
-def continuum_net(u, stroke: float, R: float, angles_deg: tuple[float, float], a: float,
-                  reach: float, touch: float
-                  ) -> tuple[fishnet.Net, dict[tuple[int, int], float], float]:
+def continuum_net(
+    u,
+    stroke: float,
+    R: float,
+    angles_deg: tuple[float, float],
+    a: float,
+    reach: float,
+    touch: float,
+) -> tuple[fishnet.Net, dict[tuple[int, int], float], float]:
     """The net closed from the continuum's four generator halves (module docstring), as many
     chords each as the shortest holds; the reference length of each half that reaches the cap
     (keys (family, sense) as in fishnet.close_net, :func:`on_cap`); and the largest distance
@@ -99,14 +107,24 @@ def continuum_net(u, stroke: float, R: float, angles_deg: tuple[float, float], a
     gens = {k: chord_nodes(r, R, a) for k, r in lines.items()}
     n = min(len(g) for g in gens.values()) - 1
     if n < 2:
-        raise ValueError(f"generator drape: a fibre line through the pole holds {n} chords of "
-                         f"{a:g} mm")
-    gens = {k: g[:n + 1] for k, g in gens.items()}
+        raise ValueError(
+            f"generator drape: a fibre line through the pole holds {n} chords of {a:g} mm"
+        )
+    gens = {k: g[: n + 1] for k, g in gens.items()}
     return fishnet.close_net(R, a, tuple(angles_deg), gens), on, gap
 
 
-def compare(points: np.ndarray, shear_deg: np.ndarray, on_punch: np.ndarray, u, stroke: float,
-            R: float, angles_deg: tuple[float, float], a: float, touch: float) -> dict:
+def compare(
+    points: np.ndarray,
+    shear_deg: np.ndarray,
+    on_punch: np.ndarray,
+    u,
+    stroke: float,
+    R: float,
+    angles_deg: tuple[float, float],
+    a: float,
+    touch: float,
+) -> dict:
     """The continuum's shear (deg) at reference ``points`` against the drape with its own
     generators, over the points on the punch whose fibre coordinates lie within the generators'
     parts on the cap: the compared points, both shears, max and RMS of the difference (deg),
@@ -115,22 +133,38 @@ def compare(points: np.ndarray, shear_deg: np.ndarray, on_punch: np.ndarray, u, 
     uv = fishnet.fibre_coordinates(points, angles_deg)
     reach = float(np.abs(uv[on_punch]).max()) + 4 * a
     net, on, gap = continuum_net(u, stroke, R, angles_deg, a, reach, touch)
-    covered = ((uv[:, 0] <= on[(0, 1)]) & (uv[:, 0] >= -on[(0, -1)])
-               & (uv[:, 1] <= on[(1, 1)]) & (uv[:, 1] >= -on[(1, -1)])
-               & (np.abs(uv).max(axis=1) < (net.n - 1) * a))
+    covered = (
+        (uv[:, 0] <= on[(0, 1)])
+        & (uv[:, 0] >= -on[(0, -1)])
+        & (uv[:, 1] <= on[(1, 1)])
+        & (uv[:, 1] >= -on[(1, -1)])
+        & (np.abs(uv).max(axis=1) < (net.n - 1) * a)
+    )
     keep = on_punch & covered
     if not keep.any():
         raise ValueError("generator drape: no point on the punch within the generators' contact")
     drape = np.degrees(fishnet_shear_at(net, points[keep]))
-    return {"points": points[keep], "continuum_deg": shear_deg[keep], "drape_deg": drape,
-            "continuum_vs_generator_drape": differences(shear_deg[keep], drape),
-            "left_out": int((on_punch & ~covered).sum()), "generators_on_cap_mm": on,
-            "generators_largest_gap_mm": gap}
+    return {
+        "points": points[keep],
+        "continuum_deg": shear_deg[keep],
+        "drape_deg": drape,
+        "continuum_vs_generator_drape": differences(shear_deg[keep], drape),
+        "left_out": int((on_punch & ~covered).sum()),
+        "generators_on_cap_mm": on,
+        "generators_largest_gap_mm": gap,
+    }
 
 
 def draw_map(path, result: dict, R: float, title: str = "") -> None:
     """Two panels over the compared points (reference blank): the continuum's shear and its
     difference from the drape with its own generators (deg). Call on one rank."""
     fe = result["continuum_deg"]
-    draw_panels(path, result["points"], R, fe, "continuum shear (deg)",
-                [(fe - result["drape_deg"], "continuum − drape, own generators (deg)")], title)
+    draw_panels(
+        path,
+        result["points"],
+        R,
+        fe,
+        "continuum shear (deg)",
+        [(fe - result["drape_deg"], "continuum − drape, own generators (deg)")],
+        title,
+    )

@@ -86,7 +86,7 @@ class Cone:
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         g = 2.0 * x
-        g[..., 2] *= -math.tan(self.alpha) ** 2
+        g[..., 2] *= -(math.tan(self.alpha) ** 2)
         return g
 
 
@@ -106,8 +106,10 @@ def onto(surface, c: np.ndarray, nrm: np.ndarray) -> np.ndarray:
         lam -= step
         if np.abs(step).max() < NEWTON_TOL * scale:
             return c + lam[..., None] * nrm
-    raise ArithmeticError("goursat drape: the projection onto the surface did not converge "
-                          "(a step too large for the surface's curvature?)")
+    raise ArithmeticError(
+        "goursat drape: the projection onto the surface did not converge "
+        "(a step too large for the surface's curvature?)"
+    )
 
 
 def geodesics(surface, x0: np.ndarray, tangents: np.ndarray, h: float, n: int) -> np.ndarray:
@@ -115,8 +117,7 @@ def geodesics(surface, x0: np.ndarray, tangents: np.ndarray, h: float, n: int) -
     x_{k+1} = 2 x_k − x_{k−1} + κ n(x_k) on the surface (module docstring)."""
     x = np.empty((len(tangents), n + 1, 3))
     x[:, 0] = x0
-    x[:, 1] = onto(surface, x0 + h * tangents,
-                   np.broadcast_to(normal(surface, x0), tangents.shape))
+    x[:, 1] = onto(surface, x0 + h * tangents, np.broadcast_to(normal(surface, x0), tangents.shape))
     for k in range(1, n):
         x[:, k + 1] = onto(surface, 2.0 * x[:, k] - x[:, k - 1], normal(surface, x[:, k]))
     return x
@@ -178,8 +179,9 @@ def net_shear(x: np.ndarray, h: float, L: np.ndarray, M: np.ndarray) -> np.ndarr
     return math.acos(float(L @ M)) - np.arccos(np.clip(cos_t, -1.0, 1.0))
 
 
-def drape(surface, start: np.ndarray, frame: np.ndarray, angles_deg: tuple[float, float],
-          h: float, n: int) -> GoursatNet:
+def drape(
+    surface, start: np.ndarray, frame: np.ndarray, angles_deg: tuple[float, float], h: float, n: int
+) -> GoursatNet:
     """The Chebyshev net from ``start`` on ``surface`` with geodesic generators along the fibre
     angles (deg, in the tangent plane's orthonormal ``frame``, rows e1, e2), nodes |i|, |j| ≤ n
     at step h."""
