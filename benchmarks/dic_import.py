@@ -27,7 +27,7 @@ L, W = 187.0, 119.0
 CAMERA = Frame(0.05, True, (150.0, 2500.0), "left", 2.0)
 RUN = """
 import json, resource, sys, time
-from fabricsurf.inverse.dic.config import read_spec
+from fabricsurf.inverse.dic.description.spec import read_spec
 from fabricsurf.inverse.dic.importer import import_dic
 before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 t0 = time.perf_counter()

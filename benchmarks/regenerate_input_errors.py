@@ -31,7 +31,6 @@ CASE_MODULES = (
     "test_hardening_outputs",
     "test_hardening_process",
     "test_hardening_inputs",
-    "test_hardening_bias",
     "test_hardening_dic",
     "test_user_effects",
 )

@@ -15,7 +15,7 @@ import basix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, FACET_QUADRATURE_DEGREE
+from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE, FACET_QUADRATURE_DEGREE
 from fabricsurf.experiments.bias_extension import BiasExtension
 
 

@@ -65,7 +65,8 @@ from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.log import rank0
-from fabricsurf.network.hencky import hencky_lattice, lattice_from_continuum
+from fabricsurf.network.hencky import hencky_lattice
+from fabricsurf.network.hencky_moduli import lattice_from_continuum
 from fabricsurf.verification import dispersion as dp
 
 args = parse(demo_parser(__doc__, "out/dispersion"))  # --quick: a shorter β scan

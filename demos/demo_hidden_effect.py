@@ -37,7 +37,7 @@ from fabricsurf.cli.demo import demo_parser, parse, require, verify
 from fabricsurf.discretise.output import write_json
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
-from fabricsurf.inverse.diagnosis.report import result_lines
+from fabricsurf.inverse.diagnosis.result_text import result_lines
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy

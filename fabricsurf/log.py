@@ -203,17 +203,3 @@ def configure(
 def level_of(verbose: bool = False, quiet: bool = False) -> int:
     """The level of a program's ``-v`` (DEBUG), default (PROGRESS) and ``-q`` (WARNING)."""
     return logging.DEBUG if verbose else logging.WARNING if quiet else PROGRESS
-
-
-def rank0_print(comm, *args, level: int = PROGRESS) -> None:
-    """Kept only for the modules still to convert (fabricsurf/cli/measure.py, cli/bias.py,
-    cli/dic.py; demos/demo_bending.py, demo_woven_fabric.py, demo_dic.py): :func:`rank0` on the
-    ``fabricsurf`` logger with ``args`` joined by spaces, as ``print`` does. A message that
-    begins with ``warning: `` is a warning (:func:`warn`, without that prefix), so that
-    ``--quiet`` keeps it. New code calls :func:`rank0` or :func:`warn` with its module's
-    logger."""
-    msg, package = " ".join(str(a) for a in args), logging.getLogger(PACKAGE)
-    if msg.startswith("warning: ") and level == PROGRESS:
-        warn(package, comm, msg[len("warning: ") :])
-    else:
-        rank0(package, comm, msg, level=level)

@@ -22,7 +22,7 @@ from mpi4py import MPI
 
 from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.diagnosis.discrimination import Z_CRIT, design
-from fabricsurf.inverse.diagnosis.report import tie_lines
+from fabricsurf.inverse.diagnosis.result_text import tie_lines
 from fabricsurf.inverse.diagnosis.ties import compare
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.forward.runs import ForwardSet

@@ -13,7 +13,7 @@ from fabricsurf.cli import main
 from fabricsurf.errors import DataError
 from fabricsurf.inverse.contract.data import load_experiment
 from fabricsurf.inverse.dic.binning import noise_estimate
-from fabricsurf.inverse.dic.config import read_spec
+from fabricsurf.inverse.dic.description.spec import read_spec
 from fabricsurf.inverse.dic.export import write_images
 from fabricsurf.inverse.dic.frame import Frame
 from fabricsurf.inverse.dic.importer import import_dic

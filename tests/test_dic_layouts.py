@@ -16,7 +16,7 @@ import pytest
 from test_dic import SERIAL, grid, linear, make, spec_text
 
 from fabricsurf.errors import DataError
-from fabricsurf.inverse.dic.config import read_spec
+from fabricsurf.inverse.dic.description.spec import read_spec
 from fabricsurf.inverse.dic.export import (
     DICE_2D,
     DICE_STEREO,

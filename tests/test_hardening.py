@@ -29,6 +29,7 @@ from scipy import stats
 import fabricsurf.cli as cli
 import fabricsurf.cli.bias as bias_cli
 from fabricsurf.cli import main
+from fabricsurf.cli.options import check_bias_options
 from fabricsurf.cli.outdir import OutputDir
 from fabricsurf.discretise.output import StepLog, write_json
 from fabricsurf.errors import InputError
@@ -970,7 +971,7 @@ def test_undetermined_moduli_named_not_given_a_plus_minus():
     of 1e-13: the fit names the undetermined combination, reports the product's geometric mean
     (the combination that is determined) with its interval, and the printed result gives
     neither modulus a ±; a modulus whose interval would span zero is not identifiable."""
-    from fabricsurf.inverse.diagnosis.report import result_lines
+    from fabricsurf.inverse.diagnosis.result_text import result_lines
     from fabricsurf.inverse.fitting.fit import fit
 
     noise = np.array([0.1, -0.1, 0.05, -0.05, 0.2, -0.2, 0.0, 0.0])
@@ -1048,10 +1049,10 @@ def test_max_elements_overrides_the_size_guard():
     args = cli.build_parser().parse_args(
         ["bias", "--length", "230", "--width", "115", "--h", "0.05", "--max-elements", "30000000"]
     )
-    assert bias_cli._check(args) == 0.25 * 230
+    assert check_bias_options(args) == 0.25 * 230
     args.max_elements = 0
     with pytest.raises(InputError, match=r"--max-elements 0: must be at least 1"):
-        bias_cli._check(args)
+        check_bias_options(args)
 
 
 def test_out_symlink_resolved(tmp_path):
@@ -1156,6 +1157,7 @@ def test_interrupt_cleanup_by_one_rank_without_mpi(tmp_path):
     call): exactly one rank removes the staging directory (or publishes it with its report)
     and gets the message; nothing else is left."""
     import fabricsurf.cli.outdir as outdir
+    from fabricsurf.cli.interrupts import interrupted
 
     base = Path(COMM.bcast(str(tmp_path) if COMM.rank == 0 else None))
     msgs = {}
@@ -1164,8 +1166,8 @@ def test_interrupt_cleanup_by_one_rank_without_mpi(tmp_path):
         stage = od.__enter__()
         write_json(COMM, stage / "x.json", {})
         od.on_interrupt = lambda st: (st / "failure.json").write_text("{}") and "; see failure.json"
-        msgs[name] = COMM.allgather(outdir.interrupted("SIGTERM"))
-        outdir._OPEN.remove(od)
+        msgs[name] = COMM.allgather(interrupted("SIGTERM"))
+        outdir.OPEN_DIRS.remove(od)
         COMM.barrier()
     assert [m for m in msgs["a"] if m] == [
         f"interrupted by SIGTERM; nothing was published to {base / 'a'}"

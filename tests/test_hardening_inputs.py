@@ -28,7 +28,8 @@ from mpi4py import MPI
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.data import check_field_moves, load_experiment, write_experiment
-from fabricsurf.inverse.fitting.fit import FitResult, undetermined
+from fabricsurf.inverse.fitting.fit import FitResult
+from fabricsurf.inverse.fitting.optimum import undetermined
 from fabricsurf.inverse.fitting.params import MAX_MODULUS, load_params
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.inverse.uncertainty import intervals

@@ -415,7 +415,7 @@ def test_two_non_latin_names_accepted(tmp_path):
     args = cli.build_parser().parse_args(
         ["compare", str(base / "a"), str(base / "b"), "--terms", TERMS, "--out", str(base / "o")]
     )
-    exps, _, _ = measure_cli._setup(args)
+    exps, _, _ = measure_cli.checked_setup(args)
     assert [e.name for e in exps] == ["试验一", "试验二"]
 
 

@@ -229,7 +229,7 @@ def test_degenerate_fibre_pair_in_the_data_is_refused_by_key():
     """Through the measurement contract: a DataError naming the file, the key and the value."""
     from fabricsurf.errors import DataError
     from fabricsurf.experiments.base import PluginSetup
-    from fabricsurf.experiments.bias_extension import BiasExtensionPlugin
+    from fabricsurf.experiments.bias_plugin import BiasExtensionPlugin
 
     setup = PluginSetup("bias_extension", 230.0, 115.0, (0.0, 90.0), {"clamp": "position"})
     with pytest.raises(

@@ -266,13 +266,6 @@ def test_installed_packages_listed():
 LOGGING_SET_UP = {"fabricsurf/log.py", "fabricsurf/cli/__init__.py"}
 """Where a handler or a level may be set and the flags -v/-q become levels: log.configure, and
 the command line's quieting of the JIT compiler's loggers (compiler_messages)."""
-VERBOSE_LEFT = {
-    ("fabricsurf/inverse/fitting/fit.py", "fit"),
-    ("fabricsurf/inverse/diagnosis/diagnose.py", "diagnose"),
-    ("fabricsurf/inverse/diagnosis/beyond.py", "search_beyond"),
-}
-"""Public functions that still take ``verbose``, for callers not yet converted (cli/measure.py,
-the bending and woven-fabric demos, beyond.py); to be emptied."""
 SET_UP_CALLS = {"basicConfig", "addHandler", "setLevel", "captureWarnings", "disable"}
 
 
@@ -306,7 +299,6 @@ def message_faults(path: Path) -> list[str]:
         elif (
             isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
             and not node.name.startswith("_")
-            and (rel, node.name) not in VERBOSE_LEFT
             and rel not in LOGGING_SET_UP
         ):
             args = [a.arg for a in (*node.args.posonlyargs, *node.args.args, *node.args.kwonlyargs)]

@@ -330,7 +330,7 @@ def test_dic_import_round_trip_is_exact(tmp_path):
     directory gives back the imported experiment's very arrays, noise and force included."""
     from test_dic import grid, make, shared
 
-    from fabricsurf.inverse.dic.config import read_spec
+    from fabricsurf.inverse.dic.description.spec import read_spec
     from fabricsurf.inverse.dic.importer import import_dic
 
     base = shared(tmp_path)

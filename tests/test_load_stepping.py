@@ -13,7 +13,8 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.discretise.solver import DOMAIN_AWARE, SNESSolver, reason_name
+from fabricsurf.discretise.snes import DOMAIN_AWARE, reason_name
+from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 
 

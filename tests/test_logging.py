@@ -30,7 +30,6 @@ from fabricsurf.log import (
     detail,
     muted,
     rank0,
-    rank0_print,
     warn,
 )
 
@@ -202,20 +201,6 @@ def test_detail_and_muted_change_no_level(caplog):
     assert got == (want if COMM.rank == 0 else []), got
 
 
-def test_rank0_print_kept_for_the_modules_to_convert(caplog):
-    """The thin rank0_print logs through the same channel; a 'warning: ' line is a warning."""
-    caplog.set_level(PROGRESS, logger="fabricsurf")
-    rank0_print(COMM, "step", 1, "of", 3)
-    rank0_print(COMM, "warning: a path that unloads")
-    got = [(r.levelno, r.getMessage()) for r in caplog.records]
-    assert got == (
-        [(PROGRESS, "step 1 of 3"), (logging.WARNING, "a path that unloads")]
-        if COMM.rank == 0
-        else []
-    )
-
-
-# -- the command line ----------------------------------------------------------------------
 def _says(args) -> int:
     rank0(logging.getLogger("fabricsurf.experiments.bias_extension"), COMM, "a load step")
     rank0(logging.getLogger("fabricsurf.discretise.stepping"), COMM, "a cut", level=logging.DEBUG)

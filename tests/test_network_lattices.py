@@ -15,13 +15,8 @@ from fabricsurf.model import kinematics as kn
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.terms import CrossoverFriction, FibreStretch, Shear, ShearLocking
 from fabricsurf.network.equilibrium import Dirichlet, solve_steps
-from fabricsurf.network.hencky import (
-    continuum_from_lattice,
-    fibre_directions,
-    hencky_lattice,
-    lattice_from_continuum,
-    spanning_spacing,
-)
+from fabricsurf.network.hencky import fibre_directions, hencky_lattice, spanning_spacing
+from fabricsurf.network.hencky_moduli import continuum_from_lattice, lattice_from_continuum
 from fabricsurf.network.micromacro import grid_fields
 
 K_L, K_S, A_G = 1.0, 0.3, 0.5  # N/mm, N/mm, N mm

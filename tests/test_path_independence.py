@@ -13,7 +13,7 @@ Runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``.
 import numpy as np
 import pytest
 
-from fabricsurf.discretise.solver import STEP_RTOL
+from fabricsurf.discretise.snes import STEP_RTOL
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.model.terms import FibreStretch, Shear
 

@@ -27,7 +27,8 @@ from fabricsurf.cli import main
 from fabricsurf.discretise.output import write_json
 from fabricsurf.inverse.contract.data import write_experiment
 from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
-from fabricsurf.inverse.fitting.fit import fit, undetermined
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.optimum import undetermined
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy

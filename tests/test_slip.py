@@ -23,11 +23,8 @@ from fabricsurf.model.slip import YarnSlip
 from fabricsurf.model.terms import EFFECTS, CrossoverFriction, FibreStretch, Shear
 from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.equilibrium import Dirichlet, solve_steps
-from fabricsurf.network.hencky import (
-    continuum_from_lattice,
-    hencky_lattice,
-    lattice_from_continuum,
-)
+from fabricsurf.network.hencky import hencky_lattice
+from fabricsurf.network.hencky_moduli import continuum_from_lattice, lattice_from_continuum
 
 pytestmark = pytest.mark.serial(
     "numpy lattices and one cell's density: nothing parallel "

@@ -10,7 +10,7 @@ from fabricsurf.experiments.three_zone import zone_c_shear_angle
 from fabricsurf.inverse.contract.experiment import template
 from fabricsurf.inverse.diagnosis import discrimination as dc
 from fabricsurf.inverse.diagnosis.ties import vuong
-from fabricsurf.inverse.forward.runs import Prediction
+from fabricsurf.inverse.forward.load_path import Prediction
 
 N, G = 4000, 40
 LABELS = np.repeat(np.arange(G), N // G)

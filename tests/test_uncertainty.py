@@ -218,7 +218,7 @@ def test_fit_contract_and_params_read_back(tmp_path):
 
     from fabricsurf.discretise.output import write_json
     from fabricsurf.inverse.diagnosis.diagnose import full_model
-    from fabricsurf.inverse.diagnosis.report import result_lines
+    from fabricsurf.inverse.diagnosis.result_text import result_lines
     from fabricsurf.inverse.fitting.fit import fit
     from fabricsurf.inverse.fitting.params import load_params
     from fabricsurf.inverse.forward.runs import ForwardModel

@@ -5,7 +5,7 @@ Bad input ends with one message naming the file, key or option and exit status 2
 (usage errors too); SIGINT or SIGTERM (what ``mpirun`` sends every rank on a Ctrl-C) ends
 every rank at once with one message and status 130, the output directory published (``bias``:
 its step log and a failure.json, not the fields) or removed
-(:func:`fabricsurf.cli.outdir.interrupted`). Under ``mpirun`` the status the shell sees is
+(:mod:`fabricsurf.cli.interrupts`). Under ``mpirun`` the status the shell sees is
 mpirun's own: Open MPI 4.1 returns 1 when it is itself interrupted, whatever its ranks return
 (a job whose ranks exit with 130 by themselves gives 130), so 130 holds for serial runs only;
 an unexpected failure on one rank aborts all ranks instead of leaving the
@@ -17,9 +17,9 @@ a warning is one line ``warning: …``, with ``--quiet`` too. The environment (t
 compiler's directories under HOME, FABRICSURF_LOCAL_CELLS) is checked before any computation
 (:mod:`fabricsurf.cli.environment`).
 
-The commands' modules are imported when the parser is built, so that importing
-:mod:`fabricsurf.cli` (and :mod:`fabricsurf.cli.demo`, what every demo shares) loads no
-FEniCSx module.
+The commands' modules are imported when the parser is built (the interrupt handling when a
+command starts), so that importing :mod:`fabricsurf.cli` (and :mod:`fabricsurf.cli.demo`, what
+every demo shares) loads no FEniCSx module.
 """
 
 from __future__ import annotations
@@ -28,9 +28,7 @@ import argparse
 import contextlib
 import io
 import logging
-import os
 import re
-import signal
 import sys
 from collections.abc import Iterator
 
@@ -82,8 +80,8 @@ def cmd_terms(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from fabricsurf.cli import bias as bias_cli
+    from fabricsurf.cli import diagnose_command, measure
     from fabricsurf.cli import dic as dic_cli
-    from fabricsurf.cli import measure
 
     ap = argparse.ArgumentParser(
         prog="fabricsurf",
@@ -109,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     bias_cli.add_arguments(p)
     p.set_defaults(func=bias_cli.run)
     measure.add_parsers(sub, HelpFormatter)
+    diagnose_command.add_parser(sub, HelpFormatter)
     dic_cli.add_parser(sub, HelpFormatter)
     for p in sub.choices.values():
         _verbose(p, argparse.SUPPRESS)
@@ -152,56 +151,6 @@ def compiler_messages(verbose: bool) -> Iterator[None]:
         logging.disable(disabled)
         for n, level in levels.items():
             logging.getLogger(n).setLevel(level)
-
-
-@contextlib.contextmanager
-def interruptible(command: str) -> Iterator[None]:
-    """SIGINT and SIGTERM end this process at once (status 130), after
-    :func:`~fabricsurf.cli.outdir.interrupted` cleaned up: no exception unwinds through code
-    that may call MPI, which could wait forever for a rank that has already stopped. The
-    previous handlers are restored on exit.
-
-    gmsh's Python module sets SIGINT to its default action when imported and, in every
-    ``gmsh.finalize()``, back to the handler it found then (``gmsh.oldsig``): after the first
-    gmsh mesh, a Ctrl-C of a serial run (mpirun sends SIGTERM instead) raised
-    KeyboardInterrupt with a traceback. It is imported first here and told to restore this
-    handler."""
-    import threading
-
-    from fabricsurf.cli import outdir
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    signals = (signal.SIGINT, signal.SIGTERM)
-    previous = {s: signal.getsignal(s) for s in signals}
-    try:
-        import gmsh
-    except (ImportError, OSError):  # no gmsh (or no libgmsh): nothing resets the handler
-        gmsh = None
-    saved = getattr(gmsh, "oldsig", None)
-    prefix = "fabricsurf" + (f" {command}" if command else "")
-
-    def handler(signum, frame):
-        for s in signals:
-            signal.signal(s, signal.SIG_IGN)
-        msg = outdir.interrupted(signal.Signals(signum).name)
-        if msg:  # on stderr: the handler may have cut a write to stdout (a progress line)
-            os.write(2, f"{prefix}: {msg}\n".encode())
-        sys.stderr.flush()
-        os._exit(130)
-
-    for s in signals:
-        signal.signal(s, handler)
-    if gmsh is not None:
-        gmsh.oldsig = handler
-    try:
-        yield
-    finally:
-        if gmsh is not None:
-            gmsh.oldsig = saved
-        for s, h in previous.items():
-            signal.signal(s, h)
 
 
 NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?|[-+]?(?:inf|infinity|nan)"
@@ -265,6 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``fabricsurf`` command; returns the exit status (same on all ranks).
     Interrupts are handled from the start (building the parser imports the libraries, which
     takes about a second)."""
+    from fabricsurf.cli.interrupts import interruptible
+
     argv = [str(a) for a in (sys.argv[1:] if argv is None else argv)]
     with interruptible(_command(argv)):
         args = _parse(argv)

@@ -15,17 +15,16 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.cli.effects import add_effects
+from fabricsurf.cli.mesh_options import add_max_elements
 from fabricsurf.cli.options import (
-    add_max_elements,
+    check_bias_options,
     check_params_file,
-    check_size,
     defaulted_moduli,
     out_path,
     saved_fit,
@@ -168,37 +167,6 @@ def _band(args, model: list, ubar: float, saved: dict, stage: Path, comm) -> dic
     return band
 
 
-def _check(args) -> float:
-    """Every option against the others, before any computation (messages name them)."""
-    for option, v in (
-        ("--length", args.length),
-        ("--width", args.width),
-        ("--h", args.h),
-        ("--ubar", args.ubar),
-    ):
-        if v is not None and not math.isfinite(v):
-            raise InputError(f"{option} {v}: must be a finite number (mm)")
-    if not (args.length > 0 and args.width > 0):
-        raise InputError(f"--length {args.length}, --width {args.width}: must be positive (mm)")
-    if args.width > args.length:
-        raise InputError(
-            f"--width {args.width:g} exceeds --length {args.length:g}: the bias "
-            "specimen has its long side along the load (x); swap them"
-        )
-    if not 0 < args.h <= 0.5 * min(args.length, args.width):
-        raise InputError(
-            f"--h {args.h}: must lie in (0, {0.5 * min(args.length, args.width):g}]"
-            " mm (at least two elements across the width)"
-        )
-    check_size(args.h, [("specimen", args.length, args.width)], args.max_elements)
-    if not 1 <= args.steps <= 1000:
-        raise InputError(f"--steps {args.steps}: must lie in [1, 1000]")
-    ubar = 0.25 * args.length if args.ubar is None else args.ubar
-    if not 0 < ubar < args.length:
-        raise InputError(f"--ubar {ubar}: must lie in (0, {args.length:g}) mm")
-    return ubar
-
-
 FIELD_FILES = ("bias.xdmf", "bias.h5")
 
 
@@ -228,7 +196,7 @@ def interrupted_report(stage: Path, summary: dict, converged: int, steps: int, o
 def run(args: argparse.Namespace) -> int:
     """The ``bias`` command; a solver failure keeps the converged steps and exits with 2."""
     comm = MPI.COMM_WORLD
-    ubar = _check(args)
+    ubar = check_bias_options(args)
     model, params = _model(args)
     saved = saved_fit(args)
     od = OutputDir(

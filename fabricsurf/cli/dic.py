@@ -71,7 +71,7 @@ def _reads_back(stage: Path) -> None:
 
 
 def _import(spec_path: Path, stage: Path) -> str:
-    from fabricsurf.inverse.dic.config import read_spec
+    from fabricsurf.inverse.dic.description.spec import read_spec
     from fabricsurf.inverse.dic.importer import import_dic
 
     spec = read_spec(spec_path)

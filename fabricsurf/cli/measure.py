@@ -1,4 +1,5 @@
-"""``fabricsurf compare|fit|diagnose DATA [DATA …]``: model against measurements.
+"""``fabricsurf compare|fit DATA [DATA …]``: model against measurements, and the inputs that
+``diagnose`` (:mod:`~fabricsurf.cli.diagnose_command`) shares with them.
 
 Every command takes one or more measurement directories (contract version 2); with several,
 one set of moduli serves all of them (one material, several tests) and misfits are reported per
@@ -16,35 +17,29 @@ from collections.abc import Iterator
 from mpi4py import MPI
 
 from fabricsurf.cli.effects import add_effects
-from fabricsurf.cli.options import (
+from fabricsurf.cli.mesh_options import (
     add_max_elements,
     check_default_size,
     check_h,
-    check_params_file,
     check_size,
+)
+from fabricsurf.cli.options import (
+    check_params_file,
     compare_moduli,
-    diagnose_options,
     enough_data,
     error_map_steps,
-    grip_depths,
     input_paths,
-    mesh_budget,
     out_path,
     positive_start,
     saved_fit,
 )
 from fabricsurf.cli.outdir import OutputDir
-from fabricsurf.discretise.output import on_rank0, write_json
+from fabricsurf.discretise.output import write_json
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment
-from fabricsurf.inverse.diagnosis.mesh_choice import (
-    DEFAULT_MAX_DOFS,
-    DEFAULT_SECONDS,
-    LEVEL_GROWTH,
-)
-from fabricsurf.inverse.diagnosis.report import misfit_summary, result_lines, tie_lines
+from fabricsurf.inverse.diagnosis.result_text import misfit_summary, result_lines
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
 from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
 from fabricsurf.inverse.forward.misfit import converged_steps
@@ -95,7 +90,7 @@ def add_common(p: argparse.ArgumentParser, terms_required: bool = True) -> None:
     add_effects(p)
 
 
-def _setup(args, refine: int = 1):
+def checked_setup(args, refine: int = 1):
     """The experiments, model and --params moduli, every input checked before any
     computation; ``refine``: the finest mesh the command builds is at h/refine."""
     check_h(args.h)
@@ -138,7 +133,7 @@ def _setup(args, refine: int = 1):
 
 
 @contextlib.contextmanager
-def _failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
+def failure_report(od: OutputDir, stage, model, args, exps) -> Iterator[None]:
     """A solver failure writes failure.json (the message and what was used), publishes it and
     ends with a message that names it."""
     try:
@@ -178,12 +173,12 @@ def cmd_compare(args) -> int:
     from fabricsurf.inverse.plots.comparison_bands import write_band_files
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model, params = _setup(args)
+    exps, model, params = checked_setup(args)
     steps = error_map_steps(args.steps, exps)
     note = compare_moduli(args, model, params)  # refuses moduli a --params file lacks
     saved = saved_fit(args)
     od = OutputDir(args.out, COMM, files=("misfit.json",), inputs=input_paths(args, exps))
-    with od as stage, _failure_report(od, stage, model, args, exps):
+    with od as stage, failure_report(od, stage, model, args, exps):
         if note:
             rank0(log, COMM, note)
         res = compare(exps, model, h=args.h, band=saved, comm=COMM)
@@ -209,13 +204,13 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.forward.runs import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model, _ = _setup(args, refine=2)
+    exps, model, _ = checked_setup(args, refine=2)
     positive_start(model, args, "fit")
     enough_data(exps, model)
     od = OutputDir(
         args.out, COMM, files=("fit.json", "misfit.json"), inputs=input_paths(args, exps)
     )
-    with od as stage, _failure_report(od, stage, model, args, exps):
+    with od as stage, failure_report(od, stage, model, args, exps):
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
             res = fit(fs)
             res.check_mesh(fs)
@@ -226,108 +221,6 @@ def cmd_fit(args) -> int:
     for line in result_lines(res.as_dict()):
         rank0(log, COMM, line)
     rank0(log, COMM, misfit_summary(label, res.misfit))
-    return 0
-
-
-def cmd_diagnose(args) -> int:
-    from fabricsurf.inverse.diagnosis.discrimination import separate_tie
-    from fabricsurf.inverse.diagnosis.mesh_choice import diagnose_on_mesh
-    from fabricsurf.inverse.plots import figures
-    from fabricsurf.inverse.plots.outputs import write_comparison
-
-    budget = mesh_budget(args)
-    exps, model, params = _setup(args, refine=2)
-    positive_start(model, args, "diagnose")
-    depths = grip_depths(args.grip_depths, exps)
-    candidates, fixed = diagnose_options(args, exps, model, params)
-    enough_data(exps, model, fixed or [])
-    params = {t.name: t.values() for t in model}
-    od = OutputDir(args.out, COMM, files=("diagnosis.json",), inputs=input_paths(args, exps))
-    with od as stage, _failure_report(od, stage, model, args, exps):
-        try:
-            d = diagnose_on_mesh(
-                exps,
-                [t.name for t in model],
-                h=args.h,
-                budget=budget,
-                params=params,
-                confirm=args.confirm,
-                max_effects=args.max_effects,
-                comm=COMM,
-                candidates=candidates,
-                fixed=fixed,
-                grip_depths=depths,
-            )
-        except ValueError as e:
-            raise InputError(str(e)) from None
-        d, tie = separate_tie(d, exps, args.h, COMM)
-        if tie is not None:
-            on_rank0(
-                COMM,
-                figures.difference_map,
-                tie.maps,
-                tie.effects,
-                stage / "tie_difference_map.png",
-            )
-        out = d.as_dict() | {
-            "provenance": provenance(model, [str(x) for x in args.data], [m["h"] for m in d.meshes])
-        }
-        write_json(COMM, stage / "diagnosis.json", out)
-        b, f = d.base_fit, d.final_fit
-        preds, mfs = [("baseline", b.prediction)], [("baseline", b.misfit)]
-        write_comparison(stage, exps, preds, mfs, stem="baseline_")
-        if d.verdict is not None:
-            label = "+".join(d.terms)
-            write_comparison(
-                stage,
-                exps,
-                preds + [(label, f.prediction)],
-                mfs + [(label, f.misfit)],
-                stem="before_after_",
-            )
-            if args.add_best:
-                write_json(COMM, stage / "model_best.json", f.as_dict())
-        on_rank0(COMM, figures.misfit_path, d.path, stage / "misfit_path.png")
-    if d.grip_depth is not None:
-        rank0(
-            log,
-            COMM,
-            f"grip depth: {d.grip_depth['best_mm']:g} mm (the best of "
-            f"{[q['depth_mm'] for q in d.grip_depth['profile']]})",
-        )
-    rank0(log, COMM, f"baseline {'+'.join(d.baseline)}: misfit {b.misfit['combined']:.4g}")
-    for r in d.ranking:
-        rank0(
-            log,
-            COMM,
-            f"  {r['effect']:18s} score {r['score']:10.4g}  refit misfit "
-            f"{r['refit_misfit']}  Wald p {r.get('wald_p')}  significant "
-            f"{r['significant']}",
-        )
-    for line in tie_lines(d):
-        rank0(log, COMM, line)
-    rank0(
-        log,
-        COMM,
-        f"verdict: {d.verdict_text()}; final {'+'.join(d.terms)} misfit "
-        f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}",
-    )
-    for line in result_lines(out["final"]):
-        rank0(log, COMM, line)
-    lead = (d.unexplained or {}).get("best_lead")
-    if lead:
-        wald = (
-            "no Wald test"
-            if lead["wald_p"] is None
-            else f"Wald p = {lead['wald_p']:.3g} (must be below {lead['wald_p_needed']:.3g})"
-        )
-        rank0(
-            log,
-            COMM,
-            f"best lead: {lead['effect']} removes {lead['share_of_excess']:.0%} of "
-            f"the excess misfit; {wald}; F-test "
-            f"{'passed' if lead['f_test_passed'] else 'failed'} (both are needed)",
-        )
     return 0
 
 
@@ -357,63 +250,3 @@ def add_parsers(sub, formatter) -> None:
     )
     add_common(p)
     p.set_defaults(func=cmd_fit)
-    p = sub.add_parser(
-        "diagnose",
-        formatter_class=formatter,
-        help="which effect is missing: rank, confirm, add (stepwise)",
-    )
-    add_common(p)
-    p.add_argument(
-        "--confirm",
-        type=int,
-        default=2,
-        help="candidates confirmed by refitting in each round (≥ 1)",
-    )
-    p.add_argument(
-        "--max-effects",
-        type=int,
-        default=2,
-        help="at most this many effects added, one per round (≥ 0)",
-    )
-    p.add_argument(
-        "--candidates",
-        default=None,
-        help="comma-separated effects to consider (default: every effect the data can see)",
-    )
-    p.add_argument(
-        "--fixed",
-        default=None,
-        help="comma-separated baseline terms held at their --params moduli "
-        "(default: none, every baseline modulus is fitted)",
-    )
-    p.add_argument(
-        "--grip-depths",
-        default=None,
-        help="comma-separated grip depths in mm of the bias experiments, e.g. "
-        "0,0.5,1: the depth is fitted as a nuisance parameter first (the best of "
-        "these by baseline chi2), then the diagnosis uses it (default: the depth "
-        "in the data)",
-    )
-    p.add_argument(
-        "--max-dofs",
-        type=int,
-        default=DEFAULT_MAX_DOFS,
-        help="mesh selection: when the h/2 check says the mesh is too coarse for the "
-        "data, the diagnosis halves h and runs again, up to this many displacement "
-        "unknowns (all experiments; the check solves on ~4x as many) and within "
-        "--max-elements for the check's mesh (docs/diagnosis.md)",
-    )
-    p.add_argument(
-        "--time-budget",
-        type=float,
-        default=DEFAULT_SECONDS,
-        help="mesh selection: a refined level is started only if it is predicted "
-        f"to end within this many seconds of the start ({LEVEL_GROWTH:g}x the last "
-        "level's time)",
-    )
-    p.add_argument(
-        "--add-best",
-        action="store_true",
-        help="also save the final model as model_best.json (a --params file)",
-    )
-    p.set_defaults(func=cmd_diagnose)

@@ -164,7 +164,7 @@ def _refusal(stage: Path, out: Path, files: list[str]) -> str | None:
     return unrecorded_message(out, found) if found else None
 
 
-def _publish(stage: Path, out: Path) -> None:
+def publish(stage: Path, out: Path) -> None:
     """Move the staged files into OUT with their record (:data:`MANIFEST`), then remove the
     files the previous record names that this run did not write."""
     files = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if not p.is_dir())
@@ -196,18 +196,18 @@ def _publish(stage: Path, out: Path) -> None:
 
 
 def _publish_whole(stage: Path, out: Path) -> None:
-    """:func:`_publish` with SIGINT and SIGTERM held until it is done (a few renames): an
+    """:func:`publish` with SIGINT and SIGTERM held until it is done (a few renames): an
     interrupt then ends the run after the publish, not half-way through it. Held by a
     handler that notes the signal and raises it again afterwards (blocking the signal
     would not do: another thread, e.g. MPI's, takes it and Python runs the handler anyway)."""
     if threading.current_thread() is not threading.main_thread():
-        _publish(stage, out)
+        publish(stage, out)
         return
     pending: list[int] = []
     held = (signal.SIGINT, signal.SIGTERM)
     previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in held}
     try:
-        _publish(stage, out)
+        publish(stage, out)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -215,51 +215,9 @@ def _publish_whole(stage: Path, out: Path) -> None:
             signal.raise_signal(pending[0])
 
 
-INTERRUPT_WAIT = 0.8
-"""Seconds a rank waits for the one cleaning up after an interrupt (mpirun kills at 1 s)."""
-_OPEN: list[OutputDir] = []
-"""The output directories being written (innermost last), for :func:`interrupted`."""
-
-
-def interrupted(signame: str) -> str | None:
-    """Clean up after SIGINT or SIGTERM, from the signal handler, without any MPI call (the
-    ranks may be anywhere, some blocked in a collective call another has left): the rank that
-    claims the open OutputDir's staging directory (renames it, which only one can do)
-    publishes it (``keep_on_error``, after its ``on_interrupt`` report) or removes it, and gets
-    the message; the others wait for it to finish and get None. With no OutputDir open, rank 0
-    gets the message."""
-    if not _OPEN:
-        return f"interrupted by {signame}" if MPI.COMM_WORLD.rank == 0 else None
-    od = _OPEN[-1]
-    try:
-        return _claim_and_clean(od, signame)
-    finally:  # rank 0, after the claiming rank is done (or the wait is over)
-        release_lock(od._lock)
-        od._lock = None
-
-
-def _claim_and_clean(od: OutputDir, signame: str) -> str | None:
-    claimed = od.stage.with_name(od.stage.name + ".interrupted")
-    try:
-        os.rename(od.stage, claimed)  # atomic: one rank only succeeds
-    except OSError:
-        t0 = time.monotonic()
-        while claimed.exists() and time.monotonic() - t0 < INTERRUPT_WAIT:
-            time.sleep(0.01)
-        return None
-    for tmp in claimed.rglob("*.tmp"):  # a write the signal cut short (written, then renamed)
-        tmp.unlink(missing_ok=True)
-    try:
-        if od.keep:
-            note = od.on_interrupt(claimed) if od.on_interrupt else ""
-            _publish(claimed, od.out)
-            return f"interrupted by {signame}{note}"
-        shutil.rmtree(claimed, ignore_errors=True)
-        return f"interrupted by {signame}; nothing was published to {od.out}"
-    except (InputError, OSError) as e:
-        return f"interrupted by {signame}; {e}"
-    finally:  # rank 0, which holds the lock, may be stuck in MPI and never run its handler
-        od.lock_path.unlink(missing_ok=True)
+OPEN_DIRS: list[OutputDir] = []
+"""The output directories being written (innermost last), for
+:func:`~fabricsurf.cli.interrupts.interrupted`."""
 
 
 class OutputDir:
@@ -270,10 +228,9 @@ class OutputDir:
     (module docstring). ``keep_on_error``: publish what was written
     even when the body raises (failed runs keep their converged steps and the failure report);
     otherwise a failure discards it all. Collective: an exception on some ranks only is raised
-    on the others too (same message), so every rank ends the same way. After SIGINT or
-    SIGTERM, :func:`interrupted` publishes or removes it (``on_interrupt(stage)``: writes a
-    report there and returns what to add to the message); no staging directory outlives
-    the run.
+    on the others too (same message), so every rank ends the same way. After SIGINT or SIGTERM,
+    :func:`~.interrupts.interrupted` publishes or removes it (``on_interrupt(stage)``: writes a
+    report there and returns what to add to the message); no staging directory outlives the run.
     """
 
     def __init__(
@@ -292,11 +249,11 @@ class OutputDir:
         self.stage, self.lock_path = Path(stage), Path(lock_path)
 
     def __enter__(self) -> Path:
-        _OPEN.append(self)
+        OPEN_DIRS.append(self)
         return self.stage
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        _OPEN.remove(self)
+        OPEN_DIRS.remove(self)
         mine = None if exc is None else (isinstance(exc, InputError), str(exc))
         first = next((m for m in self.comm.allgather(mine) if m is not None), None)
         try:
@@ -308,8 +265,12 @@ class OutputDir:
             elif self.comm.rank == 0:
                 shutil.rmtree(self.stage, ignore_errors=True)
         finally:
-            release_lock(self._lock)
-            self._lock = None
+            self.unlock()
         if first is not None and exc is None:
             raise (InputError if first[0] else RuntimeError)(first[1])
         return False
+
+    def unlock(self) -> None:
+        """Release the run's lock beside OUT (rank 0 holds it; nothing on the other ranks)."""
+        release_lock(self._lock)
+        self._lock = None

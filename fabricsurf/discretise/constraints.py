@@ -32,6 +32,10 @@ from petsc4py import PETSc
 
 from fabricsurf.discretise.evaluation import quadrature_expression
 
+AUGMENTATION = 1e5
+"""An exact constraint's augmentation stiffness is its term's own plus this many times the sum
+of the other first-gradient moduli: Uzawa's iteration then contracts by about 1e-5 a step."""
+
 CONSTRAINT_TOLERANCE = 1e-9
 """Largest |g| accepted at a quadrature point (for stretches: a relative elongation)."""
 

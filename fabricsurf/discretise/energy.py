@@ -27,13 +27,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx import mesh as dmesh
 
-from fabricsurf.discretise.constraints import Multiplier
+from fabricsurf.discretise.constraints import AUGMENTATION, Multiplier
 from fabricsurf.discretise.jit_keys import stable_constant_order
+from fabricsurf.discretise.quadrature import (
+    CELL_QUADRATURE_DEGREE,
+    FACET_QUADRATURE_DEGREE,
+    FIBRE_TREATMENTS,
+    REDUCED_FIBRE_DEGREE,
+    reduced_measures,
+)
 from fabricsurf.model.kinematics import Kinematics
 from fabricsurf.model.term_constants import TermConstants
 from fabricsurf.model.terms import Term
@@ -42,40 +47,10 @@ Bound = list[tuple[Term, TermConstants]]
 """The terms of a model with the constants of one form."""
 
 DEFAULT_PENALTY = 8.0
-CELL_QUADRATURE_DEGREE = 4
-FACET_QUADRATURE_DEGREE = 4
-AUGMENTATION = 1e5
-"""An exact constraint's augmentation stiffness is its term's own plus this many times the sum
-of the other first-gradient moduli: Uzawa's iteration then contracts by about 1e-5 a step."""
 BOW_PENALTY = 1e4
 """β of :meth:`EnergyForm.bow_penalty`, relative to the other first-gradient moduli times h²."""
-FIBRE_TREATMENTS = ("full", "reduced")
-"""How the fibre terms (:attr:`Term.fibre`) are integrated over a cell: ``full`` at the
-quadrature degree of every other term; ``reduced`` at one point, the centroid (an assumed
-fibre strain constant per cell, the P2/P0 mixed form at the linear level; docs/theory.md,
-"Locking"): the treatment that does not lock on meshes whose edges do not follow the fibres."""
-REDUCED_FIBRE_DEGREE = 1
-"""Quadrature degree of the fibre terms under the ``reduced`` treatment: one point per triangle."""
-FIBRE_CELLS = 1
-"""The subdomain id of the reduced fibre integrals (every cell; :func:`reduced_measures`)."""
 EVERYWHERE = "everywhere"
 """The facet tag of ``normal_derivative`` for the whole boundary (UFL's unmarked ``ds``)."""
-
-
-def reduced_measures(msh, degree: int) -> tuple[ufl.Measure, ufl.Measure]:
-    """(dx, dx_fibre): the cell measure at ``degree`` and that of the reduced fibre terms, at
-    :data:`REDUCED_FIBRE_DEGREE`, over the same cells but under their own subdomain id.
-
-    FFCx 0.5 merges the integrals of one subdomain into one kernel, and with two quadrature
-    degrees in it the Jacobian it generates is wrong (2 % off the derivative of the residual
-    at a random state, measured by finite differences); with its own subdomain id the fibre
-    integral gets its own kernel. dolfinx integrates the unmarked ``dx`` over every cell."""
-    tdim = msh.topology.dim
-    imap = msh.topology.index_map(tdim)
-    cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
-    tags = dmesh.meshtags(msh, tdim, cells, np.full(len(cells), FIBRE_CELLS, dtype=np.int32))
-    dx = ufl.Measure("dx", domain=msh, subdomain_data=tags, metadata={"quadrature_degree": degree})
-    return dx, dx(FIBRE_CELLS, metadata={"quadrature_degree": REDUCED_FIBRE_DEGREE})
 
 
 def placement(u):

@@ -9,13 +9,9 @@ import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
-from fabricsurf.discretise.energy import (
-    CELL_QUADRATURE_DEGREE,
-    DEFAULT_PENALTY,
-    EVERYWHERE,
-    EnergyForm,
-)
+from fabricsurf.discretise.energy import DEFAULT_PENALTY, EVERYWHERE, EnergyForm
 from fabricsurf.discretise.jit_keys import mark_equispaced, stable_constant_order
+from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.resources import Owner, release_vectors, weak_method
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.kinematics import fibre_directions
@@ -30,7 +26,7 @@ class FabricProblem(Owner):
     :meth:`solver` builds the SNES solver. Prescribed values are fem.Constants, so they can be
     changed during load stepping without recompiling. :meth:`close` destroys the solver's PETSc
     objects (discretise/resources.py). ``fibre_treatment`` (``full`` or ``reduced``,
-    :data:`~fabricsurf.discretise.energy.FIBRE_TREATMENTS`) is how the fibre terms are
+    :data:`~fabricsurf.discretise.quadrature.FIBRE_TREATMENTS`) is how the fibre terms are
     integrated.
     """
 

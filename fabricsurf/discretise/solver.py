@@ -6,16 +6,16 @@ residual is dΠ/du with Dirichlet rows x − g (lifting), the Jacobian d²Π/du�
 database under a per-solver prefix only (never unprefixed/global ones), and are removed from it
 again once SNES and KSP have read them (nothing is left behind in the global database).
 
-Energies with a restricted domain (e.g. the bi-pantographic energy, defined for ρ cos γ < 1 only)
-give NaN or inf outside it. Every residual evaluation checks, collectively, that the assembled
-cell and facet contributions are finite (before the Dirichlet rows overwrite anything); if not,
-it reports a function domain error to SNES (``SNESSetFunctionDomainError``) and returns an inf
-residual on every rank. A backtracking line search (``snes_linesearch_type: bt``, see
-:data:`DOMAIN_AWARE`) then halves the step until the trial state is back in the domain; with the
-default full-step (``basic``) line search the solve stops with DIVERGED_LINE_SEARCH and the load
-stepper cuts the load step. A converged state therefore always has a finite residual: every
-quadrature point is inside the domain. The check costs one pass over the local vector and one
-allreduce per residual evaluation.
+Energies with a restricted domain (e.g. the bi-pantographic energy, defined for ρ cos γ < 1
+only) give NaN or inf outside it. Every residual evaluation checks, collectively, that the
+assembled cell and facet contributions are finite (before the Dirichlet rows overwrite
+anything); if not, it reports a function domain error to SNES (``SNESSetFunctionDomainError``)
+and returns an inf residual on every rank. A backtracking line search
+(``snes_linesearch_type: bt``, see :data:`~.snes.DOMAIN_AWARE`) then halves the step until the
+trial state is back in the domain; with the default full-step (``basic``) line search the solve
+stops with DIVERGED_LINE_SEARCH and the load stepper cuts the load step. A converged state
+therefore always has a finite residual: every quadrature point is inside the domain. The check
+costs one pass over the local vector and one allreduce per residual evaluation.
 """
 
 from __future__ import annotations
@@ -36,49 +36,9 @@ from fabricsurf.discretise.constraints import (
     uzawa,
 )
 from fabricsurf.discretise.resources import Owner, destroy, dot_function, weak_method
-from fabricsurf.discretise.snes_reasons import RELATIVE, reason_name  # noqa: F401 (re-export)
-
-SNES_DEFAULTS: dict[str, object] = {
-    "snes_type": "newtonls",
-    "snes_linesearch_type": "basic",
-    "snes_rtol": 1e-10,
-    "snes_atol": 1e-10,
-    "snes_stol": 1e-14,
-    "snes_max_it": 25,
-    "snes_divergence_tolerance": 1e8,
-    "ksp_type": "preonly",
-    "pc_type": "lu",
-    "pc_factor_mat_solver_type": "mumps",
-}
-DOMAIN_AWARE: dict[str, object] = {"snes_linesearch_type": "bt", "snes_max_it": 50}
-"""Options for energies with a restricted domain: the backtracking line search shrinks a Newton
-step that leaves the domain (or does not decrease the residual) instead of failing."""
-
-STEP_RTOL = 1e-8
-"""A solve that met only the relative residual test (``snes_rtol``) is accepted once a Newton
-correction is below this fraction of the state's norm (``snes_stol`` for the continued solve,
-:meth:`SNESSolver.solve`)."""
-
-SOLVER_KEYS = ("jacobian", "compile", "step_rtol")
-"""Keys of ``options`` read by :class:`SNESSolver` itself, not by PETSc: ``jacobian`` =
-``"given"`` (the form passed in, default) or ``"exact"`` (the derivative of the residual form,
-``ufl.derivative``: quadratic Newton convergence, one more form to compile); ``compile`` =
-``"optimised"`` (dolfinx's JIT defaults, -O2) or ``"fast"`` (-O0: the large kernels of the
-full 3D model compile about three times faster and run slower, for meshes so small that
-compiling dominates, as in the exact-solution checks); ``step_rtol`` (default
-:data:`STEP_RTOL`; 0 turns the check off): the Newton-correction test of
-:meth:`SNESSolver.solve`."""
-COMPILE_ARGS = {"optimised": None, "fast": ["-O0", "-g0"]}
+from fabricsurf.discretise.snes import RELATIVE, SNES_DEFAULTS, STEP_RTOL, jit_params
 
 _ids = itertools.count()
-
-
-def _jit_params(mode: str) -> dict:
-    """dolfinx's JIT parameters for a ``compile`` mode of :data:`SOLVER_KEYS`."""
-    if mode not in COMPILE_ARGS:
-        raise ValueError(f"compile = {mode!r}: must be one of {list(COMPILE_ARGS)}")
-    args = COMPILE_ARGS[mode]
-    return {} if args is None else {"cffi_extra_compile_args": args}
 
 
 def _collective_finite(comm: MPI.Comm, array: np.ndarray) -> bool:
@@ -90,10 +50,10 @@ class SNESSolver(Owner):
 
     ``nodal_forces`` is an optional callable returning (dofs, values) of dead point forces
     (corner forces) added to the external load: R ← R − f at those local dofs. ``options`` are
-    PETSc options without the prefix (over :data:`SNES_DEFAULTS`), plus the keys of
-    :data:`SOLVER_KEYS`. ``domain_errors`` counts the residual evaluations that left the
-    energy's domain (module docstring). It owns its SNES, matrix and vectors
-    (:meth:`close`, discretise/resources.py).
+    PETSc options without the prefix (over :data:`~.snes.SNES_DEFAULTS`), plus the keys of
+    :data:`~.snes.SOLVER_KEYS`. ``domain_errors`` counts the residual evaluations that left the
+    energy's domain (module docstring). It owns its SNES, matrix and vectors (:meth:`close`,
+    discretise/resources.py).
     """
 
     matrix_type: str | None = None
@@ -120,7 +80,7 @@ class SNESSolver(Owner):
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
         self.multipliers = list(multipliers)
         self.comm = V.mesh.comm
-        jit = _jit_params(options.pop("compile", "optimised"))
+        jit = jit_params(options.pop("compile", "optimised"))
         self.step_rtol = float(options.pop("step_rtol", STEP_RTOL))
         self.L = fem.form(residual, jit_params=jit)
         self.a = fem.form(jacobian, jit_params=jit)
@@ -143,8 +103,8 @@ class SNESSolver(Owner):
         destroy(self.snes, self.A, self.b, self.x, self.force)
 
     def set_options(self, options: dict) -> None:
-        """Apply PETSc options (over :data:`SNES_DEFAULTS`) under this solver's prefix; the
-        global database is left as it was found (entries set here are removed, entries that
+        """Apply PETSc options (over :data:`~.snes.SNES_DEFAULTS`) under this solver's prefix;
+        the global database is left as it was found (entries set here are removed, entries that
         were there before, e.g. from the command line, restored)."""
         opts = PETSc.Options()
         merged = {**SNES_DEFAULTS, **options}

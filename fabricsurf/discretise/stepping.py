@@ -22,7 +22,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.solver import SNESSolver, reason_name
+from fabricsurf.discretise.snes import reason_name
+from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.log import rank0
 
 logger = logging.getLogger(__name__)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
-from fabricsurf.experiments.bias_extension import BiasExtensionPlugin
+from fabricsurf.experiments.bias_plugin import BiasExtensionPlugin
 from fabricsurf.experiments.cantilever import CantileverPlugin
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.experiments.picture_frame import PictureFramePlugin

@@ -31,7 +31,8 @@ from fabricsurf.model.terms import Term
 logger = logging.getLogger(__name__)
 
 TREATMENTS = ("auto", "full", "reduced")
-"""``auto`` (= ``full``) and the two of :data:`fabricsurf.discretise.energy.FIBRE_TREATMENTS`."""
+"""``auto`` (= ``full``) and the two of
+:data:`fabricsurf.discretise.quadrature.FIBRE_TREATMENTS`."""
 
 LOCKING_RATIO = 1e2
 """K/k_s from which fully integrated fibre terms on a mesh not aligned with the fibres give a

@@ -146,7 +146,7 @@ def check_linear(cls: type[Term], origin: str) -> None:
     """Refuse a density that is not linear in its moduli (module docstring)."""
     what = f"{origin}: effect '{cls.name}' ({cls.__name__})"
     try:
-        w = _density_evaluator(cls())
+        w = density_evaluator(cls())
     except Exception as e:  # the user's density: any failure is reported
         raise ValueError(
             f"{what}: its density cannot be evaluated ({type(e).__name__}: {e})"
@@ -172,7 +172,7 @@ def check_linear(cls: type[Term], origin: str) -> None:
             )
 
 
-def _density_evaluator(term: Term):
+def density_evaluator(term: Term):
     """p ↦ the term's density W (one value per random state) at moduli p: one compiled form,
     the moduli as constants."""
     import ufl

@@ -13,13 +13,8 @@ from fabricsurf.network.equilibrium import (
     reaction,
     solve_steps,
 )
-from fabricsurf.network.hencky import (
-    Lattice,
-    continuum_from_lattice,
-    hencky_lattice,
-    lattice_from_continuum,
-    spanning_spacing,
-)
+from fabricsurf.network.hencky import Lattice, hencky_lattice, spanning_spacing
+from fabricsurf.network.hencky_moduli import continuum_from_lattice, lattice_from_continuum
 
 __all__ = [
     "ConvergenceError",

@@ -11,7 +11,7 @@ What makes the homogenised energy (Barchiesi et al. 2020, eq. 2) followable to �
   and Newton stalls, whatever the line search or Jacobian. The scale must keep following up
   to the limit (a fixed ceiling below it stalls the finest position-clamp run once the corner
   stretch passes it): the ceiling is halfway from ρ to the limit;
-* the domain-aware solver options (:data:`~fabricsurf.discretise.solver.DOMAIN_AWARE`):
+* the domain-aware solver options (:data:`~fabricsurf.discretise.snes.DOMAIN_AWARE`):
   a backtracking line search that shrinks steps leaving ρ cos γ < 1.
 
 With these, the default Jacobian (no extra form to compile) converges in a few Newton
@@ -28,7 +28,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from fabricsurf.discretise.solver import DOMAIN_AWARE
+from fabricsurf.discretise.snes import DOMAIN_AWARE
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.bias_extension import BiasExtension
 from fabricsurf.experiments.followers import PenaltyFollower

@@ -1,3 +1,3 @@
 """The hemisphere forming plug-in's internals (experiments/hemisphere.py): the blank, the tools
 and their contact, friction, the contact Newton solver, options, profiles, the forming
-indicators and the stroke log."""
+indicators, the stroke log and what the plug-in reads off the formed blank."""

@@ -14,7 +14,8 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.discretise.solver import SOLVER_KEYS, SNESSolver
+from fabricsurf.discretise.snes import SOLVER_KEYS
+from fabricsurf.discretise.solver import SNESSolver
 
 FULL_STEP_ITERATIONS = 40
 """Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression, nodal_average
+from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.experiments.forming import blank as forming_blank
 from fabricsurf.geometry.aligned import lattice_divisions, square_divisions
 

@@ -46,8 +46,9 @@ from __future__ import annotations
 import ufl
 from dolfinx import fem
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE, placement
+from fabricsurf.discretise.energy import placement
 from fabricsurf.discretise.problem import FabricProblem
+from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.resources import release_vectors
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.experiments.cantilever import weight_per_area

@@ -15,7 +15,7 @@
    the current optimum with the candidate near zero (so a refit is never worse than the model it
    extends), the linearised refit (one Gauss–Newton step in all moduli) and a log grid of the
    candidate's modulus (:mod:`~.start`); the refit steps in the moduli, not
-   their logarithms (:mod:`~.fit`).
+   their logarithms (:mod:`~.fit`). Steps 2 and 3 are one round (:mod:`~.ranking`).
 4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
    from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
 
@@ -38,6 +38,7 @@ from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.choices import check_choices, library_labels
 from fabricsurf.inverse.diagnosis.nuisance import grip_profile, with_depth
+from fabricsurf.inverse.diagnosis.ranking import rank_round
 from fabricsurf.inverse.diagnosis.report import (
     Diagnosis,
     best_lead,
@@ -45,7 +46,7 @@ from fabricsurf.inverse.diagnosis.report import (
     where_unexplained,
 )
 from fabricsurf.inverse.diagnosis.ties import find_tie
-from fabricsurf.inverse.fitting.fit import FitResult, fit
+from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.preconditions import (
     SIGNED_REASON,
     check_unsigned,
@@ -53,12 +54,8 @@ from fabricsurf.inverse.fitting.preconditions import (
     planar_candidates,
     visible_effects,
 )
-from fabricsurf.inverse.fitting.start import candidate_start
-from fabricsurf.inverse.forward import linalg as la
-from fabricsurf.inverse.forward import ranks
 from fabricsurf.inverse.forward.runs import ForwardSet
-from fabricsurf.inverse.uncertainty import statistical as unc
-from fabricsurf.log import detail, rank0
+from fabricsurf.log import rank0
 from fabricsurf.model.terms import EFFECTS, make_term
 
 logger = logging.getLogger(__name__)
@@ -85,119 +82,6 @@ def full_model(
     return model
 
 
-def scores(
-    r: np.ndarray, Jr: np.ndarray, vals: np.ndarray, base: list[int], cand: dict[str, list[int]]
-) -> dict[str, tuple[float, float]]:
-    """Linearised χ² reduction and modulus estimate per candidate (module docstring)."""
-    Q = la.thin_q(Jr[:, base] * vals[base], "diagnose: the candidates' scores")
-    out = {}
-    for name, idx in cand.items():
-        s = Jr[:, idx].sum(axis=1)
-        s = s - Q @ (Q.T @ s)
-        ss = float(s @ s)
-        est = -float(s @ r) / ss if ss > 0 else 0.0
-        out[name] = (float(s @ r) ** 2 / ss if est > 0 else 0.0, est)
-    return out
-
-
-def gauss_newton_start(
-    r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, free: list[int], idx: list[int]
-) -> np.ndarray:
-    """The linearised refit: one Gauss–Newton step in the fitted moduli and the candidate's
-    (together) from the current optimum, each modulus kept positive (at most a factor e^1.5
-    down, as the fit's own step limit)."""
-    A = np.column_stack([Jr[:, free], Jr[:, idx].sum(axis=1)])
-    step = la.lstsq(A, -r, "diagnose: the linearised refit")
-    v = cur.copy()
-    v[free] = np.maximum(cur[free] + step[:-1], cur[free] * np.exp(-1.5))
-    v[idx] = max(step[-1], 0.0)
-    return v
-
-
-def _refit(
-    fs: ForwardSet,
-    cur: FitResult,
-    free: list[int],
-    idx: list[int],
-    estimate: float,
-    gn: np.ndarray,
-    warm: np.ndarray | None = None,
-) -> FitResult:
-    """Nested refit from the current optimum, the candidate at its best start (among them,
-    with ``warm``, the moduli a coarser mesh found for it)."""
-    extra = [gn]
-    if warm is not None and np.any(warm[idx] > 0):
-        extra.append(cur.values.copy())
-        extra[-1][free + idx] = warm[free + idx]
-    fs.set_values(candidate_start(fs, cur.values, free, idx, estimate, cur.chi2, extra=extra))
-    res = fit(fs, free + idx, scale_start=False, space="linear")
-    fs.set_values(cur.values)
-    return res
-
-
-def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
-    """The Wald test of a refit's candidate moduli ``idx`` against zero on the refit's
-    correlated-residual covariance (:func:`~.uncertainty.wald`)."""
-    pos = [rf.free.index(i) for i in idx]
-    st = rf.statistical
-    return unc.wald(rf.values[idx], st.cov[np.ix_(pos, pos)], st.dof)
-
-
-def _rank_round(
-    fs,
-    cur: FitResult,
-    free: list[int],
-    cand: dict,
-    confirm: int,
-    verbose: bool | None = None,
-    warm: np.ndarray | None = None,
-):
-    # verbose: unused, kept for beyond.py's positional call until it is converted
-    fs.set_values(cur.values)
-    r, Jr = fs.residuals(fs.run(sens=True))
-    sc = scores(r, Jr, cur.values, free, cand)
-    order = sorted(cand, key=lambda c: -sc[c][0])
-    rows, n = [], cur.misfit["n"]
-    again = [] if warm is None else [c for c in order[confirm:] if np.any(warm[cand[c]] > 0)]
-    chosen = order[:confirm] + again  # and every effect a coarser mesh added
-
-    def refit(c: str) -> FitResult:
-        gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        return _refit(fs, cur, free, cand[c], sc[c][1], gn, warm)
-
-    small = r.size <= ranks.SPREAD_RESIDUALS  # the refits are gathered on every rank
-    refits = dict(zip(chosen, ranks.spread(fs, chosen, refit) if small else map(refit, chosen)))
-    for c in order:
-        row = {
-            "effect": c,
-            "score": sc[c][0],
-            "linearised_modulus": sc[c][1],
-            "refit_misfit": None,
-            "significant": None,
-        }
-        if c in refits:
-            rf = refits[c]
-            F, p = candidate_wald(rf, cand[c])
-            row.update(
-                refit_misfit=rf.misfit["combined"],
-                refit_chi2=rf.chi2,
-                refit_params=rf.params()[c],
-                refit_std={k: s for k, s in rf.std_dict().items() if k.startswith(c + ".")},
-                wald_F=F,
-                wald_p=p,
-                share_of_excess=sg.share_of_excess(cur.chi2, len(free), rf.chi2, n),
-                f_test_passed=sg.f_test(cur.chi2, len(free), rf.chi2, len(free) + len(cand[c]), n),
-                significant=sg.significant(
-                    cur.chi2, len(free), rf.chi2, len(free) + len(cand[c]), n, wald_p=p
-                ),
-            )
-        rows.append(row)
-    rows.sort(
-        key=lambda q: (1, -q["score"]) if q["refit_misfit"] is None else (0, q["refit_misfit"])
-    )
-    return rows, refits
-
-
 def diagnose(
     exps: Experiment | list[Experiment],
     baseline: list[str],
@@ -211,8 +95,6 @@ def diagnose(
     fixed: list[str] | None = None,
     grip_depths: list[float] | None = None,
     warm_start: dict | None = None,
-    *,
-    verbose: bool | None = None,
 ) -> Diagnosis:
     """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
 
@@ -225,25 +107,23 @@ def diagnose(
     optimum): the baseline fit skips its scan by decades, and every effect it added is refitted
     in each round (best-scored or not), starting also from its moduli there.
 
-    Its stages and its fits' iterations are logged at PROGRESS. ``verbose`` is kept only for
-    the callers still to convert (demos/demo_bending.py, demos/demo_woven_fabric.py): False
-    logs that progress at DEBUG (:func:`fabricsurf.log.detail`); otherwise it does nothing.
+    Its stages and its fits' iterations are logged at PROGRESS (at DEBUG inside
+    :func:`fabricsurf.log.detail`).
     """
-    with detail(verbose is False):
-        return _diagnose(
-            exps,
-            baseline,
-            h,
-            params,
-            confirm,
-            max_effects,
-            check_discretisation,
-            comm,
-            candidates,
-            fixed,
-            grip_depths,
-            warm_start,
-        )
+    return _diagnose(
+        exps,
+        baseline,
+        h,
+        params,
+        confirm,
+        max_effects,
+        check_discretisation,
+        comm,
+        candidates,
+        fixed,
+        grip_depths,
+        warm_start,
+    )
 
 
 def _diagnose(
@@ -328,7 +208,7 @@ def _diagnose(
             ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
             if not cand or (ok and rankings) or len(added) >= max_effects:
                 break
-            rows, refits = _rank_round(fs, cur, free, cand, confirm, warm=warm)
+            rows, refits = rank_round(fs, cur, free, cand, confirm, warm=warm)
             rankings.append(rows)
             sig = [q for q in rows if q["significant"]]
             if ok or not sig:

@@ -44,7 +44,8 @@ from fabricsurf.inverse.diagnosis.report import Diagnosis
 from fabricsurf.inverse.fitting.result import FitResult
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.forward import misfit as mf
-from fabricsurf.inverse.forward.runs import ForwardModel, Prediction
+from fabricsurf.inverse.forward.load_path import Prediction
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.model.terms import make_term
 
 Z_CRIT = float(stats.norm.isf(0.5 * (1.0 - sg.LEVEL)))
@@ -174,14 +175,6 @@ def candidates(e0: Experiment, first_gradient: bool = True) -> list[Candidate]:
     return out
 
 
-def _off(J: np.ndarray | None, v: np.ndarray) -> np.ndarray:
-    """``v`` without its part in the span of ``J``'s columns (a refit's linearised reach)."""
-    if J is None or J.shape[1] == 0:
-        return v
-    Q = la.thin_q(J, "discrimination: a refit's reach")
-    return v - Q @ (Q.T @ v)
-
-
 def separation(exp: Experiment, pa: Prediction, pb: Prediction) -> dict:
     """S of the module docstring at the refits' moduli, its field and force parts, S after
     either model's moduli are refitted to the other's prediction (linearised, the smaller of
@@ -194,7 +187,8 @@ def separation(exp: Experiment, pa: Prediction, pb: Prediction) -> dict:
     n_force = len(exp.steps) if exp.has_force else 0
     force = float(delta[len(delta) - n_force :] @ delta[len(delta) - n_force :])
     S = float(delta @ delta)
-    Sr = min(float(np.sum(_off(Ja, delta) ** 2)), float(np.sum(_off(Jb, delta) ** 2)))
+    reach = "discrimination: a refit's reach"
+    Sr = min(float(np.sum(la.off_span(J, delta, reach) ** 2)) for J in (Ja, Jb))
     return {
         "separation_fixed_moduli": S,
         "field": S - force,

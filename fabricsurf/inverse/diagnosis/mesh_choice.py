@@ -35,6 +35,7 @@ from mpi4py import MPI
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.beyond import search_beyond
 from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.diagnosis.nuisance import with_depth
 from fabricsurf.inverse.diagnosis.report import Diagnosis
@@ -142,13 +143,20 @@ def diagnose_on_mesh(
     h: float | None = None,
     budget: Budget | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
+    beyond_features: int = 1,
     **kw,
 ) -> Diagnosis:
     """:func:`~.diagnose.diagnose` at ``h`` (default: each test's own), then on meshes refined
     by 2 while the h/2 check says the mesh is too coarse and ``budget`` allows (module
     docstring). ``kw``: the other arguments of :func:`~.diagnose.diagnose`. Returns the last
-    level's diagnosis with ``mesh_selection`` filled in. Each level is logged at PROGRESS."""
+    level's diagnosis with ``mesh_selection`` filled in. Each level is logged at PROGRESS.
+    When the last level's model is not adequate (and its mesh fine enough), the feature
+    library is searched for up to ``beyond_features`` energies beyond the vocabulary
+    (:func:`~.beyond.search_beyond`, once, on that mesh; 0: not searched)."""
+    if beyond_features < 0:
+        raise ValueError(f"beyond_features = {beyond_features}: 0 (no search) or more")
     exps = exps if isinstance(exps, list) else [exps]
+    given = exps
     budget = budget or Budget()
     hs = [float(h) if h else get_test(e.test).default_h(e.setup) for e in exps]
     params, grip, levels = kw.pop("params", None), None, []
@@ -179,6 +187,8 @@ def diagnose_on_mesh(
     }
     if stopped:
         rank0(logger, comm, f"[mesh] not refined further: {stopped}")
+    if beyond_features > 0:
+        d.beyond = search_beyond(d, given, max_features=beyond_features, comm=comm)
     return d
 
 

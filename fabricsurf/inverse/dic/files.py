@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from fabricsurf.errors import DataError
 
 if TYPE_CHECKING:
-    from fabricsurf.inverse.dic.config import ImportSpec
+    from fabricsurf.inverse.dic.description.spec import ImportSpec
 
 
 def matching(root: Path, pattern: str) -> list[Path]:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from fabricsurf.inverse.dic.binning import noise_estimate
-from fabricsurf.inverse.dic.config import ImportSpec
+from fabricsurf.inverse.dic.description.spec import ImportSpec
 
 ROUNDOFF = 1e-9
 """Displacements below this fraction of the specimen size are round-off: double precision of

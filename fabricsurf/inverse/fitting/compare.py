@@ -36,7 +36,7 @@ from fabricsurf.inverse.fitting.preconditions import (
     terms_label,
 )
 from fabricsurf.inverse.fitting.result import strip_rows
-from fabricsurf.inverse.forward.runs import Prediction
+from fabricsurf.inverse.forward.load_path import Prediction
 
 
 @dataclass

@@ -16,10 +16,11 @@ A small relative χ² change does not stop a step that was cut to ``max_step`` (
 from its optimum, e.g. a candidate effect started near zero, changes χ² little per step); the
 fit stops when not even the Gauss–Newton step promises a relative decrease of ``tol`` (at the
 optimum every trial step would be rejected, each costing a forward run).
-Uncertainties (docs/uncertainty.md): the cluster-robust sandwich covariance over blocks of
-residuals (:mod:`~.uncertainty`), the model-form spread between parts of the data and, after
-:meth:`FitResult.check_mesh`, the mesh shift (:mod:`~.systematic`), combined into intervals and
-identifiable combinations (:mod:`~.intervals`).
+Uncertainties (docs/uncertainty.md; at the optimum, :mod:`~.optimum`): the cluster-robust
+sandwich covariance over blocks of residuals (:mod:`~.uncertainty`), the model-form spread
+between parts of the data and, after :meth:`FitResult.check_mesh`, the mesh shift
+(:mod:`~.systematic`), combined into intervals and identifiable combinations
+(:mod:`~.intervals`).
 """
 
 from __future__ import annotations
@@ -29,13 +30,12 @@ import logging
 import numpy as np
 
 from fabricsurf.discretise.stepping import LoadStepError
+from fabricsurf.inverse.fitting.optimum import optimum_result
 from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_moduli
 from fabricsurf.inverse.fitting.result import FitResult, Forward
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 from fabricsurf.inverse.forward import linalg as la
-from fabricsurf.inverse.uncertainty import intervals, systematic
-from fabricsurf.inverse.uncertainty import statistical as unc
-from fabricsurf.log import detail, rank0
+from fabricsurf.log import rank0
 
 logger = logging.getLogger(__name__)
 
@@ -68,27 +68,6 @@ def _start(fm: Forward, free: list[int], vals: np.ndarray):
     if not np.isfinite(r).all():
         raise LoadStepError(f"fit: the initial model ({moduli}) gives non-finite residuals")
     return pred, (r, Jr), float(r @ r)
-
-
-RANK_TOL = intervals.RANK_TOL
-"""Singular values of the scaled Jacobian below this fraction of the largest are null
-directions (:func:`~.intervals.null_directions`)."""
-
-
-def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
-    """The null directions of the scaled Jacobian Jt = dr/d(log p) (a rank-deficient Fisher
-    matrix JtᵀJt), each as its combination of log-moduli, e.g. "0.71 log a.k - 0.71 log b.k"
-    (the ratio a.k/b.k is not determined); :func:`~.intervals.null_directions`, O(N·p)
-    memory for N residuals, never N × N."""
-    out = []
-    for v in intervals.null_directions(Jt).T:
-        terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
-        if terms[0][0] < 0:  # the first term positive
-            terms = [(-c, n) for c, n in terms]
-        out.append(
-            " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}" for c, n in terms).lstrip("+ ")
-        )
-    return out
 
 
 LAMBDA_START = 1e-3
@@ -147,21 +126,15 @@ def fit(
     max_step: float = 1.5,
     scale_start: bool = True,
     space: str = "log",
-    *,
-    verbose: bool | None = None,
 ) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
     free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
     docstring). The inputs are checked first, before any solve (the command line's refusals,
-    :func:`~.preconditions.fit_preconditions`). Each iteration is logged at PROGRESS.
-
-    ``verbose`` is kept only for the callers still to convert (fabricsurf/cli/measure.py,
-    demos/demo_bending.py, demos/demo_woven_fabric.py): False logs the progress at DEBUG
-    (:func:`fabricsurf.log.detail`); otherwise it does nothing."""
-    with detail(verbose is False):
-        return _fit(fm, free, max_iter, tol, max_step, scale_start, space)
+    :func:`~.preconditions.fit_preconditions`). Each iteration is logged at PROGRESS (at
+    DEBUG inside :func:`fabricsurf.log.detail`)."""
+    return _fit(fm, free, max_iter, tol, max_step, scale_start, space)
 
 
 def _fit(
@@ -254,48 +227,8 @@ def _fit(
         if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < STALL:
             break
     fm.set_values(vals)
-    return _result(fm, free, vals, pred, r, Jr, chi2, it, fm.forward_runs - runs0, hist)
-
-
-def _result(
-    fm: Forward,
-    free: list[int],
-    vals: np.ndarray,
-    pred,
-    r: np.ndarray,
-    Jr: np.ndarray,
-    chi2: float,
-    it: int,
-    runs: int,
-    hist: list,
-) -> FitResult:
-    """The FitResult at the optimum: statistical covariance over blocks of residuals and the
-    model-form spread between parts of the data (module docstring)."""
-    labels = unc.blocks(fm, pred)
-    stat = unc.sandwich(Jr, r, labels, fm.noise_known)
-    std = np.zeros(len(vals))
-    std[free] = np.sqrt(np.maximum(np.diag(stat.cov), 0.0))
-    tau = systematic.model_form(Jr, r, systematic.parts(fm, pred), labels, fm.noise_known)
-    res = FitResult(
-        list(fm.names),
-        vals,
-        std,
-        chi2,
-        fm.misfit(pred),
-        pred,
-        it,
-        runs,
-        hist,
-        undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
-        free=list(free),
-        J=Jr,
-        r=r,
-        statistical=stat,
-        model_form=tau,
-    )
-    lost = res.lost()
-    if lost:  # a null direction's zero variance is not a known modulus
-        res.std[[k for k, n in enumerate(res.names) if n in lost]] = np.inf
+    res = optimum_result(fm, free, vals, pred, r, Jr, chi2, it, fm.forward_runs - runs0, hist)
+    if res.lost():
         rank0(
             logger,
             fm.comm,

@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet, Prediction
+from fabricsurf.inverse.forward.load_path import Prediction
+from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet
 from fabricsurf.inverse.uncertainty import intervals, systematic
 from fabricsurf.inverse.uncertainty import statistical as unc
 
@@ -36,7 +37,7 @@ class FitResult:
     forward_runs: int
     history: list = field(default_factory=list)
     undetermined: list = field(default_factory=list)
-    """Combinations of log-moduli the data do not determine (:func:`~.fit.undetermined`)."""
+    """Combinations of log-moduli the data do not determine (:func:`~.optimum.undetermined`)."""
     free: list = field(default_factory=list)
     J: np.ndarray | None = None
     r: np.ndarray | None = None
@@ -71,7 +72,7 @@ class FitResult:
     def std_dict(self) -> dict:
         """{name: standard deviation}, None for a modulus the data do not determine (the
         pseudo-inverse gives it a variance of 0 in the null direction, which is not "known
-        exactly": :func:`~.fit.undetermined` names the combination)."""
+        exactly": :func:`~.optimum.undetermined` names the combination)."""
         return {n: float(s) if np.isfinite(s) else None for n, s in zip(self.names, self.std)}
 
     def uncertainty(self) -> dict:

@@ -71,6 +71,16 @@ def thin_q(J: np.ndarray, what: str) -> np.ndarray:
     return Q
 
 
+def off_span(J: np.ndarray | None, v: np.ndarray, what: str) -> np.ndarray:
+    """``v`` without its part in the span of ``J``'s columns (``v`` itself when J has none):
+    what a least-squares refit in J's parameters leaves of a change of the data
+    (:func:`thin_q`)."""
+    if J is None or J.shape[1] == 0:
+        return v
+    Q = thin_q(J, what)
+    return v - Q @ (Q.T @ v)
+
+
 def right_singular(
     J: np.ndarray, what: str = "SVD of the Jacobian"
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -1,50 +1,32 @@
 """The forward model of one or several experiments, with exact sensitivities to the moduli.
 
 :class:`ForwardModel` runs one experiment's plug-in (:mod:`fabricsurf.experiments`) along the
-recorded load path from the reference state and observes, at every converged step, the
-displacements at the measured points, the measured reaction and shear angles; with ``sens`` also
-their exact derivatives with respect to the moduli from the converged Jacobian's factorisation
-(:mod:`.tangent`, :class:`Observers`; the derivation, and why it is exact because Π_h is linear
-(affine with contact) in the moduli: docs/theory.md, "Sensitivities"). :class:`ForwardSet` runs
-several experiments with one set of moduli: one material, several tests. Each plug-in builds its
-forms from its own copies of the terms (``Term.copy``), which ``set_values`` sets without
-recompiling. On several ranks a small mesh is solved whole on every rank (:mod:`.ranks`). Both
-own their plug-ins and every PETSc object: ``close()`` (or ``with``) destroys them.
+recorded load path from the reference state (:mod:`.load_path`) and observes, at every converged
+step, the displacements at the measured points, the measured reaction and shear angles; with
+``sens`` also their exact derivatives with respect to the moduli from the converged Jacobian's
+factorisation (:mod:`.tangent`, :class:`Observers`; the derivation, and why it is exact because
+Π_h is linear (affine with contact) in the moduli: docs/theory.md, "Sensitivities").
+:class:`ForwardSet` runs several experiments with one set of moduli: one material, several
+tests. Each plug-in builds its forms from its own copies of the terms (``Term.copy``), which
+``set_values`` sets without recompiling. On several ranks a small mesh is solved whole on every
+rank (:mod:`.ranks`). Both own their plug-ins and every PETSc object: ``close()`` (or ``with``)
+destroys them.
 """
 
 from __future__ import annotations
-
-import time
-from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import PointLocator
 from fabricsurf.discretise.resources import Owner
-from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.forward import misfit as mf
-from fabricsurf.inverse.forward import ranks, tangent, warm_start
+from fabricsurf.inverse.forward import ranks
+from fabricsurf.inverse.forward.load_path import Prediction, follow_path
 from fabricsurf.inverse.forward.observe import Observers
 from fabricsurf.model.terms import EFFECTS, Term
-
-
-@dataclass
-class Prediction:
-    """Model values at the data: ``u`` (rows×c, NaN outside the mesh; c compared components),
-    ``force`` (steps, or None), ``shear`` (shear rows, deg, or None); sensitivities ``du``
-    (rows×c×P), ``dforce`` (steps×P), ``dshear`` (shear rows×P)."""
-
-    u: np.ndarray
-    force: np.ndarray | None
-    du: np.ndarray | None = None
-    dforce: np.ndarray | None = None
-    newton: int = 0
-    seconds: float = 0.0
-    shear: np.ndarray | None = None
-    dshear: np.ndarray | None = None
 
 
 class ForwardModel(Owner):
@@ -164,7 +146,7 @@ class ForwardModel(Owner):
         return mf.noise_known(self.exp)
 
     # -- solves --------------------------------------------------------------------------
-    def _points(self, k: int) -> tuple[np.ndarray, PointLocator]:
+    def step_points(self, k: int) -> tuple[np.ndarray, PointLocator]:
         """(field rows, their locator) of load step ``k``, found once per model (the mesh does
         not change between runs; the points are compared, so data edited in place are found
         again)."""
@@ -182,62 +164,10 @@ class ForwardModel(Owner):
             return ranks.agree(self.comm, self.local, lambda: self._run(sens))
 
     def _run(self, sens: bool | list[int]) -> Prediction:
-        exp, t0, c = self.exp, time.perf_counter(), self.components
         which = list(range(len(self.params))) if sens is True else list(sens or [])
-        P, n, with_force = len(which), len(exp.field_step), exp.has_force
-        u = np.full((n, c), np.nan)
-        force = np.zeros(len(exp.steps)) if with_force else None
-        du = np.zeros((n, c, P)) if which else None
-        dF = np.zeros((len(exp.steps), P)) if which and with_force else None
-        obs = self.observers
-        shear = np.full(len(exp.shear_step), np.nan) if exp.has_shear else None
-        dshear = np.zeros((len(exp.shear_step), P)) if which and exp.has_shear else None
-        sol = self.test.solver
-        sol.u.x.array[:] = 0.0
-        getattr(sol, "reset", lambda: None)()  # a path history (forming: friction, predictor)
-        self.test.set_load(0.0)
-        ws = warm_start.of(self)  # each step started from the last run's (warm_start.py)
-
-        def converged(k: int, t: float, its: int) -> None:
-            rows, at = self._points(k)
-            if len(rows):
-                u[rows] = at(sol.u)[:, :c]
-            srows = exp.shear_rows(exp.steps[k]) if shear is not None else []
-            if len(srows):
-                shear[srows] = obs.shear_values()[srows]
-            w = self.test.reaction_weight() if with_force else None
-            if w is not None:
-                force[k] = sol.virtual_work(w)
-            elif with_force and obs.reaction is not None:
-                force[k] = obs.force()
-            sens = ws.sensitivities(which, tangent.sensitivities(self, which, w))
-            for j, (duj, dfj) in enumerate(sens):
-                if len(rows):
-                    du[rows, :, j] = at(duj)[:, :c]
-                if len(srows):
-                    dshear[srows, j] = obs.shear_derivative(duj)[srows]
-                if dF is not None:
-                    dF[k, j] = dfj
-
-        stepper = LoadStepper(
-            sol,
-            self.test.set_load,
-            ws.recording(converged, len(exp.path)),
-            predictor=ws.predictor(),
-        )
-        try:
-            iters = stepper.run(exp.path)
-        except LoadStepError as e:
-            done = len(stepper.iterations)
-            if force is not None:
-                force[done:] = np.nan
-            for s in exp.steps[done:]:
-                u[exp.step_rows(s)] = np.nan
-            raise e.carrying(partial=Prediction(u, force, shear=shear), experiment=exp.name) from e
+        pred = follow_path(self, which)
         self.forward_runs += 1
-        return Prediction(
-            u, force, du, dF, int(sum(iters)), time.perf_counter() - t0, shear, dshear
-        )
+        return pred
 
     def residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
         return mf.residuals(self.exp, pred)

@@ -205,7 +205,7 @@ def error_vs_step(exp: Experiment, misfits: list[tuple[str, dict]], path: Path) 
     for ax, kind in zip(axes[0], panels):
         for label, m in misfits:
             if kind == "force":
-                y = [abs(s["force_error"]) for s in m["per_step"]]
+                y = [abs(s["force_error"]) or np.nan for s in m["per_step"]]  # log axis
             else:
                 y = [
                     s[f"{kind}_rms" + ("_deg" if kind == "shear" else "")] or np.nan

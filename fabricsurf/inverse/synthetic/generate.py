@@ -146,10 +146,11 @@ def lattice_data(
     """
     from fabricsurf.network import hencky
     from fabricsurf.network.equilibrium import solve_steps
+    from fabricsurf.network.hencky_moduli import lattice_from_continuum
 
     angles = tuple(exp.fibre_angles_deg)
     spacing = hencky.spanning_spacing(exp.length, spacing, angles)
-    k = hencky.lattice_from_continuum(
+    k = lattice_from_continuum(
         k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6, tau_f=tau_f, T_s=T_s, eps_s=eps_s
     )
     lat = hencky.hencky_lattice(exp.length, exp.width, spacing, angles, **k)

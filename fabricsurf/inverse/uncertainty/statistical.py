@@ -22,7 +22,7 @@ import numpy as np
 from scipy import stats
 
 from fabricsurf.inverse.forward import linalg as la
-from fabricsurf.inverse.forward.runs import Prediction
+from fabricsurf.inverse.forward.load_path import Prediction
 
 GRID = 4
 """Regions per side of the specimen: each region × load step is one block."""

@@ -19,7 +19,8 @@ import numpy as np
 
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.forward import misfit as mf
-from fabricsurf.inverse.forward.runs import ForwardModel, Prediction
+from fabricsurf.inverse.forward.load_path import Prediction
+from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.uncertainty.statistical import sandwich
 
 RANK_TOL = 1e-6

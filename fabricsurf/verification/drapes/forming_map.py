@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.evaluation import eval_points, nodal_average
+from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.experiments.forming import blank as forming_blank
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.verification.drapes import generator_drape

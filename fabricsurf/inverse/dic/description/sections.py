@@ -1,94 +1,22 @@
-"""The import description, ``dic.toml`` (docs/dic.md): which files, which layout, the camera
-frame, the image-to-step mapping, binning; checked key by key, each error naming the key."""
+"""The tables of ``dic.toml`` (docs/dic.md), each read and checked key by key with errors that
+name the key: ``[export]`` (the layout and the image number of a file name), ``[units]``,
+``[frame]``, ``[steps]`` and ``[specimen]``. :func:`~.spec.read_spec` puts them together."""
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
-from pathlib import Path
+from dataclasses import replace
 
 from fabricsurf.errors import DataError
-from fabricsurf.experiments import get_test
 from fabricsurf.experiments.base import PluginSetup, choice_option, number_option
 from fabricsurf.inverse.contract import checks
 from fabricsurf.inverse.contract.data import FORCE_UNITS
-from fabricsurf.inverse.contract.tables import read_toml
-from fabricsurf.inverse.dic.encoding import normalise
 from fabricsurf.inverse.dic.frame import GRIP_ANGLE, Frame
 from fabricsurf.inverse.dic.layouts import COORDINATES, LAYOUTS, Layout, custom_layout
 
-KEYS = {
-    "": {
-        "name",
-        "export",
-        "columns",
-        "units",
-        "frame",
-        "specimen",
-        "loading",
-        "steps",
-        "binning",
-        "data",
-        "source",
-        "material",
-    },
-    "export": {"layout", "files", "image_number", "encoding", "coordinates"},
-    "units": {"coordinates", "mm_per_pixel", "force"},
-    "frame": {"origin", "grip", "angle_deg", "y_down", "outside"},
-    "steps": {"images", "reference_images", "path", "force"},
-    "binning": {"pitch", "min_points"},
-    "data": {"noise_std", "force_noise_std"},
-}
 COORDINATE_SCALE = {"mm": 1.0, "m": 1000.0}
-
-
-@dataclass
-class ImportSpec:
-    """A checked dic.toml: lengths in mm, forces in N."""
-
-    where: str
-    name: str
-    layout: Layout
-    files: str
-    image_number: re.Pattern
-    root: Path
-    frame: Frame
-    outside: str
-    setup: PluginSetup
-    images: list[int]
-    reference_images: list[int]
-    path: list[float]
-    force: list[float] | None
-    pitch: float | None
-    min_points: int
-    noise_std: float | None
-    force_noise_std: float | None
-    source: dict
-    unit: str
-    encoding: str | None = None
-    coordinates_key: str = "[export] coordinates"
-
-
-def _check_keys(t: dict, where: str, plugin) -> None:
-    allowed = {k: set(v) for k, v in KEYS.items()}
-    for table, keys in plugin.keys.items():
-        allowed.setdefault(table, set()).update(keys)
-        allowed[""].add(table)
-    allowed.setdefault("specimen", set()).update({"length", "width", "fibre_angles_deg"})
-    allowed["loading"] = allowed.get("loading", set()) | {"test"}
-    for key, value in t.items():
-        if key not in allowed[""]:
-            raise DataError(
-                f"{where}: unknown key or table '{key}' (known: {', '.join(sorted(allowed['']))})"
-            )
-        if key in allowed and key not in ("", "columns", "source") and isinstance(value, dict):
-            extra = sorted(set(value) - allowed[key])
-            if extra:
-                raise DataError(
-                    f"{where}: unknown key [{key}] {extra[0]} (known: "
-                    f"{', '.join(sorted(allowed[key]))})"
-                )
+"""mm per unit of the coordinates given in mm or m ([units] coordinates; pixels: mm_per_pixel)."""
 
 
 def _int_list(value, key: str, where: str, minimum: int = 0) -> list[int]:
@@ -100,7 +28,8 @@ def _int_list(value, key: str, where: str, minimum: int = 0) -> list[int]:
     return list(value)
 
 
-def _float_list(value, key: str, where: str, n: int) -> list[float]:
+def float_list(value, key: str, where: str, n: int) -> list[float]:
+    """``value`` (the key ``key``) as ``n`` finite numbers, one per load step."""
     ok = isinstance(value, list) and all(
         isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
     )
@@ -114,7 +43,9 @@ def _float_list(value, key: str, where: str, n: int) -> list[float]:
     return [float(v) for v in value]
 
 
-def _steps(t: dict, where: str) -> tuple[list[int], list[int]]:
+def steps_of(t: dict, where: str) -> tuple[list[int], list[int]]:
+    """([steps] images, [steps] reference_images): one image per load step, in order, and the
+    unloaded images, none of them both."""
     s = t.get("steps", {})
     if "images" not in s:
         raise DataError(
@@ -138,7 +69,8 @@ def _steps(t: dict, where: str) -> tuple[list[int], list[int]]:
     return images, refs
 
 
-def _frame(t: dict, where: str, layout: Layout, scale: float) -> tuple[Frame, str]:
+def frame_of(t: dict, where: str, layout: Layout, scale: float) -> tuple[Frame, str]:
+    """(the camera frame of [frame] at ``scale`` mm per export unit, [frame] outside)."""
     f = t.get("frame", {})
     origin = f.get("origin", [0.0, 0.0])
     if not (
@@ -164,7 +96,7 @@ def _frame(t: dict, where: str, layout: Layout, scale: float) -> tuple[Frame, st
     return Frame(scale, y_down, (float(origin[0]), float(origin[1])), grip, tilt), outside
 
 
-def _units(t: dict, where: str, layout: Layout) -> tuple[str, float, float]:
+def units_of(t: dict, where: str, layout: Layout) -> tuple[str, float, float]:
     """(coordinate unit, mm per export unit, N per force unit)."""
     u = t.get("units", {})
     unit = choice_option(t, "units", "coordinates", ("mm", "m", "pixel"), layout.unit, where)
@@ -188,7 +120,8 @@ def _units(t: dict, where: str, layout: Layout) -> tuple[str, float, float]:
     return unit, scale, FORCE_UNITS[force]
 
 
-def _setup(t: dict, where: str, plugin) -> PluginSetup:
+def specimen_of(t: dict, where: str, plugin) -> PluginSetup:
+    """The specimen ([specimen]) and the test's own options, checked by its ``plugin``."""
     length = number_option(t, "specimen", "length", where)
     width = number_option(t, "specimen", "width", where)
     angles = t.get("specimen", {}).get("fibre_angles_deg")
@@ -203,7 +136,7 @@ def _setup(t: dict, where: str, plugin) -> PluginSetup:
     return setup
 
 
-def _layout(t: dict, where: str) -> tuple[Layout, str]:
+def layout_of(t: dict, where: str) -> tuple[Layout, str]:
     """(the layout, the key that states its coordinates: [columns] or [export] coordinates,
     which overrides a named layout's)."""
     export = t.get("export", {})
@@ -236,7 +169,7 @@ IMAGE_NUMBER = {"last": r".*(?<!\d)(\d+)", "first": r"\D*(\d+)"}
 """[export] image_number: which integer of a file's name (its stem) is the image number."""
 
 
-def _image_number(value, where: str) -> re.Pattern:
+def image_number_of(value, where: str) -> re.Pattern:
     """ "last" (default) or "first" integer of the file name, or a regular expression whose
     first group is the number (e.g. "-(\\d+)_" for VIC's Test-0012_0.csv)."""
     if not isinstance(value, str):
@@ -256,98 +189,3 @@ def _image_number(value, where: str) -> re.Pattern:
             '"-(\\d+)_", around the image number'
         )
     return pattern
-
-
-def read_spec(path: str | Path) -> ImportSpec:
-    """Read and check dic.toml (lengths in mm: the specimen, path and pitch are in mm)."""
-    path = Path(path)
-    where = path.name
-    t = read_toml(path)
-    test = t.get("loading", {}).get("test")
-    try:
-        plugin = get_test(test)
-    except DataError as e:
-        raise DataError(str(e).replace("experiment.toml", where)) from None
-    _check_keys(t, where, plugin)
-    layout, coordinates_key = _layout(t, where)
-    files = t.get("export", {}).get("files")
-    if not isinstance(files, str) or not files.strip():
-        raise DataError(
-            f"{where}: [export] files = {files!r} must be a file pattern, relative "
-            "to the directory of this file or absolute, e.g. "
-            '"DICe_solution_*.txt"'
-        )
-    encoding = normalise(t.get("export", {}).get("encoding"), where)
-    image_number = _image_number(t.get("export", {}).get("image_number", "last"), where)
-    unit, scale, fscale = _units(t, where, layout)
-    frame, outside = _frame(t, where, layout, scale)
-    images, refs = _steps(t, where)
-    s = t["steps"]
-    if "path" not in s:
-        raise DataError(
-            f"{where}: missing key [steps] path (the load-path value of each step:"
-            " the grip displacement in mm for a bias test)"
-        )
-    load = _float_list(s["path"], "[steps] path", where, len(images))
-    force = (
-        None
-        if "force" not in s
-        else [f * fscale for f in _float_list(s["force"], "[steps] force", where, len(images))]
-    )
-    if force is not None and not plugin.has_reaction:
-        raise DataError(f"{where}: [steps] force: the '{plugin.name}' test measures no reaction")
-    if force is not None:
-        fnoise = t.get("data", {}).get("force_noise_std")
-        checks.tensile_forces(
-            plugin,
-            images,
-            force,
-            f"{where}: [steps] force",
-            None if not isinstance(fnoise, (int, float)) else fnoise * fscale,
-            "image",
-        )
-    b = t.get("binning", {})
-    pitch = number_option(t, "binning", "pitch", where) if "pitch" in b else None
-    setup = _setup(t, where, plugin)
-    if pitch is not None and pitch > 0.5 * min(setup.length, setup.width):
-        raise DataError(
-            f"{where}: [binning] pitch = {pitch:g} mm is more than half the "
-            f"specimen's {min(setup.length, setup.width):g} mm side: the field would "
-            "be one or two points across it (the pitch is in mm, like the specimen)"
-        )
-    min_points = b.get("min_points", 1)
-    if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
-        raise DataError(f"{where}: [binning] min_points = {min_points!r} must be an integer ≥ 1")
-    noise = {
-        k: number_option(t, "data", k, where) if k in t.get("data", {}) else None
-        for k in ("noise_std", "force_noise_std")
-    }
-    name = t.get("name", path.parent.name)
-    if not isinstance(name, str) or not name.strip():
-        raise DataError(f"{where}: name = {name!r} must be a non-empty string")
-    source = t.get("source", {})
-    if not isinstance(source, dict) or any(not isinstance(v, str) for v in source.values()):
-        raise DataError(f'{where}: [source] holds free text only (key = "text")')
-    return ImportSpec(
-        where,
-        name,
-        layout,
-        files,
-        image_number,
-        path.parent,
-        frame,
-        outside,
-        setup,
-        images,
-        refs,
-        load,
-        force,
-        pitch,
-        min_points,
-        noise["noise_std"],
-        None if noise["force_noise_std"] is None else noise["force_noise_std"] * fscale,
-        dict(source),
-        unit,
-        encoding,
-        coordinates_key,
-    )

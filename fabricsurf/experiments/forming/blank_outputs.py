@@ -1,0 +1,124 @@
+"""What the hemisphere plug-in (experiments/hemisphere.py) reads off the formed blank: the
+forces, energies, dissipation and area fractions of the whole blank (reduced over ranks, times
+the copies of the solved domain), the largest penetration and shear, the contact's active set,
+and the fields it writes and profiles along a ray. A mix-in: the plug-in builds the forms and
+fields; these methods only evaluate them, apart from its set-up and load path."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
+from fabricsurf.discretise.evaluation import max_over_cells, quadrature_expression
+from fabricsurf.discretise.output import FieldWriter
+from fabricsurf.experiments.forming import blank as forming_blank
+from fabricsurf.experiments.forming import profile as forming_profile
+from fabricsurf.model.kinematics import l_dir, m_dir
+
+
+class BlankOutputs:
+    """The readings of a formed blank (module docstring), for a plug-in that holds:
+    ``problem`` and ``solver`` (the contact problem and its Newton solver), ``specimen``,
+    ``setup``, ``comm``, ``tools``, ``r`` (the placement), ``indicators`` and ``wrinkling``,
+    ``pins`` (the full blank's pinned dofs), ``copies`` (4 for the quarter, else 1) and the
+    compiled forms and expressions ``_forms`` (force, stored, tools, wrinkle, locked),
+    ``_pen`` (penetration into each tool), ``_pen_q`` and ``_gamma_q`` (at the quadrature
+    points)."""
+
+    def pin_reactions(self) -> dict[str, float]:
+        """The force each pin of the full blank exerts (N, the residual's virtual work on a
+        unit motion of the pinned dof, reduced over ranks): zero when the pins remove only
+        motions the answer does not have."""
+        out = {}
+        for name, dofs in self.pins.items():
+            w = fem.Function(self.problem.V)
+            w.x.array[dofs] = 1.0
+            out[name] = self.solver.virtual_work(w)
+        return out
+
+    # -- reduced scalars (whole blank) ---------------------------------------------------
+    def _scalar(self, name: str) -> float:
+        return self.copies * float(
+            self.comm.allreduce(fem.assemble_scalar(self._forms[name]), op=MPI.SUM)
+        )
+
+    def reaction(self) -> float:
+        """The punch force F = ∂Π/∂s (N, forming_tools.py), reduced over ranks."""
+        return self._scalar("force")
+
+    def energies(self) -> tuple[float, float]:
+        """(stored energy, tools' energy: the contact penalty, the holder's potential and the
+        self-weight's) of the whole blank (N·mm); their sum is the total energy Π of the work
+        balance."""
+        return self._scalar("stored"), self._scalar("tools")
+
+    def dissipated(self) -> float:
+        """The energy dissipated by friction on the tools since the start of :meth:`run`
+        (N·mm, whole blank): with it the work balance reads ∫ F ds = ΔΠ + D."""
+        return self.copies * self.solver.dissipated
+
+    def area_fractions(self) -> dict[str, float]:
+        """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
+        area = forming_blank.area(self.setup)
+        return {"wrinkle": self._scalar("wrinkle") / area, "locked": self._scalar("locked") / area}
+
+    def max_penetration(self, tool: str = "punch") -> float:
+        """Largest penetration into a tool at the contact energy's quadrature points (mm)."""
+        expr = (
+            self._pen_q
+            if tool == "punch"
+            else quadrature_expression(self._pen[tool], self.specimen.mesh, CELL_QUADRATURE_DEGREE)
+        )
+        return max_over_cells(expr, self.specimen.mesh)
+
+    def max_shear_deg(self) -> float:
+        """max |γ| over the quadrature points of all ranks (deg)."""
+        return math.degrees(max_over_cells(self._gamma_q, self.specimen.mesh))
+
+    def active_set(self) -> np.ndarray:
+        """Whether each quadrature point of the owned cells penetrates the punch (this rank's
+        points, flattened): compare two states to count the contact active-set changes."""
+        cells = np.arange(self.specimen.mesh.topology.index_map(2).size_local, dtype=np.int32)
+        return (self._pen_q.eval(cells) > 0.0).ravel()
+
+    # -- fields and profiles ---------------------------------------------------------------
+    def fields(self) -> dict:
+        """Forming fields for FieldWriter(extra=...) (module docstring)."""
+        kin = self.problem.energy.kin
+        fl, fm = l_dir(kin.F, kin.L), m_dir(kin.F, kin.M)
+        out = {
+            "shear_deg": kin.gamma * (180.0 / math.pi),
+            "contact_pressure": self.tools.pressure(self.r),
+            "wrinkle": self.wrinkling.mark,
+            "least_membrane_force": self.wrinkling.smoothed,
+            "beyond_locking": self.indicators.locked(kin),
+        }
+        out.update(
+            {f"{n}_{c}": v[i] for n, v in (("l", fl), ("m", fm)) for i, c in enumerate("xyz")}
+        )
+        out.update(self.problem.energy.tension_fields())
+        return out
+
+    def writer(self, path) -> FieldWriter:
+        """An XDMF writer of u and the forming fields (the caller closes it)."""
+        return FieldWriter(
+            path,
+            self.problem.u,
+            self.problem.energy.kin,
+            qdeg=CELL_QUADRATURE_DEGREE,
+            extra=self.fields(),
+        )
+
+    def element_centres(self) -> np.ndarray:
+        """forming_profile.element_centres: the diagonal's element midpoints (mm)."""
+        return forming_profile.element_centres(self)
+
+    def profile(
+        self, direction_deg: float, X: np.ndarray | None = None, n: int = 40
+    ) -> dict[str, np.ndarray]:
+        """forming_profile.profile: the shear, arc and gap along a reference ray."""
+        return forming_profile.profile(self, direction_deg, X, n)

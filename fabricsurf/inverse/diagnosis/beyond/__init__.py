@@ -1,0 +1,30 @@
+"""Effects the vocabulary does not have: a search of the library of energy features
+(:mod:`.features`, :mod:`.catalogue`) after a diagnosis (docs/diagnosis.md, "Beyond the
+vocabulary").
+
+:func:`search_beyond` takes a finished diagnosis whose final model is not adequate and searches
+the features as the diagnosis searches the named effects, with the same machinery: the final
+model and every feature (modulus 0) in one forward model, the features' linearised scores from
+the exact sensitivities (one run), nested refits of the best ``confirm`` from the best of the
+usual starts, the significance rule on each refit (Wald test on the cluster-robust covariance
+and the F-test against the variance left), ties by Vuong's test (:mod:`.ties`); stepwise, up to
+``max_features`` features.
+
+Multiple testing: each feature is tested at the Bonferroni-corrected level (:mod:`.search`).
+
+It searches only when the diagnosis leaves an excess it cannot explain: not when the final model
+is adequate, nor when the h/2 check says the mesh is too coarse for the data. Either excess is
+one a feature may take up without any physics: forced on null data made at h = 2 mm and fitted
+at h = 4 mm (adequate, misfit 1.10), an early −½k·min(λ−1,0)² feature took 45 % of the small
+excess the mesh left and passed the rule. ``force=True`` searches anyway (calibration).
+
+The outcome names what it found as a formula ("an energy ∝ γ²((λ−1)+(μ−1)) removes 61 % of the
+excess; no named effect has this form"), with its share of the excess Δχ²/(χ² − ν), its modulus
+and 95 % interval, where on the specimen its refit removes the misfit, and the Term source to
+paste into a module of one's own; or "nothing beyond the vocabulary found".
+"""
+
+from fabricsurf.inverse.diagnosis.beyond.record import NOTHING, summary_lines
+from fabricsurf.inverse.diagnosis.beyond.search import family_alpha, search_beyond
+
+__all__ = ["NOTHING", "family_alpha", "search_beyond", "summary_lines"]

@@ -1,0 +1,175 @@
+"""The search beyond the vocabulary (the package's docstring): the named effects' rounds over
+the feature library, each feature tested at the Bonferroni-corrected level.
+
+Multiple testing. The library offers m features at once, and its best-scored are the ones
+tested, so each feature is tested at the level (1 − 0.999)/m (Bonferroni): the chance that any
+of the m is called significant on data that need none stays ≤ 0.001, the level at which the
+diagnosis makes every other claim. Bonferroni rather than Šidák: the features' sensitivities are
+correlated (a ± pair exactly opposite), where Šidák's product rule assumes independence and
+Bonferroni's sum bound holds whatever the dependence; Holm's later steps do not apply, only the
+best is tested in a round. A later round tests the m − 1 features left.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+from mpi4py import MPI
+from scipy import stats
+
+from fabricsurf.inverse.contract.experiment import Experiment
+from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.beyond import features as ft
+from fabricsurf.inverse.diagnosis.beyond.record import _found, _outcome
+from fabricsurf.inverse.diagnosis.nuisance import with_depth
+from fabricsurf.inverse.diagnosis.ranking import rank_round
+from fabricsurf.inverse.diagnosis.report import Diagnosis
+from fabricsurf.inverse.diagnosis.ties import find_tie
+from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.preconditions import visible_effects
+from fabricsurf.inverse.fitting.result import FitResult
+from fabricsurf.inverse.forward.runs import ForwardSet
+from fabricsurf.log import rank0
+from fabricsurf.model.terms import EFFECTS, make_term
+
+logger = logging.getLogger(__name__)
+
+
+def family_alpha(m: int) -> float:
+    """The level each of ``m`` features is tested at (Bonferroni, module docstring)."""
+    return (1.0 - sg.LEVEL) / max(m, 1)
+
+
+def judge(row: dict, chi2: float, p: int, n: int, m: int) -> dict:
+    """The significance rule of :mod:`.significance` at the corrected level, for a refitted
+    candidate ``row`` (one modulus) of a model with χ² ``chi2`` and ``p`` moduli; its parts."""
+    alpha = family_alpha(m)
+    F = sg.f_statistic(chi2, p, row["refit_chi2"], p + 1, n)
+    F_needed = float(stats.f.ppf(1.0 - alpha, 1, max(n - p - 1, 1)))
+    ok = chi2 > row["refit_chi2"] and row["wald_p"] < alpha and F > F_needed
+    return {
+        "significant_uncorrected": row["significant"],
+        "significant": bool(ok),
+        "delta_chi2": chi2 - row["refit_chi2"],
+        "wald_p_needed": alpha,
+        "f_statistic": F,
+        "f_needed": F_needed,
+    }
+
+
+def _final_model(d: Diagnosis) -> tuple[list, list[str]]:
+    """The diagnosis's final terms at their moduli (vocabulary order) and the free moduli."""
+    f, params = d.final_fit, d.final_fit.params()
+    model = [make_term(n, **params[n]) for n in EFFECTS if n in d.terms]
+    return model, [f.names[k] for k in f.free]
+
+
+def _round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int):
+    """One round: the named effects' scores and refits, then the corrected rule."""
+    rows, refits = rank_round(fs, cur, free, cand, confirm)
+    n, m = cur.misfit["n"], len(cand)
+    for q in rows:
+        if q.get("refit_chi2") is not None:
+            q.update(judge(q, cur.chi2, len(free), n, m))
+    rows.sort(
+        key=lambda q: (
+            0 if q.get("refit_chi2") is not None else 1,
+            q.get("refit_chi2") or 0.0,
+            -q["score"],
+        )
+    )
+    return rows, refits
+
+
+def search_beyond(
+    diagnosis: Diagnosis,
+    exps: Experiment | list[Experiment],
+    *,
+    confirm: int = 2,
+    max_features: int = 1,
+    force: bool = False,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> dict:
+    """Search the feature library for what the diagnosis's final model misses (module
+    docstring). ``exps``: the experiments the diagnosis was given; ``force``: search even when
+    the final model is adequate (calibration on null data). Returns a JSON-able record:
+    ``outcome`` (the sentence), ``found`` (per feature added: formula, share of the excess,
+    modulus with its 95 % interval, tie, map, Term source), ``rounds`` (every feature's score
+    and refit), ``library``, ``excluded`` and ``multiple_testing``."""
+    exps = exps if isinstance(exps, list) else [exps]
+    t0 = time.perf_counter()
+    why_not = (
+        "the final model is adequate"
+        if diagnosis.adequate
+        else "the mesh is too coarse for these data (refine h first: a feature would take up "
+        "the discretisation error)"
+        if diagnosis.too_coarse()
+        else None
+    )
+    if why_not and not force:
+        return {"searched": False, "outcome": f"not searched: {why_not}", "found": []}
+    if diagnosis.grip_depth is not None:
+        exps = [with_depth(e, diagnosis.grip_depth["best_mm"]) for e in exps]
+    three_d = any(not EFFECTS[n].in_plane for n in visible_effects(exps))
+    specs, excluded = ft.library(three_d)
+    model, free_names = _final_model(diagnosis)
+    h = [q["h"] for q in diagnosis.meshes] if diagnosis.meshes else None
+
+    def say(msg: str) -> None:
+        rank0(logger, comm, msg)
+
+    say(f"[beyond] searching {len(specs)} features beyond the vocabulary")
+    with (
+        ft.registered(specs) as classes,
+        ForwardSet(exps, model + [c(k=0.0) for c in classes.values()], h=h, comm=comm) as fs,
+    ):
+        idx = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in classes}
+        free = [fs.names.index(n) for n in free_names]
+        cur = fit(fs, free, scale_start=False, space="linear")
+        found, rounds, base = [], [], cur
+        while len(found) < max_features:
+            cand = {n: i for n, i in idx.items() if n not in [f["feature"] for f in found]}
+            rows, refits = _round(fs, cur, free, cand, confirm)
+            rounds.append(rows)
+            sig = [q for q in rows if q.get("significant")]
+            if not sig:
+                break
+            c = sig[0]["effect"]
+            tie = find_tie(fs, rows, refits, free, cand).members
+            found.append(_found(ft.spec_of(c), sig[0], refits[c], cur, fs.experiments, tie))
+            cur, free = refits[c], sorted(free + cand[c])
+            say(
+                f"[beyond] {c}: misfit {base.misfit['combined']:.4g} → {cur.misfit['combined']:.4g}"
+            )
+            if sg.adequate(
+                cur.chi2,
+                cur.misfit["n"],
+                len(free),
+                diagnosis.discretisation_chi2 or 0.0,
+                fs.noise_known,
+            ):
+                break
+    m = len(specs)
+    out = {
+        "searched": True,
+        "forced_past": why_not,
+        "model": list(diagnosis.terms),
+        "outcome": _outcome(found, rounds[-1] if rounds else []),
+        "found": found,
+        "rounds": rounds,
+        "library": [s.name for s in specs],
+        "excluded": excluded,
+        "misfit_before": base.misfit["combined"],
+        "misfit_after": cur.misfit["combined"],
+        "multiple_testing": {
+            "method": "Bonferroni",
+            "family_size": m,
+            "family_level": sg.LEVEL,
+            "level_per_feature": family_alpha(m),
+            "why": __doc__.split("Multiple testing. ")[1].split("\n\n")[0],
+        },
+        "seconds": time.perf_counter() - t0,
+    }
+    say(f"[beyond] {out['outcome']}")
+    return out
