@@ -116,7 +116,7 @@ HOOKS = {  # stage: (module, name), name "Class.method" for a method; missing on
     "writing": [
         ("fabricsurf.discretise.output", "write_json"),
         ("fabricsurf.inverse.plots.outputs", "_per_point"),
-        ("fabricsurf.inverse.plots.outputs", "_field_band_csv"),
+        ("fabricsurf.inverse.plots.outputs", "field_band_csv"),
         ("fabricsurf.inverse.fitting.band", "write_band"),
     ],
 }

@@ -110,36 +110,6 @@ def diagnose(
     Its stages and its fits' iterations are logged at PROGRESS (at DEBUG inside
     :func:`fabricsurf.log.detail`).
     """
-    return _diagnose(
-        exps,
-        baseline,
-        h,
-        params,
-        confirm,
-        max_effects,
-        check_discretisation,
-        comm,
-        candidates,
-        fixed,
-        grip_depths,
-        warm_start,
-    )
-
-
-def _diagnose(
-    exps,
-    baseline,
-    h,
-    params,
-    confirm,
-    max_effects,
-    check_discretisation,
-    comm,
-    candidates,
-    fixed,
-    grip_depths,
-    warm_start,
-) -> Diagnosis:
     exps = exps if isinstance(exps, list) else [exps]
     visible = seen = visible_effects(exps)
     check_choices(

@@ -37,5 +37,5 @@ def write_band_files(out: Path, exps: list, bands: dict, comm: MPI.Comm = MPI.CO
         field = band["field_half_width"]
         if field is not None:
             field = np.asarray(field, float)
-            on_rank0(comm, outputs._field_band_csv, out / f"{pre}field_band.csv", exp, field)
+            on_rank0(comm, outputs.field_band_csv, out / f"{pre}field_band.csv", exp, field)
             on_rank0(comm, figures.field_band, exp, field, out / f"{pre}field_band.png")

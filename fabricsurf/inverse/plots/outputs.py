@@ -11,8 +11,6 @@ import numpy as np
 from mpi4py import MPI
 
 from fabricsurf.discretise.output import on_rank0, write_json
-from fabricsurf.experiments import get_test
-from fabricsurf.inverse.fitting.band import force_band, write_band
 from fabricsurf.inverse.fitting.result import strip_rows
 from fabricsurf.inverse.plots import figures
 from fabricsurf.inverse.plots import formed_shear as shear
@@ -102,7 +100,7 @@ def write_comparison(
         on_rank0(comm, _figures, out, exp, per_p, per_m, steps, pre)
 
 
-def _field_band_csv(path: Path, exp, half: np.ndarray) -> None:
+def field_band_csv(path: Path, exp, half: np.ndarray) -> None:
     comps = ["ux", "uy", "uz"][: half.shape[1]]
     rows = np.column_stack([exp.field_step, exp.X[:, :2], half])
     np.savetxt(
@@ -113,47 +111,3 @@ def _field_band_csv(path: Path, exp, half: np.ndarray) -> None:
         comments="",
         header=",".join(["step", "X_mm", "Y_mm", *(f"{c}_half_width_mm" for c in comps)]),
     )
-
-
-def write_bands(out: Path, fs, saved: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
-    """The 95 % prediction bands of every experiment of the ForwardSet ``fs`` at the moduli
-    of a saved fit ``saved`` (:func:`~fabricsurf.inverse.fitting.band.force_band`): the
-    force curve (``{prefix}force_band.csv`` and ``.png``) and the displacements at the
-    measurement points (``{prefix}field_band.csv``, and a map of the last step in ``.png``),
-    prefixed as in :func:`write_comparison`. Returns {experiment: {"half_width",
-    "field_half_width_max", "reliable", "nonlinearity"}}. The saved fit's moduli must all be
-    in the model."""
-    missing = sorted(set(saved["uncertainty"]["covariance"]["names"]) - set(fs.names))
-    if missing:
-        raise ValueError(
-            f"the saved fit's moduli {missing} are not in the model; a band "
-            "needs the fitted model's terms"
-        )
-    bands = {}
-    for m in fs.models:
-        band = force_band(m, saved)
-        exp = m.exp
-        pre = "" if len(fs.models) == 1 else f"{slug(exp.name)}_"
-        if band["force"] is not None:
-            on_rank0(comm, write_band, out / f"{pre}force_band.csv", band, "load")
-            on_rank0(
-                comm,
-                figures.force_band,
-                band,
-                out / f"{pre}force_band.png",
-                f"{exp.name}: prediction at the saved fit",
-                (exp.path, exp.force),
-                xlabel=get_test(exp.test).path_label,
-            )
-        field = band["field_half_width"]
-        if field is not None:
-            field = np.asarray(field, float)
-            on_rank0(comm, _field_band_csv, out / f"{pre}field_band.csv", exp, field)
-            on_rank0(comm, figures.field_band, exp, field, out / f"{pre}field_band.png")
-        bands[exp.name] = {
-            "half_width": band["half_width"],
-            "reliable": band["reliable"],
-            "nonlinearity": band["nonlinearity"],
-            "field_half_width_max": None if field is None else float(np.nanmax(field)),
-        }
-    return bands
