@@ -21,12 +21,12 @@ How it measures, without touching the library:
   loaded ``fabricsurf`` modules, so that modules moved between sub-packages are still found; a
   hook not found is reported and its time counts in its caller's): the single-mesh diagnosis
   (one mesh level), its baseline fit and scan by decades, each ranking round, the candidates'
-  refits with their starts on the scout mesh, ties, the h/2 check, the builds of meshes and
-  forms, the command's tie separation and outputs; the time a rank waits for the other in a
-  shared evaluation (``spread``) is its own row. Times are exclusive (a nested stage's time
-  counts for it alone; they add up to the command's wall time) and, as all numbers of the
-  tables, rank 0's (``*``: rank 1's counts differ, where the ranks shared the trials; every
-  rank's are in the JSON).
+  refits with their starts (linearised, or the grid on the scout mesh), ties, the h/2 check,
+  the builds of meshes and forms, the command's tie separation and outputs; the time a rank
+  waits for the other in a shared evaluation (``spread``) is its own row. Times are exclusive
+  (a nested stage's time counts for it alone; they add up to the command's wall time) and, as
+  all numbers of the tables, rank 0's (``*``: rank 1's counts differ, where the ranks shared
+  the trials; every rank's are in the JSON).
 * the command's output (the progress messages of the ``fabricsurf`` logger), printed with the
   seconds since the command started (and kept in the JSON), for the stage boundaries as the
   user sees them.
@@ -429,6 +429,8 @@ FUNCTION_HOOKS: list[tuple[str, Callable]] = [
     ("rank_round", staged(_round_label)),
     ("_refit", staged("refits")),
     ("candidate_start", staged("starts (scout grid)")),
+    ("grid_start", staged("starts (scout grid)")),
+    ("linearised_start", staged("starts (linearised)")),
     ("find_tie", staged("ties")),
     ("spread", _shared),
     ("sensitivities", _tangent),
@@ -791,7 +793,7 @@ def report_case(record: dict) -> None:
 GROUPS = (
     ("baseline", "baseline fit"),
     ("ranking", " ranking"),
-    ("refit starts", "starts (scout grid)"),
+    ("refit starts", "starts ("),
     ("refit LM", "refits › LM fit"),
     ("h/2 check", "h/2 check"),
     ("waiting", "waiting"),

@@ -37,7 +37,9 @@
 #    reported too.
 # 2. The fitted model: shear map, diagonal profile against the kinematic drape, punch force,
 #    where it wrinkles (the indicator against the flange's out-of-plane amplitude, a wrinkle
-#    map) and where it passes the locking angle; XDMF for ParaView.
+#    map) and where it passes the locking angle; XDMF for ParaView, and the whole part as a
+#    table (`part_table.csv`: per element its position, normal, fibre directions and shear,
+#    the quarter unfolded by its mirror images) for a structural model.
 # 3. Which effects matter (full mode, or `--quick --effects`): the profile with the bending
 #    weakened tenfold, and with shear locking (k₄ chosen so that the model locks at 40°).
 
@@ -54,6 +56,8 @@ from mpi4py import MPI
 from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.output import on_rank0, write_json
 from fabricsurf.discretise.stepping import LoadStepError
+from fabricsurf.experiments.forming.flat_pattern import flat_pattern, write_pattern
+from fabricsurf.experiments.forming.part_table import write_part_table
 from fabricsurf.log import rank0, warn
 from fabricsurf.studies import hemisphere_forming as parts
 from fabricsurf.verification import wrinkling
@@ -152,6 +156,28 @@ rank0(
 on_rank0(comm, drape_map.draw_difference_map, out / "shear_difference_map.png", drapes, R)
 
 # %% [markdown]
+# The flat pattern of the kinematic part trimmed a tenth of R below the punch's top (the blank
+# a cutter would need, `forming/flat_pattern.py`): along the fibre through the pole, a
+# meridian that neither stretches nor shears, it must reach the arc length R acos(1 − 0.1)
+# within the contour's own error bound.
+
+# %%
+pattern = parts.pattern_check(e, R, H, 0.1 * R)
+rank0(
+    logger,
+    comm,
+    "flat pattern (kinematic, trimmed {d:g} mm below the top): along the fibre "
+    "{f:.3f} mm against the arc {a:.3f} mm (bound {b:.2f} mm); along the bisector "
+    "{s:.3f} mm".format(
+        d=pattern["trim_depth_mm"],
+        f=pattern["fibre_reach_mm"],
+        a=pattern["arc_mm"],
+        b=pattern["bound_mm"],
+        s=pattern["bisector_reach_mm"],
+    ),
+)
+
+# %% [markdown]
 # ## 2. The fitted model
 
 # %%
@@ -201,6 +227,12 @@ rank0(
 on_rank0(comm, wrinkling.draw_map, out / "wrinkle_map.png", wrinkles, BLANK, R)
 with e.writer(out / "forming.xdmf") as w:
     w.write(STROKE)
+# the whole part, one row per element: position, normal, fibre directions, shear; and its flat
+# pattern at the same trim
+part_rows = write_part_table(e, out / "part_table.csv")
+outline = flat_pattern(e, "height", STROKE - 0.1 * R)
+write_pattern(outline, out / "flat_pattern.csv", comm)
+on_rank0(comm, parts.draw_pattern, out / "flat_pattern.png", outline, BLANK, R)
 
 # %% [markdown]
 # ## 3. Which effects matter
@@ -270,6 +302,8 @@ summary = {
     "wrinkling": wrinkle_summary,
     "diagonal_shear_per_element_max_diff_deg": kinematic["per_element_max_diff_deg"],
     "diagonal_shear_centres_max_diff_deg": kinematic["centres_max_diff_deg"],
+    "part_table_rows": part_rows,
+    "flat_pattern": pattern,
     "fibre_axis_max_shear_deg": max(abs(g) for g in main["fibre_profile"]["shear_deg"]),
     "step_log": {
         "kinematic": kinematic["step_log"],
@@ -313,6 +347,8 @@ CHECKS = {
     "max_shear_deg": (1.0, 60.0),
     "wrinkle_area_fraction": (0.0, 0.02),
     "seconds": (0.0, None),
+    "part_table_rows": (1, None),
+    "flat_pattern/fibre_reach_error_per_bound": (0.0, 1.0),
     "stroke_mm": ...,
     "wrinkling/amplitude_per_gap": (0.0, 1.0),
     "wrinkling/buckling_ratio": (None, 0.0),

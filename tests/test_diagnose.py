@@ -89,6 +89,9 @@ def test_hidden_geodesic_bending_cli(tmp_path):
     d = json.loads((root / "out" / "diagnosis.json").read_text())
     assert d["verdict"] == "geodesic_bending" == d["ranking"][0]["effect"]
     assert d["tie"] is None and d["separating_experiment"] is None  # one refit: nothing to tie
+    runs = {q["stage"]: q["forward_runs"] for q in d["profile"]["stages"]}  # exclusive
+    assert all(runs[s] > 0 for s in ("baseline fit", "ranking", "refits", "h/2 check")), runs
+    assert "round 1" in runs and all(q["level"] == 0 for q in d["profile"]["stages"])  # --h
     best = json.loads((root / "out" / "model_best.json").read_text())
     assert best["misfit"]["combined"] <= NOISE_LEVEL < d["baseline"]["misfit"]
     for f in (

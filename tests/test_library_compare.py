@@ -25,7 +25,7 @@ from fabricsurf.cli import main
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
 from fabricsurf.inverse.fitting.compare import Comparison, compare, compare_preconditions
-from fabricsurf.inverse.fitting.preconditions import fit_preconditions
+from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_start
 from fabricsurf.model.terms import Term, make_term
 
 COMM = MPI.COMM_WORLD
@@ -204,9 +204,10 @@ def test_compare_refuses_like_the_cli(case, root, capsys, monkeypatch):
         assert lib == neutral(cli, spec, options), (lib, cli)
 
 
-def test_compare_takes_signed_moduli_fit_refuses():
+def test_compare_and_fit_take_signed_moduli_diagnose_refuses():
     """A coupling whose modulus may be negative (a user's effect with ``signed``) at a
-    negative value: compare's checks pass, fit's refuse it; a band needs a covariance."""
+    negative value: compare's and fit's checks pass (a fit steps it linearly), the
+    diagnosis's refuse it; a band needs a covariance."""
 
     @dataclass
     class Coupling(Term):
@@ -220,8 +221,9 @@ def test_compare_takes_signed_moduli_fit_refuses():
     exp = good_experiment()
     model = terms(TERMS, GIVEN) + [Coupling(k_c=-2.0)]
     assert compare_preconditions([exp], model) == ()
+    fit_preconditions([exp], model)
     with pytest.raises(InputError, match=r"coupling_compare_test.k_c may be negative"):
-        fit_preconditions([exp], model)
+        positive_start(model, command="diagnose")
     with pytest.raises(InputError, match=r"band: the saved fit has no covariance"):
         compare_preconditions([exp], model, band={"params": GIVEN})
     with pytest.raises(

@@ -12,7 +12,6 @@ the model (without it the misfit is ~1.4, the noise level is 1).
 
 import json
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -23,6 +22,7 @@ from fabricsurf.inverse.contract.data import write_experiment
 from fabricsurf.inverse.diagnosis.diagnose import check_unsigned, full_model, visible_effects
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.params import load_params
+from fabricsurf.inverse.fitting.preconditions import positive_start
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.registry import BUILTIN
@@ -168,14 +168,14 @@ CASES = [
         pattern=r"--effects absent.py: no such file",
     ),
     dict(
-        id="fit-signed-modulus",
-        klass="`fit` of an effect whose modulus may be negative",
+        id="diagnose-signed-modulus",
+        klass="`diagnose` of an effect whose modulus may be negative",
         make=both(
             source_file("signed.py", effect_source(signed='("k_c",)')),
             params_json("signed.json", {"shear": {"k_s": 0.4}, "shear_tension": {"k_c": -1.0}}),
         ),
         argv=[
-            "fit",
+            "diagnose",
             "good",
             "--terms",
             "shear,shear_tension",
@@ -187,7 +187,7 @@ CASES = [
             "out",
         ],
         pattern=r"--terms shear,shear_tension: shear_tension.k_c may be negative \(signed\), "
-        "and fit fits moduli in log scale",
+        "and diagnose works with moduli ≥ 0",
     ),
 ]
 
@@ -275,6 +275,7 @@ def test_compare_and_fit_on_the_command_line(in_root, capsys):
     negative = json.loads((in_root / "cmp_negative" / "misfit.json").read_text())
     assert at_truth["combined"] < 1e-6, at_truth["combined"]  # the data's own model
     assert negative["combined"] > 0.1, negative["combined"]  # k_c = -1 is seen
+    assert negative["stability"]["states"] > 0  # a signed model's energy is checked
     rc, out = run_cli(
         ["fit", "st", "--terms", TERMS, "--effects", "effect.py", "--h", "10", "--out", "fit"],
         capsys,
@@ -356,9 +357,9 @@ def test_register_effect_decorator_and_signed_moduli(tmp_path):
         assert "coupling_test" not in [t.name for t in full_model(["shear"])]
         with pytest.raises(ValueError, match="signed effects can be compared but not diagnosed"):
             check_unsigned(["shear", "coupling_test"])
-        fake = SimpleNamespace(params=[(make_term("coupling_test"), "k_c")])
         with pytest.raises(ValueError, match=r"coupling_test\.k_c may be negative"):
-            fit(fake)
+            positive_start([make_term("coupling_test", k_c=-2.0)], command="diagnose")
+        positive_start([make_term("coupling_test", k_c=-2.0)], command="fit")  # fit takes it
     finally:
         EFFECTS.unregister("coupling_test")
     assert "coupling_test" not in EFFECTS

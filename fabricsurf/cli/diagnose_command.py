@@ -12,7 +12,7 @@ import logging
 
 from mpi4py import MPI
 
-from fabricsurf.cli.measure import add_common, checked_setup, failure_report
+from fabricsurf.cli.measure import add_common, add_plausible, checked_setup, failure_report
 from fabricsurf.cli.mesh_options import mesh_budget
 from fabricsurf.cli.options import (
     diagnose_options,
@@ -29,8 +29,15 @@ from fabricsurf.inverse.diagnosis.mesh_choice import (
     DEFAULT_SECONDS,
     LEVEL_GROWTH,
 )
-from fabricsurf.inverse.diagnosis.result_text import result_lines, tie_lines
+from fabricsurf.inverse.diagnosis.result_text import (
+    excess_lines,
+    implausible_lines,
+    result_lines,
+    tie_lines,
+)
 from fabricsurf.inverse.fitting.params import provenance
+from fabricsurf.inverse.fitting.plausibility import parse_plausible
+from fabricsurf.inverse.forward import profile
 from fabricsurf.log import rank0
 
 log = logging.getLogger(__name__)
@@ -43,6 +50,7 @@ def cmd_diagnose(args) -> int:
     from fabricsurf.inverse.diagnosis.discrimination import separate_tie
     from fabricsurf.inverse.diagnosis.mesh_choice import diagnose_on_mesh
     from fabricsurf.inverse.plots import figures
+    from fabricsurf.inverse.plots.excess import excess_figure
     from fabricsurf.inverse.plots.outputs import write_comparison
 
     budget = mesh_budget(args)
@@ -50,25 +58,32 @@ def cmd_diagnose(args) -> int:
     positive_start(model, args, "diagnose")
     depths = grip_depths(args.grip_depths, exps)
     candidates, fixed = diagnose_options(args, exps, model, params)
+    parse_plausible(args.plausible)
+    if args.yarn_spacing is not None and not 0 < args.yarn_spacing < float("inf"):
+        raise InputError(f"--yarn-spacing {args.yarn_spacing:g}: must be a positive length in mm")
     enough_data(exps, model, fixed or [])
     params = {t.name: t.values() for t in model}
     od = OutputDir(args.out, COMM, files=("diagnosis.json",), inputs=input_paths(args, exps))
     with od as stage, failure_report(od, stage, model, args, exps):
         try:
-            d = diagnose_on_mesh(
-                exps,
-                [t.name for t in model],
-                h=args.h,
-                budget=budget,
-                params=params,
-                confirm=args.confirm,
-                max_effects=args.max_effects,
-                comm=COMM,
-                candidates=candidates,
-                fixed=fixed,
-                grip_depths=depths,
-                beyond_features=args.beyond_features,
-            )
+            prof = profile.Profile(COMM)
+            with profile.active(prof):
+                d = diagnose_on_mesh(
+                    exps,
+                    [t.name for t in model],
+                    h=args.h,
+                    budget=budget,
+                    params=params,
+                    confirm=args.confirm,
+                    max_effects=args.max_effects,
+                    comm=COMM,
+                    candidates=candidates,
+                    fixed=fixed,
+                    grip_depths=depths,
+                    beyond_features=args.beyond_features,
+                    yarn_spacing=args.yarn_spacing,
+                    plausible=args.plausible,
+                )
         except ValueError as e:
             raise InputError(str(e)) from None
         d, tie = separate_tie(d, exps, args.h, COMM)
@@ -80,8 +95,10 @@ def cmd_diagnose(args) -> int:
                 tie.effects,
                 stage / "tie_difference_map.png",
             )
+        hs = [m["h"] for m in d.meshes]
         out = d.as_dict() | {
-            "provenance": provenance(model, [str(x) for x in args.data], [m["h"] for m in d.meshes])
+            "provenance": provenance(model, [str(x) for x in args.data], hs),
+            "profile": prof.as_json(),  # collective
         }
         write_json(COMM, stage / "diagnosis.json", out)
         b, f = d.base_fit, d.final_fit
@@ -99,6 +116,8 @@ def cmd_diagnose(args) -> int:
             if args.add_best:
                 write_json(COMM, stage / "model_best.json", f.as_dict())
         on_rank0(COMM, figures.misfit_path, d.path, stage / "misfit_path.png")
+        if (d.excess_location or {}).get("verdict") is not None:
+            on_rank0(COMM, excess_figure, d.excess_location, stage / "excess_location.png")
         for found in (d.beyond or {}).get("found", []):  # the term to paste, as a module
             on_rank0(COMM, (stage / f"beyond_{found['feature']}.py").write_text, found["source"])
     if d.grip_depth is not None:
@@ -126,6 +145,8 @@ def cmd_diagnose(args) -> int:
         f"{f.misfit['combined']:.4g}; adequate: {d.adequate}; {d.outcome()}",
     )
     for line in result_lines(out["final"]):
+        rank0(log, COMM, line)
+    for line in excess_lines(d.excess_location) + implausible_lines(d.implausible):
         rank0(log, COMM, line)
     if d.beyond is not None:
         for line in summary_lines(d.beyond):
@@ -211,6 +232,16 @@ def add_parser(sub, formatter) -> None:
         "docs/diagnosis.md, 'Beyond the vocabulary'); each found is written as "
         "beyond_<feature>.py, a term to load with --effects",
     )
+    p.add_argument(
+        "--yarn-spacing",
+        type=float,
+        default=None,
+        help="the fabric's yarn spacing in mm (the distance between neighbouring yarns of a "
+        "family): the unit in which the final model's excess is located by its distance from "
+        "the grips and zone boundaries (docs/diagnosis.md, 'Where the excess sits'; default: "
+        "unknown, distances in mesh sizes h)",
+    )
+    add_plausible(p)
     p.add_argument(
         "--add-best",
         action="store_true",

@@ -39,8 +39,13 @@ from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.data import load_experiment
-from fabricsurf.inverse.diagnosis.result_text import misfit_summary, result_lines
+from fabricsurf.inverse.diagnosis.result_text import (
+    implausible_lines,
+    misfit_summary,
+    result_lines,
+)
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
+from fabricsurf.inverse.fitting.plausibility import check_moduli, parse_plausible
 from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
 from fabricsurf.inverse.forward.misfit import converged_steps
 from fabricsurf.log import rank0, warn
@@ -186,6 +191,8 @@ def cmd_compare(args) -> int:
         if res.bands is not None:
             write_band_files(stage, exps, res.bands, COMM)
             extra["force_bands"] = res.band_summary()
+        if res.stability is not None:  # a model with a signed modulus
+            extra["stability"] = res.stability.as_dict()
         write_comparison(
             stage,
             exps,
@@ -206,6 +213,7 @@ def cmd_fit(args) -> int:
 
     exps, model, _ = checked_setup(args, refine=2)
     positive_start(model, args, "fit")
+    parse_plausible(args.plausible)
     enough_data(exps, model)
     od = OutputDir(
         args.out, COMM, files=("fit.json", "misfit.json"), inputs=input_paths(args, exps)
@@ -214,11 +222,12 @@ def cmd_fit(args) -> int:
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
             res = fit(fs)
             res.check_mesh(fs)
+            res.implausible = check_moduli(fs, res, args.plausible)
             extra = _prov(model, args, [m.h for m in fs.models], records(fs))
         write_json(COMM, stage / "fit.json", res.as_dict() | extra)
         label = "fit: " + "+".join(t.name for t in model)
         write_comparison(stage, exps, [(label, res.prediction)], [(label, res.misfit)])
-    for line in result_lines(res.as_dict()):
+    for line in result_lines(res.as_dict()) + implausible_lines(res.implausible):
         rank0(log, COMM, line)
     rank0(log, COMM, misfit_summary(label, res.misfit))
     return 0
@@ -249,4 +258,18 @@ def add_parsers(sub, formatter) -> None:
         "fit", formatter_class=formatter, help="least-squares fit of the moduli (log-parametrised)"
     )
     add_common(p)
+    add_plausible(p)
     p.set_defaults(func=cmd_fit)
+
+
+def add_plausible(p: argparse.ArgumentParser) -> None:
+    """--plausible: the ranges the fitted moduli must keep (fit and diagnose)."""
+    p.add_argument(
+        "--plausible",
+        default=None,
+        help="comma-separated ranges the fitted moduli must keep, term.param=low:high in "
+        "the modulus's unit, e.g. fibre_stretch.k_l=1000:1e5 (N/mm): one outside is "
+        "reported with the effect it stands in for; fitted yarns soft enough to carry the "
+        "shear the data impose are reported whatever the ranges (default: no ranges; "
+        "docs/diagnosis.md, 'Moduli no fabric has')",
+    )

@@ -9,6 +9,8 @@ from dolfinx import fem, geometry, la
 from mpi4py import MPI
 from scipy import sparse
 
+from fabricsurf.model.kinematics import Kinematics
+
 
 def _owned_cells_at(msh, points3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(row, cell): every pair of a point (its row in ``points3``) and a local owned cell
@@ -158,3 +160,19 @@ def nodal_average(expr, msh, degree: int) -> fem.Function:
     out = fem.Function(V)
     out.x.array[:] = num.array / den.array
     return out
+
+
+def fibre_states(u: fem.Function, L, M) -> np.ndarray:
+    """(λ, μ, γ) at the midpoint of every owned cell of the placement X + u (n×3; the fibre
+    stretches and the shear angle of :mod:`fabricsurf.model.kinematics`): the states whose
+    tangent :func:`fabricsurf.model.stability.check_tangent` checks."""
+    msh = u.function_space.mesh
+    x, d = ufl.SpatialCoordinate(msh), ufl.shape(u)[0]
+    r = ufl.as_vector([x[0], x[1]] + [0.0] * (d - 2)) + u  # the placement X + u
+    kin = Kinematics(ufl.grad(r), None, L, M)
+    expr = fem.Expression(
+        ufl.as_vector([kin.lam, kin.mu, kin.gamma]),
+        basix.make_quadrature(basix.cell.string_to_type(msh.topology.cell_name()), 0)[0],
+    )
+    cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
+    return np.asarray(expr.eval(cells), float).reshape(len(cells), 3)

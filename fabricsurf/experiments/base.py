@@ -87,7 +87,9 @@ class ExperimentPlugin(Owner, ABC):
     ``bends`` (what the test is, if its answer needs a bending stiffness: a second-gradient
     term), ``field_not_compared`` (why a measured displacement field of this test is not yet
     compared, or None). :meth:`check_data` refuses measured data the test cannot follow and
-    :meth:`separating_variants` names the test's own variants that may separate a tie.
+    :meth:`separating_variants` names the test's own variants that may separate a tie;
+    :meth:`zone_distance` measures how far points lie from its grips and zone boundaries (where
+    a diagnosis locates the excess misfit).
 
     A plug-in owns its problem's PETSc objects: :meth:`close` (or ``with``) destroys them when
     a run ends (discretise/resources.py). It owns its terms too: :attr:`model` holds copies of
@@ -156,6 +158,14 @@ class ExperimentPlugin(Owner, ABC):
         "Separating a tie"), besides the generic ones (a larger displacement, a measured
         field); ``first_gradient``: whether the tie is between first-gradient effects."""
         return []
+
+    @classmethod
+    def zone_distance(cls, setup: PluginSetup, X) -> np.ndarray | None:
+        """The distance (mm) of each reference point ``X`` (n×2, the data's frame) from the
+        nearest clamp or boundary between the test's deformation zones: where the continuum
+        meets what it cannot represent at the scale of the yarns (docs/diagnosis.md, "Where
+        the excess sits"). None (the default): the test has no such zones."""
+        return None
 
     @classmethod
     def default_h(cls, setup: PluginSetup) -> float:

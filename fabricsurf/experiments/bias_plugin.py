@@ -6,6 +6,7 @@ user runs without any data contract."""
 
 from __future__ import annotations
 
+import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -104,8 +105,56 @@ class BiasExtensionPlugin(ExperimentPlugin):
                 f"{where}: [specimen] fibre_angles_deg = {list(setup.fibre_angles_deg)}: {e}"
             ) from None
 
+    @classmethod
+    def zone_distance(cls, setup: PluginSetup, X) -> np.ndarray:
+        """Distance (mm) from the nearest grip (x = grip_depth, x = length − grip_depth) or
+        boundary between the zones of the bias test: the fibre lines through the grips'
+        corners, along either family, at any fibre angles (:func:`fibre_zones`)."""
+        return fibre_zones(setup, X)[1]
+
     def set_load(self, t: float) -> None:
         self.bias.set_load(t)
 
     def reaction_weight(self) -> fem.Function:
         return self._w
+
+
+def _exit(P: np.ndarray, d: np.ndarray, box: tuple[float, float, float, float]):
+    """(t, on_clamp): how far the ray P + t·d (d a unit vector, P n×2) runs inside the box
+    (x0, x1, 0, W) and whether it leaves through a grip (x = x0 or x1) rather than a free
+    edge."""
+    x0, x1, y0, y1 = box
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = np.where(d[0] > 0, (x1 - P[:, 0]) / d[0], (x0 - P[:, 0]) / d[0])
+        ty = np.where(d[1] > 0, (y1 - P[:, 1]) / d[1], (y0 - P[:, 1]) / d[1])
+    tx = np.where(abs(d[0]) > 1e-12, np.maximum(tx, 0.0), np.inf)
+    ty = np.where(abs(d[1]) > 1e-12, np.maximum(ty, 0.0), np.inf)
+    return np.minimum(tx, ty), tx <= ty
+
+
+def fibre_zones(setup: PluginSetup, X) -> tuple[np.ndarray, np.ndarray]:
+    """(zone, distance) of reference points ``X`` (n×2) of a bias specimen. The zone of a
+    point of an inextensible net is fixed by how many of the two fibre lines through it reach
+    a grip: both (2, zone A: held rigid), one (1, zone B: half the shear), none (0, zone C:
+    the full shear; Cao et al. 2008 §5). The zones change across the fibre lines through the
+    grips' corners, so the distance is to the nearest of those lines (clipped to the
+    specimen) or to a grip; points in a grip have distance 0."""
+    X = np.asarray(X, dtype=float).reshape(-1, 2)
+    depth = float(setup.options.get("grip_depth", 0.0))
+    box = (depth, setup.length - depth, 0.0, setup.width)
+    dirs = [
+        np.array([np.cos(np.radians(a)), np.sin(np.radians(a))]) for a in setup.fibre_angles_deg
+    ]
+    zone = np.zeros(len(X), dtype=int)
+    for d in dirs:
+        zone += (_exit(X, d, box)[1] | _exit(X, -d, box)[1]).astype(int)
+    dist = np.maximum(np.minimum(X[:, 0] - box[0], box[1] - X[:, 0]), 0.0)
+    corners = np.array([(box[0], 0.0), (box[0], box[3]), (box[1], 0.0), (box[1], box[3])])
+    for Q in corners:
+        for d in [s * v for v in dirs for s in (1.0, -1.0)]:
+            t_end = float(_exit(Q[None, :], d, box)[0][0])
+            if t_end <= 0.0:
+                continue  # the line leaves the specimen at this corner
+            t = np.clip((X - Q) @ d, 0.0, t_end)
+            dist = np.minimum(dist, np.linalg.norm(X - (Q + t[:, None] * d), axis=1))
+    return zone, dist

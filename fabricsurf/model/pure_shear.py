@@ -26,7 +26,6 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
-from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
@@ -54,6 +53,20 @@ _CACHE: dict = {}
 _CACHE_SIZE = 16
 
 
+def strip_mesh(n: int) -> dmesh.Mesh:
+    """[0, n] × [0, 1] in n × 1 squares on ``MPI.COMM_SELF``: 2n triangles of area ½, one
+    state per cell, the same on every rank."""
+    return dmesh.create_rectangle(
+        MPI.COMM_SELF, [np.zeros(2), np.array([n, 1.0])], [n, 1], dmesh.CellType.triangle
+    )
+
+
+def cell_values(form: fem.FormMetaClass) -> np.ndarray:
+    """The assembled cellwise (DG0) vector of ``form`` on a :func:`strip_mesh` (numpy, no PETSc
+    object to destroy)."""
+    return fem.assemble_vector(form).array.copy()
+
+
 def pure_shear_gradient(gamma, angles: tuple[float, float]):
     """F(γ) (3×2, UFL) of the pure shear of inextensible fibres at ``angles`` (deg) that closes
     the angle between them by γ: FL = l, FM = m, unit vectors turned by ∓γ/2 towards each other
@@ -73,10 +86,7 @@ class _Evaluator:
 
     def __init__(self, model: Sequence[Term], angles: tuple[float, float], cells: int) -> None:
         n = max(_MIN_CELLS, 2 ** math.ceil(math.log2(max(cells, 1)))) // 2
-        # [0, n] × [0, 1] in n × 1 squares: 2n triangles of area 1/2 each
-        self.msh = dmesh.create_rectangle(
-            MPI.COMM_SELF, [np.zeros(2), np.array([n, 1.0])], [n, 1], dmesh.CellType.triangle
-        )
+        self.msh = strip_mesh(n)
         V = fem.FunctionSpace(self.msh, ("DG", 0))
         self.gamma = fem.Function(V)
         self.size = V.dofmap.index_map.size_local
@@ -91,7 +101,6 @@ class _Evaluator:
         tau = expand_derivatives(ufl.derivative(W * dx, self.gamma, ufl.TestFunction(V)))
         # a model none of whose terms depend on γ has an empty form: τ = 0, nothing to compile
         self.form = None if tau.empty() else fem.form(tau, jit_params={"timeout": 120})
-        self.vector = None if self.form is None else fem_petsc.create_vector(self.form)
 
     def __call__(self, model: Sequence[Term], gamma: np.ndarray) -> np.ndarray:
         for t, c in zip(model, self.constants):
@@ -104,14 +113,11 @@ class _Evaluator:
             chunk = gamma[k : k + self.size]
             self.gamma.x.array[:] = 0.0
             self.gamma.x.array[: chunk.size] = chunk
-            with self.vector.localForm() as b:
-                b.set(0.0)
-            fem_petsc.assemble_vector(self.vector, self.form)
-            out[k : k + chunk.size] = self.vector.array[: chunk.size] / 0.5  # cell area 1/2
+            out[k : k + chunk.size] = cell_values(self.form)[: chunk.size] / 0.5  # cell area ½
         return out
 
 
-def _structure(model: Sequence[Term], angles: tuple[float, float]) -> tuple:
+def structure(model: Sequence[Term], angles: tuple[float, float]) -> tuple:
     """What the compiled form depends on: each term's class and options, and the angles."""
     return (
         tuple((type(t), tuple((o, repr(getattr(t, o))) for o in t.options)) for t in model),
@@ -132,7 +138,7 @@ def shear_moment(
     g = np.where((g < theta0) & (g > theta0 - math.pi), g, np.nan)
     if not model:
         return np.where(np.isnan(g), np.nan, 0.0)
-    key = _structure(model, angles)
+    key = structure(model, angles)
     ev = _CACHE.get(key)
     if ev is None or ev.size < min(g.size, 2**16):
         if len(_CACHE) >= _CACHE_SIZE:

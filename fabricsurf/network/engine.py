@@ -84,6 +84,13 @@ class SpringNetwork:
         ``f_slip l0 eps_slip ln cosh(s)``, ``s = (l - l0) / (l0 eps_slip)``, tension
         ``f_slip tanh(s)`` (N) mobilised within the strain ``eps_slip`` and then constant:
         the yarns' friction at the crossings against sliding through them (default 0: none).
+    s_comp : (m_e,) array or scalar
+        Compression softness of the extensional springs: tension ``k (l - l0)`` for l > l0 and
+        ``(1 - s_comp) k (l - l0)`` for l < l0 (default 0: symmetric). Not smoothed: the energy
+        is C1 with a jump of its second derivative at l = l0, which the line-searched Newton of
+        :mod:`~.equilibrium` handles (yarns that buckle out of their crimp under compression).
+    couplings : :class:`~fabricsurf.network.couplings.CrossingCouplings` or None
+        Coupled crossing elements, added to the rotational springs they index.
     """
 
     def __init__(
@@ -101,6 +108,8 @@ class SpringNetwork:
         phi_f: float = 1.0,
         f_slip=0.0,
         eps_slip: float = 1.0,
+        s_comp=0.0,
+        couplings=None,
     ) -> None:
         self.X = np.asarray(X, dtype=float).reshape(-1, 2)
         self.ext = np.asarray(ext, dtype=np.int64).reshape(-1, 2)
@@ -118,6 +127,8 @@ class SpringNetwork:
         if not (np.isfinite(eps_slip) and eps_slip > 0.0):
             raise ValueError(f"SpringNetwork: slip strain eps_slip = {eps_slip!r} must be > 0")
         self.eps_slip = float(eps_slip)
+        self.s_comp = np.broadcast_to(np.asarray(s_comp, float), (me,)).copy()
+        self.couplings = couplings
         self.l0 = (
             self.lengths(self.X)
             if l0 is None
@@ -166,7 +177,7 @@ class SpringNetwork:
         """Per-spring energies (N mm): extensional [B (10)] and rotational [B (16)]."""
         x = np.asarray(x, float).reshape(-1, 2)
         stretch = self.lengths(x) - self.l0
-        ee = 0.5 * self.k_ext * stretch**2
+        ee = 0.5 * self.k_ext * (1.0 - self.s_comp * (stretch < 0.0)) * stretch**2
         s = np.abs(stretch) / (self.l0 * self.eps_slip)  # ln cosh s without overflow
         ee = ee + self.f_slip * self.l0 * self.eps_slip * (
             s + np.log1p(np.exp(-2.0 * s)) - np.log(2.0)
@@ -176,6 +187,8 @@ class SpringNetwork:
         er = (0.5 * self.k_rot + (0.25 * self.k_rot4 + self.k_rot6 / 6.0 * d2) * d2) * d2
         y = np.abs(d) / self.phi_f  # ln cosh y without overflow
         er = er + self.m_fric * self.phi_f * (y + np.log1p(np.exp(-2.0 * y)) - np.log(2.0))
+        if self.couplings is not None:  # the crossing elements' energies on their triples
+            er = er + np.bincount(self.couplings.rot_index, self.couplings.energies(x), len(er))
         return ee, er
 
     def energy(self, x: np.ndarray) -> float:
@@ -188,8 +201,9 @@ class SpringNetwork:
         d = x[self.ext[:, 1]] - x[self.ext[:, 0]]
         ell = np.hypot(d[:, 0], d[:, 1])
         ts = np.tanh((ell - self.l0) / (self.l0 * self.eps_slip))
-        t = self.k_ext * (ell - self.l0) + self.f_slip * ts
-        k = self.k_ext + self.f_slip * (1.0 - ts * ts) / (self.l0 * self.eps_slip)
+        ke = self.k_ext * (1.0 - self.s_comp * (ell < self.l0))
+        t = ke * (ell - self.l0) + self.f_slip * ts
+        k = ke + self.f_slip * (1.0 - ts * ts) / (self.l0 * self.eps_slip)
         return d / ell[:, None], ell, t, k
 
     def _rot_terms(self, x):
@@ -216,6 +230,8 @@ class SpringNetwork:
         fe = t[:, None] * e  # force on node j; -fe on node i
         _, _, dphi, m, _ = self._rot_terms(x)
         fr = m[:, None] * dphi
+        if self.couplings is not None:
+            np.add.at(fr, self.couplings.rot_index, self.couplings.element_gradients(x))
         idx = np.concatenate([self.ext[:, 1], self.ext[:, 0], self.rot.T.ravel()])
         g = np.empty((n, 2))
         for c in range(2):
@@ -225,28 +241,9 @@ class SpringNetwork:
 
     # --------------------------------------------------------------- hessian
     def _element_dofs(self) -> tuple[np.ndarray, np.ndarray]:
-        de = np.stack(
-            [
-                2 * self.ext[:, 0],
-                2 * self.ext[:, 0] + 1,
-                2 * self.ext[:, 1],
-                2 * self.ext[:, 1] + 1,
-            ],
-            axis=1,
-        )
-        r = self.rot
-        dr = np.stack(
-            [
-                2 * r[:, 0],
-                2 * r[:, 0] + 1,
-                2 * r[:, 1],
-                2 * r[:, 1] + 1,
-                2 * r[:, 2],
-                2 * r[:, 2] + 1,
-            ],
-            axis=1,
-        )
-        return de, dr
+        """Node-major dofs of each spring: (m_e, 4) [2i, 2i+1, 2j, 2j+1] and (m_r, 6)."""
+        de = (2 * self.ext[:, :, None] + np.arange(2)).reshape(-1, 4)
+        return de, (2 * self.rot[:, :, None] + np.arange(2)).reshape(-1, 6)
 
     def _build_pattern(self) -> None:
         de, dr = self._element_dofs()
@@ -276,6 +273,8 @@ class SpringNetwork:
         d2[:, 4:, 4:] = Hb
         d2[:, 2:4, 4:] = d2[:, 4:, 2:4] = -Hb
         Hr = kappa[:, None, None] * np.einsum("mi,mj->mij", dphi, dphi) + m[:, None, None] * d2
+        if self.couplings is not None:
+            np.add.at(Hr, self.couplings.rot_index, self.couplings.element_hessians(x))
         return He, Hr
 
     def hessian(self, x: np.ndarray) -> sp.csr_matrix:

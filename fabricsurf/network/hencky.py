@@ -16,6 +16,10 @@ rotated square grid clipped to the rectangle, for other pairs (braids at +-30, b
   ``(k, k4, k6) = (k_sh, k_sh4, k_sh6) / 4`` (N mm), so that ``k_sh`` (and ``k_sh4``,
   ``k_sh6``) are the shear stiffnesses per crossing. Quadrants whose arm is missing (nodes
   on the boundary) are dropped: each quadrant spring stands for a quarter of a lattice cell.
+  Optional couplings on the same quadrant triples (:mod:`fabricsurf.network.couplings`): a
+  shear-tension coupling that makes the quadrant's shear stiffness (k_sh/4)(1 + c_st (e1 + e2))
+  with e1, e2 its arms' strains, and a crimp interchange (k_xc/4) e1 e2 per quadrant;
+* compression-soft fibre springs (``s_comp``): tension ``(1 - s_comp) k_e (l - l0)`` for l < l0.
 
 Clamps [B Table 1, (7)]
 -----------------------
@@ -36,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fabricsurf.defaults import FRICTION_ANGLE
+from fabricsurf.network.couplings import CrossingCouplings
 from fabricsurf.network.engine import SpringNetwork
 from fabricsurf.network.equilibrium import Dirichlet
 
@@ -160,6 +165,9 @@ def hencky_lattice(
     gamma_f: float = FRICTION_ANGLE,
     f_slip: float = 0.0,
     eps_slip: float = 1.0,
+    c_st: float = 0.0,
+    k_xc: float = 0.0,
+    s_comp: float = 0.0,
 ) -> Lattice:
     """Build the Hencky-type fabric lattice of the module docstring.
 
@@ -178,7 +186,16 @@ def hencky_lattice(
         the shear springs' moment ``m_shf tanh(d / gamma_f)``, split like ``k_sh``.
     f_slip, eps_slip : slip tension per fibre spring (N) and its slip strain: the fibre
         springs' tension ``k_e (l - l0) + f_slip tanh((l - l0) / (l0 eps_slip))``.
+    c_st : shear-tension coupling (dimensionless): the shear stiffness per crossing becomes
+        ``k_sh (1 + c_st (e_L + e_M))``, e_L, e_M the strains of the quadrant's arms.
+    k_xc : crimp interchange per crossing (N mm): energy ``k_xc e_L e_M``, split over the four
+        quadrants like ``k_sh``.
+    s_comp : compression softness of the fibre springs (0 <= s_comp < 1): their stiffness in
+        compression is ``(1 - s_comp) k_e`` (:class:`~.engine.SpringNetwork`).
+    All three default to 0: the network is then the one without them, bit for bit.
     """
+    if not 0.0 <= s_comp < 1.0:
+        raise ValueError(f"hencky_lattice: s_comp = {s_comp!r} must be in [0, 1)")
     L, M = fibre_directions(angles_deg)
     grid, X = _crossings(length, width, spacing, L, M, np.asarray(origin, float))
     ext_l, ext_m = _pairs(grid, 1, 0), _pairs(grid, 0, 1)
@@ -207,9 +224,19 @@ def hencky_lattice(
         phi_f=gamma_f,
         f_slip=f_slip,
         eps_slip=eps_slip,
+        s_comp=s_comp,
     )
     ref = net.turning_angles(X)
     net.phi0[nb:] = ref[nb:]
+    if c_st != 0.0 or k_xc != 0.0:
+        net.couplings = CrossingCouplings(
+            nb + np.arange(len(shear)),
+            shear,
+            spacing,
+            net.phi0[nb:],
+            k_st=c_st * k_sh / 4.0,
+            k_x=k_xc / 4.0,
+        )
     w = spacing * max(abs(L[0]), abs(M[0]))
     tol = 1e-6 * spacing
     clamp = np.nonzero(X[:, 0] <= X[:, 0].min() + w + tol)[0]

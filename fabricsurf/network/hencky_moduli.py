@@ -23,6 +23,17 @@ and dividing by A (p = l rotated +90 deg)::
     A_g       = k_b / s0            (N mm)   geodesic_bending   (exact only at lam ~ 1)
     T_s       = f_slip / (eps s0)   (N/mm)   yarn_slip (slip strain eps_s = eps_slip)
 
+Couplings beyond the vocabulary (:mod:`fabricsurf.network.couplings`; per quadrant the arm
+strains are exactly lam - 1, mu - 1 and the angle change -+gamma for an affine placement, so
+these are exact at any strain)::
+
+    shear-tension   1/2 k_s (1 + c_st ((lam-1) + (mu-1))) gamma^2   c_st the same number
+                    (the continuum term 1/2 k_c gamma^2 ((lam-1)+(mu-1)), k_c = c_st k_s)
+    crimp           k_x (lam - 1)(mu - 1):  k_xc = k_x eps^2 s0   (N mm per crossing)
+    compression     fibre_stretch with 1/2 (1 - s_comp) k_l (lam - 1)^2 for lam < 1: s_comp the
+                    same number (= fibre_stretch at (1 - s_comp) k_l plus 1/2 s_comp k_l
+                    max(lam - 1, 0)^2)
+
 (a slipping spring's energy f_slip eps eps_s ln cosh((lam - 1)/eps_s) per node, exact for an
 affine placement).
 
@@ -53,14 +64,20 @@ def lattice_from_continuum(
     gamma_f: float = FRICTION_ANGLE,
     T_s: float = 0.0,
     eps_s: float = 1.0,
+    c_st: float = 0.0,
+    k_x: float = 0.0,
+    s_comp: float = 0.0,
 ) -> dict:
     """Lattice stiffnesses for continuum moduli (module docstring), ready for
     :func:`~fabricsurf.network.hencky.hencky_lattice`: ``k_e`` (N/mm), ``k_sh``, ``k_sh4``,
-    ``k_sh6``, ``k_b``, ``m_shf`` (N mm), ``gamma_f`` (rad), ``f_slip`` (N) and ``eps_slip``.
+    ``k_sh6``, ``k_b``, ``m_shf`` (N mm), ``gamma_f`` (rad), ``f_slip`` (N) and ``eps_slip``,
+    and the couplings ``c_st``, ``k_xc`` (N mm) and ``s_comp``.
 
     ``k_l`` (N/mm, both families), ``k_s`` and the ``shear_locking`` moduli ``k4``, ``k6``
     (N/mm), ``A_g`` (N mm); the ``crossover_friction`` modulus ``tau_f`` (N/mm) and its shape
     angle ``gamma_f``; the ``yarn_slip`` tension ``T_s`` (N/mm) and its slip strain ``eps_s``;
+    the shear-tension coupling ``c_st`` (dimensionless), the crimp interchange ``k_x`` (N/mm)
+    and the compression softness ``s_comp`` of the fibres (dimensionless);
     spacing eps (mm). The node area ``eps^2 sin θ0`` scales all.
     """
     s0 = fibre_frame(angles_deg)[0]
@@ -75,6 +92,9 @@ def lattice_from_continuum(
         "gamma_f": gamma_f,
         "f_slip": T_s * s0 * spacing,
         "eps_slip": eps_s,
+        "c_st": c_st,
+        "k_xc": k_x * cell,
+        "s_comp": s_comp,
     }
 
 
@@ -90,9 +110,12 @@ def continuum_from_lattice(
     gamma_f: float = FRICTION_ANGLE,
     f_slip: float = 0.0,
     eps_slip: float = 1.0,
+    c_st: float = 0.0,
+    k_xc: float = 0.0,
+    s_comp: float = 0.0,
 ) -> dict:
     """Inverse of :func:`lattice_from_continuum`: ``{"k_l", "k_s", "A_g", "k4", "k6",
-    "tau_f", "gamma_f", "T_s", "eps_s"}``."""
+    "tau_f", "gamma_f", "T_s", "eps_s", "c_st", "k_x", "s_comp"}``."""
     s0 = fibre_frame(angles_deg)[0]
     cell = s0 * spacing**2
     return {
@@ -105,4 +128,7 @@ def continuum_from_lattice(
         "gamma_f": gamma_f,
         "T_s": f_slip / (s0 * spacing),
         "eps_s": eps_slip,
+        "c_st": c_st,
+        "k_x": k_xc / cell,
+        "s_comp": s_comp,
     }

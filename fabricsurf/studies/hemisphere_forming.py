@@ -15,6 +15,7 @@ import numpy as np
 from fabricsurf.datasets import woven_fit
 from fabricsurf.discretise.evaluation import eval_points, interpolate_expression
 from fabricsurf.experiments.base import PluginSetup
+from fabricsurf.experiments.forming.flat_pattern import flat_pattern, reach
 from fabricsurf.experiments.forming.stroke_log import StrokeLog
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import (
@@ -227,4 +228,43 @@ def figures(out: Path, grid: np.ndarray, blank: float, cases: dict[str, dict], R
     ax.set(xlabel="stroke (mm)", ylabel="punch force (N)", title="punch force")
     ax.legend(fontsize=8)
     fig.savefig(out / "punch_force.png", dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+
+def pattern_check(e, R: float, h: float, depth: float) -> dict:
+    """The flat pattern of the part trimmed ``depth`` below the punch's top, against the
+    inextensible drape: along the fibre through the pole (a meridian) it reaches the arc length
+    R φ_t, φ_t = acos(1 − depth/R), within the contour's bound: the P1 error of r_z,
+    h_max² κ/8 with h_max = √2 h and κ = 1/(R cos³ φ_t), over the meridian's slope sin φ_t
+    (forming.flat_pattern). The reach along the fibres' bisector is reported beside it."""
+    phi = math.acos(1.0 - depth / R)
+    seg = flat_pattern(e, "height", float(e.tools.stroke.value) - depth)
+    L = np.asarray(e.problem.L.value)
+    fibre = math.degrees(math.atan2(L[1], L[0]))
+    along = reach(seg, fibre, 8.0)
+    bound = 2.0 * h**2 / (8.0 * R * math.cos(phi) ** 3) / math.sin(phi)
+    return {
+        "trim_depth_mm": depth,
+        "fibre_reach_mm": along,
+        "arc_mm": R * phi,
+        "bisector_reach_mm": reach(seg, fibre + 45.0, 8.0),
+        "bound_mm": bound,
+        "fibre_reach_error_per_bound": abs(along - R * phi) / bound,
+    }
+
+
+def draw_pattern(path: Path, seg: np.ndarray, blank: float, R: float) -> None:
+    """The flat pattern's outline (segments, reference mm) over the blank (rank 0)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(4.6, 4.4))
+    h = 0.5 * blank
+    ax.plot([-h, h, h, -h, -h], [-h, -h, h, h, -h], "k-", lw=1, label="blank")
+    from matplotlib.collections import LineCollection
+
+    ax.add_collection(LineCollection(seg, colors="C3", linewidths=1.5, label="flat pattern"))
+    ax.add_patch(plt.Circle((0, 0), R, fill=False, color="0.5", ls="--"))
+    ax.set_aspect("equal")
+    ax.set(xlabel="X (mm, flat blank)", ylabel="Y (mm, flat blank)", title="flat pattern")
+    ax.legend(fontsize=8, loc="upper right")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)

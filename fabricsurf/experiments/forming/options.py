@@ -15,6 +15,7 @@ h or given, is refused before meshing. A stroke must leave the blank's edge on t
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, number_option
@@ -36,6 +37,11 @@ TOOL_KEYS = {
     "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, default 1e-3)",
     "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 1/R: "
     "bent more sharply than the punch)",
+    "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
+    "experiment.toml; its pole at z = 0, moving up along z; default: the hemisphere of "
+    "radius punch_radius)",
+    "punch_units": "length unit of punch_file's coordinates (mm, cm, m or in; required "
+    "with punch_file)",
 }
 """The tools' keys of the ``[tooling]`` table (the blank's: forming/blank.py)."""
 
@@ -126,12 +132,51 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
             f"plausible range {need:.3g} ≤ contact_stiffness ≤ "
             f"{RANGES['contact_stiffness'][1]:g} N/mm³"
         )
+    out.update(_punch_file(tables.get("tooling", {}), where))
     out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
     out["wrinkle_curvature"] = (
         number_option(tables, "tooling", "wrinkle_curvature", where, 1.0 / R * length_scale)
         / length_scale
     )
     return out
+
+
+def _punch_file(tooling: dict, where: str) -> dict:
+    """``punch_file`` and ``punch_units`` checked, the file read once (its surface's own checks:
+    closed, oriented, not degenerate, surfaces/topology.py) so that a bad file is refused with
+    the data; the plug-in reads it again where it builds its tools (punch_surface)."""
+    from fabricsurf.experiments.forming.surfaces.files import UNITS, read_surface
+
+    path, units = tooling.get("punch_file"), tooling.get("punch_units")
+    if path is None:
+        if units is not None:
+            raise DataError(f"{where}: [tooling] punch_units = {units!r} without punch_file")
+        return {}
+    if not isinstance(path, str) or not path.strip():
+        raise DataError(
+            f"{where}: [tooling] punch_file = {path!r} must be a file name in quotes, "
+            'e.g. "punch.stl"'
+        )
+    if units not in UNITS:
+        raise DataError(
+            f"{where}: [tooling] punch_file = {path!r} needs punch_units, the unit of its "
+            f"coordinates (one of {', '.join(UNITS)}; a file carries none), "
+            + ("none given" if units is None else f"got {units!r}")
+        )
+    if not Path(path).is_file():
+        raise DataError(f"{where}: [tooling] punch_file: {path}: no such file")
+    read_surface(path, units)
+    return {"punch_file": str(path), "punch_units": units}
+
+
+def punch_surface(o: dict):
+    """The punch surface of the options: a given one (``punch_surface``, Python), the file's
+    (``punch_file``), or None (the analytic hemisphere)."""
+    if o.get("punch_surface") is not None or not o.get("punch_file"):
+        return o.get("punch_surface")
+    from fabricsurf.experiments.forming.surfaces.files import read_surface
+
+    return read_surface(o["punch_file"], o["punch_units"])
 
 
 def check_specimen(setup: PluginSetup, where: str) -> None:

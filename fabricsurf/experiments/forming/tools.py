@@ -14,8 +14,7 @@ one lip radius beyond the end of the lip (ρ = R_o + 2 r_d, ρ the current dista
 axis; the die's face becomes flat at R_o + r_d) to 1 one lip radius further: it fixes the blank's
 vertical position from the first step (a blank in a gap alone could float up with the punch).
 Self-weight, optional, is the potential ∫ q r_z dX (q = ρ_A g per unit reference area).
-Contact is the penalty energy
-½ k_c ⟨−d⟩² per unit reference area for each tool's signed distance d.
+Contact is the penalty energy ½ k_c ⟨−d⟩² per unit reference area for each tool's distance d.
 
 Friction under the holder (Coulomb, coefficient μ, optional): without it nothing resists the
 flange's draw-in, the fibres carry no tension, and the sheet spans the punch as a tent held by
@@ -53,7 +52,9 @@ from fabricsurf.discretise.resources import release_vectors
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming import friction as forming_friction
-from fabricsurf.experiments.forming.contact_newton import ContactSolver
+from fabricsurf.experiments.forming import options as forming_options
+from fabricsurf.experiments.forming.contact_newton import LINEAR_SOLVER, ContactSolver
+from fabricsurf.experiments.forming.tabulated_punch import TabulatedPunch
 from fabricsurf.model.terms import Term
 
 
@@ -79,6 +80,7 @@ class Tools:
         weight: float = 0.0,
         punch_friction: float = 0.0,
         die_friction: float = 0.0,
+        punch_surface=None,
     ) -> None:
         self.R = float(R)
         self.radius, self.opening, self.gap, self.lip = (
@@ -95,6 +97,9 @@ class Tools:
         self.mu_punch = fem.Constant(msh, float(punch_friction))
         self.mu_die = fem.Constant(msh, float(die_friction))
         self.r_n = None
+        self.tabulated = (
+            None if punch_surface is None else TabulatedPunch(msh, punch_surface, punch_friction)
+        )
 
     @classmethod
     def from_options(cls, msh, o: dict) -> Tools:
@@ -113,6 +118,7 @@ class Tools:
             weight_per_area(o.get("areal_density_g_m2", 0.0)),
             o.get("punch_friction", 0.0),
             o.get("die_friction", 0.0),
+            forming_options.punch_surface(o),
         )
 
     def tool_friction(self) -> bool:
@@ -125,7 +131,10 @@ class Tools:
 
     def punch(self, r, stroke=None):
         """(signed distance to the punch, the vertical component of its outward normal), the
-        pole at ``stroke`` (default: the current stroke)."""
+        pole at ``stroke`` (default: the current stroke); a punch given as a surface from its
+        table (tabulated_punch.py)."""
+        if self.tabulated is not None:
+            return self.tabulated.punch(r, self.stroke if stroke is None else stroke)
         dz = r[2] - ((self.stroke if stroke is None else stroke) - self.radius)
         rho = self._rho(r)
         dist = ufl.sqrt(rho**2 + dz**2)
@@ -137,6 +146,8 @@ class Tools:
 
     def punch_normal(self, r, stroke):
         """(signed distance to the punch with its pole at ``stroke``, its outward normal)."""
+        if self.tabulated is not None:
+            return self.tabulated.punch_normal(r, stroke)
         d, _ = self.punch(r, stroke)
         dz = r[2] - (stroke - self.radius)
         rho = self._rho(r)
@@ -214,17 +225,6 @@ class Tools:
         return self.k_c * sum(self.penetrations(r).values())
 
 
-LINEAR_SOLVER: dict = {}
-"""Options of the linear solver beyond the SNES defaults (MUMPS LU). The Jacobian is the Hessian
-of one energy, symmetric, and MUMPS's LDLᵀ (``{"pc_type": "cholesky"}``) factors it with about
-a third fewer operations: measured on the 250 mm blank at h = R/5 with friction on all tools
-(benchmarks/forming.py), the same 193 Newton iterations, the punch force equal to 10⁻¹²
-relative, 11.7 s of CPU against 13.6 s with LU. It is not the default: in the forming demo's
-quick run from an installed wheel it failed at the first step (DIVERGED_LINEAR_SOLVE at every
-cut, on the flat blank, where the pivots of an indefinite LDLᵀ are least safe) where LU
-converges; an option for such measurements, ``snes_options={"pc_type": "cholesky"}``."""
-
-
 class ContactProblem(FabricProblem):
     """A FabricProblem whose energy also holds the tools' contact penalty; its residual and
     Jacobian are the variations of that one energy (``ufl.derivative``). Its linear solver is
@@ -241,6 +241,8 @@ class ContactProblem(FabricProblem):
             "dx", domain=self.msh, metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE}
         )
         tools.r_n = placement(self.u_n)
+        if tools.tabulated is not None:
+            tools.tabulated.attach(placement(self.u), tools.stroke)
 
     def _release(self) -> None:
         super()._release()

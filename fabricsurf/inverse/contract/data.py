@@ -135,12 +135,23 @@ def _path_from_toml(t: dict, scale: float) -> tuple[np.ndarray, np.ndarray]:
     return np.arange(1, len(vals) + 1), np.array(vals) * scale
 
 
+def _files_here(t: dict, d: Path) -> dict:
+    """A plug-in's option that names a file (a key ending in ``_file``, e.g. the punch's
+    surface) is a path relative to the experiment's directory: made absolute here."""
+    for table in t.values():
+        if isinstance(table, dict):
+            for k, v in table.items():
+                if k.endswith("_file") and isinstance(v, str) and v.strip():
+                    table[k] = str(d / v) if not Path(v).is_absolute() else v
+    return t
+
+
 def load_experiment(directory: str | Path) -> Experiment:
     """Read, validate and convert (to mm, N) the experiment in ``directory``."""
     d = Path(directory)
     if not d.is_dir():
         raise DataError(f"{d}: not a directory")
-    t = read_toml(d / "experiment.toml")
+    t = _files_here(read_toml(d / "experiment.toml"), d)
     test = _get(t, "loading", "test")
     plugin = get_test(test)
     _check_keys(t, plugin)

@@ -11,11 +11,13 @@
    linearising about the fit with c's moduli (together, ≥ 0) as an extra parameter, the fitted
    moduli free: with s⊥ = dr/dp_c projected off the fitted sensitivities,
    score = (s⊥·r)²/|s⊥|² if the estimated modulus −(s⊥·r)/|s⊥|² is positive, else 0.
-3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts from the best of
-   the current optimum with the candidate near zero (so a refit is never worse than the model it
-   extends), the linearised refit (one Gauss–Newton step in all moduli) and a log grid of the
-   candidate's modulus (:mod:`~.start`); the refit steps in the moduli, not
-   their logarithms (:mod:`~.fit`). Steps 2 and 3 are one round (:mod:`~.ranking`).
+3. Confirm the ``confirm`` best-scored candidates by a nested refit that starts at the
+   linearised refit (one Gauss–Newton step in all moduli from the ranking run's sensitivities)
+   when one run on the fit's mesh shows the linearisation holds there; else (logged) at the
+   best of the current optimum with the candidate near zero (so a refit is never worse than the
+   model it extends), that step and a log grid of the candidate's modulus
+   (:mod:`~fabricsurf.inverse.fitting.start`); the refit steps in the moduli, not their
+   logarithms (:mod:`~.fit`). Steps 2 and 3 are one round (:mod:`~.ranking`).
 4. Add the best confirmed candidate if it is significant (:mod:`~.significance`), and repeat
    from 2 until the model is adequate, nothing is significant, or ``max_effects`` were added.
 
@@ -37,6 +39,7 @@ from fabricsurf.inverse.contract.data import check_field_moves
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.choices import check_choices, library_labels
+from fabricsurf.inverse.diagnosis.excess import excess_location
 from fabricsurf.inverse.diagnosis.nuisance import grip_profile, with_depth
 from fabricsurf.inverse.diagnosis.ranking import rank_round
 from fabricsurf.inverse.diagnosis.report import (
@@ -47,6 +50,7 @@ from fabricsurf.inverse.diagnosis.report import (
 )
 from fabricsurf.inverse.diagnosis.ties import find_tie
 from fabricsurf.inverse.fitting.fit import fit
+from fabricsurf.inverse.fitting.plausibility import check_moduli, parse_plausible
 from fabricsurf.inverse.fitting.preconditions import (
     SIGNED_REASON,
     check_unsigned,
@@ -54,6 +58,7 @@ from fabricsurf.inverse.fitting.preconditions import (
     planar_candidates,
     visible_effects,
 )
+from fabricsurf.inverse.forward.profile import ROUND, progress, timed
 from fabricsurf.inverse.forward.runs import ForwardSet
 from fabricsurf.log import rank0
 from fabricsurf.model.terms import EFFECTS, make_term
@@ -95,6 +100,10 @@ def diagnose(
     fixed: list[str] | None = None,
     grip_depths: list[float] | None = None,
     warm_start: dict | None = None,
+    yarn_spacing: float | None = None,
+    plausible: dict | str | None = None,
+    say_implausible: bool = True,
+    level: int = 0,
 ) -> Diagnosis:
     """Fit ``baseline`` to ``exps``, then rank → confirm → add (module docstring).
 
@@ -106,6 +115,14 @@ def diagnose(
     diagnosis on a coarser mesh (:mod:`~.mesh_choice`; ``params`` then hold its baseline
     optimum): the baseline fit skips its scan by decades, and every effect it added is refitted
     in each round (best-scored or not), starting also from its moduli there.
+    ``yarn_spacing`` (mm): the unit of the distances from the grips and zone boundaries by
+    which the final model's excess is located (:func:`~.excess.excess_location`; default the
+    mesh size); ``plausible``: ranges {"term.param": (low, high)} (or "term.param=low:high")
+    the fitted moduli must keep, besides the rules on the yarns
+    (:func:`~fabricsurf.inverse.fitting.plausibility.check_moduli`; warned unless
+    ``say_implausible`` is False, as the mesh selection does for all but its last level).
+    ``level``: the mesh level, for the stages of an active profile
+    (:mod:`~fabricsurf.inverse.forward.profile`: its progress lines with the time left).
 
     Its stages and its fits' iterations are logged at PROGRESS (at DEBUG inside
     :func:`fabricsurf.log.detail`).
@@ -123,6 +140,9 @@ def diagnose(
         library_labels(list(baseline), candidates, fixed),
     )
     check_unsigned(list(baseline) + list(candidates or []))
+    parse_plausible(plausible)
+    if yarn_spacing is not None and not (np.isfinite(yarn_spacing) and yarn_spacing > 0):
+        raise ValueError(f"yarn_spacing = {yarn_spacing}: a positive length in mm")
     planar_candidates(exps, candidates)
     fit_preconditions(
         exps,
@@ -163,7 +183,8 @@ def diagnose(
             if warm_start is None
             else np.array([warm_start.get(t.name, {}).get(p, 0.0) for t, p in fs.params])
         )
-        cur = base = fit(fs, free, space="linear", scale_start=warm is None)
+        with timed("baseline fit", level):
+            cur = base = fit(fs, free, space="linear", scale_start=warm is None)
         t_fit = MPI.Wtime() - t0
         terms, path, rankings, added = list(baseline), [], [], []
         tie = None
@@ -178,7 +199,10 @@ def diagnose(
             ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), noise_known=fs.noise_known)
             if not cand or (ok and rankings) or len(added) >= max_effects:
                 break
-            rows, refits = rank_round(fs, cur, free, cand, confirm, warm=warm)
+            rounds_left = max(max_effects - len(added), 1)
+            progress(level, f"round {len(rankings) + 1}", [*ROUND * rounds_left, "h/2 check"])
+            with timed(f"round {len(rankings) + 1}", level):
+                rows, refits = rank_round(fs, cur, free, cand, confirm, warm=warm)
             rankings.append(rows)
             sig = [q for q in rows if q["significant"]]
             if ok or not sig:
@@ -194,9 +218,13 @@ def diagnose(
         fs.set_values(cur.values)
         chi2_h = None
         if check_discretisation:
-            cur.check_mesh(fs)
+            with timed("h/2 check", level):
+                cur.check_mesh(fs)
             chi2_h = cur.chi2_h
         ok = sg.adequate(cur.chi2, cur.misfit["n"], len(free), chi2_h or 0.0, fs.noise_known)
+        meshes = fs.meshes()
+        implausible = check_moduli(fs, cur, plausible, say=say_implausible)
+        where = excess_location(exps, cur, yarn_spacing, [m["h"] for m in meshes])
         invisible = [
             {"effect": n, "reason": "planar (2D) data cannot see out-of-plane effects"}
             for n in EFFECTS
@@ -235,5 +263,7 @@ def diagnose(
             noise_known=fs.noise_known,
             grip_depth=grip,
             tie=tie,
-            meshes=fs.meshes(),
+            meshes=meshes,
+            excess_location=where,
+            implausible=implausible,
         )

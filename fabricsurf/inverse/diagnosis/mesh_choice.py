@@ -39,6 +39,8 @@ from fabricsurf.inverse.diagnosis.beyond import search_beyond
 from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.diagnosis.nuisance import with_depth
 from fabricsurf.inverse.diagnosis.report import Diagnosis
+from fabricsurf.inverse.fitting.plausibility import say_implausible
+from fabricsurf.inverse.forward.profile import timed
 from fabricsurf.log import rank0
 
 logger = logging.getLogger(__name__)
@@ -163,7 +165,17 @@ def diagnose_on_mesh(
     t_start, warm, stopped = MPI.Wtime(), None, None
     while True:
         t0 = MPI.Wtime()
-        d = diagnose(exps, baseline, h=hs, params=params, comm=comm, warm_start=warm, **kw)
+        d = diagnose(
+            exps,
+            baseline,
+            h=hs,
+            params=params,
+            comm=comm,
+            warm_start=warm,
+            **kw,
+            say_implausible=False,
+            level=len(levels),
+        )
         levels.append(level_record(d, comm.allreduce(MPI.Wtime() - t0, op=MPI.MAX)))
         grip = grip or d.grip_depth
         _say(comm, len(levels) - 1, levels[-1])
@@ -187,8 +199,10 @@ def diagnose_on_mesh(
     }
     if stopped:
         rank0(logger, comm, f"[mesh] not refined further: {stopped}")
+    say_implausible(getattr(d, "implausible", None), comm)  # the last level's only
     if beyond_features > 0:
-        d.beyond = search_beyond(d, given, max_features=beyond_features, comm=comm)
+        with timed("search beyond the vocabulary", len(levels) - 1):
+            d.beyond = search_beyond(d, given, max_features=beyond_features, comm=comm)
     return d
 
 

@@ -1,24 +1,30 @@
 """One round of the stepwise diagnosis (:mod:`~.diagnose`, steps 2 and 3 of its docstring):
 score every candidate effect by the χ² reduction that linearising about the current fit
 predicts (:func:`scores`), then confirm the best-scored ones by nested refits, each started from
-the best of the current optimum, the linearised refit (:func:`gauss_newton_start`) and a grid
-of the candidate's modulus, and tested for significance (:mod:`~.significance`): the rows of
-the round's ranking, best first. Whether to add the best, and when to stop, is
-:func:`~.diagnose.diagnose`'s.
+the linearised refit (:func:`gauss_newton_start`) where the linearisation holds, else from the
+best of the current optimum, the linearised refit and a grid of the candidate's modulus
+(:mod:`~.start`; such a fallback is logged), and tested for significance
+(:mod:`~.significance`): the rows of the round's ranking, best first. Whether to add the best,
+and when to stop, is :func:`~.diagnose.diagnose`'s.
 """
 
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 
 from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.result import FitResult
-from fabricsurf.inverse.fitting.start import candidate_start
+from fabricsurf.inverse.fitting.start import grid_start, linearised_start, scout
 from fabricsurf.inverse.forward import linalg as la
-from fabricsurf.inverse.forward import ranks
+from fabricsurf.inverse.forward import profile, ranks, warm_start
 from fabricsurf.inverse.forward.runs import ForwardSet
 from fabricsurf.inverse.uncertainty import statistical as unc
+from fabricsurf.log import rank0
+
+logger = logging.getLogger(__name__)
 
 
 def scores(
@@ -50,25 +56,45 @@ def gauss_newton_start(
     return v
 
 
+def predicted_chi2(
+    r: np.ndarray, Jr: np.ndarray, cur: np.ndarray, v: np.ndarray, free: list[int], idx: list[int]
+) -> float:
+    """χ² at the moduli ``v`` (the fitted ``free`` moved, the candidate's ``idx`` all at one
+    value) as the linearisation about the current optimum ``cur`` predicts it."""
+    lin = r + Jr[:, free] @ (v[free] - cur[free]) + Jr[:, idx].sum(axis=1) * v[idx[0]]
+    return float(lin @ lin)
+
+
 def _refit(
     fs: ForwardSet,
     cur: FitResult,
     free: list[int],
     idx: list[int],
     estimate: float,
-    gn: np.ndarray,
+    gn: tuple[np.ndarray, float],
     warm: np.ndarray | None = None,
-) -> FitResult:
-    """Nested refit from the current optimum, the candidate at its best start (among them,
-    with ``warm``, the moduli a coarser mesh found for it)."""
-    extra = [gn]
+) -> tuple[FitResult, str | None]:
+    """Nested refit from the current optimum, the candidate at the linearised refit ``gn``
+    (its moduli and predicted χ²) where the linearisation holds, else at the best start of
+    the grid (:mod:`~.start`; among them, with ``warm``, the moduli a coarser mesh found for
+    it). Returns the refit and, after a fallback to the grid, what did not hold."""
+    near = None
     if warm is not None and np.any(warm[idx] > 0):
-        extra.append(cur.values.copy())
-        extra[-1][free + idx] = warm[free + idx]
-    fs.set_values(candidate_start(fs, cur.values, free, idx, estimate, cur.chi2, extra=extra))
-    res = fit(fs, free + idx, scale_start=False, space="linear")
+        near = cur.values.copy()
+        near[free + idx] = warm[free + idx]
+    start, first, note = linearised_start(fs, free, idx, gn[0], gn[1], cur.chi2, near)
+    if start is None:
+        extra = [gn[0]] + ([] if near is None else [near])
+        start, first = grid_start(
+            fs, cur.values, free, idx, estimate, cur.chi2, extra, sens=free + idx
+        )
+    else:
+        note = None
+    fs.set_values(start)
+    res = fit(fs, free + idx, scale_start=False, space="linear", first=first)
+    warm_start.latest(fs, res.values)  # the next round's ranking starts there if it is added
     fs.set_values(cur.values)
-    return res
+    return res, note
 
 
 def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
@@ -92,19 +118,40 @@ def rank_round(
     ``confirm`` best (and every one ``warm`` holds above zero) and judge each refit; returns
     (rows, refits). The search beyond the vocabulary runs its rounds with it too."""
     fs.set_values(cur.values)
-    r, Jr = fs.residuals(fs.run(sens=True))
+    with profile.stage("ranking"):
+        r, Jr = fs.residuals(fs.run(sens=True))
     sc = scores(r, Jr, cur.values, free, cand)
     order = sorted(cand, key=lambda c: -sc[c][0])
     rows, n = [], cur.misfit["n"]
     again = [] if warm is None else [c for c in order[confirm:] if np.any(warm[cand[c]] > 0)]
     chosen = order[:confirm] + again  # and every effect a coarser mesh added
 
-    def refit(c: str) -> FitResult:
+    def refit(c: str) -> tuple[FitResult, str | None]:
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        return _refit(fs, cur, free, cand[c], sc[c][1], gn, warm)
+        return _refit(
+            fs,
+            cur,
+            free,
+            cand[c],
+            sc[c][1],
+            (gn, predicted_chi2(r, Jr, cur.values, gn, free, cand[c])),
+            warm,
+        )
 
     small = r.size <= ranks.SPREAD_RESIDUALS  # the refits are gathered on every rank
-    refits = dict(zip(chosen, ranks.spread(fs, chosen, refit) if small else map(refit, chosen)))
+    if small:  # a refit whose linearised start fails ranks a grid on the scout: built here,
+        scout(fs)  # on every rank, not by one rank inside the shared refits (a collective)
+    with profile.stage("refits"):
+        done = ranks.spread(fs, chosen, refit) if small else list(map(refit, chosen))
+    refits = {c: rf for c, (rf, _) in zip(chosen, done)}
+    for c, (_, note) in zip(chosen, done):  # said here: a shared refit ran on another rank
+        if note is not None:
+            rank0(
+                logger,
+                fs.comm,
+                f"  refit of {c}: the linearised start does not hold ({note}); "
+                "started from the best of the grid instead",
+            )
     for c in order:
         row = {
             "effect": c,

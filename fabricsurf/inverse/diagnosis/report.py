@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.excess import outcome_text
 from fabricsurf.inverse.diagnosis.ties import Tie
 from fabricsurf.inverse.fitting.result import FitResult, strip_rows
 from fabricsurf.model.terms import EFFECTS
@@ -54,6 +55,12 @@ class Diagnosis:
     beyond: dict | None = None
     """The search beyond the vocabulary on the final mesh (:func:`~.beyond.search_beyond`);
     None when it was not asked for."""
+    excess_location: dict | None = None
+    """Where the final model's field excess sits: at the grips and zone boundaries or spread
+    (:func:`~.excess.excess_location`)."""
+    implausible: list | None = None
+    """The final model's fitted moduli no fabric has
+    (:func:`~fabricsurf.inverse.fitting.plausibility.check_moduli`)."""
 
     def tied(self) -> list[str] | None:
         """The effects the data cannot tell apart, the verdict first (None: no tie)."""
@@ -88,6 +95,15 @@ class Diagnosis:
             text += "; beyond the vocabulary: " + self.beyond["outcome"]
         return text + self.mesh_note()
 
+    def notes(self) -> list[str]:
+        """What the outcome (one of the contract's three, :meth:`outcome`) leaves to be said:
+        where the excess sits when the model is not adequate (:mod:`~.excess`), and each
+        fitted modulus no fabric has, with the effect it stands in for and what to do
+        (:mod:`~fabricsurf.inverse.fitting.plausibility`)."""
+        out = [outcome_text(self.excess_location)] if not self.adequate else []
+        out += [f"implausible modulus: {q['text']}" for q in self.implausible or []]
+        return [t for t in out if t]
+
     def mesh_note(self) -> str:
         """ "" when the mesh is fine enough; else "refine h", with why the mesh selection (if it
         ran) refined no further: its budget, spent."""
@@ -118,6 +134,7 @@ class Diagnosis:
             "indistinguishable_from_verdict": self.alternatives,
             "adequate": self.adequate,
             "outcome": self.outcome(),
+            "outcome_notes": self.notes(),
             "path": self.path,
             "final": {"terms": self.terms, "params": f.params(), "std": f.as_dict()["std"]}
             | {k: v for k, v in f.as_dict().items() if k in UNCERTAINTY_KEYS}
@@ -144,6 +161,8 @@ class Diagnosis:
             },
             "grip_depth": self.grip_depth,
             "beyond_vocabulary": self.beyond,
+            "excess_location": self.excess_location,
+            "implausible_moduli": self.implausible,
             "seconds": {"baseline_fit": self.fit_seconds},
         }
 

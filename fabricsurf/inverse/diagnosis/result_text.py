@@ -6,6 +6,8 @@ is in :mod:`~.report` and the fitting layer."""
 
 from __future__ import annotations
 
+from fabricsurf.inverse.diagnosis.excess import WORDS
+
 
 def _num(x: float | None) -> str:
     return "not measured" if x is None else f"{x:.2g}"
@@ -99,8 +101,12 @@ def tie_lines(d) -> list[str]:
             f"{best['separation']:.3g}, expected z ≈ {best['expected_z']:.2f} "
             + ("(separates: above " if best["separates"] else "(not enough: below ")
             + f"{sep['z_critical']:.2f}); reliably (98 %) with "
-            f"{best['data_factor']:.2g}× its points, steps or 1/noise²; map: "
-            "tie_difference_map.png"
+            f"{best['data_factor']:.2g}× its points, steps or 1/noise²"
+            + (
+                "; map: tie_difference_map.png"
+                if own.get("where_they_differ_most") or best.get("key") == "field_data"
+                else ""  # force only, as measured and as suggested: nothing to map
+            )
         )
         for q in sep["candidates"][1:]:
             lines.append(
@@ -112,3 +118,38 @@ def tie_lines(d) -> list[str]:
                 )
             )
     return lines
+
+
+def _band(b: dict, unit: str) -> str:
+    hi = "" if b["to"] is None else f"{b['to']:g}"
+    span = f"≥ {b['from']:g}" if b["to"] is None else f"{b['from']:g}–{hi}"
+    share = "–" if b["share_of_excess"] is None else f"{100 * b['share_of_excess']:.0f} %"
+    return (
+        f"    {span} {unit}: {100 * b['share_of_rows']:.0f} % of the rows, {share} of the "
+        f"excess (mean z² {b['mean_z2']:.3g})"
+    )
+
+
+def excess_lines(rec: dict | None) -> list[str]:
+    """Where the excess sits (docs/diagnosis.md, "Where the excess sits"), as text."""
+    if not rec:
+        return []
+    if rec.get("verdict") is None:
+        return [f"where the excess sits: {rec['reason']}"]
+    unit = "yarn spacings" if rec.get("yarn_spacing_mm") else "mesh sizes h"
+    size = (
+        f"{rec['yarn_spacing_mm']:g} mm"
+        if rec.get("yarn_spacing_mm")
+        else ", ".join(f"{x:.3g}" for x in rec["unit_mm"]) + " mm (yarn spacing not given)"
+    )
+    lines = [f"where the excess sits: {WORDS[rec['verdict']]}: {rec['reason']}"]
+    lines.append(f"  by distance from the grips and zone boundaries (1 unit = {size}):")
+    lines += [_band(b, unit) for b in rec["by_distance"]]
+    lines.append("  by the model's shear angle:")
+    lines += [_band(b, "deg") for b in rec["by_shear_angle"]]
+    return lines
+
+
+def implausible_lines(found: list | None) -> list[str]:
+    """The fitted moduli no fabric has, each with what it stands in for and what to do."""
+    return [f"implausible modulus: {q['text']}" for q in found or []]

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import InputError
 from fabricsurf.inverse.contract.checks import unloading_warning
 from fabricsurf.inverse.contract.experiment import Experiment
@@ -36,7 +37,9 @@ from fabricsurf.inverse.fitting.preconditions import (
     terms_label,
 )
 from fabricsurf.inverse.fitting.result import strip_rows
+from fabricsurf.inverse.fitting.stability_check import explained, fitted_tangent
 from fabricsurf.inverse.forward.load_path import Prediction
+from fabricsurf.model.stability import TangentCheck
 
 
 @dataclass
@@ -48,7 +51,8 @@ class Comparison:
     each plug-in that keeps one (``discretisation``, by experiment name), the bands at a saved
     fit's moduli (``bands``, by experiment name, :func:`~.band.force_band`; None without
     ``band``) and the ``warnings`` about the inputs (a load path that turns back under a term
-    valid for monotonic loading only)."""
+    valid for monotonic loading only), and for a model with a signed modulus the ``stability``
+    of its energy over the states of the predictions (:mod:`.stability_check`; else None)."""
 
     label: str
     predictions: list[Prediction]
@@ -57,6 +61,7 @@ class Comparison:
     discretisation: dict
     bands: dict | None = None
     warnings: tuple[str, ...] = ()
+    stability: TangentCheck | None = None
 
     @property
     def h(self) -> list[float]:
@@ -265,9 +270,14 @@ def compare(
     warnings = compare_preconditions(exps, model, h, params, band)
     model = at_params(model, params)
     with ForwardSet(exps, model, h=h, comm=comm) as fs:
-        preds = fs.run()
+        try:
+            preds = fs.run()
+        except LoadStepError as e:
+            raise explained(fs, e) from None  # a material limit point named as such
+        stability = fitted_tangent(fs, run=False)  # at the states of this run
         misfit = fs.misfit(preds)
         meshes = fs.meshes()
         disc = records(fs)
         bands = None if band is None else {m.exp.name: force_band(m, band) for m in fs.models}
-    return Comparison("+".join(t.name for t in model), preds, misfit, meshes, disc, bands, warnings)
+    label = "+".join(t.name for t in model)
+    return Comparison(label, preds, misfit, meshes, disc, bands, warnings, stability)

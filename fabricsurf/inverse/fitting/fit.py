@@ -33,6 +33,7 @@ from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.inverse.fitting.optimum import optimum_result
 from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_moduli
 from fabricsurf.inverse.fitting.result import FitResult, Forward
+from fabricsurf.inverse.fitting.stability_check import fitted_tangent
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.log import rank0
@@ -52,13 +53,14 @@ def _try(fm: Forward, free: list[int], vals: np.ndarray):
     return pred, (r, Jr), float(r @ r)
 
 
-def _start(fm: Forward, free: list[int], vals: np.ndarray):
+def _start(fm: Forward, free: list[int], vals: np.ndarray, first=None):
     """:func:`_try` at the start, where a failure ends the fit: the error names the starting
-    moduli, the experiment, the step and the load (and keeps what had converged)."""
+    moduli, the experiment, the step and the load (and keeps what had converged). ``first``:
+    that run, already done by the caller (:func:`fit`)."""
     moduli = ", ".join(f"{fm.names[k]} = {vals[k]:.4g}" for k in free)
     fm.set_values(vals)
     try:
-        pred = fm.run(sens=free)
+        pred = fm.run(sens=free) if first is None else first
     except LoadStepError as e:
         where = f" of experiment '{e.experiment}'" if e.experiment else ""
         raise e.carrying(
@@ -87,12 +89,29 @@ BOUND_CUT = 1e-3
 take it to where it no longer matters: the bound at zero)."""
 
 
-def _steps(space: str, vals: np.ndarray, free: list[int]):
+def _steps(space: str, vals: np.ndarray, free: list[int], signed: np.ndarray):
     """(dr/dq scaling, update) of the step variable q: θ = log p, or p itself (module
-    docstring)."""
+    docstring); a ``signed`` modulus (may be negative) is always p itself, unbounded."""
     if space == "log":
-        return vals[free], lambda v, s: v * np.exp(s)
-    return np.ones(len(free)), lambda v, s: np.maximum(v + s, v * BOUND_CUT)
+        scale = np.where(signed, 1.0, vals[free])
+        return scale, lambda v, s: np.where(signed, v + s, v * np.exp(np.where(signed, 0.0, s)))
+    return np.ones(len(free)), lambda v, s: np.where(
+        signed, v + s, np.maximum(v + s, v * BOUND_CUT)
+    )
+
+
+def _signed(fm: Forward, free: list[int]) -> np.ndarray:
+    """Which of the free moduli may be negative (their term's ``signed``)."""
+    return np.array(
+        [p in getattr(t, "signed", ()) for t, p in (fm.params[k] for k in free)], dtype=bool
+    )
+
+
+def _moves(new: np.ndarray, old: np.ndarray, signed: np.ndarray) -> np.ndarray:
+    """How far each modulus moved: |Δ log p|, or |Δp| / max(|p|) for a signed one."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(new - old) / np.maximum(np.maximum(np.abs(new), np.abs(old)), 1e-300)
+        return np.where(signed, rel, np.abs(np.log(np.where(signed, 1.0, new / old))))
 
 
 def _preconditions(fm: Forward, free: list[int]) -> None:
@@ -111,11 +130,8 @@ def _preconditions(fm: Forward, free: list[int]) -> None:
             held or None,  # a held signed modulus is fine
             start=[t for t in active if t.name in names],
         )
-    signed = [
-        f"{t.name}.{p}" for t, p in (fm.params[k] for k in free) if p in getattr(t, "signed", ())
-    ]
-    positive_moduli([], [], signed)
-    positive_moduli([fm.names[k] for k in free], fm.values()[free], [])
+    logs = [k for k, s in zip(free, _signed(fm, free)) if not s]  # signed: any start
+    positive_moduli([fm.names[k] for k in logs], fm.values()[logs], [])
 
 
 def fit(
@@ -126,9 +142,12 @@ def fit(
     max_step: float = 1.5,
     scale_start: bool = True,
     space: str = "log",
+    first=None,
 ) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
-    values (which must be > 0); the other moduli stay fixed. ``scale_start``: first scan the
+    values (which must be > 0, but for a term's ``signed`` moduli, which step linearly, are
+    held in the scale scan, and whose fitted energy is checked for stability over the data's
+    states: :mod:`.stability_check`); the other moduli stay fixed. ``scale_start``: first scan the
     free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
     docstring). The inputs are checked first, before any solve (the command line's refusals,
@@ -145,15 +164,18 @@ def _fit(
     max_step: float,
     scale_start: bool,
     space: str,
+    first=None,
 ) -> FitResult:
     if space not in ("log", "linear"):
         raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
-    _preconditions(fm, free)  # signed or zero starting moduli among them too
+    _preconditions(fm, free)  # zero starting moduli among them too
+    signed = _signed(fm, free)
     vals = fm.values()
-    runs0, given = fm.forward_runs, vals.copy()
+    given = vals.copy()
+    runs0 = fm.forward_runs - (0 if first is None else len(first) if isinstance(first, list) else 1)
     if scale_start:
-        vals = scan_terms(fm, free, vals)
+        vals = scan_terms(fm, [k for k, s in zip(free, signed) if not s], vals)
         held = held_terms(fm, free)
         if held:
             rank0(
@@ -169,7 +191,7 @@ def _fit(
             + "  ".join(f"{fm.names[k]} = {vals[k]:.4g}" for k in free),
         )
     try:
-        pred, rj, chi2 = _start(fm, free, vals)
+        pred, rj, chi2 = _start(fm, free, vals, first)
     except LoadStepError as e:
         # the scout mesh carried the scanned moduli, the fit's mesh does not (moduli the data
         # hardly see, e.g. a cantilever's membrane, scanned down): start from those given
@@ -186,7 +208,7 @@ def _fit(
     lam, hist, it = LAMBDA_START, [], 0
     at_bound = np.zeros(len(free), bool)
     for it in range(1, max_iter + 1):
-        q_scale, update = _steps(space, vals, free)
+        q_scale, update = _steps(space, vals, free, signed)
         Jt = Jr * q_scale  # dr/dq
         g = Jt.T @ r
         act = ~(at_bound & (g > 0))  # a modulus at the bound that would go on down is held
@@ -200,8 +222,9 @@ def _fit(
         while lam < LAMBDA_MAX:
             step = np.zeros(len(free))
             step[act] = la.finite(np.linalg.solve(JTJ + lam * D, -g[act]), "fit: the damped step")
-            if space == "log":
-                step *= min(1.0, max_step / max(np.max(np.abs(step)), 1e-300))
+            if space == "log":  # the cap on the log-moduli's steps
+                top = np.max(np.abs(step[~signed]), initial=0.0)
+                step[~signed] *= min(1.0, max_step / max(top, 1e-300))
             trial = vals.copy()
             trial[free] = update(vals[free], step)
             p2, rj2, chi2_new = _try(fm, free, trial)
@@ -213,8 +236,8 @@ def _fit(
             fm.set_values(vals)
             break
         rel = (chi2 - chi2_new) / max(chi2, 1e-300)
-        dlog = np.abs(np.log(trial[free] / vals[free]))
-        at_bound = (space == "linear") & (~act | (vals[free] + step <= 0))
+        dlog = _moves(trial[free], vals[free], signed)
+        at_bound = (space == "linear") & ~signed & (~act | (vals[free] + step <= 0))
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
         hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
         rank0(
@@ -223,11 +246,14 @@ def _fit(
             f"  fit iteration {it}: chi2 = {chi2:.6g}  "
             + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free),
         )
-        moving = space == "log" and np.max(dlog) >= max_step * (1 - 1e-9)  # cut: go on
+        cut = np.max(dlog[~signed], initial=0.0) >= max_step * (1 - 1e-9)
+        moving = space == "log" and cut  # a log step was cut: go on
         if (rel < tol and not moving) or np.max(dlog[~at_bound], initial=0.0) < STALL:
             break
     fm.set_values(vals)
     res = optimum_result(fm, free, vals, pred, r, Jr, chi2, it, fm.forward_runs - runs0, hist)
+    if signed.any():  # a coupling's sign: is the fitted energy stable where the data go?
+        res.stability = fitted_tangent(fm)
     if res.lost():
         rank0(
             logger,

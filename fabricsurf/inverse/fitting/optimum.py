@@ -19,16 +19,21 @@ directions (:func:`~.intervals.null_directions`)."""
 
 def undetermined(names: list[str], Jt: np.ndarray) -> list[str]:
     """The null directions of the scaled Jacobian Jt = dr/d(log p) (a rank-deficient Fisher
-    matrix JtᵀJt), each as its combination of log-moduli, e.g. "0.71 log a.k - 0.71 log b.k"
-    (the ratio a.k/b.k is not determined); :func:`~.intervals.null_directions`, O(N·p)
-    memory for N residuals, never N × N."""
+    matrix JtᵀJt; :func:`~.intervals.scaled_jacobian`), each as its combination of log-moduli,
+    e.g. "0.71 log a.k - 0.71 log b.k" (the ratio a.k/b.k is not determined; a signed modulus
+    appears as itself, without "log"); :func:`~.intervals.null_directions`, O(N·p) memory for
+    N residuals, never N × N."""
+    signed = dict(zip(names, intervals.signed_mask(names)))
     out = []
     for v in intervals.null_directions(Jt).T:
         terms = [(c, n) for c, n in zip(v, names) if abs(c) > 0.05 * np.abs(v).max()]
         if terms[0][0] < 0:  # the first term positive
             terms = [(-c, n) for c, n in terms]
         out.append(
-            " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} log {n}" for c, n in terms).lstrip("+ ")
+            " ".join(
+                f"{'-' if c < 0 else '+'} {abs(c):.2g} {'' if signed[n] else 'log '}{n}"
+                for c, n in terms
+            ).lstrip("+ ")
         )
     return out
 
@@ -50,6 +55,7 @@ def optimum_result(
     direction of the Fisher matrix gets an infinite standard deviation (:meth:`FitResult.lost`:
     the caller says so)."""
     labels = unc.blocks(fm, pred)
+    names = list(np.array(fm.names)[free])
     stat = unc.sandwich(Jr, r, labels, fm.noise_known)
     std = np.zeros(len(vals))
     std[free] = np.sqrt(np.maximum(np.diag(stat.cov), 0.0))
@@ -64,7 +70,7 @@ def optimum_result(
         it,
         runs,
         hist,
-        undetermined(list(np.array(fm.names)[free]), Jr * vals[free]),
+        undetermined(names, intervals.scaled_jacobian(Jr, vals[free], names)),
         free=list(free),
         J=Jr,
         r=r,

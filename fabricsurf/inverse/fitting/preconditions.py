@@ -1,9 +1,9 @@
 """What a fit or a diagnosis refuses before any computation, checked in one place for the
 library (:func:`~fabricsurf.inverse.fitting.fit.fit`,
-:func:`~fabricsurf.inverse.diagnosis.diagnose.diagnose`) and the command line: signed or zero
-starting moduli (the fit steps in log-moduli), more moduli than data (under-determined), tests
-or kinds of data not yet in the comparison loop, and terms the data cannot carry (out-of-plane
-effects on planar data, a bending test without bending stiffness).
+:func:`~fabricsurf.inverse.diagnosis.diagnose.diagnose`) and the command line: zero starting
+moduli (the fit steps in log-moduli) and signed moduli in a diagnosis, more moduli than data
+(under-determined), tests or kinds of data not yet in the comparison loop, and terms the data
+cannot carry (out-of-plane effects on planar data, a bending test without bending stiffness).
 
 The messages name each input as the caller spells it: ``terms`` (``--terms a,b`` on the command
 line, ``terms ['a', 'b']`` in the library), ``params`` (``--params FILE`` or ``params``) and
@@ -37,16 +37,18 @@ def positive_moduli(
     command: str = "fit",
     terms: str = "terms",
 ) -> None:
-    """fit and diagnose step in log-moduli (positive): a modulus that may be negative
-    (``signed``, a term's ``signed``) cannot be fitted there yet (compare and bias take it),
-    and a starting modulus ``values`` ≤ 0 cannot move. ``params``: where the moduli came
-    from; ``terms``: the terms as the caller names them."""
+    """A starting modulus ``values`` ≤ 0 cannot move in log scale, where fit and diagnose step
+    the moduli ≥ 0; ``signed`` (moduli that may be negative, a term's ``signed``) are refused
+    where they cannot be taken: the diagnosis scores its candidates at modulus 0 and scans
+    by decades (a fit steps them linearly instead, and checks the fitted energy's stability:
+    :mod:`.stability_check`). ``params``: where the moduli came from; ``terms``: the terms as
+    the caller names them."""
     if signed:
         raise InputError(
             f"{terms}: {', '.join(signed)} "
-            f"may be negative (signed), and {command} fits moduli in log scale, "
-            "positive only; signed moduli can be compared (compare, bias) but not "
-            "yet fitted (docs/usage.md, 'Adding your own effect')"
+            f"may be negative (signed), and {command} works with moduli ≥ 0 (it scores "
+            "candidates at modulus 0 and scans by decades); fit signed moduli with fit, "
+            "or compare them (docs/usage.md, 'Adding your own effect')"
         )
     for n, v in zip(names, values):
         if v <= 0:
@@ -60,12 +62,15 @@ def positive_moduli(
 def positive_start(
     model: list, params: str = "params", command: str = "fit", terms: str | None = None
 ) -> None:
-    """:func:`positive_moduli` of every modulus of ``model``."""
+    """:func:`positive_moduli` of every modulus of ``model``: a signed modulus may start
+    anywhere in a fit (it steps linearly), and is refused by any other ``command``."""
     pairs = [(t, p, v) for t in model for p, v in t.values().items()]
+    signed = [(t, p, v) for t, p, v in pairs if p in getattr(t, "signed", ())]
+    unsigned = [(t, p, v) for t, p, v in pairs if p not in getattr(t, "signed", ())]
     positive_moduli(
-        [f"{t.name}.{p}" for t, p, _ in pairs],
-        [v for *_, v in pairs],
-        [f"{t.name}.{p}" for t in model for p in getattr(t, "signed", ())],
+        [f"{t.name}.{p}" for t, p, _ in unsigned],
+        [v for *_, v in unsigned],
+        [] if command == "fit" else [f"{t.name}.{p}" for t, p, _ in signed],
         params,
         command,
         terms or terms_label(model),

@@ -12,6 +12,7 @@ from fabricsurf.inverse.forward.load_path import Prediction
 from fabricsurf.inverse.forward.runs import ForwardModel, ForwardSet
 from fabricsurf.inverse.uncertainty import intervals, systematic
 from fabricsurf.inverse.uncertainty import statistical as unc
+from fabricsurf.model.stability import TangentCheck
 
 OMITS_INTERVALS = (
     "the size part: moduli fitted on one specimen carry its share of effects "
@@ -47,6 +48,11 @@ class FitResult:
     chi2_h: float | None = None
     size_effects: dict | None = None
     """The size part's record (:func:`~.size_form.size_record`), when it was estimated."""
+    implausible: list | None = None
+    """The fitted moduli no fabric has (:func:`~.plausibility.check_moduli`), when checked."""
+    stability: TangentCheck | None = None
+    """For a model with a signed modulus, its fitted energy's stability over the data's states
+    (:func:`~.stability_check.fitted_tangent`)."""
 
     def params(self) -> dict:
         """{term: {param: value}} (the --params file format)."""
@@ -67,7 +73,7 @@ class FitResult:
 
     def lost(self) -> set[str]:
         """The moduli in a null direction of the Fisher matrix (:attr:`undetermined`)."""
-        return {n for c in self.undetermined for n in re.findall(r"log (\S+)", c)}
+        return {n for c in self.undetermined for n in re.findall(r"[A-Za-z_]\w*\.\w+", c)}
 
     def std_dict(self) -> dict:
         """{name: standard deviation}, None for a modulus the data do not determine (the
@@ -88,7 +94,13 @@ class FitResult:
                 [self.size_effects["moduli_half_width"].get(self.names[k], 0.0) for k in free]
             )
         )
-        null = None if self.J is None else intervals.null_directions(self.J * self.values[free])
+        null = (
+            None
+            if self.J is None
+            else intervals.null_directions(
+                intervals.scaled_jacobian(self.J, self.values[free], [self.names[k] for k in free])
+            )
+        )
         out = intervals.summarise(
             [self.names[k] for k in free],
             self.values[free],
@@ -124,30 +136,35 @@ class FitResult:
     def as_dict(self) -> dict:
         m = strip_rows(self.misfit)
         u = self.uncertainty()
-        return {
-            "terms": list(self.params()),
-            "params": self.params(),
-            "std": self.std_dict(),
-            "moduli": u["moduli"],
-            "identifiable_combinations": u["identifiable_combinations"],
-            "weak_directions": u["weak_directions"],
-            "uncertainty": {
-                k: u.get(k)
-                for k in (
-                    "statistics",
-                    "chi2_h_vs_h2",
-                    "covariance",
-                    "interval_parts",
-                    "interval_omits",
-                )
-            },
-            "chi2": self.chi2,
-            "misfit": m,
-            "iterations": self.iterations,
-            "forward_runs": self.forward_runs,
-            "history": self.history,
-            "undetermined": self.undetermined,
-        } | ({"size_effects": self.size_effects} if self.size_effects else {})
+        return (
+            {
+                "terms": list(self.params()),
+                "params": self.params(),
+                "std": self.std_dict(),
+                "moduli": u["moduli"],
+                "identifiable_combinations": u["identifiable_combinations"],
+                "weak_directions": u["weak_directions"],
+                "uncertainty": {
+                    k: u.get(k)
+                    for k in (
+                        "statistics",
+                        "chi2_h_vs_h2",
+                        "covariance",
+                        "interval_parts",
+                        "interval_omits",
+                    )
+                },
+                "chi2": self.chi2,
+                "misfit": m,
+                "iterations": self.iterations,
+                "forward_runs": self.forward_runs,
+                "history": self.history,
+                "undetermined": self.undetermined,
+            }
+            | ({"size_effects": self.size_effects} if self.size_effects else {})
+            | ({} if self.implausible is None else {"implausible_moduli": self.implausible})
+            | ({"stability": self.stability.as_dict()} if self.stability else {})
+        )
 
 
 Forward = ForwardModel | ForwardSet

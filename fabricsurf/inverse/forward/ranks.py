@@ -49,10 +49,13 @@ Where the CPU time of a run on 2 ranks crosses that of one rank alone (benchmark
 local_solves.py): at 308 cells the distributed run costs 1.5 times the serial one, at 1 232
 cells 0.8 times (docs/dic.md, "Rank-local solves")."""
 
-SPREAD_RESIDUALS = 200_000
+SPREAD_RESIDUALS = 500_000
 """A diagnosis shares its candidates' refits among the ranks up to this many residuals; each
-refit's result (its Jacobian, N × p) is then gathered on every rank, which at DIC size would
-cost more memory than the time it saves."""
+refit's result (its Jacobian and displacement sensitivities, 2 N × p doubles, about 40 MB at
+this size and 5 moduli) is then gathered on every rank, which at DIC size (10⁶ rows and more)
+would cost more memory than the time it saves. 2·10⁵ until the speed profile (docs/speed.md)
+showed the 10⁵-row cases of the benchmark family (2.1–2.7·10⁵ residuals) refitting one
+candidate after the other."""
 
 T = TypeVar("T")
 
@@ -202,20 +205,44 @@ _alone = False
 
 
 @contextlib.contextmanager
-def independent(fm) -> Iterator[None]:
+def independent(fm, comm: MPI.Comm | None = None) -> Iterator[None]:
     """Let the ranks run different things (no agreement after a run, no nested spread: the
     ranks' runs are not the same run); ``fm``'s moduli are restored after, and the warm starts
-    its runs and its scouts' stored are forgotten (they differ between the ranks: the next run
-    starts cold everywhere and the ranks compute alike again)."""
+    its runs and its scouts' stored are then those stored before, followed by those every
+    rank stored here, in rank order (the last :data:`~.warm_start.KEEP` / size of each rank's
+    per model), gathered over ``comm`` (None: all forgotten), so that the ranks compute alike
+    again."""
     global _alone
     vals, _alone = fm.values(), True
+    models = _with_scouts(fm)
+    before = [warm_start.snapshot(m) for m in models]
+    ok = False
     try:
         yield
+        ok = True
     finally:
         _alone = False
+        share = max(1, warm_start.KEEP // (comm.size if comm is not None else 1))
+        mine = [warm_start.export(m, mark)[-share:] for m, (_, mark) in zip(models, before)]
+        if len(_with_scouts(fm)) != len(models):
+            mine = [[] for _ in models]  # a scout built here: not on every rank
+        every = comm.allgather(mine) if comm is not None and ok else None
         for m in _with_scouts(fm):
             warm_start.forget(m)
+        for k, m in enumerate(models if every is not None else []):
+            warm_start.adopt(m, before[k][0] + [run for part in every for run in part[k]])
         fm.set_values(vals)
+
+
+def not_alone(what: str) -> None:
+    """Refuse to build ``what`` (a forward model: its construction is collective) on one rank
+    inside :func:`independent`, where the other ranks run other things: a clear error on
+    every rank (:func:`spread` raises it everywhere) instead of a deadlock."""
+    if _alone:
+        raise RuntimeError(
+            f"{what} cannot be built inside evaluations shared among the ranks (its "
+            "construction is collective): build it before sharing them"
+        )
 
 
 def _with_scouts(fm) -> list:
@@ -248,7 +275,7 @@ def spread(fm, items: list, evaluate: Callable[[object], T]) -> list[T]:
         # (each is then evaluated on every rank, and may share its own inner trials)
         return [evaluate(x) for x in items]
     mine: dict[int, tuple] = {}
-    with independent(fm):
+    with independent(fm, comm):
         for i in range(comm.rank, len(items), comm.size):
             try:
                 mine[i] = (evaluate(items[i]), None)

@@ -23,7 +23,7 @@ from fabricsurf.discretise.resources import Owner
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.forward import misfit as mf
-from fabricsurf.inverse.forward import ranks
+from fabricsurf.inverse.forward import profile, ranks
 from fabricsurf.inverse.forward.load_path import Prediction, follow_path
 from fabricsurf.inverse.forward.observe import Observers
 from fabricsurf.model.terms import EFFECTS, Term
@@ -107,6 +107,7 @@ class ForwardModel(Owner):
         :meth:`set_values` keeps at this model's values) on a mesh ``factor`` times coarser,
         built once: a cheap scout for starting values (same forms, so nothing is compiled)."""
         if self._coarse is None:
+            ranks.not_alone("a scout mesh")
             self._coarse = ForwardModel(
                 self.exp, self.model, self.h * factor, self.comm, local=self._local_request
             )
@@ -167,6 +168,9 @@ class ForwardModel(Owner):
         which = list(range(len(self.params))) if sens is True else list(sens or [])
         pred = follow_path(self, which)
         self.forward_runs += 1
+        prof = profile.current()
+        if prof is not None:
+            prof.add_run(pred.newton)
         return pred
 
     def residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
@@ -205,6 +209,7 @@ class ForwardSet(Owner):
     def coarse(self, factor: float = 2.0) -> ForwardSet:
         """Every experiment on a mesh ``factor`` times coarser (:meth:`ForwardModel.coarse`)."""
         if self._coarse is None:
+            ranks.not_alone("a scout mesh")
             self._coarse = ForwardSet(
                 self.experiments,
                 self.model,

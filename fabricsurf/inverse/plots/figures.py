@@ -259,7 +259,12 @@ def difference_map(
 ) -> None:
     """|u_a − u_b|/s_u of two tied models' predictions at the last step of each experiment of
     ``maps`` (title, experiment, value per field row): where the data cannot separate them and
-    where the suggested experiment would (:mod:`~fabricsurf.inverse.diagnosis.discrimination`)."""
+    where the suggested experiment would (:mod:`~fabricsurf.inverse.diagnosis.discrimination`).
+    Experiments without a field at their last step (force only) have nothing to map and are
+    left out; with none left, no figure is written."""
+    maps = [m for m in maps if len(m[1].step_rows(m[1].steps[-1]))]  # a force-only test: none
+    if not maps:
+        return
     plt = _plt()
     fig, axes = plt.subplots(
         1, max(len(maps), 1), squeeze=False, figsize=(4.8 * max(len(maps), 1), 3.4)

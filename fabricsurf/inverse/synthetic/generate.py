@@ -132,6 +132,9 @@ def lattice_data(
     tau_f: float = 0.0,
     T_s: float = 0.0,
     eps_s: float = SLIP_STRAIN,
+    c_st: float = 0.0,
+    k_x: float = 0.0,
+    s_comp: float = 0.0,
 ) -> Experiment:
     """Replace ``exp`` by the Hencky lattice's response (Barchiesi et al. 2020 clamps: two held
     layers).
@@ -142,7 +145,10 @@ def lattice_data(
     continuum moduli map to lattice stiffnesses by ``lattice_from_continuum`` (``k4``, ``k6``:
     the ``shear_locking`` moduli, ``tau_f``: the ``crossover_friction`` modulus, nonlinear
     shear springs at the crossings, ``T_s`` and ``eps_s``: the ``yarn_slip`` tension and slip
-    strain, fibre springs that slide past their slip force).
+    strain, fibre springs that slide past their slip force; effects no named term has, from
+    ``network.couplings``: ``c_st`` the shear-tension coupling, shear stiffness
+    k_s(1 + c_st((λ−1)+(μ−1))), ``k_x`` (N/mm) the crimp interchange k_x(λ−1)(μ−1), ``s_comp``
+    the fibres' compression softness, stiffness (1 − s_comp)k_l for λ < 1; all 0 by default).
     """
     from fabricsurf.network import hencky
     from fabricsurf.network.equilibrium import solve_steps
@@ -151,7 +157,19 @@ def lattice_data(
     angles = tuple(exp.fibre_angles_deg)
     spacing = hencky.spanning_spacing(exp.length, spacing, angles)
     k = lattice_from_continuum(
-        k_l, k_s, A_g, spacing, angles, k4=k4, k6=k6, tau_f=tau_f, T_s=T_s, eps_s=eps_s
+        k_l,
+        k_s,
+        A_g,
+        spacing,
+        angles,
+        k4=k4,
+        k6=k6,
+        tau_f=tau_f,
+        T_s=T_s,
+        eps_s=eps_s,
+        c_st=c_st,
+        k_x=k_x,
+        s_comp=s_comp,
     )
     lat = hencky.hencky_lattice(exp.length, exp.width, spacing, angles, **k)
     X = lat.net.X

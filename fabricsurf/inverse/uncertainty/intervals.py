@@ -16,7 +16,9 @@ that a direction the fit calls undetermined is never reported with an interval (
 pseudo-inverse gives it a variance of zero, which round-off from the other moduli's entries can
 lift just above any eigenvalue threshold: a "zero-width" interval of an undetermined
 ratio). The weak directions of the whole fit are the eigenvectors of the covariance of the
-log-moduli whose 95 % half-width exceeds WEAK.
+log-moduli whose 95 % half-width exceeds WEAK. A signed modulus (a coupling's, which may be
+negative) has the same interval, not cut at zero, is identifiable when its interval excludes
+zero on either side, and takes no part in the log-moduli combinations.
 """
 
 from __future__ import annotations
@@ -45,6 +47,33 @@ directions: the data do not determine that combination of log-moduli."""
 NULL_OVERLAP = 1e-6
 """The null directions' components on the moduli considered span, above this (a singular value
 of them), the combinations that get no interval: round-off below it touches none."""
+
+
+def signed_mask(names: list[str]) -> np.ndarray:
+    """Which of the moduli ``names`` ("term.param") may be negative (their term's ``signed``):
+    they step linearly, their intervals may cross zero, they take no part in the log-moduli
+    combinations."""
+    from fabricsurf.model.terms import EFFECTS
+
+    out = []
+    for n in names:
+        term, _, p = n.partition(".")
+        out.append(term in EFFECTS and p in EFFECTS[term].signed)
+    return np.array(out, dtype=bool)
+
+
+def scaled_jacobian(J: np.ndarray, values: np.ndarray, names: list[str]) -> np.ndarray:
+    """Jt = J·diag(s) whose null directions :func:`null_directions` finds: s = p (dr/d log p),
+    and for a signed modulus (which may be near zero) s scales its column to the median norm
+    of the others' (null directions are those of J whatever the column scales; the scale
+    decides only what is "near" null)."""
+    s = np.asarray(values, float).copy()
+    signed = signed_mask(names)
+    if signed.any():
+        norms = np.linalg.norm(J, axis=0)
+        typical = np.median(norms[~signed] * np.abs(s[~signed])) if (~signed).any() else 1.0
+        s[signed] = typical / np.maximum(norms[signed], 1e-300)
+    return J * s
 
 
 def null_directions(Jt: np.ndarray) -> np.ndarray:
@@ -147,7 +176,8 @@ def combinations(
 
 def weak_directions(names, values, cov) -> list[dict]:
     """Eigen-directions of the log-moduli covariance known worse than ± WEAK (95 %)."""
-    pos = [i for i in range(len(values)) if values[i] > 0]
+    signed = signed_mask(names)
+    pos = [i for i in range(len(values)) if values[i] > 0 and not signed[i]]
     if not pos:
         return []
     C, _, _ = _log_cov(values[pos], cov[np.ix_(pos, pos)], None, None)
@@ -181,12 +211,15 @@ def summarise(
     (:func:`null_directions`), which no combination may lie along."""
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     half = half_width(sd, t, tau, shift, size)
+    signed = signed_mask(names)
     moduli, weak = {}, []
     for i, n in enumerate(names):
-        ok = bool(n not in lost and np.isfinite(half[i]) and values[i] - half[i] > 0)
+        low = values[i] - half[i] if signed[i] else max(values[i] - half[i], 0.0)
+        excludes_zero = values[i] - half[i] > 0 or (signed[i] and values[i] + half[i] < 0)
+        ok = bool(n not in lost and np.isfinite(half[i]) and excludes_zero)
         moduli[n] = {
             "value": float(values[i]),
-            "ci95": [float(max(values[i] - half[i], 0.0)), float(values[i] + half[i])],
+            "ci95": [float(low), float(values[i] + half[i])],
             "std_statistical": None if n in lost else float(sd[i]),
             "systematic_mesh": None if shift is None else float(MESH_FACTOR * abs(shift[i])),
             "mesh_shift_h_to_h2": None if shift is None else float(shift[i]),
@@ -195,7 +228,7 @@ def summarise(
         }
         if size is not None:
             moduli[n]["systematic_size"] = float(size[i])
-        if not ok and values[i] > 0:
+        if not ok and values[i] > 0 and not signed[i]:
             weak.append(i)
     return {
         "moduli": moduli,

@@ -1,0 +1,96 @@
+"""Checks of a tool set before any computing: each raises InputError naming the tool and what
+to change (docs/tool_surfaces.md, "Bad input").
+
+* Units: a tool whose size is more than :data:`SCALE_LIMIT` times the blank's, or less than
+  its inverse, is read in the wrong units (a file in mm read as m is 1000 times too large).
+* Start: no point of the flat blank may lie inside a tool at the start of the stroke (a tool
+  that starts inside the blank would push it out with the full penalty force at once).
+* Stroke: at the end of the stroke the punch may not enter the die: the points of the punch's
+  surface, moved by the stroke, must all lie outside the die. The largest stroke that keeps
+  them out is found by bisection and given in the message.
+
+Points on a surface for the last check are the grid points of a box within one spacing of the
+surface, projected onto it along the normal (x − d n, twice): any surface with a signed
+distance gives them, a triangle mesh its vertices.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fabricsurf.errors import InputError
+from fabricsurf.experiments.forming.surfaces import ToolSurface
+
+SCALE_LIMIT = 50.0
+"""Largest ratio of a tool's size to the blank's (either way) taken as the same units."""
+BISECTIONS = 50
+
+
+def check_scale(tool: ToolSurface, blank_size: float) -> None:
+    """Refuse a tool ``SCALE_LIMIT`` times larger or smaller than the blank (module docstring)."""
+    ratio = tool.size / blank_size
+    if ratio > SCALE_LIMIT or ratio < 1.0 / SCALE_LIMIT:
+        big = ratio > 1.0
+        raise InputError(
+            f"{tool.name}: the tool is {ratio if big else 1.0 / ratio:.3g} times "
+            f"{'larger' if big else 'smaller'} than the blank ({tool.size:.6g} mm against "
+            f"{blank_size:.6g} mm): are its units right? (units = 'mm', 'cm', 'm' or 'in'; a "
+            "file in mm read as m is 1000 times too large)"
+        )
+
+
+def check_outside(tool: ToolSurface, points: np.ndarray, tolerance: float = 0.0) -> None:
+    """Refuse a tool that holds points of the blank (rows, mm) deeper than ``tolerance``."""
+    d = tool.signed_distance(np.asarray(points, float))
+    inside = d < -tolerance
+    if inside.any():
+        k = int(np.argmin(d))
+        raise InputError(
+            f"{tool.name}: the tool starts inside the blank: {int(inside.sum())} of {len(d)} "
+            f"points of the blank lie inside it, up to {-d[k]:.6g} mm deep (at "
+            f"{np.round(points[k], 6).tolist()}); place it so that it at most touches the blank"
+        )
+
+
+def surface_points(tool: ToolSurface, lower, upper, spacing: float) -> np.ndarray:
+    """Points on the tool's surface within the box [lower, upper] (module docstring)."""
+    vertices = getattr(tool, "vertices", None)
+    if vertices is not None:
+        inside = np.all((vertices >= lower) & (vertices <= upper), axis=1)
+        return vertices[inside]
+    axes = [np.arange(lo, hi + 0.5 * spacing, spacing) for lo, hi in zip(lower, upper, strict=True)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    near = grid[np.abs(tool.signed_distance(grid)) < spacing]
+    for _ in range(2):
+        near = near - tool.signed_distance(near)[:, None] * tool.normal(near)
+    return near
+
+
+def check_stroke(
+    punch: ToolSurface, die: ToolSurface, points: np.ndarray, direction, stroke: float
+) -> None:
+    """Refuse a stroke ``stroke`` (mm) along ``direction`` that takes the punch's surface
+    ``points`` (at the start, rows) into the die (module docstring)."""
+    e = np.asarray(direction, float) / np.linalg.norm(direction)
+
+    def depth(s: float) -> float:
+        return float(-die.signed_distance(points + s * e).min())
+
+    if depth(0.0) > 0.0:
+        raise InputError(f"{punch.name}: the punch starts inside the die {die.name}")
+    if depth(stroke) <= 0.0:
+        return
+    limit = _bisect(depth, 0.0, stroke)
+    raise InputError(
+        f"{punch.name}: the stroke of {stroke:.6g} mm passes through the die {die.name}: the "
+        f"punch would be {depth(stroke):.6g} mm inside it; the die stops it at a stroke of "
+        f"{limit:.6g} mm (less the blank's thickness)"
+    )
+
+
+def _bisect(depth, lo: float, hi: float) -> float:
+    """The stroke in [lo, hi] where the depth crosses 0 (depth(lo) ≤ 0 < depth(hi))."""
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if depth(mid) <= 0.0 else (lo, mid)
+    return lo

@@ -1,0 +1,119 @@
+"""Triangulated tools from files: STL (ASCII and binary) and Wavefront OBJ, in the units the
+user states, converted to mm (the package's length unit), welded and checked
+(topology.check: closed, consistently and outwards oriented, no degenerate triangle).
+
+A binary STL is an 80-byte header, the triangle count (uint32) and 50 bytes per triangle (the
+normal and the three corners as float32, an attribute uint16); a file of exactly that size is
+read as binary, any other as ASCII (``solid`` … ``facet normal`` … ``vertex x y z`` …). The
+normals written in an STL file are ignored: the orientation is the corners' order (right-hand
+rule), which is what the checks read. An OBJ file's ``v`` lines are the vertices and its ``f``
+lines the faces (1-based indices, negative ones counted from the end, ``i/t/n`` forms allowed);
+polygons are split into fans of triangles.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from fabricsurf.errors import InputError
+from fabricsurf.experiments.forming.surfaces import topology
+from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSurface
+
+UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+"""Length units a tool file may be in, and their size in mm."""
+_FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def unit_scale(units: str, path: str | Path) -> float:
+    """mm per ``units`` (one of :data:`UNITS`; ``path`` names the source in the message)."""
+    if units not in UNITS:
+        raise InputError(f"{path}: units = {units!r} is not one of {sorted(UNITS)}")
+    return UNITS[units]
+
+
+def read_stl_triangles(path: str | Path) -> np.ndarray:
+    """The corners (f, 3, 3) of the triangles of an STL file, ASCII or binary."""
+    data = Path(path).read_bytes()
+    if len(data) >= 84:
+        count = int(np.frombuffer(data[80:84], dtype="<u4")[0])
+        if len(data) == 84 + 50 * count:
+            rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+            return np.frombuffer(data, dtype=rec, count=count, offset=84)["v"].astype(float)
+    text = data.decode("ascii", errors="replace")
+    if not text.lstrip().lower().startswith("solid"):
+        raise InputError(f"{path}: neither a binary STL (size) nor an ASCII one ('solid …')")
+    values = re.findall(rf"vertex\s+({_FLOAT})\s+({_FLOAT})\s+({_FLOAT})", text)
+    if not values or len(values) % 3:
+        raise InputError(f"{path}: {len(values)} 'vertex' lines, not a positive multiple of 3")
+    return np.array(values, float).reshape(-1, 3, 3)
+
+
+def read_obj_mesh(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, triangles) of an OBJ file (module docstring)."""
+    vertices, faces = [], []
+    for number, line in enumerate(Path(path).read_text(errors="replace").splitlines(), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        try:
+            if parts[0] == "v":
+                vertices.append([float(t) for t in parts[1:4]])
+            elif parts[0] == "f":
+                idx = [int(t.split("/")[0]) for t in parts[1:]]
+                idx = [i - 1 if i > 0 else len(vertices) + i for i in idx]
+                faces += [[idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1)]
+        except ValueError as err:
+            raise InputError(f"{path}, line {number}: cannot read {line.strip()!r}") from err
+    faces = np.array(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(faces) or faces.min() < 0 or faces.max() >= len(vertices):
+        raise InputError(f"{path}: no faces, or a face refers to a vertex that is not there")
+    return np.array(vertices, float), faces
+
+
+def read_surface(path: str | Path, units: str, closed: bool = True) -> TriangulatedSurface:
+    """The tool surface of an STL or OBJ file whose coordinates are in ``units`` (one of
+    :data:`UNITS`; no default: a file carries no units), in mm."""
+    path = Path(path)
+    scale = unit_scale(units, path)
+    suffix = path.suffix.lower()
+    if suffix == ".stl":
+        corners = read_stl_triangles(path)
+        points, faces = corners.reshape(-1, 3), np.arange(3 * len(corners)).reshape(-1, 3)
+    elif suffix == ".obj":
+        points, faces = read_obj_mesh(path)
+    else:
+        raise InputError(f"{path}: a tool surface is read from .stl or .obj, not {suffix!r}")
+    vertices, faces = topology.weld(scale * points, faces)
+    return TriangulatedSurface(vertices, faces, str(path), closed)
+
+
+def write_stl(
+    path: str | Path, vertices: np.ndarray, faces: np.ndarray, binary: bool = True
+) -> None:
+    """Write a triangle mesh as an STL file (normals by the right-hand rule)."""
+    corners = np.asarray(vertices, float)[np.asarray(faces)]
+    normals, _ = topology.face_normals(np.asarray(vertices, float), np.asarray(faces))
+    normals = np.nan_to_num(normals)
+    if binary:
+        rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+        out = np.zeros(len(corners), dtype=rec)
+        out["n"], out["v"] = normals, corners
+        head = b"fabricsurf".ljust(80, b" ") + np.uint32(len(corners)).tobytes()
+        Path(path).write_bytes(head + out.tobytes())
+        return
+    lines = ["solid tool"]
+    for n, c in zip(normals, corners, strict=True):
+        lines += [f"  facet normal {n[0]:.9e} {n[1]:.9e} {n[2]:.9e}", "    outer loop"]
+        lines += [f"      vertex {p[0]:.15e} {p[1]:.15e} {p[2]:.15e}" for p in c]
+        lines += ["    endloop", "  endfacet"]
+    Path(path).write_text("\n".join([*lines, "endsolid tool", ""]))
+
+
+def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Write a triangle mesh as an OBJ file."""
+    lines = [f"v {p[0]:.15e} {p[1]:.15e} {p[2]:.15e}" for p in np.asarray(vertices, float)]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(faces)]
+    Path(path).write_text("\n".join([*lines, ""]))

@@ -1,0 +1,111 @@
+"""A user's punch as a file through the same command as the hemisphere: ``[tooling] punch_file``
+and ``punch_units`` in experiment.toml (a path relative to it), read and checked with the data,
+the forming solved with the punch tabulated from the file (forming/tabulated_punch.py).
+
+* ``fabricsurf compare`` on hemisphere data whose experiment.toml names an STL punch (the
+  plug-in's hemisphere, written in cm to check the unit): it runs, and its punch force is that
+  of the analytic punch to the facets' error (the largest difference over the steps over the
+  final force: 1.0e-2 with 2 mm meridian edges, as tests/test_surface_punch.py measured;
+  bound 2e-2);
+* a punch_file without punch_units, a file that is not there and a surface that is not closed
+  are refused by the data loader, naming the key or the file, before any solve.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fabricsurf.cli import main
+from fabricsurf.errors import InputError
+from fabricsurf.experiments.forming.surfaces import files, meshes
+from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.forward.runs import ForwardModel
+from fabricsurf.inverse.synthetic import formed_part as sf
+from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
+
+COMM = MPI.COMM_WORLD
+R, BLANK, H, EDGE = 20.0, 60.0, 4.0, 2.0
+TOOLING = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-3,
+    "contact_stiffness": 100.0,
+}
+PARAMS = {
+    "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
+    "shear": {"k_s": 1.0},
+    "normal_bending": {"k_b": 0.1},
+    "twist": {"k_t": 0.1},
+}
+FACET_TOL = 2e-2
+"""The triangulated punch's largest force difference over the steps, relative to the final
+force (module docstring; at the first contact, 2 mm, the force is a sixth of the final one and
+the facets' sagitta a larger part of its penetration)."""
+
+
+def model():
+    return [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
+
+
+def with_tooling(directory: Path, lines: str) -> None:
+    """Add ``lines`` to the [tooling] table of ``directory``/experiment.toml."""
+    toml = directory / "experiment.toml"
+    toml.write_text(toml.read_text().replace("[tooling]\n", f"[tooling]\n{lines}\n"))
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    """``data``: hemisphere data of the analytic punch; ``stl``: the same with the punch as
+    an STL file in cm; ``nounits``, ``absent``, ``open``: bad punch files."""
+    base = Path(COMM.bcast(str(tmp_path_factory.mktemp("punch")) if COMM.rank == 0 else None))
+    exp = sf.hemisphere_template(BLANK, TOOLING, [2.0, 4.0], sf.part_points(BLANK, R, 4))
+    exp = sf.add_forming_noise(sf.forming_data(exp, model(), H, COMM), 0.01, 0.05, 1)
+    if COMM.rank == 0:
+        v, f = meshes.hemisphere_punch_mesh(R, EDGE)
+        for name in ("data", "stl", "nounits", "absent", "open"):
+            write_experiment(base / name, exp, overwrite=True)
+        files.write_stl(base / "stl" / "punch.stl", 0.1 * v, f)  # in cm
+        with_tooling(base / "stl", 'punch_file = "punch.stl"\npunch_units = "cm"')
+        files.write_stl(base / "nounits" / "punch.stl", v, f)
+        with_tooling(base / "nounits", 'punch_file = "punch.stl"')
+        with_tooling(base / "absent", 'punch_file = "nothere.stl"\npunch_units = "mm"')
+        cap = f[np.all(v[f][:, :, 2] > -R - 1e-9, axis=1)]  # the cap alone: not closed
+        files.write_stl(base / "open" / "punch.stl", v, cap)
+        with_tooling(base / "open", 'punch_file = "punch.stl"\npunch_units = "mm"')
+        (base / "p.json").write_text(json.dumps(PARAMS))
+    COMM.barrier()
+    return base
+
+
+def test_stl_punch_through_compare(root):
+    """The command line's compare takes the file from experiment.toml; its forces are the
+    analytic punch's to the facets' error."""
+    out = root / f"out{COMM.size}"
+    argv = ["compare", str(root / "stl"), "--params", str(root / "p.json"), "--h", str(H)]
+    assert main([*argv, "--out", str(out)]) == 0
+    exp = load_experiment(root / "stl")
+    assert exp.setup.options["punch_file"] == str(root / "stl" / "punch.stl")
+    with ForwardModel(exp, model(), H, COMM) as fm:
+        tabulated = fm.run().force
+    with ForwardModel(load_experiment(root / "data"), model(), H, COMM) as fm:
+        analytic = fm.run().force
+    assert np.abs(tabulated - analytic).max() < FACET_TOL * analytic[-1]
+    assert (out / "misfit.json").is_file()
+
+
+@pytest.mark.parametrize(
+    "case, words",
+    [
+        ("nounits", r"punch_file = '.*/nounits/punch.stl' needs punch_units.*none given"),
+        ("absent", r"punch_file: .*nothere.stl: no such file"),
+        ("open", r"punch.stl.*not closed"),
+    ],
+)
+def test_bad_punch_files_refused_with_the_data(root, case, words):
+    with pytest.raises(InputError, match=words):
+        load_experiment(root / case)
