@@ -8,10 +8,10 @@ so a feature found is a false alarm too), a shear–tension coupling ½k_c γ²(
 (k_c = 3 or 5 N/mm) or a crimp interchange k_x (λ−1)(μ−1) hidden (k_x = 8 or 12 N/mm), each a
 continuum user term, at two noise levels and several noise seeds. Each data set is diagnosed, then
 searched as the pipeline would (:func:`~fabricsurf.inverse.diagnosis.beyond.search_beyond`:
-only when the final model is not adequate and the mesh not too coarse) and, when the pipeline
-did not search, searched again with ``force=True``. Printed: one line per data set and the
-table: the false-alarm rate on the null data and the detection rate of each hidden effect (the
-feature found, alone or in a tie holding it), by the pipeline and forced.
+not on a mesh too coarse; when the final model is adequate, only if its gate opens) and, when
+the pipeline did not search, searched again with ``force=True``. Printed: one line per data set
+and the table: the false-alarm rate on the null data and the detection rate of each hidden
+effect (the feature found, alone or in a tie holding it), by the pipeline and forced.
 
     .venv/bin/python benchmarks/beyond_vocabulary.py [--seeds 2] [--first-seed 0] [--json OUT]
     .venv/bin/python benchmarks/beyond_vocabulary.py --table OUT1.json OUT2.json  # merge
@@ -122,6 +122,10 @@ def one(hidden: str, noise: float, seed: int) -> dict:
         "outcome": rec["outcome"],
         "forced_outcome": forced["outcome"],
         "modulus": [f["modulus"] for f in forced["found"]],
+        "gate": forced.get("gate"),
+        "first_round": [
+            [q["effect"], q["score"], q.get("delta_chi2")] for q in forced.get("rounds", [[]])[0]
+        ][:3],
         "seconds": time.perf_counter() - t0,
     }
     row["hit"] = truth in row["found"] if truth else bool(row["found"])

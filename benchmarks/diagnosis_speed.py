@@ -43,7 +43,9 @@ mesh selection refines (two mesh levels); ``--quick`` runs one small case (48 ×
 ``--out DIR`` keeps the data (reused), each run's diagnosis and ``diagnosis_speed.json``;
 ``--report JSON`` prints the tables of a saved profile again; ``--assembly`` times instead one
 Jacobian and residual assembly of the baseline, the baseline with one second-gradient term and
-the diagnosis's model (every candidate at modulus zero). Run on 2 ranks (results:
+the diagnosis's model (every candidate at modulus zero); ``--full-forms`` assembles the full
+forms throughout (the path before the first-gradient forms of docs/speed.md, to compare its
+answers and times with). Run on 2 ranks (results:
 docs/speed.md):
 
     mpirun -n 2 .venv/bin/python benchmarks/diagnosis_speed.py --quick --out out/speed
@@ -910,6 +912,12 @@ def parse_args() -> argparse.Namespace:
         help="print the tables of a saved diagnosis_speed.json and stop (nothing is run)",
     )
     ap.add_argument(
+        "--full-forms",
+        action="store_true",
+        help="assemble the full forms even while every second-gradient modulus is zero (the "
+        "path before the first-gradient forms; default: off)",
+    )
+    ap.add_argument(
         "--assembly",
         action="store_true",
         help="instead: time one Jacobian and residual assembly of the baseline and of the "
@@ -971,6 +979,10 @@ def main() -> None:
         return
     named = [Case.parse(n) for n in args.cases.split(",")] if args.cases else FAMILY
     cases = [QUICK] if args.quick else named
+    if args.full_forms:  # the slow path: never the first-gradient forms
+        import fabricsurf.discretise.problem as problem
+
+        problem.second_gradient_off = lambda model: False
     if args.assembly:
         run_assembly(cases, args.out)
     else:

@@ -17,6 +17,7 @@ from mpi4py import MPI
 from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.bias_plugin import BiasExtensionPlugin, fibre_zones
 from fabricsurf.inverse.diagnosis.excess import excess_location, locate
+from fabricsurf.inverse.diagnosis.excess_text import reason
 from fabricsurf.inverse.diagnosis.report import Diagnosis
 from fabricsurf.inverse.diagnosis.result_text import excess_lines
 from fabricsurf.inverse.fitting.result import FitResult
@@ -115,6 +116,24 @@ def test_noise_alone_claims_nothing():
     assert v == ["spread"] * 50
 
 
+def test_rows_on_the_next_yarn_line_and_a_band_too_wide():
+    """Rows one yarn spacing away to round-off (the next yarn line of lattice data) are beyond
+    the band, whichever side round-off puts them; a band holding half the rows or more cannot
+    show a concentration (it would need more than all of the excess): "undecided", not
+    "spread", and the reason says why."""
+    rng = np.random.default_rng(3)
+    d = np.repeat([0.5, 1.0, 2.5, 4.0], 60) * (1.0 + rng.uniform(-1e-12, 1e-12, 240))
+    q = (rng.normal(size=(240, 2)) ** 2).sum(axis=1)
+    rec = locate(q, 2, d, np.zeros(240), np.ones(240, dtype=int))
+    assert rec["near"]["rows"] == 60 and rec["near"]["judgeable"]
+    q = q + 8.0 * (d < 3.0)  # an excess on the three inner lines: 75 % of the rows
+    rec = locate(q, 2, d / 3.0, np.zeros(240), np.ones(240, dtype=int))
+    assert rec["near"]["share_of_rows"] == 0.75 and not rec["near"]["judgeable"]
+    assert rec["verdict"] == "undecided" and "too wide to show a concentration" in reason(
+        rec, "yarn spacing"
+    )
+
+
 def experiment():
     """A small bias experiment whose data are a homogeneous stretch along x with contraction
     along y (u = (0.1 x, −0.1 y): the fibres at ±45° turn by γ = 11.4°); no solve."""
@@ -170,5 +189,7 @@ def test_in_the_outcome():
     assert d.notes()[0].startswith("where the excess sits: boundary/discreteness: within 1 ")
     out = d.as_dict()
     assert out["excess_location"]["verdict"] == "boundary" and out["outcome_notes"] == d.notes()
+    d.discretisation_chi2 = 1e6  # the h/2 check: too coarse
+    assert d.too_coarse() and d.notes()[0].endswith("refine h before reading it")
     d.adequate = True
     assert d.notes() == []

@@ -41,6 +41,7 @@ import math
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, FRICTION, TOOLING, H, R
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
@@ -57,7 +58,6 @@ from fabricsurf.verification.drapes.forming_map import (
 )
 
 COMM = MPI.COMM_WORLD
-R, BLANK, H = 20.0, 60.0, 4.0
 CIRCLE = 72.0
 """The circle's diameter: its edge 8 mm beyond where the holder's pressure is full (R +
 clearance + 3 lip = 28 mm). A 60 mm circle, held over its last 2 mm only, barely tensions the
@@ -66,19 +66,6 @@ the punch (RMS 3.97° from the drapes, docs/forming.md)."""
 STROKE, STEPS = 4.0, 4
 DEEP, DEEP_STEPS = 12.0, 12
 TOUCH = 0.01 * R
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-3,
-    "contact_stiffness": 100.0,
-    "locking_angle_deg": 50.0,
-    "wrinkle_tension": 1e-3,
-    "wrinkle_curvature": 0.1 / R,
-}
-"""tests/test_hemisphere.py's set-up (the same compiled forms)."""
-FRICTION = {"friction": 0.3, "holder_pressure": 1e-2}
 
 
 def model():

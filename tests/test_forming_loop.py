@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, TOOLS, H, R
 from mpi4py import MPI
 
 from fabricsurf.cli import main
@@ -42,16 +43,8 @@ from fabricsurf.inverse.synthetic import formed_part as sf
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
-R, BLANK, H = 20.0, 60.0, 4.0
-"""The blank, punch and mesh of tests/test_hemisphere.py (its compiled forms are shared)."""
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-3,
-    "contact_stiffness": 100.0,
-}
+TOOLING = TOOLS
+"""The tools of tests/test_hemisphere.py (its compiled forms are shared)."""
 PARAMS = {
     "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
     "shear": {"k_s": 1.0},

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, H, R
+from hemisphere_case import TOOLING as HEMISPHERE_TOOLING
 from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
@@ -29,21 +31,11 @@ from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
-R, BLANK, H, STROKE, STEPS = 20.0, 60.0, 4.0, 12.0, 6
+STROKE, STEPS = 12.0, 6
 TRIM_DEPTH = 2.0
 """mm below the punch's top: polar angle acos(1 − 2/R) = 25.8°, inside the contact (the sheet
 leaves the punch near 34° at this stroke: the tangent from the die's lip to the cap)."""
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 4.0,
-    "die_lip": 4.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-3,
-    "contact_stiffness": 100.0,
-    "locking_angle_deg": 50.0,
-    "wrinkle_tension": 1e-3,
-    "wrinkle_curvature": 0.1 / R,
-}
+TOOLING = HEMISPHERE_TOOLING | {"clearance": 4.0, "die_lip": 4.0}
 
 
 def dome(X: np.ndarray, L: np.ndarray, M: np.ndarray) -> np.ndarray:

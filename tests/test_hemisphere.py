@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, FRICTION, TOOLING, H, R
 from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
@@ -71,29 +72,14 @@ ENV = {
     "OMPI_MCA_rmaps_base_oversubscribe": "1",
     "OMP_NUM_THREADS": "1",
 }
-R, BLANK, H = 20.0, 60.0, 4.0
 STROKE, STEPS = 4.0, 4
 PENETRATION_TOL = 5e-3
 """mm: a fortieth of a percent of the punch radius, far below the mesh size h = 4 mm."""
-FRICTION = {"friction": 0.3, "holder_pressure": 1e-2}
-"""The holder with friction (10 kPa, μ = 0.3): the fibres are tensioned and the sheet wraps the
-punch."""
 DEEP, DEEP_STEPS = 12.0, 12
 CONVERGENCE_BLANK, CONVERGENCE_STROKE = 72.0, 8.0
 CONVERGENCE_TOOLS = {"clearance": 4.0, "die_lip": 4.0}
 TOUCH = 0.01 * R
 """mm: points this close to the punch's cap count as on it."""
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-3,
-    "contact_stiffness": 100.0,
-    "locking_angle_deg": 50.0,
-    "wrinkle_tension": 1e-3,
-    "wrinkle_curvature": 0.1 / R,
-}
 
 
 def model():

@@ -226,7 +226,7 @@ def test_refinement_loop_stops_at_the_budget_on_every_rank(monkeypatch):
     calls, checks = [], iter([400.0, 100.0, 30.0])
     monkeypatch.setattr(mc, "diagnose", lambda exps, b, h, **kw: _Level(h, next(checks), calls))
     exp = SimpleNamespace(test="bias_extension", setup=SimpleNamespace(length=25.0, width=20.0))
-    d = mc.diagnose_on_mesh(exp, ["shear"])
+    d = mc.diagnose_on_mesh(exp, ["shear"], beyond_features=0)  # no real data to search
     assert calls == [[2.0], [1.0], [0.5]] and d.mesh_selection["stopped"] is None
     assert d.mesh_selection["refinements"] == 2 and d.mesh_note() == ""
     calls.clear()

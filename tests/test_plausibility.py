@@ -119,6 +119,22 @@ def test_user_range(cao):
     assert "shear.k_s" not in [q["modulus"] for q in inside]
 
 
+def test_fit_checks_when_asked(cao):
+    """``fit(..., plausible=…)`` runs the same check as the command line (into
+    ``implausible``); a bad range is refused before any solve; by default nothing is checked
+    (the diagnosis's inner fits)."""
+    with ForwardSet([cao], [FibreStretch(k_l=137.0, k_m=137.0), Shear(k_s=0.0256)], h=23.0) as fs:
+        with pytest.raises(InputError, match="--plausible"):
+            fit(fs, plausible="shear.k_s=2:1")
+        assert fs.forward_runs == 0
+        kw = {"space": "linear", "scale_start": False, "max_iter": 3}
+        res = fit(fs, plausible="shear.k_s=1:10", **kw)
+        direct = check_moduli(fs, res, "shear.k_s=1:10")
+        assert [q["text"] for q in res.implausible] == [q["text"] for q in direct]
+        assert len(direct) == 2  # the yarns by their rule, k_s by the range
+        assert fit(fs, **kw).implausible is None
+
+
 def test_stiff_yarn_lattice_no_warning():
     """Hencky-lattice data of the suite's stiff-fibre regime (k_l = 1000, k_s = 0.4 N/mm,
     A_g = 10 N·mm; 48 × 24 mm, ±45°, 12 %), fitted with the lattice's continuum limit: the

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, TOOLS, H, R
 from mpi4py import MPI
 
 from fabricsurf.cli import main
@@ -27,15 +28,8 @@ from fabricsurf.inverse.synthetic import formed_part as sf
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
-R, BLANK, H, EDGE = 20.0, 60.0, 4.0, 2.0
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-3,
-    "contact_stiffness": 100.0,
-}
+EDGE = 2.0
+TOOLING = TOOLS
 PARAMS = {
     "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
     "shear": {"k_s": 1.0},

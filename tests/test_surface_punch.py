@@ -27,6 +27,7 @@ against 19/13/14/12 analytic.
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, TOOLING, H, R
 from mpi4py import MPI
 
 from fabricsurf.errors import InputError
@@ -37,19 +38,7 @@ from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 
 COMM = MPI.COMM_WORLD
-R, BLANK, H, STROKE, STEPS = 20.0, 60.0, 4.0, 4.0, 4
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-3,
-    "contact_stiffness": 100.0,
-    "locking_angle_deg": 50.0,
-    "wrinkle_tension": 1e-3,
-    "wrinkle_curvature": 0.1 / R,
-}
-"""tests/test_hemisphere.py's set-up."""
+STROKE, STEPS = 4.0, 4
 SERIAL_FORCES_STL_1MM = [0.0, 0.02839872, 0.14937305, 0.43828008, 0.94254979]
 """The triangulated punch's (edges 1 mm) forces in serial, N (module docstring)."""
 

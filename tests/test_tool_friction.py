@@ -41,6 +41,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from dolfinx import fem
+from hemisphere_case import BLANK, FRICTION, H, R
+from hemisphere_case import TOOLING as HEMISPHERE_TOOLING
 from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
@@ -56,19 +58,8 @@ ENV = {
     "OMPI_MCA_rmaps_base_oversubscribe": "1",
     "OMP_NUM_THREADS": "1",
 }
-R, BLANK, H, STROKE, STEPS = 20.0, 60.0, 4.0, 4.0, 4
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-2,
-    "contact_stiffness": 100.0,
-    "locking_angle_deg": 50.0,
-    "wrinkle_tension": 1e-3,
-    "wrinkle_curvature": 0.1 / R,
-    "friction": 0.3,
-}
+STROKE, STEPS = 4.0, 4
+TOOLING = HEMISPHERE_TOOLING | FRICTION
 """tests/test_hemisphere.py's tools with its holder (10 kPa, μ = 0.3): the same compiled forms."""
 TOOL_FRICTION = {"punch_friction": 0.3, "die_friction": 0.3}
 EDGE = np.array([[0.5 * BLANK, 0.0], [0.5 * BLANK, 0.5 * BLANK]])

@@ -17,6 +17,8 @@ tests/test_hemisphere.py's).
 
 import numpy as np
 import pytest
+from hemisphere_case import BLANK, FRICTION, H, R
+from hemisphere_case import TOOLING as HEMISPHERE_TOOLING
 from mpi4py import MPI
 
 from fabricsurf.experiments.base import PluginSetup
@@ -26,23 +28,11 @@ from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 from fabricsurf.verification import wrinkling
 
 COMM = MPI.COMM_WORLD
-R, BLANK, H = 20.0, 60.0, 4.0
 STROKE, STEPS, SHALLOW = 12.0, 12, 4.0
 BOUND = 0.05
 """mm: above the shallow state's amplitude on every mesh, below the deep one's
 (benchmarks/wrinkling.py --blank 60; docs/forming.md)."""
-TOOLING = {
-    "punch_radius": R,
-    "clearance": 2.0,
-    "die_lip": 2.0,
-    "holder_gap": 0.4,
-    "holder_pressure": 1e-2,
-    "friction": 0.3,
-    "contact_stiffness": 100.0,
-    "locking_angle_deg": 50.0,
-    "wrinkle_tension": 1e-3,
-    "wrinkle_curvature": 1.0 / R,
-}
+TOOLING = HEMISPHERE_TOOLING | FRICTION | {"wrinkle_curvature": 1.0 / R}
 SERIAL = pytest.mark.serial(
     "one forming run; the 1 = 2 ranks agreement of this experiment is tests/test_hemisphere.py's"
 )

@@ -45,7 +45,7 @@ from fabricsurf.inverse.diagnosis.result_text import (
     result_lines,
 )
 from fabricsurf.inverse.fitting.params import load_params, parse_model, provenance
-from fabricsurf.inverse.fitting.plausibility import check_moduli, parse_plausible
+from fabricsurf.inverse.fitting.plausibility import parse_plausible
 from fabricsurf.inverse.fitting.preconditions import check_in_loop, check_terms_fit_data
 from fabricsurf.inverse.forward.misfit import converged_steps
 from fabricsurf.log import rank0, warn
@@ -220,9 +220,8 @@ def cmd_fit(args) -> int:
     )
     with od as stage, failure_report(od, stage, model, args, exps):
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
-            res = fit(fs)
+            res = fit(fs, plausible=args.plausible or True)
             res.check_mesh(fs)
-            res.implausible = check_moduli(fs, res, args.plausible)
             extra = _prov(model, args, [m.h for m in fs.models], records(fs))
         write_json(COMM, stage / "fit.json", res.as_dict() | extra)
         label = "fit: " + "+".join(t.name for t in model)

@@ -3,19 +3,35 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
+from functools import partial
 
 import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
-from fabricsurf.discretise.energy import DEFAULT_PENALTY, EVERYWHERE, EnergyForm
+from fabricsurf.discretise.energy import (
+    DEFAULT_PENALTY,
+    EVERYWHERE,
+    EnergyForm,
+    has_second_gradient,
+)
 from fabricsurf.discretise.jit_keys import mark_equispaced, stable_constant_order
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.resources import Owner, release_vectors, weak_method
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.model.kinematics import fibre_directions
 from fabricsurf.model.terms import Term
+
+
+def second_gradient_off(model: list[Term]) -> bool:
+    """Every parameter of every second-gradient term of ``model`` is zero, so that their
+    densities, the double force M and with it the interior-penalty and Nitsche terms (S = 0)
+    vanish identically: each is proportional to the moduli (a user's term is checked to be
+    linear in them). A term with a parameter that is not a modulus (an angle, a shape
+    parameter) is never all zero in practice, and counts as on."""
+    return all(getattr(t, p) == 0.0 for t in model if t.order == 2 for p in t.parameters())
 
 
 class FabricProblem(Owner):
@@ -61,6 +77,7 @@ class FabricProblem(Owner):
         self._body_form = None
         self._solver: SNESSolver | None = None
         self.energy: EnergyForm | None = None
+        self.cheap_energy: EnergyForm | None = None
 
     # -- boundary data -------------------------------------------------------------------
     def _open(self, what: str) -> None:
@@ -200,17 +217,30 @@ class FabricProblem(Owner):
                     "dx", domain=self.msh, metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE}
                 )
                 self._body_form = fem.form(sum(ufl.dot(b, v) for b in self.body_forces) * dx)
-            F, J = self.energy.residual(v), self.energy.jacobian(du, v)
-            extra = self.extra_energy()
-            if extra is not None:
-                dP = ufl.derivative(extra, self.u, v)
-                F, J = F + dP, J + ufl.derivative(dP, self.u, du)
+            F, J = self._with_extra(self.energy, v, du)
             self._solver = self._new_solver(
                 F,
                 J,
                 weak_method(self._nodal_forces) if self._point_forces or self.body_forces else None,
             )
+            if has_second_gradient(self.model) and not self.energy.multipliers:
+                first = [t for t in self.model if t.order == 1]
+                # kept: the terms reach its constants through weak references only
+                self.cheap_energy = replace(self.energy, model=first)
+                self._solver.add_cheap_forms(
+                    *self._with_extra(self.cheap_energy, v, du),
+                    partial(second_gradient_off, self.model),
+                )
         return self._solver
+
+    def _with_extra(self, energy: EnergyForm, v, du) -> tuple:
+        """(residual, Jacobian) of ``energy`` and of :meth:`extra_energy`."""
+        F, J = energy.residual(v), energy.jacobian(du, v)
+        extra = self.extra_energy()
+        if extra is not None:
+            dP = ufl.derivative(extra, self.u, v)
+            F, J = F + dP, J + ufl.derivative(dP, self.u, du)
+        return F, J
 
     def extra_energy(self):
         """An energy a subclass adds to Π_h (e.g. the penalty of contact with rigid tools);

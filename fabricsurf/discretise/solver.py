@@ -80,10 +80,13 @@ class SNESSolver(Owner):
         self.u, self.bcs, self.nodal_forces = u, list(bcs), nodal_forces
         self.multipliers = list(multipliers)
         self.comm = V.mesh.comm
-        jit = jit_params(options.pop("compile", "optimised"))
+        self._jit = jit_params(options.pop("compile", "optimised"))
         self.step_rtol = float(options.pop("step_rtol", STEP_RTOL))
-        self.L = fem.form(residual, jit_params=jit)
-        self.a = fem.form(jacobian, jit_params=jit)
+        self.L = fem.form(residual, jit_params=self._jit)
+        self.a = fem.form(jacobian, jit_params=self._jit)
+        self._cheap: tuple | None = None
+        self._cheap_when: Callable[[], bool] | None = None
+        self.cheap_evaluations = 0
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
         self.b = fem_petsc.create_vector(self.L)
         self.A = fem_petsc.create_matrix(self.a, self.matrix_type)
@@ -101,6 +104,33 @@ class SNESSolver(Owner):
 
     def _release(self) -> None:
         destroy(self.snes, self.A, self.b, self.x, self.force)
+
+    def add_cheap_forms(
+        self, residual: ufl.Form, jacobian: ufl.Form, when: Callable[[], bool]
+    ) -> None:
+        """A cheaper residual and Jacobian, equal to the full ones whenever ``when()`` holds
+        (a model whose second-gradient moduli are all zero: their cell kernels and the
+        interior-penalty facet terms then vanish exactly, docs/speed.md). Compiled at their
+        first use; every residual and Jacobian evaluation uses them while ``when()`` holds.
+
+        The full Jacobian is assembled once here: PETSc fixes an AIJ matrix's structure at its
+        first assembly and drops the preallocated entries nothing was added to, so a matrix
+        first assembled from the cheap forms had no room left for the facet couplings (on
+        several ranks the full Jacobian then failed to assemble, tests/test_cheap_forms.py)."""
+        self._cheap, self._cheap_when = (residual, jacobian), when
+        self.A.zeroEntries()
+        fem_petsc.assemble_matrix(self.A, self.a, bcs=self.bcs)
+        self.A.assemble()
+
+    def forms(self) -> tuple[fem.FormMetaClass, fem.FormMetaClass]:
+        """(residual, Jacobian) as evaluated now: the cheap pair while it equals the full one
+        (:meth:`add_cheap_forms`), else the full pair."""
+        if self._cheap_when is None or not self._cheap_when():
+            return self.L, self.a
+        if isinstance(self._cheap[0], ufl.Form):
+            self._cheap = tuple(fem.form(f, jit_params=self._jit) for f in self._cheap)
+        self.cheap_evaluations += 1
+        return self._cheap
 
     def set_options(self, options: dict) -> None:
         """Apply PETSc options (over :data:`~.snes.SNES_DEFAULTS`) under this solver's prefix;
@@ -133,7 +163,8 @@ class SNESSolver(Owner):
         self._update_u(x)
         with b.localForm() as b_local:
             b_local.set(0.0)
-        fem_petsc.assemble_vector(b, self.L)
+        L, a = self.forms()
+        fem_petsc.assemble_vector(b, L)
         with b.localForm() as b_local:
             finite = _collective_finite(self.comm, b_local.array)
         if not finite:
@@ -146,7 +177,7 @@ class SNESSolver(Owner):
             dofs, vals = self.nodal_forces()
             with b.localForm() as b_local:
                 b_local.array[dofs] -= vals
-        fem_petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[x], scale=-1.0)
+        fem_petsc.apply_lifting(b, [a], bcs=[self.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(b, self.bcs, x, -1.0)
 
@@ -158,7 +189,7 @@ class SNESSolver(Owner):
     def _J(self, snes, x, A, P) -> None:
         self._update_u(x)
         A.zeroEntries()
-        fem_petsc.assemble_matrix(A, self.a, bcs=self.bcs)
+        fem_petsc.assemble_matrix(A, self.forms()[1], bcs=self.bcs)
         A.assemble()
         if not np.isfinite(A.norm(PETSc.NormType.FROBENIUS)) and snes is not None:
             set_domain_error(snes, "jacobian")
@@ -258,7 +289,7 @@ class SNESSolver(Owner):
         solver destroys it."""
         with self.force.localForm() as f_local:
             f_local.set(0.0)
-        fem_petsc.assemble_vector(self.force, self.L)
+        fem_petsc.assemble_vector(self.force, self.forms()[0])
         self.force.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return self.force
 

@@ -9,9 +9,11 @@ plug-in's ``zone_distance``, in yarn spacings, else mesh sizes h) and by the mod
 angle. :func:`locate` decides: **boundary** when the band within 1 unit holds ≥
 :data:`NEAR_SHARE` of the excess beyond what the far rows at the same step and shear angle
 hold, ≥ :data:`CONCENTRATION` times its share of the rows, and passes an F-test against that
-expectation at the diagnosis's level; else **spread** when the far rows' χ² exceeds the
-diagnosis's adequacy bound of their own; else **none** when the whole field's does not, and
-**undecided** when it does.
+expectation at the diagnosis's level; else **undecided** when the band holds so many of the rows
+that no concentration could show; else **spread** when the far rows' χ² exceeds the
+diagnosis's adequacy bound of their own (a missing energy, or a misfit of the specimen as a
+whole: its size, grips or free edges, which where the excess sits cannot tell from one); else
+**none** when the whole field's does not, and **undecided** when it does.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from scipy.spatial import cKDTree
 
 from fabricsurf.experiments import get_test
 from fabricsurf.inverse.diagnosis import significance as sg
+from fabricsurf.inverse.diagnosis.excess_text import reason
 from fabricsurf.inverse.fitting.result import FitResult
 from fabricsurf.inverse.forward import misfit as mf
 
@@ -34,15 +37,13 @@ SHEAR_EDGES_DEG = (0.0, 5.0, 15.0, 30.0, 45.0, np.inf)
 NEAR_SHARE = 0.5
 """The near band (< 1 unit) must hold at least this share of the field's excess ..."""
 CONCENTRATION = 2.0
-"""... and at least this many times its share of the rows, for "boundary"."""
+"""... and at least this many times its share of the rows, for "boundary" (a band holding
+1/CONCENTRATION of the rows or more cannot show it: the verdict is then "undecided")."""
+NEAR_TOL = 1e-6
+"""A row one unit away to round-off (the next yarn line of lattice or woven data) is beyond the
+band: round-off split such rows between the two sides before (33 and 45 of one line)."""
 NEIGHBOURS = 7
 """Points (itself included) of the local least-squares gradient behind a row's shear angle."""
-WORDS = {
-    "boundary": "boundary/discreteness",
-    "spread": "spread (a missing energy)",
-    "none": "no significant excess",
-    "undecided": "undecided",
-}
 
 
 def row_shear_deg(X: np.ndarray, u: np.ndarray, angles_deg) -> np.ndarray:
@@ -134,7 +135,7 @@ def locate(
     n = len(q)
     Q = float(q.sum())
     total = Q - c * n
-    near = distance < 1.0
+    near = distance < 1.0 - NEAR_TOL
     nn, nf = int(near.sum()), n - int(near.sum())
     qn, qf = float(q[near].sum()), float(q[~near].sum())
     share_rows = nn / max(n, 1)
@@ -165,6 +166,7 @@ def locate(
             "f_statistic": F,
             "p": p,
             "p_needed": 1.0 - sg.LEVEL,
+            "judgeable": CONCENTRATION * share_rows < 1.0,
         },
         "far_significant": _beyond_bound(qf, c * nf),
         "by_distance": _bins(q, c, distance, DISTANCE_EDGES, total),
@@ -178,49 +180,13 @@ def locate(
     )
     if concentrated:
         verdict = "boundary"
+    elif not rec["near"]["judgeable"] and rec["significant"]:
+        verdict = "undecided"
     elif rec["far_significant"]:
         verdict = "spread"
     else:
         verdict = "undecided" if rec["significant"] else "none"
     return rec | {"verdict": verdict}
-
-
-def _reason(rec: dict, unit: str) -> str:
-    """Why the verdict, in words with its numbers."""
-    nr, v = rec["near"], rec["verdict"]
-    if v is None:
-        return rec["reason"]
-    if v == "none":
-        return (
-            f"the field's mean z² is {rec['mean_z2']:.3g}, within the adequacy bound "
-            f"{rec['adequacy_bound']:.3g}: no excess to locate"
-        )
-    near = (
-        f"within 1 {unit} of the grips and zone boundaries lie "
-        f"{100 * nr['share_of_excess']:.0f} % of the field's excess χ² on "
-        f"{100 * nr['share_of_rows']:.0f} % of the rows (mean z² "
-        + (f"{nr['mean_z2']:.3g}" if nr["mean_z2"] is not None else "–")
-        + " against "
-        + (f"{nr['mean_z2_elsewhere']:.3g}" if nr["mean_z2_elsewhere"] is not None else "–")
-        + " elsewhere, "
-        + (f"{nr['mean_z2_expected']:.3g}" if nr["mean_z2_expected"] is not None else "–")
-        + " expected from the rows beyond at the same step and shear angle"
-        + (f"; F-test p = {nr['p']:.2g}" if nr["p"] is not None else "")
-        + ")"
-    )
-    if v == "boundary":
-        return (
-            near + ": a misfit at the scale of the yarns that the continuum cannot represent; no "
-            "energy term will take it"
-            + (
-                "; the rest holds a significant excess of its own too"
-                if rec["far_significant"]
-                else ""
-            )
-        )
-    if v == "spread":
-        return near + "; the rest of the specimen carries an excess of its own: a missing energy"
-    return near + "; too few rows away from them to tell a spread excess"
 
 
 def excess_location(
@@ -281,17 +247,10 @@ def excess_location(
         return base | {"verdict": None, "reason": why}
     cat = np.concatenate
     rec = base | locate(cat(qs), cs.pop(), cat(ds), cat(gs), cat(ks))
-    rec["reason"] = _reason(rec, unit)
+    rec["reason"] = reason(rec, unit)
     if not yarn_spacing:
         rec["reason"] += (
             " (the yarn spacing is not known, --yarn-spacing: distances are in mesh sizes, so "
             "a concentrated excess may also be a boundary layer a gradient effect would take)"
         )
     return rec
-
-
-def outcome_text(rec: dict | None) -> str:
-    """ "" or "where the excess sits: …" (the verdict and its reason) when a claim is made."""
-    if not rec or rec.get("verdict") not in ("boundary", "spread"):
-        return ""
-    return f"where the excess sits: {WORDS[rec['verdict']]}: {rec['reason']}"

@@ -112,14 +112,16 @@ def rank_round(
     cand: dict,
     confirm: int,
     warm: np.ndarray | None = None,
+    taken: tuple | None = None,
 ):
     """One round of the stepwise search (module docstring of :mod:`.diagnose`): score every
     candidate of ``cand`` ({name: indices of its moduli}) at the current fit ``cur``, refit the
     ``confirm`` best (and every one ``warm`` holds above zero) and judge each refit; returns
-    (rows, refits). The search beyond the vocabulary runs its rounds with it too."""
+    (rows, refits). ``taken``: the residuals and sensitivities at ``cur``, when the caller has
+    them. The search beyond the vocabulary runs its rounds with it too."""
     fs.set_values(cur.values)
     with profile.stage("ranking"):
-        r, Jr = fs.residuals(fs.run(sens=True))
+        r, Jr = taken if taken is not None else fs.residuals(fs.run(sens=True))
     sc = scores(r, Jr, cur.values, free, cand)
     order = sorted(cand, key=lambda c: -sc[c][0])
     rows, n = [], cur.misfit["n"]

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fabricsurf.inverse.diagnosis import significance as sg
-from fabricsurf.inverse.diagnosis.excess import outcome_text
+from fabricsurf.inverse.diagnosis.excess_text import outcome_text
 from fabricsurf.inverse.diagnosis.ties import Tie
 from fabricsurf.inverse.fitting.result import FitResult, strip_rows
 from fabricsurf.model.terms import EFFECTS
@@ -101,6 +101,8 @@ class Diagnosis:
         fitted modulus no fabric has, with the effect it stands in for and what to do
         (:mod:`~fabricsurf.inverse.fitting.plausibility`)."""
         out = [outcome_text(self.excess_location)] if not self.adequate else []
+        if out and out[0] and self.too_coarse():  # the mesh's own error is spread too
+            out[0] += "; but the h/2 check calls the mesh too coarse: refine h before reading it"
         out += [f"implausible modulus: {q['text']}" for q in self.implausible or []]
         return [t for t in out if t]
 

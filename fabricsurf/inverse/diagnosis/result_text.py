@@ -6,7 +6,7 @@ is in :mod:`~.report` and the fitting layer."""
 
 from __future__ import annotations
 
-from fabricsurf.inverse.diagnosis.excess import WORDS
+from fabricsurf.inverse.diagnosis.excess_text import WORDS
 
 
 def _num(x: float | None) -> str:

@@ -31,6 +31,7 @@ import numpy as np
 
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.inverse.fitting.optimum import optimum_result
+from fabricsurf.inverse.fitting.plausibility import check_moduli, parse_plausible
 from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_moduli
 from fabricsurf.inverse.fitting.result import FitResult, Forward
 from fabricsurf.inverse.fitting.stability_check import fitted_tangent
@@ -143,6 +144,7 @@ def fit(
     scale_start: bool = True,
     space: str = "log",
     first=None,
+    plausible: bool | dict | str | None = None,
 ) -> FitResult:
     """Fit the moduli ``free`` (indices into ``fm.params``; default all) from their current
     values (which must be > 0, but for a term's ``signed`` moduli, which step linearly, are
@@ -152,8 +154,18 @@ def fit(
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
     docstring). The inputs are checked first, before any solve (the command line's refusals,
     :func:`~.preconditions.fit_preconditions`). Each iteration is logged at PROGRESS (at
-    DEBUG inside :func:`fabricsurf.log.detail`)."""
-    return _fit(fm, free, max_iter, tol, max_step, scale_start, space)
+    DEBUG inside :func:`fabricsurf.log.detail`). ``plausible``: also check the fitted moduli
+    for values no fabric has (:func:`~.plausibility.check_moduli`, into ``implausible`` of the
+    result and warned): True for the rules alone, ranges {"term.param": (low, high)} or
+    "term.param=low:high,…" for the rules and those ranges; None (the default, as the
+    diagnosis's own fits) does not check."""
+    if plausible not in (None, False, True):
+        parse_plausible(plausible)  # a bad range is refused before any solve
+    first = None if scale_start else first  # the scan moves the start: its run is not that
+    res = _fit(fm, free, max_iter, tol, max_step, scale_start, space, first)
+    if plausible not in (None, False):
+        res.implausible = check_moduli(fm, res, None if plausible is True else plausible)
+    return res
 
 
 def _fit(

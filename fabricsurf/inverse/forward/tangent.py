@@ -70,7 +70,7 @@ def _lifted_weight(s, w) -> PETSc.Vec:
         loc.array[:] = s.u.x.array - w.x.array
     with y.localForm() as loc:
         loc.set(0.0)
-    fem_petsc.apply_lifting(y, [s.a], bcs=[s.bcs], x0=[x0], scale=-1.0)
+    fem_petsc.apply_lifting(y, [s.forms()[1]], bcs=[s.bcs], x0=[x0], scale=-1.0)
     y.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     destroy(x0)
     return y

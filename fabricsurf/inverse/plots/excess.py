@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fabricsurf.inverse.diagnosis.excess import WORDS
+from fabricsurf.inverse.diagnosis.excess_text import WORDS
 from fabricsurf.inverse.plots.figures import _plt
 
 

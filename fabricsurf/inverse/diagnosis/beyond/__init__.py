@@ -2,21 +2,23 @@
 (:mod:`.features`, :mod:`.catalogue`) after a diagnosis (docs/diagnosis.md, "Beyond the
 vocabulary").
 
-:func:`search_beyond` takes a finished diagnosis whose final model is not adequate and searches
-the features as the diagnosis searches the named effects, with the same machinery: the final
-model and every feature (modulus 0) in one forward model, the features' linearised scores from
-the exact sensitivities (one run), nested refits of the best ``confirm`` from the best of the
-usual starts, the significance rule on each refit (Wald test on the cluster-robust covariance
-and the F-test against the variance left), ties by Vuong's test (:mod:`.ties`); stepwise, up to
-``max_features`` features.
+:func:`search_beyond` takes a finished diagnosis and searches the features as the diagnosis
+searches the named effects, with the same machinery: the final model and every feature (modulus
+0) in one forward model, the features' linearised scores from the exact sensitivities (one
+run), nested refits of the best ``confirm`` from the best of the usual starts, the significance
+rule on each refit (Wald test on the cluster-robust covariance and the F-test against the
+variance left), ties by Vuong's test (:mod:`.ties`); stepwise, up to ``max_features`` features.
 
 Multiple testing: each feature is tested at the Bonferroni-corrected level (:mod:`.search`).
 
-It searches only when the diagnosis leaves an excess it cannot explain: not when the final model
-is adequate, nor when the h/2 check says the mesh is too coarse for the data. Either excess is
-one a feature may take up without any physics: forced on null data made at h = 2 mm and fitted
-at h = 4 mm (adequate, misfit 1.10), an early −½k·min(λ−1,0)² feature took 45 % of the small
-excess the mesh left and passed the rule. ``force=True`` searches anyway (calibration).
+It refits when the diagnosis leaves an excess it cannot explain, and when the final model is
+adequate but one feature's linearised reduction comes near the corrected rule (the gate of
+:mod:`.search`: the adequacy test spreads its power over every residual, a feature's over one
+direction). Not when the h/2 check says the mesh is too coarse: that excess is one a feature may
+take up without any physics (forced on null data made at h = 2 mm and fitted at h = 4 mm, an
+early −½k·min(λ−1,0)² feature took 45 % of the small excess the mesh left and passed the rule);
+for the same reason the gate wants a reduction above the h/2 check's χ². ``force=True``
+searches anyway (calibration).
 
 The outcome names what it found as a formula ("an energy ∝ γ²((λ−1)+(μ−1)) removes 61 % of the
 excess; no named effect has this form"), with its share of the excess Δχ²/(χ² − ν), its modulus

@@ -8,6 +8,15 @@ diagnosis makes every other claim. Bonferroni rather than Šidák: the features'
 correlated (a ± pair exactly opposite), where Šidák's product rule assumes independence and
 Bonferroni's sum bound holds whatever the dependence; Holm's later steps do not apply, only the
 best is tested in a round. A later round tests the m − 1 features left.
+
+The gate. An adequate final model may still miss one direction: the adequacy test spreads its
+power over every residual, a feature's test over the one direction its sensitivity points in.
+So an adequate model is searched too when the best feature's linearised χ² reduction (its score
+from the exact sensitivities, one run) reaches :data:`GATE_SHARE` of the reduction the corrected
+rule needs (:func:`needed_reduction`) and exceeds the h/2 check's discretisation χ² (a reduction
+the mesh error alone could carry is no evidence). The gate only decides whether to refit: a
+feature is still found only by the corrected rule on its refit, so the gate cannot raise the
+false-alarm rate above that of a forced search; it saves the refits where no feature comes near.
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.beyond import features as ft
 from fabricsurf.inverse.diagnosis.beyond.record import _found, _outcome
 from fabricsurf.inverse.diagnosis.nuisance import with_depth
-from fabricsurf.inverse.diagnosis.ranking import rank_round
+from fabricsurf.inverse.diagnosis.ranking import rank_round, scores
 from fabricsurf.inverse.diagnosis.report import Diagnosis
 from fabricsurf.inverse.diagnosis.ties import find_tie
 from fabricsurf.inverse.fitting.fit import fit
@@ -39,6 +48,43 @@ logger = logging.getLogger(__name__)
 def family_alpha(m: int) -> float:
     """The level each of ``m`` features is tested at (Bonferroni, module docstring)."""
     return (1.0 - sg.LEVEL) / max(m, 1)
+
+
+GATE_SHARE = 0.25
+"""The share of the needed Δχ² a feature's linearised reduction must reach to open the gate
+(module docstring). The refit's reduction may exceed the linearised one (the fitted moduli move
+too); a quarter leaves room for a factor 4, twice the largest factor measured on the
+calibration sets (1.9, docs/lattice_effects.md, "The gate")."""
+
+
+def needed_reduction(chi2: float, p: int, n: int, m: int) -> float:
+    """The Δχ² a one-modulus feature's refit must remove from a model of χ² ``chi2`` with ``p``
+    moduli and ``n`` residuals to pass the corrected F-test of :func:`judge` (s² bounded by the
+    base model's χ²/ν, so a slight overestimate: the gate errs towards refitting less)."""
+    F_needed = float(stats.f.ppf(1.0 - family_alpha(m), 1, max(n - p - 1, 1)))
+    return F_needed * max(1.0, chi2 / max(n - p - 1, 1))
+
+
+def gate(
+    fs, cur: FitResult, free: list[int], cand: dict, chi2_h: float | None
+) -> tuple[dict, tuple]:
+    """The gate of the module docstring at the fit ``cur``: the best feature's linearised
+    reduction against :data:`GATE_SHARE` of :func:`needed_reduction` and ``chi2_h``. Also
+    returns the residuals and sensitivities it took (the first round ranks on them)."""
+    fs.set_values(cur.values)
+    r, Jr = fs.residuals(fs.run(sens=True))
+    sc = scores(r, Jr, cur.values, free, cand)
+    best = max(cand, key=lambda c: sc[c][0])
+    needed = needed_reduction(cur.chi2, len(free), cur.misfit["n"], len(cand))
+    reach = max(GATE_SHARE * needed, chi2_h or 0.0)
+    return {
+        "feature": best,
+        "linearised_delta_chi2": sc[best][0],
+        "needed_delta_chi2": needed,
+        "gate_share": GATE_SHARE,
+        "discretisation_chi2": chi2_h,
+        "open": bool(sc[best][0] >= reach),
+    }, (r, Jr)
 
 
 def judge(row: dict, chi2: float, p: int, n: int, m: int) -> dict:
@@ -58,6 +104,33 @@ def judge(row: dict, chi2: float, p: int, n: int, m: int) -> dict:
     }
 
 
+COARSE = (
+    "the mesh is too coarse for these data (refine h first: a feature would take up "
+    "the discretisation error)"
+)
+
+
+def _gate_text(door: dict) -> str:
+    """The gate's numbers as a clause."""
+    h = door["discretisation_chi2"]
+    return (
+        f"the best feature {door['feature']} removes Δχ² = "
+        f"{door['linearised_delta_chi2']:.3g} linearised; the corrected rule needs "
+        f"{door['needed_delta_chi2']:.3g}" + (f", the h/2 check's χ² is {h:.3g}" if h else "")
+    )
+
+
+def _shut(door: dict) -> str:
+    """Why the gate stayed shut."""
+    h = door["discretisation_chi2"]
+    if (
+        h is not None
+        and door["linearised_delta_chi2"] >= door["gate_share"] * door["needed_delta_chi2"]
+    ):
+        return "no feature's reduction stands above the mesh's own error"
+    return "no feature comes near the rule"
+
+
 def _final_model(d: Diagnosis) -> tuple[list, list[str]]:
     """The diagnosis's final terms at their moduli (vocabulary order) and the free moduli."""
     f, params = d.final_fit, d.final_fit.params()
@@ -65,9 +138,9 @@ def _final_model(d: Diagnosis) -> tuple[list, list[str]]:
     return model, [f.names[k] for k in f.free]
 
 
-def _round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int):
+def _round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, rj=None):
     """One round: the named effects' scores and refits, then the corrected rule."""
-    rows, refits = rank_round(fs, cur, free, cand, confirm)
+    rows, refits = rank_round(fs, cur, free, cand, confirm, taken=rj)
     n, m = cur.misfit["n"], len(cand)
     for q in rows:
         if q.get("refit_chi2") is not None:
@@ -99,16 +172,10 @@ def search_beyond(
     and refit), ``library``, ``excluded`` and ``multiple_testing``."""
     exps = exps if isinstance(exps, list) else [exps]
     t0 = time.perf_counter()
-    why_not = (
-        "the final model is adequate"
-        if diagnosis.adequate
-        else "the mesh is too coarse for these data (refine h first: a feature would take up "
-        "the discretisation error)"
-        if diagnosis.too_coarse()
-        else None
-    )
-    if why_not and not force:
-        return {"searched": False, "outcome": f"not searched: {why_not}", "found": []}
+    if diagnosis.too_coarse() and not force:
+        return {"searched": False, "outcome": f"not searched: {COARSE}", "found": []}
+    adequate = "the final model is adequate"
+    why_not = COARSE if diagnosis.too_coarse() else adequate if diagnosis.adequate else None
     if diagnosis.grip_depth is not None:
         exps = [with_depth(e, diagnosis.grip_depth["best_mm"]) for e in exps]
     three_d = any(not EFFECTS[n].in_plane for n in visible_effects(exps))
@@ -119,7 +186,7 @@ def search_beyond(
     def say(msg: str) -> None:
         rank0(logger, comm, msg)
 
-    say(f"[beyond] searching {len(specs)} features beyond the vocabulary")
+    say(f"[beyond] {len(specs)} features beyond the vocabulary")
     with (
         ft.registered(specs) as classes,
         ForwardSet(exps, model + [c(k=0.0) for c in classes.values()], h=h, comm=comm) as fs,
@@ -127,10 +194,23 @@ def search_beyond(
         idx = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in classes}
         free = [fs.names.index(n) for n in free_names]
         cur = fit(fs, free, scale_start=False, space="linear")
+        door, rj = gate(fs, cur, free, idx, diagnosis.discretisation_chi2)
+        if why_not == adequate and door["open"]:
+            why_not = None
+            say(f"[beyond] adequate, but {_gate_text(door)}: searching")
+        if why_not and not force:  # adequate: a too-coarse mesh returned above
+            out = {
+                "searched": False,
+                "outcome": f"not searched: {why_not}, and {_shut(door)} ({_gate_text(door)})",
+                "found": [],
+                "gate": door,
+            }
+            say(f"[beyond] {out['outcome']}")
+            return out
         found, rounds, base = [], [], cur
         while len(found) < max_features:
             cand = {n: i for n, i in idx.items() if n not in [f["feature"] for f in found]}
-            rows, refits = _round(fs, cur, free, cand, confirm)
+            rows, refits = _round(fs, cur, free, cand, confirm, None if found else rj)
             rounds.append(rows)
             sig = [q for q in rows if q.get("significant")]
             if not sig:
@@ -154,6 +234,7 @@ def search_beyond(
     out = {
         "searched": True,
         "forced_past": why_not,
+        "gate": door,
         "model": list(diagnosis.terms),
         "outcome": _outcome(found, rounds[-1] if rounds else []),
         "found": found,

@@ -1,0 +1,23 @@
+"""The hemisphere forming case the forming tests share (tests/test_hemisphere.py's): a 20 mm
+punch and a 60 mm blank meshed at 4 mm, with the same tools, so the tests compile the same
+forms. A test changes a tool by ``TOOLING | {…}``."""
+
+R, BLANK, H = 20.0, 60.0, 4.0
+TOOLS = {
+    "punch_radius": R,
+    "clearance": 2.0,
+    "die_lip": 2.0,
+    "holder_gap": 0.4,
+    "holder_pressure": 1e-3,
+    "contact_stiffness": 100.0,
+}
+"""The punch, the die's clearance and lip, the holder's gap and pressure (1 kPa), the penalty."""
+TOOLING = TOOLS | {
+    "locking_angle_deg": 50.0,
+    "wrinkle_tension": 1e-3,
+    "wrinkle_curvature": 0.1 / R,
+}
+"""The tools with the wrinkling indicator's thresholds."""
+FRICTION = {"friction": 0.3, "holder_pressure": 1e-2}
+"""The holder with friction (10 kPa, μ = 0.3): the fibres are tensioned and the sheet wraps the
+punch."""
