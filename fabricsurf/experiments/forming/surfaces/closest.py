@@ -27,16 +27,8 @@ def closest_on_triangles(
     or VERTEX), local index: 0 for the face, the edge k (from corner k to corner k + 1 mod 3),
     or the vertex k)."""
     p, a, b, c = np.broadcast_arrays(p, a, b, c)
-    e0, e1, w = b - a, c - a, p - a
-    d00 = np.einsum("...i,...i", e0, e0)
-    d01 = np.einsum("...i,...i", e0, e1)
-    d11 = np.einsum("...i,...i", e1, e1)
-    d20 = np.einsum("...i,...i", w, e0)
-    d21 = np.einsum("...i,...i", w, e1)
-    den = d00 * d11 - d01 * d01
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v = (d11 * d20 - d01 * d21) / den
-        s = (d00 * d21 - d01 * d20) / den
+    e0, e1 = b - a, c - a
+    v, s, den = _plane_coordinates(p, a, e0, e1)
     inside = (v >= 0) & (s >= 0) & (v + s <= 1) & (den > 0)
     foot = a + v[..., None] * e0 + s[..., None] * e1
     best = np.where(inside[..., None], foot, np.nan)
@@ -64,13 +56,19 @@ def closest_on_triangles(
 
 def barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Barycentric coordinates (..., 3) of points p in the planes of triangles (a, b, c)."""
-    e0, e1, w = b - a, c - a, p - a
+    v, s, _ = _plane_coordinates(p, a, b - a, c - a)
+    return np.stack([1.0 - v - s, v, s], axis=-1)
+
+
+def _plane_coordinates(p, a, e0, e1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(v, s, den): p's projection on the plane of a + v e0 + s e1, and the Gram determinant
+    den (0 for a degenerate triangle, where v and s are not finite)."""
+    w = p - a
     d00 = np.einsum("...i,...i", e0, e0)
     d01 = np.einsum("...i,...i", e0, e1)
     d11 = np.einsum("...i,...i", e1, e1)
     d20 = np.einsum("...i,...i", w, e0)
     d21 = np.einsum("...i,...i", w, e1)
     den = d00 * d11 - d01 * d01
-    v = (d11 * d20 - d01 * d21) / den
-    s = (d00 * d21 - d01 * d20) / den
-    return np.stack([1.0 - v - s, v, s], axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den, den
