@@ -21,3 +21,10 @@ TOOLING = TOOLS | {
 FRICTION = {"friction": 0.3, "holder_pressure": 1e-2}
 """The holder with friction (10 kPa, μ = 0.3): the fibres are tensioned and the sheet wraps the
 punch."""
+PARAMS = {
+    "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
+    "shear": {"k_s": 1.0},
+    "normal_bending": {"k_b": 0.1},
+    "twist": {"k_t": 0.1},
+}
+"""The fabric the forming tests form (stiff yarns, soft shear, light bending and twist)."""

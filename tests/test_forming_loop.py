@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hemisphere_case import BLANK, TOOLS, H, R
+from hemisphere_case import BLANK, PARAMS, TOOLS, H, R
 from mpi4py import MPI
 
 from fabricsurf.cli import main
@@ -45,12 +45,6 @@ from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 COMM = MPI.COMM_WORLD
 TOOLING = TOOLS
 """The tools of tests/test_hemisphere.py (its compiled forms are shared)."""
-PARAMS = {
-    "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
-    "shear": {"k_s": 1.0},
-    "normal_bending": {"k_b": 0.1},
-    "twist": {"k_t": 0.1},
-}
 SENS_TOL = 5e-3
 """Relative difference of tangent and central-difference sensitivities: measured ≤ 1e-3 (the
 Jacobian of the last Newton iterate); a wrong ∂R/∂p (with the contact residual) or a missing

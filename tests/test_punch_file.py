@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hemisphere_case import BLANK, TOOLS, H, R
+from hemisphere_case import BLANK, PARAMS, TOOLS, H, R
 from mpi4py import MPI
 
 from fabricsurf.cli import main
@@ -30,12 +30,6 @@ from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 COMM = MPI.COMM_WORLD
 EDGE = 2.0
 TOOLING = TOOLS
-PARAMS = {
-    "fibre_stretch": {"k_l": 1e3, "k_m": 1e3},
-    "shear": {"k_s": 1.0},
-    "normal_bending": {"k_b": 0.1},
-    "twist": {"k_t": 0.1},
-}
 FACET_TOL = 2e-2
 """The triangulated punch's largest force difference over the steps, relative to the final
 force (module docstring; at the first contact, 2 mm, the force is a sixth of the final one and

@@ -57,12 +57,17 @@ too); a quarter leaves room for a factor 4, twice the largest factor measured on
 calibration sets (1.9, docs/lattice_effects.md, "The gate")."""
 
 
+def f_needed(p: int, n: int, m: int) -> float:
+    """The F one feature's refit must exceed on a model of ``p`` moduli and ``n`` residuals,
+    with ``m`` features tested (the corrected level)."""
+    return float(stats.f.ppf(1.0 - family_alpha(m), 1, max(n - p - 1, 1)))
+
+
 def needed_reduction(chi2: float, p: int, n: int, m: int) -> float:
     """The Δχ² a one-modulus feature's refit must remove from a model of χ² ``chi2`` with ``p``
     moduli and ``n`` residuals to pass the corrected F-test of :func:`judge` (s² bounded by the
     base model's χ²/ν, so a slight overestimate: the gate errs towards refitting less)."""
-    F_needed = float(stats.f.ppf(1.0 - family_alpha(m), 1, max(n - p - 1, 1)))
-    return F_needed * max(1.0, chi2 / max(n - p - 1, 1))
+    return f_needed(p, n, m) * max(1.0, chi2 / max(n - p - 1, 1))
 
 
 def gate(
@@ -92,7 +97,7 @@ def judge(row: dict, chi2: float, p: int, n: int, m: int) -> dict:
     candidate ``row`` (one modulus) of a model with χ² ``chi2`` and ``p`` moduli; its parts."""
     alpha = family_alpha(m)
     F = sg.f_statistic(chi2, p, row["refit_chi2"], p + 1, n)
-    F_needed = float(stats.f.ppf(1.0 - alpha, 1, max(n - p - 1, 1)))
+    F_needed = f_needed(p, n, m)
     ok = chi2 > row["refit_chi2"] and row["wald_p"] < alpha and F > F_needed
     return {
         "significant_uncorrected": row["significant"],
