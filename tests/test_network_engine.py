@@ -188,3 +188,20 @@ def test_step_cutting_raises_clear_error():
     bcs = [Dirichlet(np.array([0, 1])), Dirichlet(np.array([9, 10]), [0.0, 30.0])]
     with pytest.raises(ConvergenceError, match="min_step"):
         solve_steps(net, bcs, n_steps=1, min_step=0.2, newton_kw={"maxit": 2})
+
+
+def test_stops_land_exactly_and_match_states_solved_from_rest():
+    """The energy has no history: the state a continuation passes through at a stop equals the
+    state solved from rest at that load (to Newton's tolerance), and every stop is a step end."""
+    net = chain()
+    end = np.array([-2.0, 3.0])
+    stops = [0.3, 0.55, 0.8]
+    bcs = [Dirichlet(np.array([0, 1])), Dirichlet(np.array([9, 10]), end)]
+    res = solve_steps(net, bcs, n_steps=2, stops=stops, reaction_sets={"b": [9, 10]})
+    at = {round(r.t, 12): r for r in res}
+    assert set(stops) | {1.0} <= set(at)
+    for s in stops:
+        alone = [Dirichlet(np.array([0, 1])), Dirichlet(np.array([9, 10]), s * end)]
+        ref = solve_steps(net, alone, n_steps=4, reaction_sets={"b": [9, 10]})[-1]
+        assert np.abs(at[s].x - ref.x).max() < 1e-8
+        assert np.allclose(at[s].reactions["b"], ref.reactions["b"], atol=1e-8)

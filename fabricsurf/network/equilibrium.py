@@ -152,8 +152,14 @@ def solve_steps(
     min_step: float = 1e-4,
     newton_kw: dict | None = None,
     callback=None,
+    stops=(),
 ) -> list[StepResult]:
     """Load stepping t: 0 -> 1 in ``n_steps`` equal steps with step cutting.
+
+    ``stops``: load factors in (0, 1) that a step must end on exactly (the states a caller
+    samples on the way, for instance every displacement of a test's path in one continuation
+    rather than each solved from rest: the energy has no history, so the state at a load
+    factor does not depend on the path to it).
 
     Each step starts from the last converged state, with the prescribed nodes moved to
     their new positions and the free nodes predicted by the tangent (first step) or
@@ -169,9 +175,10 @@ def solve_steps(
         fixed, _ = _constrained(bcs, net.n_nodes, 0.0)
         newton_kw["linear"] = FreeDofSolver(net.X, net.hessian(x), ~fixed)
     t, dt, dx_prev, dx_prev_dt = 0.0, 1.0 / n_steps, None, 1.0
+    ends = np.unique(np.r_[[s for s in stops if 0.0 < s < 1.0], 1.0])
     out: list[StepResult] = []
     while t < 1.0 - 1e-12:
-        dt = min(dt, 1.0 - t)
+        dt = min(dt, ends[np.searchsorted(ends, t + 1e-12)] - t)
         fixed, u = _constrained(bcs, net.n_nodes, t + dt)
         if dx_prev is None:
             guess = tangent_predictor(net, x, fixed, net.X + u, newton_kw["linear"])

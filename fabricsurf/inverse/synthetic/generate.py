@@ -151,7 +151,6 @@ def lattice_data(
     the fibres' compression softness, stiffness (1 − s_comp)k_l for λ < 1; all 0 by default).
     """
     from fabricsurf.network import hencky
-    from fabricsurf.network.equilibrium import solve_steps
     from fabricsurf.network.hencky_moduli import lattice_from_continuum
 
     angles = tuple(exp.fibre_angles_deg)
@@ -183,18 +182,41 @@ def lattice_data(
     held = np.zeros(len(X), bool)
     held[np.concatenate([lat.clamp, lat.grip])] = True
     nodes = np.flatnonzero(~held)[::every]
-    u, force = [], []
-    for d in exp.path:
-        res = solve_steps(
-            lat.net, lat.bias_bcs(float(d)), n_steps=4, reaction_sets={"grip": lat.grip}
-        )[-1]
-        u.append((res.x - X)[nodes])
-        force.append(res.reactions["grip"][0])
+    states = _path_states(lat, np.asarray(exp.path, float))
+    u = [(states[float(d)].x - X)[nodes] for d in exp.path]
+    force = [states[float(d)].reactions["grip"][0] for d in exp.path]
     steps = exp.steps
     exp.field_step = np.repeat(steps, len(nodes))
     exp.X, exp.u = np.tile(X[nodes], (len(steps), 1)), np.vstack(u)
     exp.force = np.array(force)
     return exp
+
+
+def _path_states(lat, path: np.ndarray) -> dict:
+    """The lattice's equilibrium at every grip displacement of ``path`` ({d: StepResult}): one
+    continuation per sign of d, landing on each |d| in turn (the lattice's energy has no
+    history, so a state does not depend on the path to it), at least four steps to the
+    largest and one per displacement on the way."""
+    from fabricsurf.network.equilibrium import solve_steps
+
+    out = {}
+    for sign in (1.0, -1.0):
+        ds = np.unique(path[sign * path > 0])
+        if not len(ds):
+            continue
+        end = ds[np.argmax(np.abs(ds))]
+        res = solve_steps(
+            lat.net,
+            lat.bias_bcs(float(end)),
+            n_steps=4,
+            stops=ds / end,
+            reaction_sets={"grip": lat.grip},
+        )
+        for d in ds:
+            out[float(d)] = min(res, key=lambda r: abs(r.t * end - d))
+    for d in path[path == 0]:
+        out[0.0] = solve_steps(lat.net, lat.bias_bcs(0.0), 1, reaction_sets={"grip": lat.grip})[-1]
+    return out
 
 
 def rewrite_in_m_kn(directory: str | Path) -> None:
