@@ -25,6 +25,14 @@ FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
 """Newton's options for the repeat of a failed full-step attempt (:class:`ContactSolver`);
 if it fails too, the load stepper cuts the stroke increment."""
 
+FALLBACK_STREAK = 2
+"""Consecutive steps whose full-step attempt failed and whose repeat converged, after which the
+repeat's options are tried first (:class:`ContactSolver`), until they fail where full steps
+converge. A single failed attempt is common and costs less than the ``l2`` line search's dearer
+iterations in the steps after it (the forming demo: one repeat in 12 steps); a run where every
+step needs the repeat (an unbalanced pair on a coarse mesh: 11 of 12 steps) spends its 40
+wasted iterations no more (docs/forming.md, "Which attempt first")."""
+
 LINEAR_SOLVER: dict = {}
 """Options of the linear solver beyond the SNES defaults (MUMPS LU). The Jacobian is the Hessian
 of one energy, symmetric, and MUMPS's LDLᵀ (``{"pc_type": "cholesky"}``) factors it with about
@@ -62,7 +70,8 @@ class ContactSolver(SNESSolver):
     finding that motion. Newton takes full steps first; if that attempt fails, it is repeated
     from the same predicted state with ``fallback`` options (the ``l2`` line search, which
     damps the overshoot at the kinks of the contact residual) before the load stepper cuts the
-    increment (docs/forming.md, measured). :attr:`fallbacks` counts those repeats. A converged
+    increment (docs/forming.md, measured); after :data:`FALLBACK_STREAK` such repeats in a row
+    the fallback options go first. :attr:`fallbacks` counts the repeats. A converged
     solve adds the friction work of its step (``dissipation``, one quarter of the blank) to
     :attr:`dissipated`. ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
     friction potentials are compiled when first needed and added to R and J only while
@@ -102,6 +111,7 @@ class ContactSolver(SNESSolver):
         self.u_prev: np.ndarray | None = None
         self.s_prev = 0.0
         self.fallbacks = 0
+        self.fallback_first, self._streak = False, 0
 
     def _release(self) -> None:
         super()._release()
@@ -142,6 +152,16 @@ class ContactSolver(SNESSolver):
             )
             A.assemble()
 
+    def _attempt(self, options: dict | None) -> tuple[int, int]:
+        """One Newton solve with ``options`` over the problem's own (None: the full steps)."""
+        if options is None:
+            return super().solve()
+        self.set_options({**self._options, **options})
+        try:
+            return super().solve()
+        finally:
+            self.set_options(self._options)
+
     def _predict(self, s: float) -> None:
         """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s."""
         if self.u_prev is not None and self.s_n != self.s_prev:
@@ -155,16 +175,18 @@ class ContactSolver(SNESSolver):
         self.tools.eps.value = self.tools.slip_rate * max(abs(s - self.s_n), 1e-6 * self.tools.R)
         self._predict(s)
         predicted = self.u.x.array.copy()
-        reason, its = super().solve()
+        first = self._fallback if self.fallback_first else None
+        reason, its = self._attempt(first)
         if reason <= 0 and self._fallback:
             self.fallbacks += 1
             self.u.x.array[:] = predicted
-            self.set_options({**self._options, **self._fallback})
-            try:
-                reason, more = super().solve()
-            finally:
-                self.set_options(self._options)
+            reason, more = self._attempt(None if first else self._fallback)
             its += more
+            if reason > 0:  # the other options converged where the first did not
+                self._streak = self._streak + 1 if first is None else 0
+                self.fallback_first = self._streak >= FALLBACK_STREAK
+        elif first is None:
+            self._streak = 0
         if reason > 0:
             self.u_prev, self.s_prev, self.s_n = self.u_n.x.array.copy(), self.s_n, s
             self.dissipated += self.comm.allreduce(
