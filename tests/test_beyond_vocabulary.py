@@ -122,6 +122,13 @@ def test_null_data_nothing_found():
     assert rec["searched"] and rec["found"] == [] and rec["outcome"].startswith(NOTHING)
     assert rec["forced_past"] == "the final model is adequate"
     assert rec["gate"] == door  # the same fit and run: the same numbers
+    # a round refits only features within a quarter of the need: the two best-scored split
+    # at that floor, and an outcome without refits says why
+    floor = GATE_SHARE * door["needed_delta_chi2"]
+    top = sorted(rec["rounds"][0], key=lambda q: -q["score"])[:2]
+    assert all((q.get("refit_chi2") is not None) == (q["score"] >= floor) for q in top)
+    if all(q.get("refit_chi2") is None for q in top):
+        assert "none refitted" in rec["outcome"]
 
 
 def test_adequate_but_one_direction_left():

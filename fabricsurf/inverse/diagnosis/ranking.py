@@ -113,12 +113,14 @@ def rank_round(
     confirm: int,
     warm: np.ndarray | None = None,
     taken: tuple | None = None,
+    floor: float = 0.0,
 ):
     """One round of the stepwise search (module docstring of :mod:`.diagnose`): score every
     candidate of ``cand`` ({name: indices of its moduli}) at the current fit ``cur``, refit the
-    ``confirm`` best (and every one ``warm`` holds above zero) and judge each refit; returns
-    (rows, refits). ``taken``: the residuals and sensitivities at ``cur``, when the caller has
-    them. The search beyond the vocabulary runs its rounds with it too."""
+    ``confirm`` best whose score reaches ``floor`` (and every one ``warm`` holds above zero) and
+    judge each refit; returns (rows, refits). ``taken``: the residuals and sensitivities at
+    ``cur``, when the caller has them. The search beyond the vocabulary runs its rounds with it
+    too, with a floor."""
     fs.set_values(cur.values)
     with profile.stage("ranking"):
         r, Jr = taken if taken is not None else fs.residuals(fs.run(sens=True))
@@ -126,7 +128,8 @@ def rank_round(
     order = sorted(cand, key=lambda c: -sc[c][0])
     rows, n = [], cur.misfit["n"]
     again = [] if warm is None else [c for c in order[confirm:] if np.any(warm[cand[c]] > 0)]
-    chosen = order[:confirm] + again  # and every effect a coarser mesh added
+    best = [c for c in order[:confirm] if sc[c][0] >= floor]
+    chosen = best + again  # and every effect a coarser mesh added
 
     def refit(c: str) -> tuple[FitResult, str | None]:
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])

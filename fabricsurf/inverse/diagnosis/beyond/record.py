@@ -102,7 +102,14 @@ def _outcome(found: list[dict], last: list[dict]) -> str:
     if not found:
         tried = [q for q in last if q.get("refit_chi2") is not None]
         if not tried:
-            return NOTHING
+            best = max(last, key=lambda q: q["score"], default=None)
+            return NOTHING + (
+                f" (none refitted: the best, ∝ {ft.spec_of(best['effect']).proportional_to}, "
+                f"removes Δχ² = {best['score']:.3g} linearised, under a quarter of the "
+                "corrected rule's need)"
+                if best
+                else ""
+            )
         q = tried[0]
         return (
             f"{NOTHING} (closest: ∝ {ft.spec_of(q['effect']).proportional_to}, "

@@ -144,9 +144,12 @@ def _final_model(d: Diagnosis) -> tuple[list, list[str]]:
 
 
 def _round(fs, cur: FitResult, free: list[int], cand: dict, confirm: int, rj=None):
-    """One round: the named effects' scores and refits, then the corrected rule."""
-    rows, refits = rank_round(fs, cur, free, cand, confirm, taken=rj)
+    """One round: the named effects' scores and refits of the features whose linearised
+    reduction reaches :data:`GATE_SHARE` of the need (the gate's reasoning, for each feature:
+    a refit has never removed four times its linearised reduction), then the corrected rule."""
     n, m = cur.misfit["n"], len(cand)
+    floor = GATE_SHARE * needed_reduction(cur.chi2, len(free), n, m)
+    rows, refits = rank_round(fs, cur, free, cand, confirm, taken=rj, floor=floor)
     for q in rows:
         if q.get("refit_chi2") is not None:
             q.update(judge(q, cur.chi2, len(free), n, m))
