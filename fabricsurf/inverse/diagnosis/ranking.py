@@ -17,7 +17,14 @@ import numpy as np
 from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.result import FitResult
-from fabricsurf.inverse.fitting.start import grid_start, linearised_start, scout
+from fabricsurf.inverse.fitting.start import (
+    grid_chi2s,
+    grid_pick,
+    grid_start,
+    grid_trials,
+    linearised_start,
+    scout,
+)
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.inverse.forward import profile, ranks, warm_start
 from fabricsurf.inverse.forward.runs import ForwardSet
@@ -65,6 +72,32 @@ def predicted_chi2(
     return float(lin @ lin)
 
 
+def _near(cur: FitResult, free: list[int], idx: list[int], warm) -> np.ndarray | None:
+    """The fitted model with the moduli a coarser mesh found for the candidate (None: none)."""
+    if warm is None or not np.any(warm[idx] > 0):
+        return None
+    near = cur.values.copy()
+    near[free + idx] = warm[free + idx]
+    return near
+
+
+def _start(fs, cur: FitResult, free: list[int], idx: list[int], gn: tuple, warm) -> tuple:
+    """The linearised start (:func:`~.start.linearised_start`): (start or None, its run, what
+    did not hold, the grid's extra trials should it be needed)."""
+    near = _near(cur, free, idx, warm)
+    start, first, note = linearised_start(fs, free, idx, gn[0], gn[1], cur.chi2, near)
+    return start, first, note, [gn[0]] + ([] if near is None else [near])
+
+
+def _fit_from(fs, cur: FitResult, free: list[int], idx: list[int], start, first) -> FitResult:
+    """The nested refit from ``start`` (``first``: its run, if made), kept for warm starts."""
+    fs.set_values(start)
+    res = fit(fs, free + idx, scale_start=False, space="linear", first=first)
+    warm_start.latest(fs, res.values)  # the next round's ranking starts there if it is added
+    fs.set_values(cur.values)
+    return res
+
+
 def _refit(
     fs: ForwardSet,
     cur: FitResult,
@@ -78,23 +111,48 @@ def _refit(
     (its moduli and predicted χ²) where the linearisation holds, else at the best start of
     the grid (:mod:`~.start`; among them, with ``warm``, the moduli a coarser mesh found for
     it). Returns the refit and, after a fallback to the grid, what did not hold."""
-    near = None
-    if warm is not None and np.any(warm[idx] > 0):
-        near = cur.values.copy()
-        near[free + idx] = warm[free + idx]
-    start, first, note = linearised_start(fs, free, idx, gn[0], gn[1], cur.chi2, near)
+    start, first, note, extra = _start(fs, cur, free, idx, gn, warm)
     if start is None:
-        extra = [gn[0]] + ([] if near is None else [near])
         start, first = grid_start(
             fs, cur.values, free, idx, estimate, cur.chi2, extra, sens=free + idx
         )
     else:
         note = None
-    fs.set_values(start)
-    res = fit(fs, free + idx, scale_start=False, space="linear", first=first)
-    warm_start.latest(fs, res.values)  # the next round's ranking starts there if it is added
-    fs.set_values(cur.values)
-    return res, note
+    return _fit_from(fs, cur, free, idx, start, first), note
+
+
+def _shared_refits(fs, cur, free, cand, chosen, estimates, gns, warm) -> list[tuple]:
+    """:func:`_refit` of every candidate of ``chosen``, shared among the ranks in three passes:
+    the linearised starts (one candidate per rank), then the grids of those whose start does
+    not hold, their trials pooled and shared among all ranks (not ranked by the one rank that
+    drew the candidate while the others wait), then the refits (each on the rank that made its
+    start, which keeps the start's run)."""
+    kept = {}
+
+    def start(c):
+        s, kept[c], note, extra = _start(fs, cur, free, cand[c], gns[c], warm)
+        return s, note, extra
+
+    starts = dict(zip(chosen, ranks.spread(fs, chosen, start)))
+    grids = {
+        c: grid_trials(fs, cur.values, free, cand[c], estimates[c], starts[c][2])
+        for c in chosen
+        if starts[c][0] is None
+    }
+    pooled = [v for c in grids for v in grids[c][1]]
+    chi2s = iter(grid_chi2s(fs, pooled) if pooled else [])
+    ranked = {c: [next(chi2s) for _ in grids[c][1]] for c in grids}
+
+    def finish(c):
+        s, note, _ = starts[c]
+        first = kept.get(c)
+        if s is None:
+            s, first = grid_pick(fs, *grids[c], ranked[c], cur.chi2, free + cand[c])
+        else:
+            note = None
+        return _fit_from(fs, cur, free, cand[c], s, first), note
+
+    return ranks.spread(fs, chosen, finish)
 
 
 def candidate_wald(rf: FitResult, idx: list[int]) -> tuple[float, float]:
@@ -131,23 +189,19 @@ def rank_round(
     best = [c for c in order[:confirm] if sc[c][0] >= floor]
     chosen = best + again  # and every effect a coarser mesh added
 
-    def refit(c: str) -> tuple[FitResult, str | None]:
+    gns = {}
+    for c in chosen:
         gn = gauss_newton_start(r, Jr, cur.values, free, cand[c])
-        return _refit(
-            fs,
-            cur,
-            free,
-            cand[c],
-            sc[c][1],
-            (gn, predicted_chi2(r, Jr, cur.values, gn, free, cand[c])),
-            warm,
-        )
-
+        gns[c] = (gn, predicted_chi2(r, Jr, cur.values, gn, free, cand[c]))
+    estimates = {c: sc[c][1] for c in chosen}
     small = r.size <= ranks.SPREAD_RESIDUALS  # the refits are gathered on every rank
     if small:  # a refit whose linearised start fails ranks a grid on the scout: built here,
         scout(fs)  # on every rank, not by one rank inside the shared refits (a collective)
     with profile.stage("refits"):
-        done = ranks.spread(fs, chosen, refit) if small else list(map(refit, chosen))
+        if small:
+            done = _shared_refits(fs, cur, free, cand, chosen, estimates, gns, warm)
+        else:
+            done = [_refit(fs, cur, free, cand[c], estimates[c], gns[c], warm) for c in chosen]
     refits = {c: rf for c, (rf, _) in zip(chosen, done)}
     for c, (_, note) in zip(chosen, done):  # said here: a shared refit ran on another rank
         if note is not None:

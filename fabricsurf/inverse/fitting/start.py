@@ -223,6 +223,21 @@ def grid_start(
     """:func:`candidate_start` and the check run on ``fm``'s mesh (with sensitivities for
     ``sens``) at the start chosen, when that is the start (None when the fitted model itself
     is: it was not run)."""
+    vectors, trials = grid_trials(fm, cur, free, idx, estimate, extra)
+    return grid_pick(fm, vectors, trials, grid_chi2s(fm, trials), chi2_cur, sens)
+
+
+def grid_trials(
+    fm,
+    cur: np.ndarray,
+    free: list[int],
+    idx: list[int],
+    estimate: float,
+    extra: list[np.ndarray] = (),
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The grid of :func:`grid_start`: its plain vectors (the fitted model with the candidate
+    at each trial value; the first is the fitted model itself) and every trial to rank (those
+    and ``extra``, the candidate's moduli floored just above zero)."""
     s = natural_scale(fm, cur, free, idx)
     tries = [s * 1e-9] + [s * 10.0**k for k in (-6, -4, -3, -2, -1, 0, 1)]
     if estimate > 0:
@@ -237,8 +252,27 @@ def grid_start(
         v = v.copy()
         v[idx] = np.maximum(v[idx], s * 1e-9)
         trials.append(v)
+    return vectors, trials
+
+
+def grid_chi2s(fm, trials: list[np.ndarray]) -> list[float]:
+    """χ² of each trial on the scout mesh of ``fm``, the trials shared among the ranks when it
+    solves rank-local (:func:`~.ranks.spread`)."""
     coarse = scout(fm)
-    chi2s = ranks.spread(coarse, trials, lambda v: _chi2(coarse, v, False)[0])
+    return ranks.spread(coarse, trials, lambda v: _chi2(coarse, v, False)[0])
+
+
+def grid_pick(
+    fm,
+    vectors: list[np.ndarray],
+    trials: list[np.ndarray],
+    chi2s: list[float],
+    chi2_cur: float,
+    sens: list[int] | None = None,
+) -> tuple[np.ndarray, object]:
+    """The best-ranked trial, if its check run on ``fm``'s mesh (sensitivities for ``sens``)
+    beats the fitted model's χ² ``chi2_cur``, else the fitted model itself (module docstring);
+    with the check run (None when the fitted model is the start)."""
     best, start = np.inf, None
     for chi2, v in zip(chi2s, trials):
         if chi2 < best:
