@@ -75,8 +75,7 @@ def run(name: str, every: int, out: Path, comm: MPI.Comm) -> dict:
         "outcome": d["outcome"],
         "too_coarse": d["discretisation"]["too_coarse"],
         "levels": [
-            {k: q.get(k) for k in ("h", "dofs", "seconds", "verdict", "too_coarse")}
-            for q in levels
+            {k: q.get(k) for k in ("h", "dofs", "seconds", "verdict", "too_coarse")} for q in levels
         ],
         "rows": d["final"]["misfit"]["n"],
     }
