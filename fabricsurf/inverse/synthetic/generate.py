@@ -214,7 +214,7 @@ def _path_states(lat, path: np.ndarray) -> dict:
         )
         for d in ds:
             out[float(d)] = min(res, key=lambda r: abs(r.t * end - d))
-    for d in path[path == 0]:
+    if np.any(path == 0):
         out[0.0] = solve_steps(lat.net, lat.bias_bcs(0.0), 1, reaction_sets={"grip": lat.grip})[-1]
     return out
 
