@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import logging
 import time
 from collections import Counter
@@ -61,6 +60,7 @@ from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.log import configure, detail, rank0
 from fabricsurf.network import hencky
+from research.rows import read_rows, save_rows
 
 logger = logging.getLogger(__name__)
 
@@ -255,11 +255,7 @@ def main() -> None:
     args = ap.parse_args()
     configure()
     if args.table:
-        rows = []
-        for name in args.table:
-            with open(name) as f:
-                rows += json.load(f)
-        table(rows)
+        table(read_rows(args.table))
         return
     configs = [] if args.only_held_out else ["main"]
     configs += ["held-out"] if args.held_out or args.only_held_out else []
@@ -278,9 +274,7 @@ def main() -> None:
         ):
             rows.append(one(config, spacing, noise, seed, data, args.h))
             say(line(rows[-1]))
-            if args.json and MPI.COMM_WORLD.rank == 0:  # after each, so a long run can stop
-                with open(args.json, "w") as f:
-                    json.dump(rows, f, indent=1)
+            save_rows(args.json, rows)  # after each, so a long run can stop
     table(rows)
 
 

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import logging
 import time
 from dataclasses import dataclass, replace
@@ -60,6 +59,7 @@ from fabricsurf.log import configure, detail, rank0
 from fabricsurf.model.term import Term
 from fabricsurf.model.terms import EFFECTS, make_term
 from fabricsurf.model.user_effects import register_effect
+from research.rows import read_rows, save_rows
 
 logger = logging.getLogger(__name__)
 
@@ -345,11 +345,7 @@ def main() -> None:
     args = ap.parse_args()
     configure()
     if args.table:
-        rows = []
-        for name in args.table:
-            with open(name) as f:
-                rows += json.load(f)
-        table(rows)
+        table(read_rows(args.table))
         return
     config = "held-out" if args.held_out else "main"
     rows = []
@@ -361,9 +357,7 @@ def main() -> None:
             range(args.first_seed, args.first_seed + args.seeds), NOISES
         ):
             rows.append(one(case, config, noise, seed, clean, args.pipeline))
-            if args.json and MPI.COMM_WORLD.rank == 0:  # after each, so a long run can stop
-                with open(args.json, "w") as f:
-                    json.dump(rows, f, indent=1)
+            save_rows(args.json, rows)  # after each, so a long run can stop
     table(rows)
 
 

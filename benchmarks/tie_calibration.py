@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import logging
 import time
 
@@ -29,6 +28,7 @@ from mpi4py import MPI
 from fabricsurf.inverse.diagnosis.diagnose import diagnose, full_model
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.log import configure, detail, rank0
+from research.rows import read_rows, save_rows
 
 logger = logging.getLogger(__name__)
 
@@ -159,17 +159,11 @@ def main() -> None:
     args = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
     if args.table:
-        rows = []
-        for name in args.table:
-            with open(name) as f:
-                rows += json.load(f)
-        table(rows)
+        table(read_rows(args.table))
         return
     rows = run(args.seeds, args.first_seed)
     table(rows)
-    if args.json and MPI.COMM_WORLD.rank == 0:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=1)
+    save_rows(args.json, rows)
 
 
 if __name__ == "__main__":
