@@ -3,7 +3,7 @@
 #   bash run.sh main [--out DIR]   install what is missing, then run the main job on 2 MPI ranks
 #   bash run.sh test               install what is missing, then ruff check, ruff format --check
 #                                  and the whole test suite:
-#                                  serial, then on 2 ranks
+#                                  1 rank per test (two test processes), then on 2 ranks
 set -euo pipefail
 cd "$(dirname "$0")"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
@@ -44,7 +44,7 @@ ensure_debs() {
 
 ensure_venv() {
   [ -x "$PY" ] || /usr/bin/python3 -m venv --system-site-packages "$VENV"
-  if ! "$PY" -c "import pytest, fabricsurf.geometry" 2>/dev/null || ! [ -x "$VENV/bin/ruff" ]; then
+  if ! "$PY" -c "import pytest, xdist, fabricsurf.geometry" 2>/dev/null || ! [ -x "$VENV/bin/ruff" ]; then
     echo "[run.sh] installing fabricsurf (editable) and dev tools into $VENV"
     "$PY" -m pip install -q --upgrade "pip>=23"
     "$PY" -m pip install -q -e ".[dev]"
@@ -69,8 +69,10 @@ case "$cmd" in
     echo "[run.sh] ruff check (the rule set of pyproject.toml) and ruff format --check"
     "$VENV/bin/ruff" check .
     "$VENV/bin/ruff" format --check .
-    echo "[run.sh] test suite, 1 rank"
-    run_pytest "$PY" -m pytest -q -ra --durations=15 tests "$@"
+    # 1 rank per test, two test processes (pytest-xdist, a file's tests in one process): the
+    # demos' 2-rank subprocesses and the serial tests share the two cores (docs/verification.md)
+    echo "[run.sh] test suite, 1 rank (two test processes)"
+    run_pytest "$PY" -m pytest -q -ra --durations=15 -n 2 --dist loadfile tests "$@"
     echo "[run.sh] test suite, 2 ranks"
     run_pytest mpirun -n 2 "$PY" -m mpi4py -m pytest -q -ra -p no:cacheprovider tests "$@" ;;
   *)

@@ -21,11 +21,12 @@ import numpy as np
 import pytest
 import ufl
 from dolfinx import fem
+from dolfinx import jit as djit
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from fabricsurf.discretise.energy import EnergyForm
-from fabricsurf.discretise.jit_keys import mark_equispaced
+from fabricsurf.discretise.jit_keys import JIT_WAIT, mark_equispaced
 from fabricsurf.discretise.problem import FabricProblem
 from fabricsurf.discretise.solver import SNESSolver
 from fabricsurf.geometry.specimen import square
@@ -119,3 +120,13 @@ def test_fast_compile_gives_the_same_numbers():
     assert np.allclose(results[0], results[1], rtol=1e-12, atol=1e-14)
     with pytest.raises(ValueError, match="compile = 'quick'"):
         _solver("quick")
+
+
+def test_a_problem_waits_for_kernels_other_processes_compile():
+    """Two jobs on one cold cache: the second waits for the kernel the first compiles. The
+    second-gradient kernels take minutes to compile, dolfinx's stock wait is 10 s; once a
+    problem is built, every later form waits JIT_WAIT unless its own jit_params say otherwise."""
+    FabricProblem(square(1.0, 0.5, COMM), [FibreStretch()])
+    assert JIT_WAIT >= 600
+    assert djit.get_parameters()["timeout"] >= JIT_WAIT
+    assert djit.get_parameters({"timeout": 5})["timeout"] == 5

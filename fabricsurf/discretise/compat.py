@@ -75,3 +75,21 @@ def raise_constant_count(floor: int) -> None:
     _require(ufl.Constant, "_globalcount", "stable Constant numbering")
     if ufl.Constant._globalcount < floor:
         ufl.Constant._globalcount = floor
+
+
+def raise_jit_wait(seconds: int) -> None:
+    """Make dolfinx's default JIT ``timeout`` (how long a process waits for a kernel that
+    another process is compiling into the shared cache) at least ``seconds``: dolfinx 0.5 keeps
+    the defaults in ``dolfinx.jit.DOLFINX_DEFAULT_JIT_PARAMETERS``, which a user's
+    dolfinx_jit_parameters.json and a form's own ``jit_params`` still override."""
+    from dolfinx import jit
+
+    defaults = getattr(jit, "DOLFINX_DEFAULT_JIT_PARAMETERS", None)
+    if not isinstance(defaults, dict) or "timeout" not in defaults:
+        raise RuntimeError(
+            "the JIT wait relies on dolfinx.jit.DOLFINX_DEFAULT_JIT_PARAMETERS['timeout'] of "
+            "dolfinx 0.5; check fabricsurf/discretise/jit_keys.py against this version"
+        )
+    value, doc = defaults["timeout"]
+    if value < seconds:
+        defaults["timeout"] = (seconds, doc)

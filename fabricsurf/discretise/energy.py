@@ -31,7 +31,7 @@ import ufl
 from dolfinx import fem
 
 from fabricsurf.discretise.constraints import AUGMENTATION, Multiplier
-from fabricsurf.discretise.jit_keys import stable_constant_order
+from fabricsurf.discretise.jit_keys import stable_constant_order, wait_for_other_compiles
 from fabricsurf.discretise.quadrature import (
     CELL_QUADRATURE_DEGREE,
     FACET_QUADRATURE_DEGREE,
@@ -136,6 +136,7 @@ class EnergyForm:
                 f"{', '.join(FIBRE_TREATMENTS)}"
             )
         stable_constant_order()  # before the moduli's Constants are made (jit_keys)
+        wait_for_other_compiles()
         msh = self.u.function_space.mesh
         self.bound: Bound = [(t, t.constants(msh)) for t in self.model]
         self.alpha = fem.Constant(msh, float(self.penalty))

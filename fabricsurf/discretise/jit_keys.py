@@ -4,15 +4,29 @@ FFCx caches a compiled form under its UFL signature. Two behaviours of the pinne
 UFL 2022 make the signature of one and the same form depend on what the process did before, so
 that identical kernels were compiled again (once per key; the large second-gradient kernels
 take minutes each). Both are neutralised here, before any of our forms is built; the tests are
-in tests/test_jit_keys.py.
+in tests/test_jit_keys.py. So is the wait for a kernel that another process is compiling
+(:func:`wait_for_other_compiles`).
 """
 
 import ufl
 from dolfinx import mesh as dmesh
 
-from fabricsurf.discretise.compat import raise_constant_count, set_coordinate_element
+from fabricsurf.discretise.compat import (
+    raise_constant_count,
+    raise_jit_wait,
+    set_coordinate_element,
+)
 
 CONSTANT_COUNT_FLOOR = 10**6
+
+JIT_WAIT = 900
+"""Seconds a process waits for a kernel that another process is compiling into the same cache
+before giving up (dolfinx's default is 10). Two jobs started together on a cold cache (two
+diagnoses of a user, the test suite's two processes) compile the same forms, and whichever
+comes second waits: the large second-gradient kernels take minutes, so with 10 s it failed
+with a TimeoutError instead of loading the kernel the first finished. A kernel whose compiler
+was killed leaves its C file without the mark of completion; a later run then waits this long
+and fails with FFCx's message naming the file to remove."""
 
 
 def mark_equispaced(msh: dmesh.Mesh) -> dmesh.Mesh:
@@ -39,3 +53,9 @@ def stable_constant_order() -> None:
     of seven digits (for the next nine million Constants) text order is numeric order. Counts
     only identify Constants; nothing else depends on their values."""
     raise_constant_count(CONSTANT_COUNT_FLOOR)
+
+
+def wait_for_other_compiles() -> None:
+    """Wait up to :data:`JIT_WAIT` s for a kernel another process is compiling (the default of
+    every later form; a user's dolfinx_jit_parameters.json still decides)."""
+    raise_jit_wait(JIT_WAIT)

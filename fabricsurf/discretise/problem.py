@@ -17,7 +17,11 @@ from fabricsurf.discretise.energy import (
     EnergyForm,
     has_second_gradient,
 )
-from fabricsurf.discretise.jit_keys import mark_equispaced, stable_constant_order
+from fabricsurf.discretise.jit_keys import (
+    mark_equispaced,
+    stable_constant_order,
+    wait_for_other_compiles,
+)
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.resources import Owner, release_vectors, weak_method
 from fabricsurf.discretise.solver import SNESSolver
@@ -62,6 +66,7 @@ class FabricProblem(Owner):
             raise ValueError(f"d = {d}: the placement lives in R^2 or R^3")
         self.specimen, self.model, self.d = specimen, list(model), d
         stable_constant_order()  # before the fibre directions' Constants (EnergyForm repeats it)
+        wait_for_other_compiles()
         self.msh = mark_equispaced(specimen.mesh)
         self.comm = self.msh.comm
         self.V = fem.VectorFunctionSpace(self.msh, ("CG", degree), dim=d)
