@@ -12,7 +12,13 @@ matplotlib.use("Agg")
 
 def pytest_configure(config):
     """Under mpirun every rank runs pytest; give each its own basetemp so tmp_path never races.
-    (Tests that need one shared directory broadcast rank 0's path.)"""
+    (Tests that need one shared directory broadcast rank 0's path.)
+
+    pytest-xdist's controller runs no test and does not initialise MPI: an MPI singleton sets
+    OMPI_* variables in its process's environment, its worker processes would inherit them, and
+    an ``mpirun`` that a test starts with that environment exits 1 without a word."""
+    if getattr(config.option, "numprocesses", None) and "PYTEST_XDIST_WORKER" not in os.environ:
+        return
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
