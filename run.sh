@@ -69,11 +69,10 @@ case "$cmd" in
     echo "[run.sh] ruff check (the rule set of pyproject.toml) and ruff format --check"
     "$VENV/bin/ruff" check .
     "$VENV/bin/ruff" format --check .
-    # 1 rank per test, two test processes (pytest-xdist; a file's tests in one process, the
-    # demos dealt to both: tests/conftest.py): the demos' 2-rank subprocesses and the serial
-    # tests share the two cores (docs/verification.md, "Running the suite")
+    # 1 rank per test, two test processes (pytest-xdist, a file's tests in one process): the
+    # demos' 2-rank subprocesses and the serial tests share the two cores (docs/verification.md)
     echo "[run.sh] test suite, 1 rank (two test processes)"
-    run_pytest "$PY" -m pytest -q -ra --durations=15 -n 2 --dist loadgroup tests "$@"
+    run_pytest "$PY" -m pytest -q -ra --durations=15 -n 2 --dist loadfile tests "$@"
     echo "[run.sh] test suite, 2 ranks"
     run_pytest mpirun -n 2 "$PY" -m mpi4py -m pytest -q -ra -p no:cacheprovider tests "$@" ;;
   *)

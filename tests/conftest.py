@@ -45,25 +45,3 @@ def _warnings_said_again():
     from fabricsurf.log import forget_warnings
 
     forget_warnings()
-
-
-DEMO_GROUPS = 2
-"""The demos' runs are dealt to this many groups (the test processes of ``run.sh test``)."""
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    """Under pytest-xdist's ``--dist loadgroup`` (run.sh test): a file's tests stay in one
-    process, so its module fixtures are made once, except the demos' runs (minutes of two ranks
-    each, the longest file by far), dealt to :data:`DEMO_GROUPS` groups in turn so that every
-    process gets a share. Before xdist reads the groups (``tryfirst``)."""
-    if not getattr(config.option, "loadgroup", False):
-        return
-    dealt = 0
-    for item in items:
-        if item.get_closest_marker("xdist_group") is not None:
-            continue
-        group = item.nodeid.split("::")[0]
-        if item.originalname == "test_demo_runs_and_meets_its_checks":
-            group, dealt = f"{group}:demos-{dealt % DEMO_GROUPS}", dealt + 1
-        item.add_marker(pytest.mark.xdist_group(group))
