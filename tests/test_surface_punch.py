@@ -54,7 +54,8 @@ def stl_punch(folder, h: float) -> TriangulatedSurface:
 
 def written_pressure(e, path) -> np.ndarray:
     """The contact pressure of ``e``'s state as its XDMF writer stores it, read back from the
-    HDF5 file (the P1 nodal values of the file's only time)."""
+    HDF5 file (the P1 nodal values of the file's only time), ordered by the nodes' positions:
+    the file orders them by rank, and two runs on 2 ranks may partition the mesh differently."""
     w = e.writer(path)
     try:
         w.write(STROKE)
@@ -62,7 +63,9 @@ def written_pressure(e, path) -> np.ndarray:
         w.close()
     with h5py.File(path.with_suffix(".h5"), "r") as f:
         (data,) = f["Function/contact_pressure"].values()
-        return np.asarray(data).ravel()
+        (mesh,) = f["Mesh"].values()
+        p, x = np.asarray(data).ravel(), np.asarray(mesh["geometry"])
+    return p[np.lexsort(x.T[::-1])]
 
 
 def form(surface=None, xdmf=None) -> dict:
