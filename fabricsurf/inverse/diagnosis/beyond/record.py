@@ -111,10 +111,13 @@ def _outcome(found: list[dict], last: list[dict]) -> str:
                 else ""
             )
         q = tried[0]
+        need = q.get("share_needed", 0.0)
+        short = q["share_of_excess"] < need and q["wald_p"] < q["wald_p_needed"]
         return (
             f"{NOTHING} (closest: ∝ {ft.spec_of(q['effect']).proportional_to}, "
             f"{share_text(q['share_of_excess'], q['delta_chi2'])}, Wald p = "
-            f"{q['wald_p']:.2g} against {q['wald_p_needed']:.2g} needed)"
+            f"{q['wald_p']:.2g} against {q['wald_p_needed']:.2g} needed"
+            + (f"; under the {100 * need:.0f} % of the excess the rule needs)" if short else ")")
         )
     texts = []
     for f in found:

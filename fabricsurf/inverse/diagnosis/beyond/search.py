@@ -9,6 +9,15 @@ correlated (a ± pair exactly opposite), where Šidák's product rule assumes in
 Bonferroni's sum bound holds whatever the dependence; Holm's later steps do not apply, only the
 best is tested in a round. A later round tests the m − 1 features left.
 
+The share. A feature must also remove at least :data:`SHARE_NEEDED` of the excess it is asked
+to explain, Δχ² ≥ ¼ (χ² − ν) of the model it is added to (the named effects' former second
+part, :mod:`..significance`). With 10⁴–10⁵ field rows the corrected Wald and F tests pass a
+feature that takes up a twentieth or a two-hundredth of a lattice's discreteness error (the
+default specimen at 0.01 mm noise, and a 100 × 50 mm ±40° specimen with 10⁵ rows, both with
+only named effects hidden: docs/speed.md's family, 2026-12-06); such a feature does not say
+what the model misses. The features found on the calibration sets removed 85 % of the excess
+or more (docs/lattice_effects.md).
+
 The gate. An adequate final model may still miss one direction: the adequacy test spreads its
 power over every residual, a feature's test over the one direction its sensitivity points in.
 So an adequate model is searched too when the best feature's linearised χ² reduction (its score
@@ -92,20 +101,28 @@ def gate(
     }, (r, Jr)
 
 
+SHARE_NEEDED = sg.FRACTION_OF_EXCESS
+"""The share of the excess a feature's refit must remove (module docstring, "The share")."""
+
+
 def judge(row: dict, chi2: float, p: int, n: int, m: int) -> dict:
-    """The significance rule of :mod:`.significance` at the corrected level, for a refitted
-    candidate ``row`` (one modulus) of a model with χ² ``chi2`` and ``p`` moduli; its parts."""
+    """The significance rule of :mod:`.significance` at the corrected level, and the share of
+    the excess of :data:`SHARE_NEEDED`, for a refitted candidate ``row`` (one modulus) of a
+    model with χ² ``chi2`` and ``p`` moduli; its parts."""
     alpha = family_alpha(m)
     F = sg.f_statistic(chi2, p, row["refit_chi2"], p + 1, n)
     F_needed = f_needed(p, n, m)
+    share = sg.share_of_excess(chi2, p, row["refit_chi2"], n)
     ok = chi2 > row["refit_chi2"] and row["wald_p"] < alpha and F > F_needed
     return {
         "significant_uncorrected": row["significant"],
-        "significant": bool(ok),
+        "significant": bool(ok and share >= SHARE_NEEDED),
         "delta_chi2": chi2 - row["refit_chi2"],
         "wald_p_needed": alpha,
         "f_statistic": F,
         "f_needed": F_needed,
+        "share_of_excess": share,
+        "share_needed": SHARE_NEEDED,
     }
 
 
