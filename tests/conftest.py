@@ -27,14 +27,6 @@ def pytest_configure(config):
         config.option.basetemp = base
 
 
-def pytest_collection_modifyitems(config, items):
-    """Under pytest-xdist's ``--dist loadfile`` (run.sh test) the demos' file first: its runs
-    (minutes of two ranks, the longest file by far) start on one process at once while the
-    other takes the rest, instead of starting late behind other files."""
-    if getattr(config.option, "dist", "no") == "loadfile":
-        items.sort(key=lambda item: item.nodeid.split("::")[0] != "tests/test_demos.py")
-
-
 def pytest_runtest_setup(item):
     """A test marked ``serial(reason)`` skips in the 2-rank session. The reason names where its
     parallel path is exercised: a heavy study whose parallel code is another test's need not
