@@ -111,7 +111,7 @@ def _outcome(found: list[dict], last: list[dict]) -> str:
                 else ""
             )
         q = tried[0]
-        need = q.get("share_needed", 0.0)
+        need = q["share_needed"]
         short = q["share_of_excess"] < need and q["wald_p"] < q["wald_p_needed"]
         return (
             f"{NOTHING} (closest: ∝ {ft.spec_of(q['effect']).proportional_to}, "
