@@ -91,6 +91,20 @@ def test_model_form_spread_two_parts():
         assert np.isclose(tau[0] ** 2, max(delta**2 / 2 - V, 0.0))
 
 
+def test_model_form_spread_follows_the_modulus_units_without_overflow():
+    """τ is in the modulus's units: with the sensitivity scaled by c, τ scales by 1/c. At c =
+    1e140 the parts' variances are ~1e-282 and their weights' squares exceed the floating-point
+    range (a modulus held at its stiff limit gives such columns); τ must still follow."""
+    n = 50
+    J = np.ones((2 * n, 1))
+    masks = [np.arange(2 * n) < n, np.arange(2 * n) >= n]
+    r = np.where(masks[0], -0.5, 0.5)
+    tau = systematic.model_form(J, r, masks, None, noise_known=True)
+    with np.errstate(over="raise"):
+        scaled = systematic.model_form(J * 1e140, r, masks, None, noise_known=True)
+    assert np.isclose(scaled[0] * 1e140, tau[0], rtol=1e-12)
+
+
 def test_wald_one_sided():
     """k = 1: the one-sided t-test of a modulus ≥ 0; k = 2: F(2, dof)."""
     F, p = unc.wald(np.array([3.0]), np.array([[1.0]]), 20)

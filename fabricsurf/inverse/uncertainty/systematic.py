@@ -109,7 +109,8 @@ def model_form(
         return None
     theta = np.array([f[0] for f in fits])
     w = 1.0 / np.array([f[1] for f in fits])
-    mean = (w * theta).sum(axis=0) / w.sum(axis=0)
-    Q = (w * (theta - mean) ** 2).sum(axis=0)
-    denom = w.sum(axis=0) - (w**2).sum(axis=0) / w.sum(axis=0)
-    return np.sqrt(np.maximum(0.0, (Q - (len(fits) - 1)) / np.maximum(denom, 1e-300)))
+    total = w.sum(axis=0)
+    u = w / total  # normalised weights: DerSimonian–Laird's sums without overflow (1/V ≤ 1e300)
+    mean = (u * theta).sum(axis=0)
+    spread = (u * (theta - mean) ** 2).sum(axis=0) - (len(fits) - 1) / total  # (Q − (k−1))/Σw
+    return np.sqrt(np.maximum(0.0, spread / np.maximum(1.0 - (u**2).sum(axis=0), 1e-300)))
