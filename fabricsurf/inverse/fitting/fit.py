@@ -26,6 +26,7 @@ between parts of the data and, after :meth:`FitResult.check_mesh`, the mesh shif
 from __future__ import annotations
 
 import logging
+from functools import partial
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive
 from fabricsurf.inverse.fitting.result import FitResult, Forward
 from fabricsurf.inverse.fitting.stability_check import fitted_tangent
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
+from fabricsurf.inverse.fitting.stiff_limit import StiffWatch, hold
 from fabricsurf.inverse.forward import linalg as la
 from fabricsurf.log import rank0
 
@@ -219,11 +221,14 @@ def _fit(
     r, Jr = rj
     lam, hist, it = LAMBDA_START, [], 0
     at_bound = np.zeros(len(free), bool)
+    watch = StiffWatch(signed)
     for it in range(1, max_iter + 1):
         q_scale, update = _steps(space, vals, free, signed)
         Jt = Jr * q_scale  # dr/dq
         g = Jt.T @ r
-        act = ~(at_bound & (g > 0))  # a modulus at the bound that would go on down is held
+        act = ~(at_bound & (g > 0)) & ~watch.held  # at the bound going down, or stiff limit
+        if not act.any():
+            break
         Ja = Jt[:, act]
         JTJ = Ja.T @ Ja
         D = np.diag(np.diag(JTJ)) + DIAG_FLOOR * np.trace(JTJ) * np.eye(len(JTJ))
@@ -250,7 +255,13 @@ def _fit(
         rel = (chi2 - chi2_new) / max(chi2, 1e-300)
         dlog = _moves(trial[free], vals[free], signed)
         at_bound = (space == "linear") & ~signed & (~act | (vals[free] + step <= 0))
+        ripe = watch.observe(vals[free], trial[free], rel)
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
+        if ripe.any():
+            trial_run = partial(_try, fm, free)
+            vals, pred, r, Jr, chi2 = hold(
+                fm, free, watch, ripe, (vals, pred, r, Jr, chi2), trial_run
+            )
         hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
         rank0(
             logger,
@@ -264,6 +275,9 @@ def _fit(
             break
     fm.set_values(vals)
     res = optimum_result(fm, free, vals, pred, r, Jr, chi2, it, fm.forward_runs - runs0, hist)
+    res.at_limit = {
+        fm.names[k]: float(g) for k, h, g in zip(free, watch.held, watch.left) if h
+    } or None
     if signed.any():  # a coupling's sign: is the fitted energy stable where the data go?
         res.stability = fitted_tangent(fm)
     if res.lost():

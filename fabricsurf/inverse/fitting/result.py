@@ -53,6 +53,9 @@ class FitResult:
     stability: TangentCheck | None = None
     """For a model with a signed modulus, its fitted energy's stability over the data's states
     (:func:`~.stability_check.fitted_tangent`)."""
+    at_limit: dict | None = None
+    """The moduli held at their stiff limit (:mod:`~.stiff_limit`): {name: the χ² gain left
+    between there and infinity}."""
 
     def params(self) -> dict:
         """{term: {param: value}} (the --params file format)."""
@@ -164,6 +167,7 @@ class FitResult:
             | ({"size_effects": self.size_effects} if self.size_effects else {})
             | ({} if self.implausible is None else {"implausible_moduli": self.implausible})
             | ({"stability": self.stability.as_dict()} if self.stability else {})
+            | ({"at_stiff_limit": self.at_limit} if self.at_limit else {})
         )
 
 
