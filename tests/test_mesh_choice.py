@@ -23,7 +23,7 @@ from fabricsurf.cli import main
 from fabricsurf.geometry.aligned import lattice_divisions
 from fabricsurf.geometry.lattice_pair import pair_divisions
 from fabricsurf.inverse.contract.data import write_experiment
-from fabricsurf.inverse.diagnosis.mesh_choice import Budget, _why_not
+from fabricsurf.inverse.diagnosis.mesh_choice import Budget, _by_rate, _why_not
 from fabricsurf.inverse.diagnosis.report import Diagnosis
 
 
@@ -87,6 +87,30 @@ def test_budget_is_checked_and_names_the_limit_reached():
         level, 150.0, 100.0, Budget(24_000, 24_000, 549.0)
     )
     assert _why_not(level, 1e9, 100.0, Budget(24_000, 24_000, None)) is None
+
+
+def test_the_check_s_own_rate_stops_refining_when_the_band_is_out_of_reach():
+    """Two levels of the new user's small-displacement case (docs/speed.md): the check fell by
+    0.32 per halving, so the band needs ⌈log(8825/1.862e5)/log 0.32⌉ = 3 more halvings,
+    5 074·4³ unknowns, beyond the default 100 000. One level, a fast fall, halvings the budget
+    holds, or a check that rose (the gradient clamps' 3001 -> 4188 -> 1366 of docs/diagnosis.md,
+    which reached the band's side only by going on) go on."""
+
+    def level(h, dofs, seconds, chi2_h, band=8825.0):
+        return {"h": [h], "dofs": dofs, "seconds": seconds, "chi2_h": chi2_h, "noise_band": band}
+
+    small = [level(11.9, 1306, 71.0, 5.825e5), level(5.95, 5074, 617.0, 1.862e5)]
+    why = _by_rate(small, 690.0, Budget())
+    assert why.startswith("the h/2 check went 5.82e+05 -> 1.86e+05 when h was halved (x0.32)")
+    assert "needs 3 more halvings (h = 0.744 mm, about 324,736 unknowns" in why
+    assert why.endswith("beyond max_dofs = 100,000 and --time-budget 3600 s")
+    assert _by_rate(small[:1], 71.0, Budget()) is None
+    fast = [small[0], level(5.95, 5074, 617.0, 2.0e4)]  # x0.034: the next level reaches it
+    assert _by_rate(fast, 690.0, Budget()) is None
+    held = Budget(max_dofs=400_000, seconds=None)  # three halvings fit this budget
+    assert _by_rate(small, 690.0, held) is None
+    rose = [level(2.0, 1654, 48.0, 3001.0, 72.8), level(1.0, 6442, 150.0, 4188.0, 72.8)]
+    assert _by_rate(rose, 200.0, Budget()) is None
 
 
 LENGTH, WIDTH, H0 = 25.0, 20.0, 4.0
@@ -229,6 +253,10 @@ def test_refinement_loop_stops_at_the_budget_on_every_rank(monkeypatch):
     d = mc.diagnose_on_mesh(exp, ["shear"], beyond_features=0)  # no real data to search
     assert calls == [[2.0], [1.0], [0.5]] and d.mesh_selection["stopped"] is None
     assert d.mesh_selection["refinements"] == 2 and d.mesh_note() == ""
+    calls.clear()
+    checks = iter([4000.0, 1200.0])  # x0.3 per halving: 3 more for a band of 46.7, > 3 300 dofs
+    d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(max_dofs=100_000), beyond_features=0)
+    assert calls == [[2.0], [1.0]] and "needs 3 more halvings" in d.mesh_note()
     calls.clear()
     checks = iter([400.0, 100.0])
     d = mc.diagnose_on_mesh(exp, ["shear"], budget=Budget(max_dofs=3300))

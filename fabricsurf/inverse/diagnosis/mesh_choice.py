@@ -16,7 +16,10 @@ every experiment and diagnoses again, until the check passes or the budget is sp
   together; the cells of the finest mesh solved (the h/2 check of the next level: sixteen
   times the cells of the present fit's mesh), the same memory guard as the command line's
   ``--max-elements``; the wall time of the whole diagnosis, a level being started only when the
-  time spent plus :data:`LEVEL_GROWTH` times the last level's fits.
+  time spent plus :data:`LEVEL_GROWTH` times the last level's fits;
+* the h/2 check's own rate (:func:`_by_rate`): from the second level on, when at the rate the
+  check fell over the last two levels the band needs two or more halvings that the budget does
+  not hold, refining stops there and says why.
 
 Every level is recorded (h, cells, unknowns, mesh kinds, time, χ²_h against the band, verdict,
 adequacy, moduli with their intervals) in the result's ``mesh_selection``; the grip depth, when
@@ -133,6 +136,37 @@ def _why_not(level: dict, spent: float, last: float, budget: Budget) -> str | No
     return None
 
 
+def _by_rate(levels: list[dict], spent: float, budget: Budget) -> str | None:
+    """Why the band is out of the budget's reach, judged by the h/2 check's own rate over the
+    last two levels (None: within reach, or no rate). The check falls by ρ per halving: the
+    band then needs n = ⌈log(band/χ²_h)/log ρ⌉ more halvings, each four times the unknowns and
+    ``LEVEL_GROWTH`` times the time of the one before. A check that did not fall gives no rate:
+    it rises before it falls where the mesh is not yet asymptotic (docs/diagnosis.md, the
+    gradient clamps' held-aside case), so refining goes on within the budget."""
+    if len(levels) < 2 or not all((q["chi2_h"] or 0.0) > 0.0 for q in levels[-2:]):
+        return None
+    a, b, q = levels[-2]["chi2_h"], levels[-1]["chi2_h"], levels[-1]
+    if b >= a:
+        return None
+    n = max(1, math.ceil(math.log(q["noise_band"] / b) / math.log(b / a)))
+    dofs = q["dofs"] * 4**n
+    seconds = q["seconds"] * sum(LEVEL_GROWTH**k for k in range(1, n + 1))
+    over = [
+        f"max_dofs = {budget.max_dofs:,}" if dofs > budget.max_dofs else "",
+        f"--time-budget {budget.seconds:g} s"
+        if budget.seconds is not None and spent + seconds > budget.seconds
+        else "",
+    ]
+    if n < 2 or not any(over):
+        return None  # the next level may reach it, or the budget holds the levels it needs
+    h = ", ".join(f"{x / 2**n:.3g}" for x in q["h"])
+    return (
+        f"the h/2 check went {a:.3g} -> {b:.3g} when h was halved (x{b / a:.2f}): at that "
+        f"rate the noise band {q['noise_band']:.4g} needs {n} more halvings (h = {h} mm, "
+        f"about {dofs:,} unknowns and {seconds:.0f} s), beyond {' and '.join(o for o in over if o)}"
+    )
+
+
 def warm_params(d: Diagnosis, params: dict | None) -> dict:
     """The given moduli with the baseline's replaced by its fit on the last mesh."""
     fitted = d.base_fit.params()
@@ -182,7 +216,10 @@ def diagnose_on_mesh(
         if not d.too_coarse():
             break
         spent = comm.allreduce(MPI.Wtime() - t_start, op=MPI.MAX)
-        stopped = comm.bcast(_why_not(levels[-1], spent, levels[-1]["seconds"], budget))
+        stopped = comm.bcast(
+            _why_not(levels[-1], spent, levels[-1]["seconds"], budget)
+            or _by_rate(levels, spent, budget)
+        )
         if stopped:
             break
         if grip is not None:  # the depth chosen on the first mesh: not profiled again
