@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from fabricsurf.inverse.diagnosis.result_text import result_lines
 from fabricsurf.inverse.fitting import stiff_limit as sl
 from fabricsurf.inverse.fitting.fit import fit
 
@@ -67,7 +68,11 @@ def test_a_stiffness_running_to_infinity_is_held_at_its_limit():
     left = sum(res.at_limit.values())
     assert 0.5 * left <= res.chi2 - chi2_inf <= 2.0 * left
     assert abs(res.values[2] - s_inf) < 0.01 * res.std[2]  # a hundredth of its own σ
-    assert "at_stiff_limit" in res.as_dict()
+    u = res.as_dict()
+    assert u["at_stiff_limit"] == res.at_limit
+    lines = result_lines(u)
+    assert lines[0].startswith(f"  fibre.k_l = {res.values[0]:.5g} (held at its stiff limit")
+    assert not any("±" in ln for ln in lines[:2])
     assert res.std[0] == np.inf and res.std[1] == np.inf  # not bounded above: no ± reported
     p = np.array([1e3, 1e3, 2.0])  # anywhere on the way: the best compliance is below zero
     r, Jr = Yarns(BEYOND, 1e3).residuals(p)

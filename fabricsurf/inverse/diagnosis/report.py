@@ -19,8 +19,10 @@ UNCERTAINTY_KEYS = (
     "weak_directions",
     "undetermined",
     "uncertainty",
+    "at_stiff_limit",
 )
-"""The keys of a fit's intervals (:meth:`~.fit.FitResult.as_dict`) in the final model."""
+"""The keys of a fit's intervals (:meth:`~.fit.FitResult.as_dict`) in the final model (the last
+only when a modulus was held at its stiff limit)."""
 
 
 @dataclass

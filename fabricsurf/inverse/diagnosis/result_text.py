@@ -17,11 +17,17 @@ def result_lines(u: dict) -> list[str]:
     """The fitted moduli of a fit.json or a diagnosis's final model ``u``: each identifiable
     one with its 95 % interval and the parts of its uncertainty; one that is not gets no ± (it
     would span zero or be a meaningless 1e-13), and the combinations the data do determine are
-    given with their intervals, then those they do not."""
-    lines = []
+    given with their intervals, then those they do not. A modulus held at its stiff limit
+    (``at_stiff_limit``, :mod:`~fabricsurf.inverse.fitting.stiff_limit`) says so."""
+    lines, stiff = [], u.get("at_stiff_limit") or {}
     for n, m in u["moduli"].items():
         if m.get("fixed"):
             lines.append(f"  {n} = {m['value']:.5g} (held)")
+        elif n in stiff:
+            lines.append(
+                f"  {n} = {m['value']:.5g} (held at its stiff limit: the data do not bound it "
+                f"above; at infinity chi2 would be {stiff[n]:.2g} lower)"
+            )
         elif m["identifiable"]:
             lo, hi = m["ci95"]
             lines.append(
