@@ -221,7 +221,7 @@ def _fit(
     r, Jr = rj
     lam, hist, it = LAMBDA_START, [], 0
     at_bound = np.zeros(len(free), bool)
-    watch = StiffWatch(signed)
+    watch, trial_run = StiffWatch(signed), partial(_try, fm, free)
     for it in range(1, max_iter + 1):
         q_scale, update = _steps(space, vals, free, signed)
         Jt = Jr * q_scale  # dr/dq
@@ -258,7 +258,6 @@ def _fit(
         ripe = watch.observe(vals[free], trial[free], rel)
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
         if ripe.any():
-            trial_run = partial(_try, fm, free)
             vals, pred, r, Jr, chi2 = hold(
                 fm, free, watch, ripe, (vals, pred, r, Jr, chi2), trial_run
             )

@@ -131,7 +131,8 @@ def hold(fm, free: list[int], watch: StiffWatch, ripe: np.ndarray, state: tuple,
         return state
     trial, pred, rj, chi2_new, tail = jump(vals, free, chi2, gain, ripe, run)
     if not chi2_new < chi2:  # includes a run that failed (inf)
-        rank0(logger, fm.comm, f"  fit: {names} × {STIFF_JUMP:g}: chi2 not lower; going on")
+        at = trial[free][ripe].min()
+        rank0(logger, fm.comm, f"  fit: {names} at {at:.3g}: chi2 not lower; going on")
         fm.set_values(vals)
         return state
     r, Jr = rj
