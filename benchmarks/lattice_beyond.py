@@ -235,7 +235,8 @@ def one(case: str, config: str, noise: float, seed: int, clean, pipeline: bool =
         "misfit_feature": [f["refit_misfit"] for f in forced["found"]],
         "gate": forced.get("gate"),
         "first_round": [
-            [q["effect"], q["score"], q.get("delta_chi2")] for q in forced.get("rounds", [[]])[0]
+            [q["effect"], q["score"], q.get("delta_chi2"), q.get("finer_mesh_delta_chi2")]
+            for q in forced.get("rounds", [[]])[0]
         ][:3],
     }
     row["searched"] = bool(row["searched"])

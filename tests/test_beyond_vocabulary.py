@@ -26,7 +26,7 @@ from mpi4py import MPI
 
 from fabricsurf.inverse.diagnosis.beyond import NOTHING, family_alpha, search_beyond
 from fabricsurf.inverse.diagnosis.beyond import features as ft
-from fabricsurf.inverse.diagnosis.beyond.search import GATE_SHARE, SHARE_NEEDED, judge
+from fabricsurf.inverse.diagnosis.beyond.rule import GATE_SHARE, SHARE_NEEDED, judge
 from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import generate as sy
 from fabricsurf.model.term import Term

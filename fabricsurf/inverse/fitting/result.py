@@ -46,6 +46,8 @@ class FitResult:
     model_form: np.ndarray | None = None
     mesh_shift: np.ndarray | None = None
     chi2_h: float | None = None
+    mesh_difference: np.ndarray | None = None
+    """d = r_{h/2} − r_h at the fitted moduli, when the h/2 check ran (:meth:`check_mesh`)."""
     size_effects: dict | None = None
     """The size part's record (:func:`~.size_form.size_record`), when it was estimated."""
     implausible: list | None = None
@@ -72,6 +74,7 @@ class FitResult:
             return
         d = systematic.mesh_difference(fm, self.prediction, fm.comm) if d is None else d
         self.chi2_h = float(d @ d)
+        self.mesh_difference = d
         self.mesh_shift = systematic.mesh_shift(self.J, d)
 
     def lost(self) -> set[str]:

@@ -9,11 +9,11 @@ run), nested refits of the best ``confirm`` from the best of the usual starts, t
 rule on each refit (Wald test on the cluster-robust covariance and the F-test against the
 variance left), ties by Vuong's test (:mod:`.ties`); stepwise, up to ``max_features`` features.
 
-Multiple testing: each feature is tested at the Bonferroni-corrected level (:mod:`.search`).
+Multiple testing: each feature is tested at the Bonferroni-corrected level (:mod:`.rule`).
 
 It refits when the diagnosis leaves an excess it cannot explain, and when the final model is
 adequate but one feature's linearised reduction comes near the corrected rule (the gate of
-:mod:`.search`: the adequacy test spreads its power over every residual, a feature's over one
+:mod:`.rule`: the adequacy test spreads its power over every residual, a feature's over one
 direction). Not when the h/2 check says the mesh is too coarse: that excess is one a feature may
 take up without any physics (forced on null data made at h = 2 mm and fitted at h = 4 mm, an
 early −½k·min(λ−1,0)² feature took 45 % of the small excess the mesh left and passed the rule);
@@ -27,6 +27,7 @@ paste into a module of one's own; or "nothing beyond the vocabulary found".
 """
 
 from fabricsurf.inverse.diagnosis.beyond.record import NOTHING, summary_lines
-from fabricsurf.inverse.diagnosis.beyond.search import family_alpha, search_beyond
+from fabricsurf.inverse.diagnosis.beyond.rule import family_alpha
+from fabricsurf.inverse.diagnosis.beyond.search import search_beyond
 
 __all__ = ["NOTHING", "family_alpha", "search_beyond", "summary_lines"]

@@ -7,6 +7,7 @@ import numpy as np
 
 from fabricsurf.inverse.contract.experiment import Experiment
 from fabricsurf.inverse.diagnosis.beyond import features as ft
+from fabricsurf.inverse.diagnosis.beyond.finer_mesh import leans_text
 from fabricsurf.inverse.fitting.result import FitResult
 from fabricsurf.inverse.forward import misfit as mf
 
@@ -113,11 +114,14 @@ def _outcome(found: list[dict], last: list[dict]) -> str:
         q = tried[0]
         need = q["share_needed"]
         short = q["share_of_excess"] < need and q["wald_p"] < q["wald_p_needed"]
-        return (
+        closest = (
             f"{NOTHING} (closest: ∝ {ft.spec_of(q['effect']).proportional_to}, "
-            f"{share_text(q['share_of_excess'], q['delta_chi2'])}, Wald p = "
-            f"{q['wald_p']:.2g} against {q['wald_p_needed']:.2g} needed"
-            + (f"; under the {100 * need:.0f} % of the excess the rule needs)" if short else ")")
+            f"{share_text(q['share_of_excess'], q['delta_chi2'])}"
+        )
+        if q.get("significant_on_this_mesh") and not q["significant"]:
+            return f"{closest}; {leans_text(q)})"
+        return f"{closest}, Wald p = {q['wald_p']:.2g} against {q['wald_p_needed']:.2g} needed" + (
+            f"; under the {100 * need:.0f} % of the excess the rule needs)" if short else ")"
         )
     texts = []
     for f in found:
