@@ -17,7 +17,8 @@ adequate but one feature's linearised reduction comes near the corrected rule (t
 direction). Not when the h/2 check says the mesh is too coarse: that excess is one a feature may
 take up without any physics (forced on null data made at h = 2 mm and fitted at h = 4 mm, an
 early −½k·min(λ−1,0)² feature took 45 % of the small excess the mesh left and passed the rule);
-for the same reason the gate wants a reduction above the h/2 check's χ². ``force=True``
+for the same reason the gate wants a reduction above the h/2 check's χ², and a feature must
+stand on the h/2 check's residuals too (:mod:`.finer_mesh`, :mod:`.refine`). ``force=True``
 searches anyway (calibration).
 
 The outcome names what it found as a formula ("an energy ∝ γ²((λ−1)+(μ−1)) removes 61 % of the

@@ -26,6 +26,10 @@ rule needs (:func:`needed_reduction`) and exceeds the h/2 check's discretisation
 the mesh error alone could carry is no evidence). The gate only decides whether to refit: a
 feature is still found only by the corrected rule on its refit, so the gate cannot raise the
 false-alarm rate above that of a forced search; it saves the refits where no feature comes near.
+
+The finer mesh. In the first round a feature must also stand on the h/2 check's residuals
+(:mod:`.finer_mesh`), and one whose evidence moved there is judged again one mesh finer
+(:mod:`.refine`): a coarse mesh's error is systematic, and a feature can take it up.
 """
 
 from __future__ import annotations
