@@ -131,9 +131,9 @@ def search_beyond(
                 say(
                     f"[beyond] {q['effect']}: its evidence moved on the h/2 residuals; again at h/2"
                 )
-                h = [x.h for x in fs.models]
+                h_fit = [x.h for x in fs.models]  # the meshes in use (h may be None: defaults)
                 q["at_finer_mesh"] = judge_finer(
-                    exps, model, free_names, classes[q["effect"]], h, len(cand), comm
+                    exps, model, free_names, classes[q["effect"]], h_fit, len(cand), comm
                 )
                 if q["at_finer_mesh"]["significant"]:
                     break
