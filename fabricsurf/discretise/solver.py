@@ -86,6 +86,7 @@ class SNESSolver(Owner):
         self.a = fem.form(jacobian, jit_params=self._jit)
         self._cheap: tuple | None = None
         self._cheap_when: Callable[[], bool] | None = None
+        self.A_cheap: PETSc.Mat | None = None
         self.cheap_evaluations = 0
         self.prefix = prefix or f"fabricsurf_{next(_ids)}_"
         self.b = fem_petsc.create_vector(self.L)
@@ -96,6 +97,7 @@ class SNESSolver(Owner):
         self.snes = PETSc.SNES().create(V.mesh.comm)
         self.snes.setFunction(weak_method(self._F), self.b)
         self.snes.setJacobian(weak_method(self._J), self.A)
+        self._in_use = self.A
         self.initial_norm = np.inf
         self.polished = 0
         if self.multipliers:
@@ -103,7 +105,7 @@ class SNESSolver(Owner):
         self.set_options(options)
 
     def _release(self) -> None:
-        destroy(self.snes, self.A, self.b, self.x, self.force)
+        destroy(self.snes, self.A, self.A_cheap, self.b, self.x, self.force)
 
     def add_cheap_forms(
         self, residual: ufl.Form, jacobian: ufl.Form, when: Callable[[], bool]
@@ -112,25 +114,37 @@ class SNESSolver(Owner):
         (a model whose second-gradient moduli are all zero: their cell kernels and the
         interior-penalty facet terms then vanish exactly, docs/speed.md). Compiled at their
         first use; every residual and Jacobian evaluation uses them while ``when()`` holds.
-
-        The full Jacobian is assembled once here: PETSc fixes an AIJ matrix's structure at its
-        first assembly and drops the preallocated entries nothing was added to, so a matrix
-        first assembled from the cheap forms had no room left for the facet couplings (on
-        several ranks the full Jacobian then failed to assemble, tests/test_cheap_forms.py)."""
+        The cheap Jacobian has a matrix of its own, :attr:`A_cheap`, of its sparsity: without
+        the facet couplings it holds half the entries and factorises in half the time or less.
+        (In the full Jacobian's matrix the couplings stay as stored zeros; a matrix first
+        assembled from the cheap forms cannot take them later: PETSc fixes an AIJ matrix's
+        structure at its first assembly, tests/test_cheap_forms.py.)"""
         self._cheap, self._cheap_when = (residual, jacobian), when
-        self.A.zeroEntries()
-        fem_petsc.assemble_matrix(self.A, self.a, bcs=self.bcs)
-        self.A.assemble()
+
+    def _cheap_now(self) -> bool:
+        return self._cheap_when is not None and self._cheap_when()
 
     def forms(self) -> tuple[fem.FormMetaClass, fem.FormMetaClass]:
         """(residual, Jacobian) as evaluated now: the cheap pair while it equals the full one
         (:meth:`add_cheap_forms`), else the full pair."""
-        if self._cheap_when is None or not self._cheap_when():
+        if not self._cheap_now():
             return self.L, self.a
+        self.cheap_evaluations += 1
+        return self._compiled_cheap()
+
+    def _compiled_cheap(self) -> tuple[fem.FormMetaClass, fem.FormMetaClass]:
         if isinstance(self._cheap[0], ufl.Form):
             self._cheap = tuple(fem.form(f, jit_params=self._jit) for f in self._cheap)
-        self.cheap_evaluations += 1
+            self.A_cheap = fem_petsc.create_matrix(self._cheap[1], self.matrix_type)
         return self._cheap
+
+    def _jacobian_matrix(self) -> PETSc.Mat:
+        """The matrix of the Jacobian :meth:`forms` gives now, SNES's from the next solve."""
+        A = self.A_cheap if self._cheap_now() and self._compiled_cheap() else self.A
+        if A is not self._in_use:
+            self.snes.setJacobian(weak_method(self._J), A)
+            self._in_use = A
+        return A
 
     def set_options(self, options: dict) -> None:
         """Apply PETSc options (over :data:`~.snes.SNES_DEFAULTS`) under this solver's prefix;
@@ -199,19 +213,26 @@ class SNESSolver(Owner):
         self._F(None, x, b)
 
     def evaluate_jacobian(self, x: PETSc.Vec) -> PETSc.Mat:
-        """The Jacobian at x (boundary rows and columns set), in :attr:`A`."""
-        self._J(None, x, self.A, self.A)
-        return self.A
+        """The Jacobian at x (boundary rows and columns set), in :attr:`A` (:attr:`A_cheap`
+        while the cheap forms are in use)."""
+        A = self._jacobian_matrix()
+        self._J(None, x, A, A)
+        return A
 
-    def _newton(self) -> tuple[int, int]:
-        """One SNES solve; a linear-solver failure (e.g. MUMPS on a singular tangent raises a
-        PETSc error rather than returning a reason) counts as DIVERGED_LINEAR_SOLVE, so the
-        load stepper cuts the step and reports it like any other divergence."""
+    def _newton(self, near: bool = False) -> tuple[int, int]:
+        """One SNES solve (``near``: by the correction test alone, :meth:`solve`); a
+        linear-solver failure (e.g. MUMPS on a singular tangent raises a PETSc error rather
+        than returning a reason) counts as DIVERGED_LINEAR_SOLVE, so the load stepper cuts the
+        step and reports it like any other divergence."""
         with self.x.localForm() as x_local:
             x_local.array[:] = self.u.x.array
+        self._jacobian_matrix()
         try:
-            self.snes.solve(None, self.x)
-            reason, its = self.snes.getConvergedReason(), self.snes.getIterationNumber()
+            if near and self.step_rtol > 0.0:
+                its, reason = self._polish()
+            else:
+                self.snes.solve(None, self.x)
+                reason, its = self.snes.getConvergedReason(), self.snes.getIterationNumber()
             if reason == RELATIVE and self.step_rtol > 0.0:
                 more, reason = self._polish()
                 its += more
@@ -240,7 +261,7 @@ class SNESSolver(Owner):
             self.initial_norm = initial
         return self.snes.getIterationNumber(), self.snes.getConvergedReason()
 
-    def solve(self) -> tuple[int, int]:
+    def solve(self, near: bool = False) -> tuple[int, int]:
         """Newton from the current u; returns (converged reason, iterations). u holds the result.
 
         A solve that meets only the relative residual test (‖R‖ ≤ rtol ‖R₀‖) goes on until a
@@ -248,6 +269,9 @@ class SNESSolver(Owner):
         measures the load increment, not the accuracy: with stiff fibres it is the Dirichlet
         lifting of the grip increment, ~K·Δū, and rtol of it accepted states whose grip force
         depended on the step size by up to 12 % (docs/theory.md, "Converged load steps").
+        From a start ``near`` the solution (a warm start, stepping.py) ‖R₀‖ measures nothing of
+        the increment, and rtol of it can lie below the residual's rounding floor: that solve
+        takes the correction test (or ``snes_atol``) alone.
 
         With exact constraints (``multipliers``), Newton runs at fixed multipliers, which are
         then updated until every constraint holds to :data:`CONSTRAINT_TOLERANCE`
@@ -264,7 +288,7 @@ class SNESSolver(Owner):
         """
         for m in self.multipliers:
             m.relax()
-        reason, its = self._newton()
+        reason, its = self._newton(near)
         if not self.multipliers:
             return reason, its
         rtol, atol, _, _ = self.snes.getTolerances()

@@ -5,10 +5,11 @@ Newton solver it drives (as dolfiny keeps continuation apart from Newton): any o
 A ``predictor`` may offer, for each requested step, a state to start Newton from instead of the
 last converged one (e.g. the same step of an earlier run with nearby moduli, corrected by its
 sensitivities: fabricsurf/inverse/forward/warm_start.py). The step is then tried once from that
-state at its full load; if Newton does not converge from it, the step is followed as without a
-predictor, from the last converged state. For a problem whose equilibrium at a load does not
-depend on the path taken to it (elastic, no friction or history), the converged state is the
-same up to Newton's tolerance.
+state at its full load, by ``solve(near=True)`` (a solver given a predictor must take it: the
+start's residual is no measure of the step, :meth:`~.solver.SNESSolver.solve`); if Newton does
+not converge from it, the step is followed as without a predictor, from the last converged
+state. For a problem whose equilibrium at a load does not depend on the path taken to it
+(elastic, no friction or history), the converged state is the same up to Newton's tolerance.
 
 Each cut of an increment is logged at DEBUG (detail: the step's own line, at PROGRESS, is the
 caller's), on rank 0 of the solver's communicator.
@@ -118,7 +119,7 @@ class LoadStepper:
         self.set_load(t)
         if start is not None:
             self.solver.u.x.array[:] = start
-        reason, its = self.solver.solve()
+        reason, its = self.solver.solve() if start is None else self.solver.solve(near=True)
         finite = bool(np.isfinite(self.solver.u.x.array).all())
         ok = reason > 0 and self.comm.allreduce(finite, op=MPI.LAND)
         if not ok:
