@@ -50,6 +50,26 @@ def jit_params(mode: str) -> dict:
     return {} if args is None else {"cffi_extra_compile_args": args}
 
 
+def apply_options(snes: PETSc.SNES, prefix: str, options: dict) -> None:
+    """Apply PETSc options (over :data:`SNES_DEFAULTS`) to ``snes`` and its KSP under
+    ``prefix``; the global database is left as it was found (entries set here are removed,
+    entries that were there before, e.g. from the command line, restored)."""
+    opts = PETSc.Options()
+    merged = {**SNES_DEFAULTS, **options}
+    before = {k: opts.getString(prefix + k) for k in merged if opts.hasName(prefix + k)}
+    try:
+        for k, v in merged.items():
+            opts[prefix + k] = v
+        snes.setOptionsPrefix(prefix)
+        snes.setFromOptions()
+        snes.getKSP().setFromOptions()
+    finally:
+        for k in merged:
+            opts.delValue(prefix + k)
+            if k in before:
+                opts[prefix + k] = before[k]
+
+
 RELATIVE = int(PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE)
 """The reason of a solve accepted by the relative residual test alone (``snes_rtol``)."""
 

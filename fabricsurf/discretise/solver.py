@@ -31,18 +31,11 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fabricsurf.discretise.compat import set_domain_error
-from fabricsurf.discretise.constraints import (
-    Multiplier,
-    uzawa,
-)
+from fabricsurf.discretise.constraints import Multiplier, uzawa
 from fabricsurf.discretise.resources import Owner, destroy, dot_function, weak_method
-from fabricsurf.discretise.snes import RELATIVE, SNES_DEFAULTS, STEP_RTOL, jit_params
+from fabricsurf.discretise.snes import RELATIVE, STEP_RTOL, apply_options, jit_params
 
 _ids = itertools.count()
-
-
-def _collective_finite(comm: MPI.Comm, array: np.ndarray) -> bool:
-    return bool(comm.allreduce(bool(np.isfinite(array).all()), op=MPI.LAND))
 
 
 class SNESSolver(Owner):
@@ -115,10 +108,9 @@ class SNESSolver(Owner):
         interior-penalty facet terms then vanish exactly, docs/speed.md). Compiled at their
         first use; every residual and Jacobian evaluation uses them while ``when()`` holds.
         The cheap Jacobian has a matrix of its own, :attr:`A_cheap`, of its sparsity: without
-        the facet couplings it holds half the entries and factorises in half the time or less.
-        (In the full Jacobian's matrix the couplings stay as stored zeros; a matrix first
-        assembled from the cheap forms cannot take them later: PETSc fixes an AIJ matrix's
-        structure at its first assembly, tests/test_cheap_forms.py.)"""
+        the facet couplings it factorises in half the time (the full matrix, first assembled
+        from the cheap forms, had no room for them: PETSc fixes an AIJ matrix's structure at
+        its first assembly, tests/test_cheap_forms.py)."""
         self._cheap, self._cheap_when = (residual, jacobian), when
 
     def _cheap_now(self) -> bool:
@@ -147,25 +139,8 @@ class SNESSolver(Owner):
         return A
 
     def set_options(self, options: dict) -> None:
-        """Apply PETSc options (over :data:`~.snes.SNES_DEFAULTS`) under this solver's prefix;
-        the global database is left as it was found (entries set here are removed, entries that
-        were there before, e.g. from the command line, restored)."""
-        opts = PETSc.Options()
-        merged = {**SNES_DEFAULTS, **options}
-        before = {
-            k: opts.getString(self.prefix + k) for k in merged if opts.hasName(self.prefix + k)
-        }
-        try:
-            for k, v in merged.items():
-                opts[self.prefix + k] = v
-            self.snes.setOptionsPrefix(self.prefix)
-            self.snes.setFromOptions()
-            self.snes.getKSP().setFromOptions()
-        finally:
-            for k in merged:
-                opts.delValue(self.prefix + k)
-                if k in before:
-                    opts[self.prefix + k] = before[k]
+        """:func:`~.snes.apply_options` to this solver's SNES and prefix."""
+        apply_options(self.snes, self.prefix, options)
 
     def _update_u(self, x: PETSc.Vec) -> None:
         """u ← x, ghosts included (through the arrays: no PETSc vector wrapped around u)."""
@@ -180,7 +155,7 @@ class SNESSolver(Owner):
         L, a = self.forms()
         fem_petsc.assemble_vector(b, L)
         with b.localForm() as b_local:
-            finite = _collective_finite(self.comm, b_local.array)
+            finite = self.comm.allreduce(bool(np.isfinite(b_local.array).all()), op=MPI.LAND)
         if not finite:
             self.domain_errors += 1
             if snes is not None:
@@ -213,8 +188,7 @@ class SNESSolver(Owner):
         self._F(None, x, b)
 
     def evaluate_jacobian(self, x: PETSc.Vec) -> PETSc.Mat:
-        """The Jacobian at x (boundary rows and columns set), in :attr:`A` (:attr:`A_cheap`
-        while the cheap forms are in use)."""
+        """The Jacobian at x (boundary rows and columns set), in :attr:`A` or :attr:`A_cheap`."""
         A = self._jacobian_matrix()
         self._J(None, x, A, A)
         return A
