@@ -219,11 +219,11 @@ class SNESSolver(Owner):
         return reason, its
 
     def _polish(self) -> tuple[int, int]:
-        """Newton on from an iterate accepted by the relative residual test alone, until its
-        correction is below :attr:`step_rtol` of the state (PETSc's step test, ``snes_stol``,
-        with rtol off) or the residual below ``snes_atol``, within ``snes_max_it`` more
-        iterations: (iterations, reason). The residual norm the first solve started from is
-        kept (:attr:`initial_norm`)."""
+        """Newton on from an iterate accepted by the relative residual test alone (or from a
+        start ``near`` the solution, :meth:`solve`), until its correction is below
+        :attr:`step_rtol` of the state (PETSc's step test, ``snes_stol``, with rtol off) or the
+        residual below ``snes_atol``, within ``snes_max_it`` more iterations: (iterations,
+        reason). The residual norm the first solve started from is kept (:attr:`initial_norm`)."""
         rtol, _, stol, _ = self.snes.getTolerances()
         initial = self.initial_norm
         self.polished += 1
