@@ -132,7 +132,10 @@ class SNESSolver(Owner):
 
     def _jacobian_matrix(self) -> PETSc.Mat:
         """The matrix of the Jacobian :meth:`forms` gives now, SNES's from the next solve."""
-        A = self.A_cheap if self._cheap_now() and self._compiled_cheap() else self.A
+        A = self.A
+        if self._cheap_now():
+            self._compiled_cheap()  # makes A_cheap at the first use
+            A = self.A_cheap
         if A is not self._in_use:
             self.snes.setJacobian(weak_method(self._J), A)
             self._in_use = A
