@@ -8,7 +8,12 @@ the forming solved with the punch tabulated from the file (forming/tabulated_pun
   final force: 1.0e-2 with 2 mm meridian edges, as tests/test_surface_punch.py measured;
   bound 2e-2);
 * a punch_file without punch_units, a file that is not there and a surface that is not closed
-  are refused by the data loader, naming the key or the file, before any solve.
+  are refused by the data loader, naming the key or the file, before any solve;
+* a punch file in mm read as cm, ten times too large (within the scale check's factor of 50),
+  is refused by the checks that compare, fit and diagnose make of the data: its hemisphere of
+  radius 200 mm would pass through the die's 22 mm opening, which stops it at a stroke of
+  1.43 mm (the sphere; 1.61 mm for its 20 mm facets, inscribed, 0.25 mm lower), below the
+  data's 4 mm.
 """
 
 import json
@@ -23,6 +28,7 @@ from fabricsurf.cli import main
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming.surfaces import files, meshes
 from fabricsurf.inverse.contract.data import load_experiment, write_experiment
+from fabricsurf.inverse.fitting.preconditions import check_in_loop
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import formed_part as sf
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
@@ -55,7 +61,7 @@ def root(tmp_path_factory):
     exp = sf.add_forming_noise(sf.forming_data(exp, model(), H, COMM), 0.01, 0.05, 1)
     if COMM.rank == 0:
         v, f = meshes.hemisphere_punch_mesh(R, EDGE)
-        for name in ("data", "stl", "nounits", "absent", "open"):
+        for name in ("data", "stl", "nounits", "absent", "open", "tenfold"):
             write_experiment(base / name, exp, overwrite=True)
         files.write_stl(base / "stl" / "punch.stl", 0.1 * v, f)  # in cm
         with_tooling(base / "stl", 'punch_file = "punch.stl"\npunch_units = "cm"')
@@ -65,6 +71,8 @@ def root(tmp_path_factory):
         cap = f[np.all(v[f][:, :, 2] > -R - 1e-9, axis=1)]  # the cap alone: not closed
         files.write_stl(base / "open" / "punch.stl", v, cap)
         with_tooling(base / "open", 'punch_file = "punch.stl"\npunch_units = "mm"')
+        files.write_stl(base / "tenfold" / "punch.stl", v, f)  # in mm, read as cm
+        with_tooling(base / "tenfold", 'punch_file = "punch.stl"\npunch_units = "cm"')
         (base / "p.json").write_text(json.dumps(PARAMS))
     COMM.barrier()
     return base
@@ -97,3 +105,14 @@ def test_stl_punch_through_compare(root):
 def test_bad_punch_files_refused_with_the_data(root, case, words):
     with pytest.raises(InputError, match=words):
         load_experiment(root / case)
+
+
+def test_punch_through_the_die_refused_before_comparing(root):
+    """The punch file in mm read as cm (module docstring), named with the data's step."""
+    exp = load_experiment(root / "tenfold")
+    with pytest.raises(
+        InputError,
+        match=r"step 2: .*punch.stl: the stroke of 4 mm passes through the die plate with an "
+        r"opening of radius 22 mm.*stops it at a stroke of 1\.6",
+    ):
+        check_in_loop([exp])

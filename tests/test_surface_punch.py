@@ -192,3 +192,29 @@ def test_bad_punches_refused():
             HemispherePlugin(
                 PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model, H, COMM
             )
+
+
+def test_punch_wider_than_the_opening_refused_at_the_stroke_the_die_stops_it():
+    """A spherical punch of radius 26 mm against the die's opening of 22 mm (R = 20 mm,
+    clearance and lip 2 mm): it first touches the lip torus (tube radius r_d = 2 about the
+    circle ρ₀ = 24 mm at z_t = r_d − p_h/k_c) where its centre, at s − 26, lies 26 + r_d from
+    that circle, at the stroke s* = z_t + 26 − √(28² − 24²) = 13.5778 mm. A run to a larger
+    stroke is refused before any solve, naming that stroke; the sampled points (a 0.5 mm grid,
+    a quarter of the lip radius, projected onto the sphere) lie within 0.35 mm of the first
+    contact, whose stroke they then overestimate by at most 0.35² (1/26 + 1/2) / 2 = 0.033 mm."""
+    z_t = TOOLING["die_lip"] - TOOLING["holder_pressure"] / TOOLING["contact_stiffness"]
+    exact = z_t + 26.0 - np.sqrt(28.0**2 - 24.0**2)
+    opts = {**TOOLING, "punch_surface": analytic.Sphere(26.0, (0.0, 0.0, -26.0))}
+    model = [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0)]
+    e = HemispherePlugin(
+        PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model, H, COMM
+    )
+    try:
+        e.check_stroke(13.5)
+        with pytest.raises(InputError, match=r"sphere of radius 26 mm: the stroke of 20 mm") as err:
+            e.run(20.0, 4)
+        stop = float(str(err.value).split("stroke of ")[-1].split(" mm")[0])
+        assert 0.0 <= stop - exact < 0.033, (stop, exact)
+        assert e.steps == []  # refused before the first step
+    finally:
+        e.close()

@@ -42,6 +42,7 @@ SHAPES = [
     analytic.Cylinder(15.0, (0.0, 0.0, 1.0), (1.0, 1.0, 0.0), length=40.0, fillet=5.0),
     analytic.Cylinder(15.0),
     analytic.Cone(math.radians(30.0), axis=(0.0, 1.0, 1.0)),
+    analytic.DiePlate(22.0, 2.0, face=-0.5),
 ]
 
 
@@ -71,6 +72,9 @@ def test_distances_by_hand():
     assert np.allclose(cyl.signed_distance(pts), [5.0, 2.0, 3.0])
     punch = analytic.HemispherePunch(20.0, pole=5.0)
     assert np.allclose(punch.signed_distance([[0, 0, 7.0], [25.0, 0, -40.0]]), [2.0, 5.0])
+    die = analytic.DiePlate(22.0, 2.0, face=-0.5)  # lip circle ρ = 24 at z = 1.5
+    pts = [[30.0, 0, -3.5], [0, 10.0, 1.5], [24.0 - 5.0 * 0.6, 0, 1.5 - 5.0 * 0.8]]
+    assert np.allclose(die.signed_distance(pts), [3.0, 12.0, 3.0])
 
 
 def test_closest_triangle_is_exact():

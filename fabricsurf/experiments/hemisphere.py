@@ -31,7 +31,7 @@ from fabricsurf.discretise.energy import placement
 from fabricsurf.discretise.evaluation import quadrature_expression
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.discretise.stepping import LoadStepper
-from fabricsurf.errors import DataError
+from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
 from fabricsurf.experiments.forming import blank as forming_blank
 from fabricsurf.experiments.forming import options as forming_options
@@ -39,6 +39,7 @@ from fabricsurf.experiments.forming.blank_outputs import BlankOutputs
 from fabricsurf.experiments.forming.contact_newton import FALLBACK, FULL_STEP_ITERATIONS
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
 from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.experiments.forming.tabulated_punch import die_check
 from fabricsurf.experiments.forming.tools import ContactProblem, Tools
 from fabricsurf.geometry.aligned import blank_angle
 from fabricsurf.log import warn
@@ -92,6 +93,11 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools.from_options(msh, o)
+        self._die_check = (
+            None
+            if self.tools.tabulated is None
+            else die_check(self.tools.tabulated.surface, o, self.stroke_limit(setup))
+        )
         p = ContactProblem(
             self.specimen,
             self.model,
@@ -170,10 +176,18 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
     def check_data(cls, setup: PluginSetup, steps, path, where: str) -> None:
         """The largest measured stroke within what the die and the blank allow."""
         i = int(max(range(len(path)), key=lambda j: path[j]))
+        surface = forming_options.punch_surface(setup.options)
         try:
             forming_blank.check_stroke(setup, float(path[i]))
-        except DataError as err:
+            if surface is not None:
+                die_check(surface, setup.options, float(path[i]))(float(path[i]))
+        except InputError as err:
             raise DataError(f"{where}: step {int(steps[i])}: {err}") from None
+
+    @classmethod
+    def stroke_limit(cls, setup: PluginSetup) -> float:
+        """The largest stroke the blank allows (forming_options.max_stroke)."""
+        return forming_options.max_stroke(setup.options, 2.0 * forming_blank.inner_half(setup))
 
     @classmethod
     def check_path(cls, steps, path, where: str) -> None:
@@ -187,8 +201,11 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
                 )
 
     def check_stroke(self, stroke: float) -> None:
-        """Refuse a stroke beyond what the die and the blank allow (forming_options)."""
+        """Refuse a stroke beyond what the die and the blank allow (forming_options), or one
+        that drives a punch given as a surface into the die (tabulated_punch.die_check)."""
         forming_blank.check_stroke(self.setup, stroke)
+        if self._die_check is not None:
+            self._die_check(stroke)
 
     def set_load(self, t: float) -> None:
         self.tools.stroke.value = float(t)

@@ -20,7 +20,9 @@ contact of Wriggers 2006, with the normal frozen over an iteration). The punch f
 k_c ⟨−d⟩ n_z is that of the analytic punch.
 
 Before any computing the punch is checked against the blank (checks.py): a size far from the
-blank's (its units) and a punch that holds nodes of the flat blank at stroke 0 are refused.
+blank's (its units) and a punch that holds nodes of the flat blank at stroke 0 are refused; and
+against the die (:func:`die_check`): a punch wider than the die's opening, which a stroke would
+drive into the die, is refused at that stroke.
 Points farther from a triangle mesh than :data:`CUTOFF` times the punch's size are not
 projected (TriangulatedSurface.near): they are out of contact. Friction on a tabulated punch
 is not modelled (its potential needs the distance at the last converged state, which the table
@@ -36,13 +38,17 @@ from dolfinx import fem
 
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.errors import InputError
-from fabricsurf.experiments.forming.surfaces import ToolSurface, checks
+from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
 
 START_TOLERANCE = 1e-6
 """Depth of a blank node inside the punch at stroke 0 taken as touching, in punch sizes."""
 CUTOFF = 0.05
 """Distance beyond which a point is not projected onto a triangulated punch, in punch sizes."""
 E_Z = np.array([0.0, 0.0, 1.0])
+DIE_SPACING = 0.25
+"""Spacing of the points sampled near an analytic punch for the die check, in die lip radii."""
+GRID_POINTS = 2_000_000
+"""Most grid points sampled near an analytic punch for the die check (the spacing grows)."""
 
 
 class TabulatedPunch:
@@ -128,3 +134,36 @@ def quadrature_points(msh) -> np.ndarray:
     order of the quadrature space's degrees of freedom on a cell."""
     cell = basix.cell.string_to_type(msh.topology.cell_name())
     return basix.make_quadrature(cell, CELL_QUADRATURE_DEGREE)[0]
+
+
+def die_surface(o: dict) -> analytic.DiePlate:
+    """The plug-in's die (Tools: opening R + clearance, lip, face at −p_h/k_c) as a surface."""
+    face = -o["holder_pressure"] / o["contact_stiffness"]
+    return analytic.DiePlate(o["punch_radius"] + o["clearance"], o["die_lip"], face)
+
+
+def die_check(surface: ToolSurface, o: dict, reach: float):
+    """A function of the stroke that refuses one driving the punch ``surface`` into the die
+    (checks.check_stroke against :func:`die_surface`), for strokes up to ``reach``.
+
+    The punch's points are sampled once: a triangle mesh's vertices, or points near an analytic
+    punch on a grid of spacing :data:`DIE_SPACING` lip radii (coarser if the box would hold
+    more than :data:`GRID_POINTS`), in the layer of the punch that a stroke up to ``reach``
+    brings to the die (from its face less ``reach`` to the top of its lip). The first contact
+    between samples is missed by at most about spacing² over the lip radius."""
+    die = die_surface(o)
+    bounds = getattr(surface, "bounds", lambda: None)()
+    lo, hi = (-surface.size, surface.size) if bounds is None else (bounds[0], bounds[1])
+    if getattr(surface, "vertices", None) is not None:
+        lo, hi = -np.inf, np.inf  # every vertex in the layer, wherever the mesh lies
+    lower = np.array([*np.broadcast_to(lo, 3)[:2], die.face - reach])
+    upper = np.array([*np.broadcast_to(hi, 3)[:2], die.face + 2.0 * die.lip])
+    spacing = DIE_SPACING * die.lip
+    if np.isfinite(lower).all() and np.isfinite(upper).all():
+        spacing = max(spacing, (np.prod(upper - lower) / GRID_POINTS) ** (1 / 3))
+    points = checks.surface_points(surface, lower, upper, spacing)
+
+    def check(stroke: float) -> None:
+        checks.check_stroke(surface, die, points, E_Z, stroke)
+
+    return check

@@ -2,14 +2,14 @@
 gradients, the outward normals, vectorised over points (m, 3), in mm.
 
 The sphere |x − c| − R; the forming plug-in's punch, a hemisphere on a cylinder of the same
-radius (experiments/forming/tools.py, Tools.punch: |x − c| − R above the centre, ρ − R below);
-a cone; and the rounded shapes as the distance to a shape shrunk by the fillet radius r, minus
-r (the set of points within r of a convex shape, its Minkowski sum with a ball of radius r, is
-the shape grown by r with every edge and corner rounded to radius r): a box with fillet radius
-r is the distance to the box of half-sizes b − r, minus r; a cylinder with fillet radius r on
-its end edges is the 2D box distance in the meridian plane (ρ, axial coordinate), shrunk by r,
-minus r. The distance to a box of half-sizes b at p (centred) is |max(q, 0)| + min(max_i q_i,
-0) with q = |p| − b.
+radius (experiments/forming/tools.py, Tools.punch: |x − c| − R above the centre, ρ − R below)
+and its die (Tools._plate); a cone; and the rounded shapes as the distance to a shape shrunk
+by the fillet radius r, minus r (the set of points within r of a convex shape, its Minkowski
+sum with a ball of radius r, is the shape grown by r with every edge and corner rounded to
+radius r): a box with fillet radius r is the distance to the box of half-sizes b − r, minus r;
+a cylinder with fillet radius r on its end edges is the 2D box distance in the meridian plane
+(ρ, axial coordinate), shrunk by r, minus r. The distance to a box of half-sizes b at p
+(centred) is |max(q, 0)| + min(max_i q_i, 0) with q = |p| − b.
 """
 
 from __future__ import annotations
@@ -85,6 +85,34 @@ class HemispherePunch(AnalyticSurface):
         cap = _unit(np.column_stack([x[:, 0], x[:, 1], dz]))
         side = np.column_stack([x[:, 0] / rho, x[:, 1] / rho, np.zeros(len(x))])
         return np.where((dz > 0)[:, None], cap, side)
+
+
+class DiePlate(AnalyticSurface):
+    """The forming plug-in's die (Tools._plate of experiments/forming/tools.py, above the
+    blank): the half-space z ≥ ``face`` beyond ρ = opening + lip, and the lip, a torus of tube
+    radius ``lip`` about the circle ρ = opening + lip at z = face + lip, which leaves an opening
+    of radius ``opening`` at the face. Its distance is the contact's: exact outside the die,
+    measured to the face or the torus inside it."""
+
+    def __init__(self, opening: float, lip: float, face: float = 0.0) -> None:
+        self.opening, self.lip, self.face = float(opening), float(lip), float(face)
+        self.name = f"plate with an opening of radius {opening:g} mm and a lip of {lip:g} mm"
+        self.size = 2.0 * (self.opening + self.lip)
+
+    def _parts(self, x):
+        x = _rows(x)
+        rho = np.sqrt(x[:, 0] ** 2 + x[:, 1] ** 2 + (AXIS_EPS * self.size) ** 2)
+        a, b = rho - (self.opening + self.lip), x[:, 2] - (self.face + self.lip)
+        return x, rho, a, b, a > 0
+
+    def signed_distance(self, x: np.ndarray) -> np.ndarray:
+        x, _, a, b, flat = self._parts(x)
+        return np.where(flat, self.face - x[:, 2], np.hypot(a, b) - self.lip)
+
+    def normal(self, x: np.ndarray) -> np.ndarray:
+        x, rho, a, b, flat = self._parts(x)
+        lip = _unit(np.column_stack([a * x[:, 0] / rho, a * x[:, 1] / rho, b]))
+        return np.where(flat[:, None], np.array([0.0, 0.0, -1.0]), lip)
 
 
 def _box2(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,7 @@ to change (docs/tool_surfaces.md, "Bad input").
 
 Points on a surface for the last check are the grid points of a box within one spacing of the
 surface, projected onto it along the normal (x − d n, twice): any surface with a signed
-distance gives them, a triangle mesh its vertices.
+distance gives them; on a triangle mesh, points of its triangles at that spacing.
 """
 
 from __future__ import annotations
@@ -54,16 +54,32 @@ def check_outside(tool: ToolSurface, points: np.ndarray, tolerance: float = 0.0)
 
 def surface_points(tool: ToolSurface, lower, upper, spacing: float) -> np.ndarray:
     """Points on the tool's surface within the box [lower, upper] (module docstring)."""
-    vertices = getattr(tool, "vertices", None)
-    if vertices is not None:
-        inside = np.all((vertices >= lower) & (vertices <= upper), axis=1)
-        return vertices[inside]
+    if getattr(tool, "faces", None) is not None:
+        return _triangle_points(tool.vertices[tool.faces], lower, upper, spacing)
     axes = [np.arange(lo, hi + 0.5 * spacing, spacing) for lo, hi in zip(lower, upper, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     near = grid[np.abs(tool.signed_distance(grid)) < spacing]
     for _ in range(2):
         near = near - tool.signed_distance(near)[:, None] * tool.normal(near)
     return near
+
+
+def _triangle_points(corners: np.ndarray, lower, upper, spacing: float) -> np.ndarray:
+    """Points on the triangles (corners (t, 3, 3)) within the box: on each triangle, the
+    barycentric grid of n + 1 points a side, n the longest edge over ``spacing`` rounded up."""
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    keep = np.all((corners.max(axis=1) >= lower) & (corners.min(axis=1) <= upper), axis=1)
+    corners = corners[keep]
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+    counts = np.maximum(np.ceil(edges / spacing), 1).astype(int)
+    points = [np.empty((0, 3))]
+    for n in np.unique(counts):
+        i, j = np.divmod(np.arange((n + 1) ** 2), n + 1)
+        i, j = i[i + j <= n], j[i + j <= n]
+        w = np.column_stack([n - i - j, i, j]) / n
+        points.append(np.einsum("pk,tkd->tpd", w, corners[counts == n]).reshape(-1, 3))
+    out = np.concatenate(points)
+    return out[np.all((out >= lower) & (out <= upper), axis=1)]
 
 
 def check_stroke(
