@@ -78,12 +78,6 @@ class ContactSolver(SNESSolver):
     Tools.tool_friction() holds (Dirichlet rows and columns left out, as in the main forms;
     their lifting vanishes, every iterate meeting the homogeneous mirror conditions)."""
 
-    matrix_type = "baij"
-    """The Jacobian as a matrix of 3 × 3 node blocks (PETSc's BAIJ) rather than scalar AIJ:
-    dolfinx inserts element matrices block by block, and inserting the interior facets' 36 × 36
-    matrices into AIJ rows took most of their assembly (docs/forming.md, "Performance"); MUMPS
-    factors it the same way."""
-
     def __init__(
         self,
         *args,

@@ -86,7 +86,8 @@ def sensitivities(fm, which: list[int], w) -> list[tuple[fem.Function, float]]:
         if SYMMETRIC and type(s) is SNESSolver and _on_prescribed(fm, w):
             Kw = _lifted_weight(s, w)
         else:
-            A_full = fem_petsc.assemble_matrix(s.a)
+            A_full = fem_petsc.create_matrix(s.a, s.matrix_type)
+            fem_petsc.assemble_matrix(A_full, s.a)
             A_full.assemble()
     out, x, Kdu = [], s.x.duplicate(), s.x.duplicate()
     zero = np.zeros(len(fm.params))
