@@ -105,6 +105,11 @@ def test_the_check_s_own_rate_stops_refining_when_the_band_is_out_of_reach():
     assert "needs 3 more halvings (h = 0.744 mm, about 324,736 unknowns" in why
     assert why.endswith("beyond max_dofs = 100,000 and --time-budget 3600 s")
     assert _by_rate(small[:1], 71.0, Budget()) is None
+    slow = [level(11.5, 3308, 87.0, 6419.0, 30.89), level(5.75, 12884, 450.0, 4449.0, 30.89)]
+    why = _by_rate(slow, 540.0, Budget())  # two curves of docs/speed.md: x0.69, 14 halvings
+    assert "needs 14 more halvings (h = 0.000351 mm, about 3.5e+12 unknowns)" in why
+    assert why.endswith("so the halvings counted at that rate are a guess")
+    assert "slower than x0.5" not in _by_rate(small, 690.0, Budget())
     fast = [small[0], level(5.95, 5074, 617.0, 2.0e4)]  # x0.034: the next level reaches it
     assert _by_rate(fast, 690.0, Budget()) is None
     held = Budget(max_dofs=400_000, seconds=None)  # three halvings fit this budget

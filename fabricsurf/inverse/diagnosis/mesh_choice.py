@@ -160,11 +160,22 @@ def _by_rate(levels: list[dict], spent: float, budget: Budget) -> str | None:
     if n < 2 or not any(over):
         return None  # the next level may reach it, or the budget holds the levels it needs
     h = ", ".join(f"{x / 2**n:.3g}" for x in q["h"])
+    size = f"{dofs:,} unknowns and {seconds:.0f} s" if n <= 6 else f"{dofs:.2g} unknowns"
     return (
         f"the h/2 check went {a:.3g} -> {b:.3g} when h was halved (x{b / a:.2f}): at that "
         f"rate the noise band {q['noise_band']:.4g} needs {n} more halvings (h = {h} mm, "
-        f"about {dofs:,} unknowns and {seconds:.0f} s), beyond {' and '.join(o for o in over if o)}"
+        f"about {size}), beyond {' and '.join(o for o in over if o)}"
+        + (PREASYMPTOTIC if b / a > FIRST_ORDER else "")
     )
+
+
+FIRST_ORDER = 0.5
+"""The slowest fall of the h/2 check per halving that the discretisation's order explains."""
+PREASYMPTOTIC = (
+    "; a fall slower than x0.5 per halving is slower than the discretisation's order: these "
+    "meshes are not yet asymptotic (a feature finer than h, such as the boundary layers of "
+    "stiff fibres, dominates their error), so the halvings counted at that rate are a guess"
+)
 
 
 def warm_params(d: Diagnosis, params: dict | None) -> dict:
