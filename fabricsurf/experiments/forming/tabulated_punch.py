@@ -146,11 +146,11 @@ def die_check(surface: ToolSurface, o: dict, reach: float):
     """A function of the stroke that refuses one driving the punch ``surface`` into the die
     (checks.check_stroke against :func:`die_surface`), for strokes up to ``reach``.
 
-    The punch's points are sampled once: a triangle mesh's vertices, or points near an analytic
-    punch on a grid of spacing :data:`DIE_SPACING` lip radii (coarser if the box would hold
-    more than :data:`GRID_POINTS`), in the layer of the punch that a stroke up to ``reach``
-    brings to the die (from its face less ``reach`` to the top of its lip). The first contact
-    between samples is missed by at most about spacing² over the lip radius."""
+    The punch's points are sampled once (checks.surface_points), :data:`DIE_SPACING` lip radii
+    apart: on a triangle mesh's triangles, or near an analytic punch on a grid (coarser if the
+    box would hold more than :data:`GRID_POINTS`), in the layer of the punch that a stroke up
+    to ``reach`` brings to the die (from its face less ``reach`` to the top of its lip). The
+    first contact between samples is missed by at most about spacing² over the lip radius."""
     die = die_surface(o)
     bounds = getattr(surface, "bounds", lambda: None)()
     lo, hi = (-surface.size, surface.size) if bounds is None else (bounds[0], bounds[1])
