@@ -41,7 +41,7 @@ from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.beyond import search_beyond
 from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.diagnosis.nuisance import with_depth
-from fabricsurf.inverse.diagnosis.report import Diagnosis
+from fabricsurf.inverse.diagnosis.report import SLOW_FALL, Diagnosis, stiff_yarn_note
 from fabricsurf.inverse.fitting.plausibility import say_implausible
 from fabricsurf.inverse.forward.profile import timed
 from fabricsurf.log import rank0
@@ -165,12 +165,10 @@ def _by_rate(levels: list[dict], spent: float, budget: Budget) -> str | None:
         f"the h/2 check went {a:.3g} -> {b:.3g} when h was halved (x{b / a:.2f}): at that "
         f"rate the noise band {q['noise_band']:.4g} needs {n} more halvings (h = {h} mm, "
         f"about {size}), beyond {' and '.join(o for o in over if o)}"
-        + (PREASYMPTOTIC if b / a > FIRST_ORDER else "")
+        + (PREASYMPTOTIC if b / a > SLOW_FALL else "")
     )
 
 
-FIRST_ORDER = 0.5
-"""The slowest fall of the h/2 check per halving that the discretisation's order explains."""
 PREASYMPTOTIC = (
     "; a fall slower than x0.5 per halving is slower than the discretisation's order: these "
     "meshes are not yet asymptotic (a feature finer than h, such as the boundary layers of "
@@ -247,6 +245,9 @@ def diagnose_on_mesh(
     }
     if stopped:
         rank0(logger, comm, f"[mesh] not refined further: {stopped}")
+    hint = stiff_yarn_note(levels, d.final_fit) if d.too_coarse() else None
+    if hint:
+        rank0(logger, comm, f"[mesh] {hint}")
     say_implausible(getattr(d, "implausible", None), comm)  # the last level's only
     if beyond_features > 0:
         with timed("search beyond the vocabulary", len(levels) - 1):
