@@ -170,9 +170,10 @@ def _by_rate(levels: list[dict], spent: float, budget: Budget) -> str | None:
 
 
 PREASYMPTOTIC = (
-    "; a fall slower than x0.5 per halving is slower than the discretisation's order: these "
-    "meshes are not yet asymptotic (a feature finer than h, such as the boundary layers of "
-    "stiff fibres, dominates their error), so the halvings counted at that rate are a guess"
+    f"; a fall slower than x{SLOW_FALL:g} per halving is slower than the discretisation's "
+    "order: these meshes are not yet asymptotic (a feature finer than h, such as the boundary "
+    "layers of stiff fibres, dominates their error), so the halvings counted at that rate are a "
+    "guess"
 )
 
 
