@@ -204,10 +204,10 @@ def test_unheld_edge():
     """A blank whose sides end inside the holder's pressure ramp is named (the demo's full size
     before issue 40: B/2 = 75 mm, full pressure from 90 mm); one that reaches it is not."""
     opts = HemispherePlugin.parse_options({"tooling": {"punch_radius": 50.0}}, 1.0, "t")
-    message = forming_options.unheld_edge(opts, 150.0)
+    message = forming_options.unheld_edge(opts, 75.0, 75.0)
     assert message is not None and "75 mm" in message and "= 90 mm" in message
-    assert forming_options.unheld_edge(opts, 180.0) is None
-    assert forming_options.unheld_edge(TOOLING, BLANK) is None
+    assert forming_options.unheld_edge(opts, 90.0, 90.0) is None
+    assert forming_options.unheld_edge(TOOLING, BLANK / 2, BLANK / 2) is None
 
 
 def test_step_log_lines(caplog):

@@ -112,7 +112,7 @@ def test_punch_through_the_die_refused_before_comparing(root):
     exp = load_experiment(root / "tenfold")
     with pytest.raises(
         InputError,
-        match=r"step 2: .*punch.stl: the stroke of 4 mm passes through the die plate with an "
-        r"opening of radius 22 mm.*stops it at a stroke of 1\.6",
+        match=r"step 2: .*punch.stl: the stroke of 4 mm passes through the die plate with a "
+        r"circular opening of radius 22 mm.*stops it at a stroke of 1\.6",
     ):
         check_in_loop([exp])

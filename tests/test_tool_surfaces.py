@@ -25,6 +25,7 @@ import pytest
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming.surfaces import analytic, checks, files, meshes
 from fabricsurf.experiments.forming.surfaces.closest import closest_on_triangles
+from fabricsurf.experiments.forming.surfaces.opening import Opening
 from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSurface
 
 pytestmark = pytest.mark.serial("numpy only: nothing here depends on the ranks")
@@ -43,6 +44,7 @@ SHAPES = [
     analytic.Cylinder(15.0),
     analytic.Cone(math.radians(30.0), axis=(0.0, 1.0, 1.0)),
     analytic.DiePlate(22.0, 2.0, face=-0.5),
+    analytic.DiePlate(Opening("rectangle", 30.0, 18.0, 6.0), 2.0, face=-0.5),
 ]
 
 
@@ -75,6 +77,12 @@ def test_distances_by_hand():
     die = analytic.DiePlate(22.0, 2.0, face=-0.5)  # lip circle ρ = 24 at z = 1.5
     pts = [[30.0, 0, -3.5], [0, 10.0, 1.5], [24.0 - 5.0 * 0.6, 0, 1.5 - 5.0 * 0.8]]
     assert np.allclose(die.signed_distance(pts), [3.0, 12.0, 3.0])
+    slot = analytic.DiePlate(Opening("rectangle", 30.0, 18.0, 6.0), 2.0, face=-0.5)
+    # the lip's tube about the straight side y = 20 and about the corner arc (centre (24, 12),
+    # radius 8) at z = 1.5; the face beyond
+    c = np.array([24.0, 12.0]) + 8.0 * np.ones(2) / math.sqrt(2.0)
+    pts = [[0, 20.0 - 5.0 * 0.6, 1.5 - 5.0 * 0.8], [*c, 1.5 + 4.0], [40.0, 0, -3.5]]
+    assert np.allclose(slot.signed_distance(pts), [3.0, 2.0, 3.0])
 
 
 def test_closest_triangle_is_exact():

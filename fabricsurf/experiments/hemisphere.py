@@ -39,7 +39,7 @@ from fabricsurf.experiments.forming.blank_outputs import BlankOutputs
 from fabricsurf.experiments.forming.contact_newton import FALLBACK, FULL_STEP_ITERATIONS
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
 from fabricsurf.experiments.forming.stroke_log import StrokeLog
-from fabricsurf.experiments.forming.tabulated_punch import die_check
+from fabricsurf.experiments.forming.tabulated_punch import checked_punch, die_check
 from fabricsurf.experiments.forming.tools import ContactProblem, Tools
 from fabricsurf.geometry.aligned import blank_angle
 from fabricsurf.log import warn
@@ -93,11 +93,9 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
         self.tools = Tools.from_options(msh, o)
-        self._die_check = (
-            None
-            if self.tools.tabulated is None
-            else die_check(self.tools.tabulated.surface, o, self.stroke_limit(setup))
-        )
+        t, reach = self.tools.tabulated, self.stroke_limit(setup)
+        surface = checked_punch(o) if t is None else t.surface
+        self._die_check = None if surface is None else die_check(surface, o, reach)
         p = ContactProblem(
             self.specimen,
             self.model,
@@ -176,7 +174,7 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
     def check_data(cls, setup: PluginSetup, steps, path, where: str) -> None:
         """The largest measured stroke within what the die and the blank allow."""
         i = int(max(range(len(path)), key=lambda j: path[j]))
-        surface = forming_options.punch_surface(setup.options)
+        surface = checked_punch(setup.options)
         try:
             forming_blank.check_stroke(setup, float(path[i]))
             if surface is not None:

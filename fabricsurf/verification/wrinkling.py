@@ -63,8 +63,10 @@ def _polar(e, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def lip_end(e) -> float:
-    """ρ₀ = R_o + r_d: where the die's face becomes flat (mm)."""
-    return float(e.tools.opening.value + e.tools.lip.value)
+    """ρ₀ = R_o + r_d: where the die's face becomes flat (mm; a circular opening's)."""
+    if e.tools.outline.kind != "circle":
+        raise ValueError("the wrinkling study reads a circular die opening")
+    return float(e.tools.outline.corner + e.tools.lip.value)
 
 
 def amplitude(e, n: int = 81, band: float = 1.0) -> dict:

@@ -105,12 +105,12 @@ def check_specimen(setup: PluginSetup, where: str) -> None:
     if s == "square":
         forming_options.check_specimen(setup, where)
     else:
-        R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
-        if inner_half(setup) <= R + c:
+        R = o["punch_radius"]
+        short = forming_options.uncovered(o, *_halves(setup), s == "circle")
+        if short is not None:
             raise DataError(
                 f"{where}: the {s} blank {setup.length:g} × {setup.width:g} mm "
-                f"must be wider everywhere than the die opening with its lip, "
-                f"2(R + clearance + die_lip) = {2 * (R + c):g} mm"
+                f"must be wider everywhere than {short}"
             )
         if max(setup.length, setup.width) > forming_options.MAX_BLANK_RATIO * R:
             raise DataError(
@@ -166,9 +166,13 @@ def check_stroke(setup: PluginSetup, stroke: float) -> None:
     forming_options.check_stroke(setup.options, 2.0 * inner_half(setup), stroke)
 
 
+def _halves(setup: PluginSetup) -> tuple[float, float]:
+    return 0.5 * setup.length, 0.5 * setup.width
+
+
 def unheld_edge(setup: PluginSetup) -> str | None:
-    """forming_options.unheld_edge at the blank's nearest edge."""
-    return forming_options.unheld_edge(setup.options, 2.0 * inner_half(setup))
+    """forming_options.unheld_edge at the blank's edges."""
+    return forming_options.unheld_edge(setup.options, *_halves(setup), shape(setup) == "circle")
 
 
 def reach(setup: PluginSetup, direction_deg: float) -> float:

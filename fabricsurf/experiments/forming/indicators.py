@@ -110,8 +110,9 @@ def least_principal(T_l, T_m, c):
 
 class Wrinkling(Owner):
     """Where the unheld flange buckles (docs/forming.md, "Wrinkling"): in the strip between the
-    end of the die's lip and the holder's full pressure, current radius ρ₀ ≤ ρ < ρ₀ + b with
-    ρ₀ = R_o + r_d and b = 2 r_d (forming_tools.Tools.holder_weight), the lesser principal
+    end of the die's lip and the holder's full pressure, at the current distance σ from the
+    opening's outline r_d ≤ σ < r_d + b, b = 2 r_d (a circle's radii R_o + r_d ≤ ρ < R_o + 3 r_d;
+    forming_tools.Tools.holder_weight), the lesser principal
     value of the smoothed membrane force is below −``factor`` N_cr, N_cr = 4π²D/b² the
     plate-buckling force of the strip
     (Timoshenko & Gere 1961, §9.2) with D the model's least bending stiffness (:func:`
@@ -149,9 +150,8 @@ class Wrinkling(Owner):
         self._ksp.getPC().setType("jacobi")
         self._ksp.setTolerances(rtol=1e-12, atol=1e-14, max_it=1000)
         self._filter_length = None  # the length the filter matrix was assembled with
-        rho = ufl.sqrt(r[0] ** 2 + r[1] ** 2)
-        start = tools.opening + tools.lip
-        strip = ufl.And(ufl.ge(rho, start), ufl.lt(rho, start + 2.0 * tools.lip))
+        sigma = tools.opening.sigma(r)
+        strip = ufl.And(ufl.ge(sigma, tools.lip), ufl.lt(sigma, 3.0 * tools.lip))
         threshold = self.factor * self.buckling_force
         self.mark = ufl.conditional(ufl.And(strip, ufl.lt(self.smoothed, -threshold)), 1.0, 0.0)
 

@@ -15,11 +15,12 @@ h or given, is refused before meshing. A stroke must leave the blank's edge on t
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, number_option
 from fabricsurf.experiments.cantilever import areal_density_option
+from fabricsurf.experiments.forming.surfaces.files import punch_file_option
+from fabricsurf.experiments.forming.surfaces.opening import Opening
 
 TOOL_KEYS = {
     "punch_radius": "punch radius R (mm, required)",
@@ -37,6 +38,10 @@ TOOL_KEYS = {
     "wrinkle_tension": "compressive fibre tension of the wrinkling indicator (N/mm, default 1e-3)",
     "wrinkle_curvature": "normal curvature of the wrinkling indicator (1/mm, default 1/R: "
     "bent more sharply than the punch)",
+    "die_opening_length": "length along x of a rectangular opening of die and holder (mm; "
+    "default: the circle of radius R + clearance)",
+    "die_opening_width": "its width along y (mm, default 2(R + clearance))",
+    "die_corner_radius": "its corner radius (mm, default half the shorter side: round ends)",
     "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
     "experiment.toml; its pole at z = 0, moving up along z; default: the hemisphere of "
     "radius punch_radius)",
@@ -132,7 +137,8 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
             f"plausible range {need:.3g} ≤ contact_stiffness ≤ "
             f"{RANGES['contact_stiffness'][1]:g} N/mm³"
         )
-    out.update(_punch_file(tables.get("tooling", {}), where))
+    out.update(_opening(tables, length_scale, where, out))
+    out.update(punch_file_option(tables.get("tooling", {}), where))
     out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
     out["wrinkle_curvature"] = (
         number_option(tables, "tooling", "wrinkle_curvature", where, 1.0 / R * length_scale)
@@ -141,54 +147,61 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
     return out
 
 
-def _punch_file(tooling: dict, where: str) -> dict:
-    """``punch_file`` and ``punch_units`` checked, the file read once (its surface's own checks:
-    closed, oriented, not degenerate, surfaces/topology.py) so that a bad file is refused with
-    the data; the plug-in reads it again where it builds its tools (punch_surface)."""
-    from fabricsurf.experiments.forming.surfaces.files import UNITS, read_surface
+OPENING_KEYS = ("die_opening_length", "die_opening_width", "die_corner_radius")
 
-    path, units = tooling.get("punch_file"), tooling.get("punch_units")
-    if path is None:
-        if units is not None:
-            raise DataError(f"{where}: [tooling] punch_units = {units!r} without punch_file")
+
+def _opening(tables: dict, length_scale: float, where: str, o: dict) -> dict:
+    """The rectangular opening's keys in mm, checked, if any is given (else none: the circle of
+    radius R + clearance); their defaults make a slot with round ends of width 2(R + clearance)."""
+    tooling = tables.get("tooling", {})
+    if not any(k in tooling for k in OPENING_KEYS):
         return {}
-    if not isinstance(path, str) or not path.strip():
+    side = 2.0 * (o["punch_radius"] + o["clearance"]) / length_scale
+    L, W = (number_option(tables, "tooling", k, where, side) for k in OPENING_KEYS[:2])
+    c = number_option(tables, "tooling", OPENING_KEYS[2], where, 0.5 * min(L, W), positive=False)
+    if not 0.0 <= c <= 0.5 * min(L, W):
         raise DataError(
-            f"{where}: [tooling] punch_file = {path!r} must be a file name in quotes, "
-            'e.g. "punch.stl"'
+            f"{where}: [tooling] die_corner_radius = {c:g} is outside its range 0 ≤ "
+            f"die_corner_radius ≤ {0.5 * min(L, W):g} (half the opening's shorter side)"
         )
-    if units not in UNITS:
-        raise DataError(
-            f"{where}: [tooling] punch_file = {path!r} needs punch_units, the unit of its "
-            f"coordinates (one of {', '.join(UNITS)}; a file carries none), "
-            + ("none given" if units is None else f"got {units!r}")
-        )
-    if not Path(path).is_file():
-        raise DataError(f"{where}: [tooling] punch_file: {path}: no such file")
-    read_surface(path, units)
-    return {"punch_file": str(path), "punch_units": units}
+    return dict(zip(OPENING_KEYS, (v * length_scale for v in (L, W, c)), strict=True))
 
 
-def punch_surface(o: dict):
-    """The punch surface of the options: a given one (``punch_surface``, Python), the file's
-    (``punch_file``), or None (the analytic hemisphere)."""
-    if o.get("punch_surface") is not None or not o.get("punch_file"):
-        return o.get("punch_surface")
-    from fabricsurf.experiments.forming.surfaces.files import read_surface
+def opening(o: dict) -> Opening:
+    """The die's and the holder's opening of the checked options (surfaces/opening.py)."""
+    if "die_opening_length" not in o:
+        return Opening.circle(o["punch_radius"] + o["clearance"])
+    L, W, c = (o[k] for k in OPENING_KEYS)
+    return Opening("rectangle", 0.5 * L, 0.5 * W, c)
 
-    return read_surface(o["punch_file"], o["punch_units"])
+
+def uncovered(o: dict, half_x: float, half_y: float, round_blank: bool = False) -> str | None:
+    """Why a blank reaching ``half_x``, ``half_y`` from the axis along x and y (a disc of
+    radius ``half_x`` if ``round_blank``) does not cover the die's opening with its lip, or
+    None."""
+    op, lip = opening(o), o["die_lip"]
+    if round_blank and half_x > op.outer_reach + lip:
+        return None
+    if not round_blank and min(half_x - op.half_length, half_y - op.half_width) > lip:
+        return None
+    if op.kind == "circle":
+        need = 2 * (op.corner + lip)
+        return f"the die opening with its lip, 2(R + clearance + die_lip) = {need:g} mm"
+    return (
+        f"the die's {op.name} with its lip, {2 * (op.half_length + lip):g} × "
+        f"{2 * (op.half_width + lip):g} mm"
+    )
 
 
 def check_specimen(setup: PluginSetup, where: str) -> None:
     """A square blank wider than the die's opening with its lip, at most
     :data:`MAX_BLANK_RATIO` punch radii wide."""
     o = setup.options
-    R, c = o["punch_radius"], o["clearance"] + o["die_lip"]
-    if setup.length != setup.width or setup.length <= 2 * (R + c):
+    R, short = o["punch_radius"], uncovered(o, 0.5 * setup.length, 0.5 * setup.width)
+    if setup.length != setup.width or short is not None:
         raise DataError(
             f"{where}: the blank {setup.length:g} × {setup.width:g} mm must be "
-            f"a square wider than the die opening with its lip, 2(R + clearance"
-            f" + die_lip) = {2 * (R + c):g} mm"
+            f"a square wider than {short or 'the die opening with its lip'}"
         )
     if setup.length > MAX_BLANK_RATIO * R:
         raise DataError(
@@ -213,33 +226,46 @@ def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
         )
 
 
-def unheld_edge(o: dict, blank: float) -> str | None:
+def unheld_edge(o: dict, half_x: float, half_y: float, round_blank: bool = False) -> str | None:
     """Why the flange at the middle of the blank's sides is not held, or None: the holder's
-    pressure rises from zero at ρ = R + clearance + 2 die_lip to its full value one lip radius
-    further (forming_tools.Tools.holder_weight); a blank whose half-side B/2 ends before that
-    leaves the flange there held by the holder's gap alone, free to buckle. A demo blank of
-    B/2 = 1.5 R (against 1.8 R) did, and Newton then followed
-    the stroke only with many cut steps (docs/forming.md)."""
-    full = o["punch_radius"] + o["clearance"] + 3.0 * o["die_lip"]
-    if 0.5 * blank >= full:
+    pressure rises from zero at σ = 2 die_lip beyond the opening's outline to its full value
+    one lip radius further (forming_tools.Tools.holder_weight); a blank whose edge, ``half_x``
+    and ``half_y`` from the axis along x and y (a disc of radius ``half_x`` if ``round_blank``),
+    ends before that leaves the flange there held by the holder's gap alone, free to buckle. A
+    demo blank of B/2 = 1.5 R (against 1.8 R) did, and Newton then followed the stroke only
+    with many cut steps (docs/forming.md)."""
+    op, lip = opening(o), o["die_lip"]
+    full = (op.half_length + 3.0 * lip, op.half_width + 3.0 * lip)
+    if round_blank:
+        full = (op.outer_reach + 3.0 * lip,) * 2
+    if half_x >= full[0] and half_y >= full[1]:
         return None
+    if op.kind == "circle":
+        where = f"R + clearance + 3 die_lip = {full[0]:g} mm"
+        need = f"a blank of side at least {2.0 * full[0]:g} mm"
+    else:
+        where = f"the opening's half-sides + 3 die_lip = {full[0]:g}, {full[1]:g} mm"
+        need = f"a blank at least {2.0 * full[0]:g} × {2.0 * full[1]:g} mm"
     return (
-        f"hemisphere: the middle of the {blank:g} mm blank's sides ({0.5 * blank:g} mm "
-        f"from the axis) lies inside the radius where the holder's pressure is full "
-        f"(R + clearance + 3 die_lip = {full:g} mm): the flange there is held by the "
-        "holder's gap alone and may buckle (wrinkles, cut steps); a blank of side at least "
-        f"{2.0 * full:g} mm is held all round"
+        f"hemisphere: the middle of the {2 * half_x:g} × {2 * half_y:g} mm blank's sides "
+        f"({min(half_x, half_y):g} mm from the axis) lies inside where the holder's pressure "
+        f"is full ({where}): the flange there is held by the holder's gap alone and may "
+        f"buckle (wrinkles, cut steps); {need} is held all round"
     )
+
+
+def lip_reach(o: dict) -> float:
+    """The distance from the axis to the nearest point where the die's face is flat (mm)."""
+    return opening(o).inner_reach + o["die_lip"]
 
 
 def max_stroke(o: dict, blank: float) -> float:
     """The largest stroke that can leave the blank's edge on the die's face: every material
     line of a net of inextensible fibres stretches at most by √2 (sheared to the limit), every
     reference path from the centre to the edge is at least B/2 long, and any path from the
-    pole at stroke s around the lip to the die's face at ρ = R + clearance + die_lip at least
-    as long as the straight line, √(s² + ρ²): s ≤ √(B²/2 − ρ²)."""
-    rho = o["punch_radius"] + o["clearance"] + o["die_lip"]
-    return math.sqrt(max(0.5 * blank**2 - rho**2, 0.0))
+    pole at stroke s around the lip to the die's face, at least ρ = :func:`lip_reach` from the
+    axis, at least as long as the straight line, √(s² + ρ²): s ≤ √(B²/2 − ρ²)."""
+    return math.sqrt(max(0.5 * blank**2 - lip_reach(o) ** 2, 0.0))
 
 
 def check_stroke(o: dict, blank: float, stroke: float) -> None:
@@ -247,7 +273,7 @@ def check_stroke(o: dict, blank: float, stroke: float) -> None:
     if not (math.isfinite(stroke) and 0.0 < stroke <= top):
         raise DataError(
             f"hemisphere: stroke {stroke:g} mm is outside 0 < stroke ≤ {top:.4g} mm:"
-            f" a {blank:g} mm blank would be drawn over the die's lip (radius "
-            f"{o['punch_radius'] + o['clearance'] + o['die_lip']:g} mm to the die's "
-            "face) before that, even with its fibres sheared to the limit"
+            f" a {blank:g} mm blank would be drawn over the die's lip ({lip_reach(o):g} mm "
+            "from the axis to the die's face) before that, even with its fibres sheared to "
+            "the limit"
         )

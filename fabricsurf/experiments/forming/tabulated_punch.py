@@ -38,7 +38,9 @@ from dolfinx import fem
 
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.errors import InputError
+from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
+from fabricsurf.experiments.forming.surfaces.files import punch_surface
 
 START_TOLERANCE = 1e-6
 """Depth of a blank node inside the punch at stroke 0 taken as touching, in punch sizes."""
@@ -137,9 +139,19 @@ def quadrature_points(msh) -> np.ndarray:
 
 
 def die_surface(o: dict) -> analytic.DiePlate:
-    """The plug-in's die (Tools: opening R + clearance, lip, face at −p_h/k_c) as a surface."""
+    """The plug-in's die (Tools: its opening, lip, face at −p_h/k_c) as a surface."""
     face = -o["holder_pressure"] / o["contact_stiffness"]
-    return analytic.DiePlate(o["punch_radius"] + o["clearance"], o["die_lip"], face)
+    return analytic.DiePlate(forming_options.opening(o), o["die_lip"], face)
+
+
+def checked_punch(o: dict) -> ToolSurface | None:
+    """The punch to check against the die (:func:`die_check`): the one given as a surface, the
+    analytic hemisphere in an opening that is not the circle about it, else None (that circle
+    is wider than the punch by the clearance)."""
+    surface = punch_surface(o)
+    if surface is None and forming_options.opening(o).kind != "circle":
+        return analytic.HemispherePunch(o["punch_radius"])
+    return surface
 
 
 def die_check(surface: ToolSurface, o: dict, reach: float):

@@ -7,12 +7,13 @@ The punch is a hemisphere of radius R on a cylinder of the same radius, its pole
 the stroke), pushing the blank up into the die. The die (above the blank, face at z = −p_h/k_c,
 so that the flat blank pressed into it is in equilibrium at s = 0 and the die's penalty is
 active there: at d = 0 its stiffness would vanish and leave the vertical motion free) and
-the blank holder (below it, face at z = −g, g the gap) are plates with a circular opening of
-radius R_o and a rounded lip of radius r_d. The holder also presses the flange against the die
-with a pressure p_h, the potential −∫ p_h w(ρ) r_z dX, w rising smoothly (3t² − 2t³) from 0
-one lip radius beyond the end of the lip (ρ = R_o + 2 r_d, ρ the current distance from the
-axis; the die's face becomes flat at R_o + r_d) to 1 one lip radius further: it fixes the blank's
-vertical position from the first step (a blank in a gap alone could float up with the punch).
+the blank holder (below it, face at z = −g, g the gap) are plates with an opening (a circle
+of radius R_o, or a rectangle with rounded corners: surfaces/opening.py, σ the signed distance
+from its outline in the plate's plane) and a rounded lip of radius r_d. The holder also presses
+the flange against the die with a pressure p_h, the potential −∫ p_h w(σ) r_z dX, w rising
+smoothly (3t² − 2t³) from 0 one lip radius beyond the end of the lip (σ = 2 r_d; the die's face
+becomes flat at σ = r_d) to 1 one lip radius further: it fixes the blank's vertical position
+from the first step (a blank in a gap alone could float up with the punch).
 Self-weight, optional, is the potential ∫ q r_z dX (q = ρ_A g per unit reference area).
 Contact is the penalty energy ½ k_c ⟨−d⟩² per unit reference area for each tool's distance d.
 
@@ -23,7 +24,7 @@ tool with p = T κ; with T = 0 only bending presses, at a few points). The holde
 acts on both faces of the flange (holder below, die above), so the friction traction opposes
 the in-plane slip with magnitude 2 μ p_h w. It enters as the incremental dissipation potential
 of a load step (the variational update of Ortiz & Stainier 1999):
-Φ = ∫ 2 μ p_h w(ρ_n) (√(|Δr_t|² + ε²) − ε) dX, Δr_t the in-plane slip since the last converged
+Φ = ∫ 2 μ p_h w(σ_n) (√(|Δr_t|² + ε²) − ε) dX, Δr_t the in-plane slip since the last converged
 state r_n, ε = v_ε Δs the regularising slip of a step of stroke Δs (v_ε a slip rate, mm of slip
 per mm of stroke, so that the regularisation is of the slip rate and does not grow as the steps
 shrink); w is taken at r_n, so that the normal pressure is explicit within a step. A converged
@@ -54,23 +55,26 @@ from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming import friction as forming_friction
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.contact_newton import LINEAR_SOLVER, ContactSolver
+from fabricsurf.experiments.forming.surfaces.files import punch_surface
+from fabricsurf.experiments.forming.surfaces.opening import Opening
+from fabricsurf.experiments.forming.surfaces.opening_form import OpeningForm
 from fabricsurf.experiments.forming.tabulated_punch import TabulatedPunch
 from fabricsurf.model.terms import Term
 
 
 class Tools:
-    """Punch, die and holder as UFL signed distances of the placement r (module docstring).
-    Sizes, stroke, penalty, pressure, friction and weight are fem.Constants: tools of other
-    sizes use the same compiled forms. ``friction`` is the holder's coefficient (the flange on
-    both faces), ``punch_friction`` and ``die_friction`` those of the punch and the die's lip
-    (forming_friction.py). :attr:`r_n`, the placement of the last converged state, is set by
-    the ContactProblem that carries the tools (the punch's friction enters the punch force)."""
+    """Punch, die and holder as UFL signed distances of the placement r (module docstring); the
+    opening an Opening or a circle's radius. Sizes, stroke, penalty, pressure, friction and
+    weight are fem.Constants (other sizes: the same compiled forms). ``friction``: the holder's
+    coefficient (both faces); ``punch_friction``, ``die_friction``: the punch's and the lip's
+    (forming_friction.py). :attr:`r_n` (the last converged placement) is set by the
+    ContactProblem that carries the tools (the punch's friction enters the punch force)."""
 
     def __init__(
         self,
         msh,
         R: float,
-        opening: float,
+        opening: float | Opening,
         gap: float,
         lip: float,
         k_c: float,
@@ -83,17 +87,14 @@ class Tools:
         punch_surface=None,
     ) -> None:
         self.R = float(R)
-        self.radius, self.opening, self.gap, self.lip = (
-            fem.Constant(msh, float(v)) for v in (R, opening, gap, lip)
+        self.outline = opening if isinstance(opening, Opening) else Opening.circle(opening)
+        self.opening = OpeningForm(msh, self.outline)
+        self.radius, self.gap, self.lip = (fem.Constant(msh, float(v)) for v in (R, gap, lip))
+        self.k_c, self.p_h, self.mu, self.weight = (
+            fem.Constant(msh, float(v)) for v in (k_c, pressure, friction, weight)
         )
-        self.stroke = fem.Constant(msh, 0.0)
-        self.k_c = fem.Constant(msh, float(k_c))
-        self.p_h = fem.Constant(msh, float(pressure))
-        self.mu = fem.Constant(msh, float(friction))
-        self.weight = fem.Constant(msh, float(weight))
         self.slip_rate = float(slip_rate)
-        self.eps = fem.Constant(msh, 1.0)
-        self.stroke_n = fem.Constant(msh, 0.0)
+        self.eps, self.stroke, self.stroke_n = (fem.Constant(msh, v) for v in (1.0, 0.0, 0.0))
         self.mu_punch = fem.Constant(msh, float(punch_friction))
         self.mu_die = fem.Constant(msh, float(die_friction))
         self.r_n = None
@@ -104,11 +105,10 @@ class Tools:
     @classmethod
     def from_options(cls, msh, o: dict) -> Tools:
         """The tools of the hemisphere plug-in's checked options (forming_options.parse)."""
-        R = o["punch_radius"]
         return cls(
             msh,
-            R,
-            R + o["clearance"],
+            o["punch_radius"],
+            forming_options.opening(o),
             o["holder_gap"],
             o["die_lip"],
             o["contact_stiffness"],
@@ -118,7 +118,7 @@ class Tools:
             weight_per_area(o.get("areal_density_g_m2", 0.0)),
             o.get("punch_friction", 0.0),
             o.get("die_friction", 0.0),
-            forming_options.punch_surface(o),
+            punch_surface(o),
         )
 
     def tool_friction(self) -> bool:
@@ -135,8 +135,7 @@ class Tools:
         table (tabulated_punch.py)."""
         if self.tabulated is not None:
             return self.tabulated.punch(r, self.stroke if stroke is None else stroke)
-        dz = r[2] - ((self.stroke if stroke is None else stroke) - self.radius)
-        rho = self._rho(r)
+        dz, rho = r[2] - ((self.stroke if stroke is None else stroke) - self.radius), self._rho(r)
         dist = ufl.sqrt(rho**2 + dz**2)
         cap = ufl.gt(dz, 0.0)
         return (
@@ -156,22 +155,23 @@ class Tools:
         return d, ufl.conditional(ufl.gt(dz, 0.0), cap, side)
 
     def lip_contact(self, r):
-        """(penetration into the die's lip torus where the die's nearest point is on it, else
-        0; the torus's outward normal)."""
-        rho, rho0 = self._rho(r), self.opening + self.lip
-        a, b = rho - rho0, r[2] - (-self.p_h / self.k_c + self.lip)
+        """(penetration into the die's lip, the tube about σ = r_d, where the die's nearest point
+        is on it, else 0; the lip's outward normal)."""
+        a = self.opening.sigma(r) - self.lip
+        b = r[2] - (-self.p_h / self.k_c + self.lip)
         dist = ufl.sqrt(a**2 + b**2)
-        on_lip = ufl.conditional(ufl.lt(rho, rho0), 1.0, 0.0)
-        n = ufl.as_vector([a * r[0] / rho, a * r[1] / rho, b]) / dist
+        g = self.opening.gradient(r)
+        on_lip = ufl.conditional(ufl.lt(a, 0.0), 1.0, 0.0)
+        n = ufl.as_vector([a * g[0], a * g[1], b]) / dist
         return on_lip * ufl.max_value(self.lip - dist, 0.0), n
 
     def _plate(self, r, side: float):
-        """Signed distance to the die (side = 1, above) or the holder (side = −1, below): a lip
-        torus of tube radius r_d at the opening and, beyond it, the flat face."""
-        rho, rho0 = self._rho(r), self.opening + self.lip
+        """Signed distance to the die (side = 1, above) or the holder (side = −1, below): the
+        lip's tube of radius r_d about σ = r_d and, beyond it, the flat face."""
+        a = self.opening.sigma(r) - self.lip
         face = -self.p_h / self.k_c if side > 0 else -self.gap
-        torus = ufl.sqrt((rho - rho0) ** 2 + (r[2] - face - side * self.lip) ** 2) - self.lip
-        return ufl.conditional(ufl.gt(rho, rho0), side * (face - r[2]), torus)
+        torus = ufl.sqrt(a**2 + (r[2] - face - side * self.lip) ** 2) - self.lip
+        return ufl.conditional(ufl.gt(a, 0.0), side * (face - r[2]), torus)
 
     def penetrations(self, r) -> dict:
         """⟨−d⟩ of each tool (mm)."""
@@ -182,8 +182,8 @@ class Tools:
         }
 
     def holder_weight(self, r):
-        """w(ρ) of the holder pressure (module docstring)."""
-        t = ufl.min_value(ufl.max_value((self._rho(r) - self.opening) / self.lip - 2.0, 0.0), 1.0)
+        """w(σ) of the holder pressure (module docstring)."""
+        t = ufl.min_value(ufl.max_value(self.opening.sigma(r) / self.lip - 2.0, 0.0), 1.0)
         return t**2 * (3.0 - 2.0 * t)
 
     def energy_density(self, r):
@@ -196,18 +196,18 @@ class Tools:
         )
 
     def _slip_and_limit(self, r, r_n):
-        """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(ρ_n), the limit traction)."""
+        """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(σ_n), the limit traction)."""
         slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
         return ufl.dot(slip, slip), 2.0 * self.mu * self.p_h * self.holder_weight(r_n)
 
     def friction_density(self, r, r_n):
-        """Φ's density 2 μ p_h w(ρ_n) (√(|Δr_t|² + ε²) − ε) (N/mm per unit reference area;
+        """Φ's density 2 μ p_h w(σ_n) (√(|Δr_t|² + ε²) − ε) (N/mm per unit reference area;
         module docstring), r_n the placement of the last converged state."""
         s2, limit = self._slip_and_limit(r, r_n)
         return limit * (ufl.sqrt(s2 + self.eps**2) - self.eps)
 
     def dissipation_density(self, r, r_n):
-        """The work of the friction traction over the step's slip, 2 μ p_h w(ρ_n) |Δr_t|² /
+        """The work of the friction traction over the step's slip, 2 μ p_h w(σ_n) |Δr_t|² /
         √(|Δr_t|² + ε²) (N/mm per unit reference area): the energy dissipated in the step."""
         s2, limit = self._slip_and_limit(r, r_n)
         return limit * s2 / ufl.sqrt(s2 + self.eps**2)

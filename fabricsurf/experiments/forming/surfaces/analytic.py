@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from fabricsurf.experiments.forming.surfaces.opening import Opening
+
 AXIS_EPS = 1e-12
 """Regularisation of the distance from an axis (relative to the shape's size), as in Tools._rho."""
 
@@ -89,29 +91,31 @@ class HemispherePunch(AnalyticSurface):
 
 class DiePlate(AnalyticSurface):
     """The forming plug-in's die (Tools._plate of experiments/forming/tools.py, above the
-    blank): the half-space z ≥ ``face`` beyond ρ = opening + lip, and the lip, a torus of tube
-    radius ``lip`` about the circle ρ = opening + lip at z = face + lip, which leaves an opening
-    of radius ``opening`` at the face. Its distance is the contact's: exact outside the die,
-    measured to the face or the torus inside it."""
+    blank) about an opening (opening.py: an Opening, or a float, a circle's radius) with σ its
+    signed distance in the plate's plane: the half-space z ≥ ``face`` beyond σ = lip, and the
+    lip, the tube of radius ``lip`` about the curve σ = lip at z = face + lip, which leaves the
+    opening at the face. Its distance is the contact's: exact outside the die, measured to the
+    face or the tube inside it."""
 
-    def __init__(self, opening: float, lip: float, face: float = 0.0) -> None:
-        self.opening, self.lip, self.face = float(opening), float(lip), float(face)
-        self.name = f"plate with an opening of radius {opening:g} mm and a lip of {lip:g} mm"
-        self.size = 2.0 * (self.opening + self.lip)
+    def __init__(self, opening, lip: float, face: float = 0.0) -> None:
+        self.outline = opening if isinstance(opening, Opening) else Opening.circle(opening)
+        self.lip, self.face = float(lip), float(face)
+        self.name = f"plate with a {self.outline.name} and a lip of {lip:g} mm"
+        self.size = 2.0 * (self.outline.outer_reach + self.lip)
 
     def _parts(self, x):
         x = _rows(x)
-        rho = np.sqrt(x[:, 0] ** 2 + x[:, 1] ** 2 + (AXIS_EPS * self.size) ** 2)
-        a, b = rho - (self.opening + self.lip), x[:, 2] - (self.face + self.lip)
-        return x, rho, a, b, a > 0
+        sigma, g = self.outline.evaluate(x)
+        a, b = sigma - self.lip, x[:, 2] - (self.face + self.lip)
+        return x, g, a, b, a > 0
 
     def signed_distance(self, x: np.ndarray) -> np.ndarray:
         x, _, a, b, flat = self._parts(x)
         return np.where(flat, self.face - x[:, 2], np.hypot(a, b) - self.lip)
 
     def normal(self, x: np.ndarray) -> np.ndarray:
-        x, rho, a, b, flat = self._parts(x)
-        lip = _unit(np.column_stack([a * x[:, 0] / rho, a * x[:, 1] / rho, b]))
+        x, g, a, b, flat = self._parts(x)
+        lip = _unit(np.column_stack([a * g[:, 0], a * g[:, 1], b]))
         return np.where(flat[:, None], np.array([0.0, 0.0, -1.0]), lip)
 
 

@@ -8,7 +8,8 @@ read as binary, any other as ASCII (``solid`` … ``facet normal`` … ``vertex 
 normals written in an STL file are ignored: the orientation is the corners' order (right-hand
 rule), which is what the checks read. An OBJ file's ``v`` lines are the vertices and its ``f``
 lines the faces (1-based indices, negative ones counted from the end, ``i/t/n`` forms allowed);
-polygons are split into fans of triangles.
+polygons are split into fans of triangles. The forming plug-in's ``punch_file`` and
+``punch_units`` options are checked and read here too (:func:`punch_file_option`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricsurf.errors import InputError
+from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments.forming.surfaces import topology
 from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSurface
 
@@ -117,3 +118,37 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None
     lines = [f"v {p[0]:.15e} {p[1]:.15e} {p[2]:.15e}" for p in np.asarray(vertices, float)]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(faces)]
     Path(path).write_text("\n".join([*lines, ""]))
+
+
+def punch_file_option(tooling: dict, where: str) -> dict:
+    """``punch_file`` and ``punch_units`` checked, the file read once (its surface's own checks:
+    closed, oriented, not degenerate, surfaces/topology.py) so that a bad file is refused with
+    the data; the plug-in reads it again where it builds its tools (punch_surface)."""
+    path, units = tooling.get("punch_file"), tooling.get("punch_units")
+    if path is None:
+        if units is not None:
+            raise DataError(f"{where}: [tooling] punch_units = {units!r} without punch_file")
+        return {}
+    if not isinstance(path, str) or not path.strip():
+        raise DataError(
+            f"{where}: [tooling] punch_file = {path!r} must be a file name in quotes, "
+            'e.g. "punch.stl"'
+        )
+    if units not in UNITS:
+        raise DataError(
+            f"{where}: [tooling] punch_file = {path!r} needs punch_units, the unit of its "
+            f"coordinates (one of {', '.join(UNITS)}; a file carries none), "
+            + ("none given" if units is None else f"got {units!r}")
+        )
+    if not Path(path).is_file():
+        raise DataError(f"{where}: [tooling] punch_file: {path}: no such file")
+    read_surface(path, units)
+    return {"punch_file": str(path), "punch_units": units}
+
+
+def punch_surface(o: dict):
+    """The punch surface of the options: a given one (``punch_surface``, Python), the file's
+    (``punch_file``), or None (the analytic hemisphere)."""
+    if o.get("punch_surface") is not None or not o.get("punch_file"):
+        return o.get("punch_surface")
+    return read_surface(o["punch_file"], o["punch_units"])
