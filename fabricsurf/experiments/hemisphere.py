@@ -74,13 +74,16 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         o = setup.options
         self.check_specimen(setup, "hemisphere")
         forming_blank.check_mesh(setup, h, h == self.default_h(setup))
-        if h > min(o["clearance"], o["die_lip"]):
+        sizes = {"lip": o["die_lip"]}  # a rectangular opening has no clearance of its own
+        if forming_options.opening(o).kind == "circle":
+            sizes = {"clearance": o["clearance"], **sizes}
+        if h > min(sizes.values()):
             warn(
                 logger,
                 comm,
-                f"hemisphere: h = {h:g} mm exceeds the die's clearance or lip "
-                f"({o['clearance']:g}, {o['die_lip']:g} mm): the mesh does not resolve the "
-                "tools and the punch force is not mesh-converged",
+                f"hemisphere: h = {h:g} mm exceeds the die's {' or '.join(sizes)} "
+                f"({', '.join(f'{v:g}' for v in sizes.values())} mm): the mesh does not resolve "
+                "the tools and the punch force is not mesh-converged",
             )
         unheld = forming_blank.unheld_edge(setup)
         if unheld is not None:
