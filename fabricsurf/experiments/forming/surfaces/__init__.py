@@ -6,8 +6,10 @@ Analytic shapes (``analytic.py``: the sphere, the forming plug-in's hemispherica
 cylinder and the box with fillet radii, the cone), triangle meshes (``triangulated.py``, with
 their connectivity checks in ``topology.py`` and the closest point on a triangle in
 ``closest.py``) read from STL or OBJ files in stated units (``files.py``) or taken from a
-gmsh model (``meshes.py``, which also triangulates the analytic shapes for checks), and the
-checks of a tool set against the blank and the stroke (``checks.py``).
+gmsh model (``meshes.py``, which also triangulates the analytic shapes for checks), the
+checks of a tool set against the blank and the stroke (``checks.py``), and the opening of the
+die and the holder, a circle or a rectangle with rounded corners (``opening.py``, in UFL
+``opening_form.py``).
 """
 
 from __future__ import annotations
