@@ -17,7 +17,8 @@ and the largest penetration into any tool (a run that stops says where and why);
 the runs that finished, the exponent of the time's growth with the cells and the differences
 of force and shear between meshes.
 
-Run: ``mpirun -n 2 python benchmarks/forming_box.py [--h0 5] [--levels 3] [--fillet 25]``.
+Run: ``mpirun -n 2 python benchmarks/forming_box.py [--h0 5] [--levels 3] [--fillet 25]
+[--softening 0]``.
 """
 
 import argparse
@@ -57,9 +58,10 @@ TOOLING = {
 }
 
 
-def run(h: float, fillet: float) -> dict:
+def run(h: float, fillet: float, softening: float) -> dict:
     """One mesh's run; a run that stops (a step Newton cannot follow) reports where."""
-    opts = HemispherePlugin.parse_options({"tooling": TOOLING}, 1.0, "box")
+    tooling = {**TOOLING, "contact_softening": softening}
+    opts = HemispherePlugin.parse_options({"tooling": tooling}, 1.0, "box")
     params = parts.documented_fit()["params"]
     model = parts.forming_model(params, BENDING, BENDING)
     opts = {**opts, "punch_surface": punch(fillet)}
@@ -93,9 +95,14 @@ def main() -> None:
     parser.add_argument("--h0", type=float, default=5.0, help="the coarsest mesh (mm)")
     parser.add_argument("--levels", type=int, default=3, help="meshes h = h0/√2^k, k < levels")
     parser.add_argument("--fillet", type=float, default=25.0, help="the punch's fillet (mm)")
+    parser.add_argument(
+        "--softening", type=float, default=0.0, help="the punch's contact softening (mm)"
+    )
     args = parser.parse_args()
     configure()
-    rows = [run(args.h0 / math.sqrt(2.0) ** k, args.fillet) for k in range(args.levels)]
+    rows = [
+        run(args.h0 / math.sqrt(2.0) ** k, args.fillet, args.softening) for k in range(args.levels)
+    ]
 
     def say(msg: str) -> None:
         rank0(logger, comm, msg)

@@ -232,6 +232,9 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         self.solver.reset()
         self.set_load(0.0)
         self.stroke, self.force = [0.0], [0.0]
+        if self.tools.softening:  # a softened punch presses the flat blank at s = 0 already
+            self.solver.solve()
+            self.force = [self.reaction()]
         book = StrokeLog(self.comm, self.active_set, lambda: self.solver.fallbacks, label)
         self.steps = book.records
 

@@ -1,5 +1,6 @@
-"""Coulomb friction of the sheet on the punch and over the die's lip (forming_tools.Tools), as
-incremental dissipation potentials of a load step, and the punch force they add.
+"""Coulomb friction of the sheet under the holder, on the punch and over the die's lip
+(forming_tools.Tools), as incremental dissipation potentials of a load step, and the punch force
+they add.
 
 The same variational update as the holder's friction (Ortiz & Stainier 1999; forming_tools):
 a step from the converged state r_n at stroke s_n to the stroke s adds to the energy
@@ -8,8 +9,9 @@ a step from the converged state r_n at stroke s_n to the stroke s adds to the en
 
 with, for each tool,
 
-* p_n = k_c ⟨−d(r_n)⟩ the tool's contact pressure at r_n (per unit reference area): the
-  normal pressure is explicit within the step, as the holder's is;
+* p_n = k_c ⟨−d(r_n)⟩ (the punch's: Tools.punch_pressure) the tool's contact pressure at r_n
+  (per unit reference area): the normal pressure is explicit within the step, as the holder's
+  is;
 * Δr_t = P_n (Δr − Δs_tool e_z) the slip relative to the tool, projected on the tool's tangent
   plane at r_n (P_n = I − n nᵀ, n the tool's outward normal at r_n): the punch moves with the
   stroke, Δs_tool = s − s_n; the die stands still, Δs_tool = 0.
@@ -47,12 +49,32 @@ def _tangential(v, n):
     return v - ufl.dot(v, n) * n
 
 
+def _holder_slip(tools, r, r_n):
+    """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(σ_n), the limit traction)."""
+    slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
+    return ufl.dot(slip, slip), 2.0 * tools.mu * tools.p_h * tools.holder_weight(r_n)
+
+
+def holder_potential_density(tools, r, r_n):
+    """The holder's Φ density 2 μ p_h w(σ_n) (√(|Δr_t|² + ε²) − ε) (N/mm per unit reference
+    area; forming_tools), r_n the placement of the last converged state."""
+    s2, limit = _holder_slip(tools, r, r_n)
+    return limit * (ufl.sqrt(s2 + tools.eps**2) - tools.eps)
+
+
+def holder_dissipation_density(tools, r, r_n):
+    """The work of the holder's friction over the step's slip, 2 μ p_h w(σ_n) |Δr_t|² /
+    √(|Δr_t|² + ε²) (N/mm per unit reference area): the energy dissipated in the step."""
+    s2, limit = _holder_slip(tools, r, r_n)
+    return limit * s2 / ufl.sqrt(s2 + tools.eps**2)
+
+
 def punch_slip(tools, r, r_n):
     """(μ_p p_n, the limit traction; Δr_t, the slip relative to the punch in its tangent plane
     at r_n) of the step from (r_n, s_n) to (r, s)."""
     d_n, n = tools.punch_normal(r_n, tools.stroke_n)
     rel = r - r_n - (tools.stroke - tools.stroke_n) * ufl.as_vector([0.0, 0.0, 1.0])
-    limit = tools.mu_punch * tools.k_c * ufl.max_value(-d_n, 0.0)
+    limit = tools.mu_punch * tools.punch_pressure(d_n)
     return limit, _tangential(rel, n)
 
 

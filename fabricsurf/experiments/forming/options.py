@@ -42,6 +42,8 @@ TOOL_KEYS = {
     "default: the circle of radius R + clearance)",
     "die_opening_width": "its width along y (mm, default 2(R + clearance))",
     "die_corner_radius": "its corner radius (mm, default half the shorter side: round ends)",
+    "contact_softening": "softening ε of the punch's contact (mm, default 0: the plain "
+    "penalty; a punch with a large flat top needs about 1e-3)",
     "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
     "experiment.toml; its pole at z = 0, moving up along z; default: the hemisphere of "
     "radius punch_radius)",
@@ -91,6 +93,8 @@ MAX_BLANK_RATIO = 20.0
 """The blank's side at most this many punch radii (forming tests: 3 to 6)."""
 MAX_ELEMENTS = 400_000
 """Cells of the quarter's mesh at most (about 20 GB with the 3D model and MUMPS)."""
+SOFTENING_LIMIT = 0.01
+"""The punch's contact softening at most this fraction of the die's lip radius."""
 PENETRATION_FRACTION = 0.1
 """The holder's own penetration p_h / k_c at most this fraction of the holder's gap."""
 
@@ -138,6 +142,14 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
             f"{RANGES['contact_stiffness'][1]:g} N/mm³"
         )
     out.update(_opening(tables, length_scale, where, out))
+    soft = number_option(tables, "tooling", "contact_softening", where, 0.0, positive=False)
+    out["contact_softening"] = soft * length_scale
+    if not 0.0 <= out["contact_softening"] <= SOFTENING_LIMIT * out["die_lip"]:
+        raise DataError(
+            f"{where}: [tooling] contact_softening = {soft:g} is outside its plausible range "
+            f"0 ≤ contact_softening ≤ {SOFTENING_LIMIT:g} die_lip (= "
+            f"{SOFTENING_LIMIT * out['die_lip']:g} mm)"
+        )
     out.update(punch_file_option(tables.get("tooling", {}), where))
     out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
     out["wrinkle_curvature"] = (

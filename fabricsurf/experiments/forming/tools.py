@@ -15,7 +15,10 @@ smoothly (3t² − 2t³) from 0 one lip radius beyond the end of the lip (σ = 2
 becomes flat at σ = r_d) to 1 one lip radius further: it fixes the blank's vertical position
 from the first step (a blank in a gap alone could float up with the punch).
 Self-weight, optional, is the potential ∫ q r_z dX (q = ρ_A g per unit reference area).
-Contact is the penalty energy ½ k_c ⟨−d⟩² per unit reference area for each tool's distance d.
+Contact is the penalty energy ½ k_c ⟨−d⟩² per unit reference area for each tool's distance d;
+with ``contact_softening`` ε > 0 the punch's ⟨−d⟩ is the softplus ε ln(1 + e^(−d/ε)), whose
+pressure begins just before touching (a sheet lying on a flat punch top then has a stiffness
+there, and Newton's contact set does not flicker: docs/tool_surfaces.md, "A box").
 
 Friction under the holder (Coulomb, coefficient μ, optional): without it nothing resists the
 flange's draw-in, the fibres carry no tension, and the sheet spans the punch as a tent held by
@@ -27,18 +30,14 @@ of a load step (the variational update of Ortiz & Stainier 1999):
 Φ = ∫ 2 μ p_h w(σ_n) (√(|Δr_t|² + ε²) − ε) dX, Δr_t the in-plane slip since the last converged
 state r_n, ε = v_ε Δs the regularising slip of a step of stroke Δs (v_ε a slip rate, mm of slip
 per mm of stroke, so that the regularisation is of the slip rate and does not grow as the steps
-shrink); w is taken at r_n, so that the normal pressure is explicit within a step. A converged
-step then satisfies Coulomb's law (|t| ≤ 2 μ p_h w, sliding against the slip) up to slips
-slower than v_ε. Friction on the punch (coefficient μ_p, ``punch_friction``) and over the
-die's lip (μ_d, ``die_friction``) are potentials of the same kind with the tools' own contact
-pressure at r_n and the slip relative to the tool (experiments/forming/friction.py); they are
-compiled as forms of their own and assembled only when μ_p or μ_d is not zero, so that without
-them the residual, the Jacobian and every result are those of the code without them. The punch
-force is the work conjugate of the stroke, F = ∂(Π + Φ)/∂s at fixed u = ∫ (k_c ⟨−d_p⟩ n_z −
-τ_z) dX (n_z: the vertical component of the punch's outward normal; τ_z: the vertical
-component of the punch's friction traction, whose potential depends on s through the slip
-relative to the punch), so that ∫ F ds = ΔΠ + D along equilibrium states (forming_friction.py
-derives it).
+shrink); w is taken at r_n, so that the normal pressure is explicit within a step. Friction on
+the punch (μ_p, ``punch_friction``) and over the die's lip (μ_d, ``die_friction``) are
+potentials of the same kind with the tools' own contact pressure at r_n and the slip relative
+to the tool (all three: experiments/forming/friction.py); the last two are compiled as forms of
+their own and assembled only when μ_p or μ_d is not zero. The punch force is the work conjugate
+of the stroke, F = ∂(Π + Φ)/∂s at fixed u = ∫ (p_c n_z − τ_z) dX (p_c the punch's contact
+pressure, n_z the vertical component of its outward normal, τ_z that of its friction
+traction), so that ∫ F ds = ΔΠ + D along equilibrium states (forming_friction.py derives it).
 """
 
 from __future__ import annotations
@@ -85,13 +84,16 @@ class Tools:
         punch_friction: float = 0.0,
         die_friction: float = 0.0,
         punch_surface=None,
+        contact_softening: float = 0.0,
     ) -> None:
         self.R = float(R)
         self.outline = opening if isinstance(opening, Opening) else Opening.circle(opening)
         self.opening = OpeningForm(msh, self.outline)
         self.radius, self.gap, self.lip = (fem.Constant(msh, float(v)) for v in (R, gap, lip))
-        self.k_c, self.p_h, self.mu, self.weight = (
-            fem.Constant(msh, float(v)) for v in (k_c, pressure, friction, weight)
+        self.softening = float(contact_softening)
+        self.k_c, self.p_h, self.mu, self.weight, self.eps_c = (
+            fem.Constant(msh, float(v))
+            for v in (k_c, pressure, friction, weight, self.softening or 1.0)
         )
         self.slip_rate = float(slip_rate)
         self.eps, self.stroke, self.stroke_n = (fem.Constant(msh, v) for v in (1.0, 0.0, 0.0))
@@ -119,6 +121,7 @@ class Tools:
             o.get("punch_friction", 0.0),
             o.get("die_friction", 0.0),
             punch_surface(o),
+            o.get("contact_softening", 0.0),
         )
 
     def tool_friction(self) -> bool:
@@ -176,7 +179,7 @@ class Tools:
     def penetrations(self, r) -> dict:
         """⟨−d⟩ of each tool (mm)."""
         return {
-            "punch": ufl.max_value(-self.punch(r)[0], 0.0),
+            "punch": self.punch_depth(self.punch(r)[0]),
             "die": ufl.max_value(-self._plate(r, 1.0), 0.0),
             "holder": ufl.max_value(-self._plate(r, -1.0), 0.0),
         }
@@ -195,34 +198,32 @@ class Tools:
             + self.weight * r[2]
         )
 
-    def _slip_and_limit(self, r, r_n):
-        """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(σ_n), the limit traction)."""
-        slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
-        return ufl.dot(slip, slip), 2.0 * self.mu * self.p_h * self.holder_weight(r_n)
+    def punch_depth(self, d):
+        """The punch's depth p(d) in the penalty ½ k_c p²: ⟨−d⟩, or with a softening ε the
+        softplus ε ln(1 + e^(−d/ε)), C^∞, a little above ⟨−d⟩ (by ε ln 2 at d = 0)."""
+        if self.softening == 0.0:
+            return ufl.max_value(-d, 0.0)
+        t = -d / self.eps_c
+        return self.eps_c * (ufl.max_value(t, 0.0) + ufl.ln(1.0 + ufl.exp(-abs(t))))
 
-    def friction_density(self, r, r_n):
-        """Φ's density 2 μ p_h w(σ_n) (√(|Δr_t|² + ε²) − ε) (N/mm per unit reference area;
-        module docstring), r_n the placement of the last converged state."""
-        s2, limit = self._slip_and_limit(r, r_n)
-        return limit * (ufl.sqrt(s2 + self.eps**2) - self.eps)
-
-    def dissipation_density(self, r, r_n):
-        """The work of the friction traction over the step's slip, 2 μ p_h w(σ_n) |Δr_t|² /
-        √(|Δr_t|² + ε²) (N/mm per unit reference area): the energy dissipated in the step."""
-        s2, limit = self._slip_and_limit(r, r_n)
-        return limit * s2 / ufl.sqrt(s2 + self.eps**2)
+    def punch_pressure(self, d):
+        """k_c p ∂p/∂(−d): the punch's contact pressure (N/mm² of reference area)."""
+        slope = 1.0 if self.softening == 0.0 else 1.0 / (1.0 + ufl.exp(d / self.eps_c))
+        return self.k_c * self.punch_depth(d) * slope
 
     def force_density(self, r):
-        """k_c ⟨−d_p⟩ n_z − τ_z: the punch force per unit reference area (N/mm²), the punch
-        friction's τ_z once :attr:`r_n` is set (forming_friction.py)."""
-        normal = self.k_c * self.penetrations(r)["punch"] * self.punch(r)[1]
+        """p_c n_z − τ_z, p_c the punch's contact pressure: the punch force per unit reference
+        area (N/mm²), the punch friction's τ_z once :attr:`r_n` is set (forming_friction.py)."""
+        d, n_z = self.punch(r)
+        normal = self.punch_pressure(d) * n_z
         if self.r_n is None:
             return normal
         return normal + forming_friction.punch_force_density(self, r, self.r_n)
 
     def pressure(self, r):
-        """Contact pressure k_c Σ ⟨−d⟩ (N/mm² of reference area)."""
-        return self.k_c * sum(self.penetrations(r).values())
+        """Contact pressure of all tools (N/mm² of reference area)."""
+        pen = self.penetrations(r)
+        return self.punch_pressure(self.punch(r)[0]) + self.k_c * (pen["die"] + pen["holder"])
 
 
 class ContactProblem(FabricProblem):
@@ -252,8 +253,9 @@ class ContactProblem(FabricProblem):
         return self.tools.energy_density(placement(self.u)) * self.dx
 
     def friction_energy(self):
-        """Φ, the friction potential of the step from u_n (Tools.friction_density)."""
-        return self.tools.friction_density(placement(self.u), placement(self.u_n)) * self.dx
+        """Φ, the holder's friction potential of the step from u_n (forming_friction.py)."""
+        r, r_n = placement(self.u), placement(self.u_n)
+        return forming_friction.holder_potential_density(self.tools, r, r_n) * self.dx
 
     def mirror(self, edge: str, axis: int) -> None:
         """Mirror symmetry about a straight edge normal to the reference axis ``axis``: the
@@ -270,17 +272,15 @@ class ContactProblem(FabricProblem):
     def tool_friction(self) -> tuple:
         """(residual, Jacobian) of the punch's and the lip's friction potentials
         (forming_friction.py): variations of one energy, like the main forms."""
-        phi = (
-            forming_friction.potential_density(self.tools, placement(self.u), placement(self.u_n))
-            * self.dx
-        )
+        r, r_n = placement(self.u), placement(self.u_n)
+        phi = forming_friction.potential_density(self.tools, r, r_n) * self.dx
         dP = ufl.derivative(phi, self.u, ufl.TestFunction(self.V))
         return dP, ufl.derivative(dP, self.u, ufl.TrialFunction(self.V))
 
     def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
         r, r_n = placement(self.u), placement(self.u_n)
         dissipation = (
-            self.tools.dissipation_density(r, r_n)
+            forming_friction.holder_dissipation_density(self.tools, r, r_n)
             + forming_friction.dissipation_density(self.tools, r, r_n)
         ) * self.dx
         return ContactSolver(
