@@ -179,7 +179,7 @@ class Tools:
     def penetrations(self, r) -> dict:
         """⟨−d⟩ of each tool (mm)."""
         return {
-            "punch": self.punch_depth(self.punch(r)[0]),
+            "punch": ufl.max_value(-self.punch(r)[0], 0.0),
             "die": ufl.max_value(-self._plate(r, 1.0), 0.0),
             "holder": ufl.max_value(-self._plate(r, -1.0), 0.0),
         }
@@ -191,9 +191,10 @@ class Tools:
 
     def energy_density(self, r):
         """½ k_c Σ ⟨−d⟩² − p_h w r_z + q r_z (N/mm per unit reference area; q the self-weight
-        per unit reference area, N/mm², gravity along −z)."""
+        per unit reference area, N/mm², gravity along −z), the punch's ⟨−d⟩ its depth p(d)."""
+        pen = {**self.penetrations(r), "punch": self.punch_depth(self.punch(r)[0])}
         return (
-            0.5 * self.k_c * sum(p**2 for p in self.penetrations(r).values())
+            0.5 * self.k_c * sum(p**2 for p in pen.values())
             - self.p_h * self.holder_weight(r) * r[2]
             + self.weight * r[2]
         )
@@ -214,8 +215,7 @@ class Tools:
     def force_density(self, r):
         """p_c n_z − τ_z, p_c the punch's contact pressure: the punch force per unit reference
         area (N/mm²), the punch friction's τ_z once :attr:`r_n` is set (forming_friction.py)."""
-        d, n_z = self.punch(r)
-        normal = self.punch_pressure(d) * n_z
+        normal = self.punch_pressure(self.punch(r)[0]) * self.punch(r)[1]
         if self.r_n is None:
             return normal
         return normal + forming_friction.punch_force_density(self, r, self.r_n)
