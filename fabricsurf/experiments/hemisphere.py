@@ -2,10 +2,11 @@
 
 A square blank of side B = ``length`` = ``width`` (mm), centred on the punch axis, with fibres
 at ±θ to its sides or along them (0°/90°), lies at z = 0 between a blank holder and a die with
-an opening of radius R_o = R + clearance; a rigid hemispherical punch of radius R, its pole at
-z = s (the stroke, the load path, mm), pushes it up through the opening (forming/tools.py:
-signed distances, penalty contact, holder friction, the punch force as the work conjugate of
-the stroke).
+an opening of radius R_o = R + clearance (or a rectangle with rounded corners:
+forming/surfaces/opening.py); a rigid hemispherical punch of radius R (or any punch given as a
+surface: forming/tabulated_punch.py), its pole at z = s (the stroke, the load path, mm), pushes
+it up through the opening (forming/tools.py: signed distances, penalty contact, holder
+friction, the punch force as the work conjugate of the stroke).
 
 A set-up symmetric about the blank's mid-lines is solved on one quarter [0, B/2]² with mirror
 conditions, meshed along the fibres (geometry/aligned.py) so that stiff fibres do not lock;
