@@ -31,7 +31,7 @@ import pytest
 from hemisphere_case import BLANK, TOOLING, H, R
 from mpi4py import MPI
 
-from fabricsurf.errors import InputError
+from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.forming.surfaces import analytic, files, meshes
 from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSurface
@@ -218,3 +218,19 @@ def test_punch_wider_than_the_opening_refused_at_the_stroke_the_die_stops_it():
         assert e.steps == []  # refused before the first step
     finally:
         e.close()
+
+
+def test_lopsided_punch_is_not_solved_on_the_quarter():
+    """A square ±45° blank is solved on its quarter only if the punch given as a surface is its
+    own mirror image in both mid-planes (checks.mirror_asymmetry): a sphere 0.5 mm off the axis
+    makes ``auto`` choose the full blank, and ``quarter`` is refused naming the plane."""
+    from fabricsurf.experiments.forming import blank as forming_blank
+
+    def setup(centre, domain="auto"):
+        opts = {**TOOLING, "punch_surface": analytic.Sphere(20.0, centre), "blank_domain": domain}
+        return PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts)
+
+    assert forming_blank.domain(setup((0.0, 0.0, -20.0))) == "quarter"
+    assert forming_blank.domain(setup((0.5, 0.0, -20.0))) == "full"
+    with pytest.raises(DataError, match=r"'quarter': sphere .* not mirror-symmetric about x = 0"):
+        forming_blank.domain(setup((0.5, 0.0, -20.0), "quarter"))

@@ -258,3 +258,26 @@ def test_stroke_through_the_die():
         match=r"stroke of 30 mm passes through the die.*10 mm inside.*stops it at a stroke of 20",
     ):
         checks.check_stroke(punch, die, pts, (0, 0, 1), 30.0)
+
+
+def test_mirror_asymmetry():
+    """Shapes that are their own mirror images in x = 0 and y = 0 pass, triangulated or not
+    (the revolved punch's triangulation is not mirror-symmetric at every edge size, its
+    vertices' images land on the other side's facets within their sagitta); the same shapes
+    moved off the axis by a fifth or a fiftieth of a millimetre are named, with the plane."""
+    symmetric = [
+        analytic.HemispherePunch(20.0),
+        analytic.RoundedBox((14.0, 10.0, 20.0), 2.0, centre=(0.0, 0.0, -20.0)),
+        TriangulatedSurface(*meshes.hemisphere_punch_mesh(20.0, 1.3), name="revolved"),
+    ]
+    for shape in symmetric:
+        assert checks.mirror_asymmetry(shape) is None, shape.name
+    moved = [
+        (analytic.Moved(analytic.HemispherePunch(20.0), (0.02, 0.0, 0.0)), "x = 0"),
+        (analytic.RoundedBox((14.0, 10.0, 20.0), 2.0, centre=(0.0, 0.2, -20.0)), "y = 0"),
+    ]
+    v, f = meshes.hemisphere_punch_mesh(20.0, 1.3)
+    moved.append((TriangulatedSurface(v + [0.0, 0.2, 0.0], f, name="moved"), "y = 0"))
+    for shape, plane in moved:
+        message = checks.mirror_asymmetry(shape)
+        assert message is not None and f"not mirror-symmetric about {plane}" in message, shape

@@ -10,7 +10,9 @@ the punch axis, fibres at ``fibre_angles_deg`` to x. ``[tooling] blank_domain``:
 itself (±θ, or 0/90) is solved on one quarter with mirror conditions (4× cheaper); every other
 set-up on the full blank with its rigid motions removed (hemisphere.py). ``full`` on such a
 square solves the full blank on the quarter's mesh unfolded (a check of the two against each
-other); ``quarter`` where the set-up has no such symmetry is refused.
+other); ``quarter`` where the set-up has no such symmetry is refused. A punch given as a
+surface must be its own mirror image in both mid-planes for the quarter (checked on its
+points), else ``auto`` solves the full blank.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from mpi4py import MPI
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, choice_option
 from fabricsurf.experiments.forming import options as forming_options
+from fabricsurf.experiments.forming.surfaces import checks
+from fabricsurf.experiments.forming.surfaces.files import punch_surface
 from fabricsurf.geometry.aligned import blank_angle, canonical_angles, quarter_blank
 from fabricsurf.geometry.fibre_blank import fibre_blank, mirrored_quarter
 
@@ -81,7 +85,8 @@ def bisector_deg(angles: tuple[float, float]) -> float:
 
 
 def domain(setup: PluginSetup) -> str:
-    """``quarter`` or ``full`` (module docstring)."""
+    """``quarter`` or ``full`` (module docstring); a punch given as a surface must also be its
+    own mirror image in both mid-planes (checks.mirror_asymmetry) for the quarter."""
     symmetric = shape(setup) == "square" and blank_angle(tuple(setup.fibre_angles_deg)) is not None
     asked = setup.options.get("blank_domain", "auto")
     if asked == "quarter" and not symmetric:
@@ -91,7 +96,11 @@ def domain(setup: PluginSetup) -> str:
             f"this is a {shape(setup)} with fibre_angles_deg = "
             f"{list(setup.fibre_angles_deg)}: use 'full' or 'auto'"
         )
-    return "quarter" if symmetric and asked != "full" else "full"
+    punch = punch_surface(setup.options) if symmetric and asked != "full" else None
+    lopsided = None if punch is None else checks.mirror_asymmetry(punch)
+    if asked == "quarter" and lopsided:
+        raise DataError(f"hemisphere: [tooling] blank_domain = 'quarter': {lopsided}")
+    return "quarter" if symmetric and asked != "full" and not lopsided else "full"
 
 
 def check_specimen(setup: PluginSetup, where: str) -> None:

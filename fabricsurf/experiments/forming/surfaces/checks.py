@@ -5,6 +5,8 @@ to change (docs/tool_surfaces.md, "Bad input").
   its inverse, is read in the wrong units (a file in mm read as m is 1000 times too large).
 * Start: no point of the flat blank may lie inside a tool at the start of the stroke (a tool
   that starts inside the blank would push it out with the full penalty force at once).
+* Symmetry (:func:`mirror_asymmetry`): a tool solved on a quarter of the blank must be its own
+  mirror image in both mid-planes.
 * Stroke: at the end of the stroke the punch may not enter the die: the points of the punch's
   surface, moved by the stroke, must all lie outside the die. The largest stroke that keeps
   them out is found by bisection and given in the message.
@@ -110,3 +112,41 @@ def _bisect(depth, lo: float, hi: float) -> float:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if depth(mid) <= 0.0 else (lo, mid)
     return lo
+
+
+MIRROR_TOLERANCE = 1e-6
+"""How far (in the tool's sizes) the mirror image of an analytic tool's point may lie off it."""
+MIRROR_EDGE_FRACTION = 0.1
+"""The same for a triangle mesh, in its median edge length: a mirror-symmetric shape
+triangulated without mirror symmetry puts a vertex's image on the other side's facets within
+their sagitta L²/8R, below a tenth of an edge where edges are shorter than the radius (a flat
+part's long edges have no sagitta, and the median leaves them out)."""
+
+
+def mirror_asymmetry(tool: ToolSurface, samples: int = 4000) -> str | None:
+    """Why the tool is not mirror-symmetric about the planes x = 0 and y = 0, or None: the
+    mirror images of points on it (a triangle mesh's vertices; points projected onto an
+    analytic shape) must lie on it, within :data:`MIRROR_TOLERANCE` of its size or
+    :data:`MIRROR_EDGE_FRACTION` of a mesh's median edge."""
+    if getattr(tool, "vertices", None) is not None:
+        points = tool.vertices
+        corners = tool.vertices[tool.faces]
+        edge = np.median(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2))
+        tolerance = MIRROR_EDGE_FRACTION * edge
+    else:
+        bounds = getattr(tool, "bounds", lambda: None)()
+        lo, hi = (-tool.size, tool.size) if bounds is None else bounds
+        points = np.random.default_rng(0).uniform(lo, hi, (samples, 3))
+        for _ in range(2):
+            points = points - tool.signed_distance(points)[:, None] * tool.normal(points)
+        tolerance = MIRROR_TOLERANCE * tool.size
+    for axis in (0, 1):
+        image = points * np.where(np.arange(3) == axis, -1.0, 1.0)
+        off = np.abs(tool.signed_distance(image))
+        k = int(np.argmax(off))
+        if off[k] > tolerance:
+            return (
+                f"{tool.name} is not mirror-symmetric about {'xy'[axis]} = 0: the image of its "
+                f"point {np.round(points[k], 6).tolist()} lies {off[k]:.3g} mm off it"
+            )
+    return None
