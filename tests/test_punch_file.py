@@ -116,3 +116,27 @@ def test_punch_through_the_die_refused_before_comparing(root):
         r"circular opening of radius 22 mm.*stops it at a stroke of 1\.6",
     ):
         check_in_loop([exp])
+
+
+def test_punch_file_read_once(tmp_path, monkeypatch):
+    """The options' check, the plug-in's tools, its die and symmetry checks and the data's
+    check all ask for the punch: the file is read once (a file of 6·10⁶ triangles takes about
+    a minute to read), and read again once it has changed."""
+    from fabricsurf.experiments.base import PluginSetup
+    from fabricsurf.experiments.hemisphere import HemispherePlugin
+
+    path = tmp_path / "punch.stl"
+    files.write_stl(path, *meshes.hemisphere_punch_mesh(R, 2.0))
+    reads = []
+    original = files.read_surface
+    monkeypatch.setattr(files, "read_surface", lambda *a, **k: reads.append(a) or original(*a, **k))
+    tooling = {**TOOLS, "punch_file": str(path), "punch_units": "mm"}
+    opts = HemispherePlugin.parse_options({"tooling": tooling}, 1.0, "t")
+    setup = PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts)
+    HemispherePlugin.check_data(setup, [0, 1], [0.0, 2.0], "force.csv")
+    with HemispherePlugin(setup, model(), H, MPI.COMM_WORLD) as e:
+        assert e.domain == "quarter"
+    assert len(reads) == 1
+    files.write_stl(path, *meshes.hemisphere_punch_mesh(R, 1.5))
+    HemispherePlugin.parse_options({"tooling": tooling}, 1.0, "t")
+    assert len(reads) == 2

@@ -14,6 +14,7 @@ polygons are split into fans of triangles. The forming plug-in's ``punch_file`` 
 
 from __future__ import annotations
 
+import functools
 import re
 from pathlib import Path
 
@@ -25,6 +26,8 @@ from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSur
 
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 """Length units a tool file may be in, and their size in mm."""
+PUNCH_FILES_KEPT = 2
+"""Punch files whose surfaces :func:`read_punch_file` keeps once read."""
 _FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
@@ -123,7 +126,7 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None
 def punch_file_option(tooling: dict, where: str) -> dict:
     """``punch_file`` and ``punch_units`` checked, the file read once (its surface's own checks:
     closed, oriented, not degenerate, surfaces/topology.py) so that a bad file is refused with
-    the data; the plug-in reads it again where it builds its tools (punch_surface)."""
+    the data; the plug-in's tools and checks then take the same surface (:func:`punch_surface`)."""
     path, units = tooling.get("punch_file"), tooling.get("punch_units")
     if path is None:
         if units is not None:
@@ -142,7 +145,7 @@ def punch_file_option(tooling: dict, where: str) -> dict:
         )
     if not Path(path).is_file():
         raise DataError(f"{where}: [tooling] punch_file: {path}: no such file")
-    read_surface(path, units)
+    read_punch_file(path, units)
     return {"punch_file": str(path), "punch_units": units}
 
 
@@ -151,4 +154,19 @@ def punch_surface(o: dict):
     (``punch_file``), or None (the analytic hemisphere)."""
     if o.get("punch_surface") is not None or not o.get("punch_file"):
         return o.get("punch_surface")
-    return read_surface(o["punch_file"], o["punch_units"])
+    return read_punch_file(o["punch_file"], o["punch_units"])
+
+
+def read_punch_file(path: str | Path, units: str) -> TriangulatedSurface:
+    """:func:`read_surface`, once for a file as it stands (its resolved path, modification time
+    and size): the options' check, the tools, the die and symmetry checks and the data's check
+    all ask for the punch, and a file of 6·10⁶ triangles takes about a minute to read."""
+    resolved = Path(path).resolve()
+    stat = resolved.stat()
+    return _read_once(str(path), str(resolved), units, (stat.st_mtime_ns, stat.st_size))
+
+
+@functools.lru_cache(maxsize=PUNCH_FILES_KEPT)
+def _read_once(path: str, resolved: str, units: str, stamp: tuple) -> TriangulatedSurface:
+    """The file at ``path`` read (``resolved`` and ``stamp`` only tell files apart)."""
+    return read_surface(path, units)
