@@ -24,7 +24,8 @@ from fabricsurf.geometry.aligned import lattice_divisions
 from fabricsurf.geometry.lattice_pair import pair_divisions
 from fabricsurf.inverse.contract.data import write_experiment
 from fabricsurf.inverse.diagnosis.mesh_choice import Budget, _by_rate, _why_not
-from fabricsurf.inverse.diagnosis.report import Diagnosis, stiff_yarn_note
+from fabricsurf.inverse.diagnosis.report import Diagnosis
+from fabricsurf.inverse.diagnosis.significance import stiff_yarn_note
 
 
 def _kind(length: float, width: float, h: float, theta: float) -> str:

@@ -41,7 +41,7 @@ from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.beyond import search_beyond
 from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.diagnosis.nuisance import with_depth
-from fabricsurf.inverse.diagnosis.report import SLOW_FALL, Diagnosis, stiff_yarn_note
+from fabricsurf.inverse.diagnosis.report import Diagnosis
 from fabricsurf.inverse.fitting.plausibility import say_implausible
 from fabricsurf.inverse.forward.profile import timed
 from fabricsurf.log import rank0
@@ -143,12 +143,11 @@ def _by_rate(levels: list[dict], spent: float, budget: Budget) -> str | None:
     ``LEVEL_GROWTH`` times the time of the one before. A check that did not fall gives no rate:
     it rises before it falls where the mesh is not yet asymptotic (docs/diagnosis.md, the
     gradient clamps' held-aside case), so refining goes on within the budget."""
-    if len(levels) < 2 or not all((q["chi2_h"] or 0.0) > 0.0 for q in levels[-2:]):
+    rho = sg.fall(levels)
+    if rho is None or rho >= 1.0:
         return None
     a, b, q = levels[-2]["chi2_h"], levels[-1]["chi2_h"], levels[-1]
-    if b >= a:
-        return None
-    n = max(1, math.ceil(math.log(q["noise_band"] / b) / math.log(b / a)))
+    n = max(1, math.ceil(math.log(q["noise_band"] / b) / math.log(rho)))
     dofs = q["dofs"] * 4**n
     seconds = q["seconds"] * sum(LEVEL_GROWTH**k for k in range(1, n + 1))
     over = [
@@ -162,15 +161,15 @@ def _by_rate(levels: list[dict], spent: float, budget: Budget) -> str | None:
     h = ", ".join(f"{x / 2**n:.3g}" for x in q["h"])
     size = f"{dofs:,} unknowns and {seconds:.0f} s" if n <= 6 else f"{dofs:.2g} unknowns"
     return (
-        f"the h/2 check went {a:.3g} -> {b:.3g} when h was halved (x{b / a:.2f}): at that "
+        f"the h/2 check went {a:.3g} -> {b:.3g} when h was halved (x{rho:.2f}): at that "
         f"rate the noise band {q['noise_band']:.4g} needs {n} more halvings (h = {h} mm, "
         f"about {size}), beyond {' and '.join(o for o in over if o)}"
-        + (PREASYMPTOTIC if b / a > SLOW_FALL else "")
+        + (PREASYMPTOTIC if rho > sg.SLOW_FALL else "")
     )
 
 
 PREASYMPTOTIC = (
-    f"; a fall slower than x{SLOW_FALL:g} per halving is slower than the discretisation's "
+    f"; a fall slower than x{sg.SLOW_FALL:g} per halving is slower than the discretisation's "
     "order: these meshes are not yet asymptotic (a feature finer than h, such as the boundary "
     "layers of stiff fibres, dominates their error), so the halvings counted at that rate are a "
     "guess"
@@ -246,7 +245,8 @@ def diagnose_on_mesh(
     }
     if stopped:
         rank0(logger, comm, f"[mesh] not refined further: {stopped}")
-    hint = stiff_yarn_note(levels, d.final_fit) if d.too_coarse() else None
+    hint = sg.stiff_yarn_note(levels, d.final_fit) if d.too_coarse() else None
+    d.mesh_selection["yarn_note"] = hint  # Diagnosis.notes says it again
     if hint:
         rank0(logger, comm, f"[mesh] {hint}")
     say_implausible(getattr(d, "implausible", None), comm)  # the last level's only

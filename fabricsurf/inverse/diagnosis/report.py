@@ -11,7 +11,6 @@ from fabricsurf.inverse.diagnosis import significance as sg
 from fabricsurf.inverse.diagnosis.excess_text import outcome_text
 from fabricsurf.inverse.diagnosis.ties import Tie
 from fabricsurf.inverse.fitting.result import FitResult, strip_rows
-from fabricsurf.inverse.fitting.stiff_limit import STIFF_CAP
 from fabricsurf.model.terms import EFFECTS
 
 UNCERTAINTY_KEYS = (
@@ -107,10 +106,8 @@ class Diagnosis:
         if out and out[0] and self.too_coarse():  # the mesh's own error is spread too
             out[0] += "; but the h/2 check calls the mesh too coarse: refine h before reading it"
         out += [f"implausible modulus: {q['text']}" for q in self.implausible or []]
-        if self.too_coarse():
-            out.append(
-                stiff_yarn_note((self.mesh_selection or {}).get("levels", []), self.final_fit)
-            )
+        if self.too_coarse():  # the mesh selection's advice on stiff yarns, if it gave one
+            out.append((self.mesh_selection or {}).get("yarn_note"))
         return [t for t in out if t]
 
     def mesh_note(self) -> str:
@@ -266,35 +263,3 @@ def where_unexplained(exps: list, res: FitResult, lead: dict | None = None) -> d
         "best_lead": lead,
         "figure": "error_vs_step.png and error_map.png of the final model",
     }
-
-
-STIFF_YARNS = 1e4
-"""K/k_s from which fitted elastic yarns' boundary layers (about √(k_s/K) of the specimen's
-width) are thinner than a percent of it: beyond any mesh the h/2 check asks for."""
-SLOW_FALL = 0.5
-"""A fall of the h/2 check per halving slower than this is slower than the discretisation's
-order explains (the meshes are not yet asymptotic)."""
-
-
-def stiff_yarn_note(levels: list[dict], fit) -> str | None:
-    """What to do when fitted elastic yarns make the mesh too coarse: the h/2 check fell more
-    slowly than the discretisation's order over the last two levels, and the fit put the free
-    fibre moduli at K ≥ :data:`STIFF_YARNS` k_s (below the stiff limit, where they are held
-    already). None otherwise (docs/speed.md, "Two force-only curves of different sizes")."""
-    chi2 = [q.get("chi2_h") for q in levels[-2:]]
-    if len(chi2) < 2 or not all(chi2) or chi2[1] / chi2[0] <= SLOW_FALL:
-        return None
-    p, free = fit.params(), {fit.names[i] for i in fit.free}
-    fibre, k_s = p.get("fibre_stretch", {}), p.get("shear", {}).get("k_s")
-    if not fibre or not k_s or not any(f"fibre_stretch.{q}" in free for q in fibre):
-        return None
-    K = min(fibre.values())
-    if K < STIFF_YARNS * k_s or K >= STIFF_CAP:
-        return None
-    return (
-        f"the yarns are fitted at K = {K:.3g} N/mm against k_s = {k_s:.3g} N/mm (K/k_s = "
-        f"{K / k_s:.2g}): their boundary layers are far thinner than these meshes, which is why "
-        f"the h/2 check falls so slowly (x{chi2[1] / chi2[0]:.2f} per halving); yarns this "
-        "stiff are better held at a stiffness of their own: --params with fibre_stretch k_l and "
-        "k_m from a tensile test (or a penalty such as 6e5 N/mm) and --fixed fibre_stretch"
-    )

@@ -37,6 +37,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from fabricsurf.inverse.fitting.stiff_limit import STIFF_CAP
+
 LEVEL = 0.999
 FRACTION_OF_EXCESS = 0.25
 
@@ -101,4 +103,43 @@ def significant(
     return (
         f_test(chi2_base, p_base, chi2_new, p_new, n)
         and share_of_excess(chi2_base, p_base, chi2_new, n) >= FRACTION_OF_EXCESS
+    )
+
+
+SLOW_FALL = 0.5
+"""A fall of the h/2 check per halving slower than this is slower than the discretisation's
+order explains (the meshes are not yet asymptotic)."""
+STIFF_YARNS = 1e4
+"""K/k_s from which fitted elastic yarns' boundary layers (about √(k_s/K) of the specimen's
+width) are thinner than a percent of it: beyond any mesh the h/2 check asks for."""
+
+
+def fall(levels: list[dict]) -> float | None:
+    """The h/2 check's χ²_h of the last level over the one before (its fall per halving);
+    None with fewer than two levels or a check that is zero or missing."""
+    chi2 = [q.get("chi2_h") or 0.0 for q in levels[-2:]]
+    return chi2[1] / chi2[0] if len(chi2) == 2 and min(chi2) > 0.0 else None
+
+
+def stiff_yarn_note(levels: list[dict], fit) -> str | None:
+    """What to do when fitted elastic yarns make the mesh too coarse: the h/2 check fell more
+    slowly than the discretisation's order over the last two levels, and the fit put the free
+    fibre moduli at K ≥ :data:`STIFF_YARNS` k_s (below the stiff limit, where they are held
+    already). None otherwise (docs/speed.md, "Two force-only curves of different sizes")."""
+    rho = fall(levels)
+    if rho is None or rho <= SLOW_FALL:
+        return None
+    p, free = fit.params(), {fit.names[i] for i in fit.free}
+    fibre, k_s = p.get("fibre_stretch", {}), p.get("shear", {}).get("k_s")
+    if not fibre or not k_s or not any(f"fibre_stretch.{q}" in free for q in fibre):
+        return None
+    K = min(fibre.values())
+    if K < STIFF_YARNS * k_s or K >= STIFF_CAP:
+        return None
+    return (
+        f"the yarns are fitted at K = {K:.3g} N/mm against k_s = {k_s:.3g} N/mm (K/k_s = "
+        f"{K / k_s:.2g}): their boundary layers are far thinner than these meshes, which is why "
+        f"the h/2 check falls so slowly (x{rho:.2f} per halving); yarns this "
+        "stiff are better held at a stiffness of their own: --params with fibre_stretch k_l and "
+        "k_m from a tensile test (or a penalty such as 6e5 N/mm) and --fixed fibre_stretch"
     )
