@@ -226,60 +226,65 @@ def square_divisions(side: float, h: float) -> int:
     return max(2, round(side / h))
 
 
-def square_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (i, j), 0 ≤ i, j ≤ n, and the triangles of the n × n unit squares, each cut
-    along its diagonal parallel to x = y (so the grid is its own mirror image in that line)."""
-    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="xy")
+def square_triangles(n: int, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (i, j), 0 ≤ i ≤ n, 0 ≤ j ≤ m (default n), and the triangles of the n × m unit
+    squares, each cut along its diagonal parallel to x = y (so the n × n grid is its own mirror
+    image in that line)."""
+    m = n if m is None else m
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(m + 1), indexing="xy")
     verts = np.column_stack([i.ravel(), j.ravel()]).astype(float)
-    a = (np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]).ravel()
+    a = (np.arange(n)[None, :] + (n + 1) * np.arange(m)[:, None]).ravel()
     tri = np.concatenate(
         [np.column_stack([a, a + 1, a + n + 2]), np.column_stack([a, a + n + 2, a + n + 1])]
     )
     return verts, tri.astype(np.int64)
 
 
-def quarter_divisions(half: float, h: float, theta_deg: float) -> tuple[int, int]:
-    """(P, Q): the divisions of the quarter [0, half]² along x and y at size h
-    (:func:`quarter_blank`)."""
+def quarter_divisions(half_x: float, half_y: float, h: float, theta_deg: float) -> tuple[int, int]:
+    """(P, Q): the divisions of the quarter [0, half_x] × [0, half_y] along x and y at size h
+    (:func:`quarter_blank`); ValueError (from :func:`lattice_divisions`) when no lattice at ±θ
+    fits the rectangle."""
     if theta_deg == 0.0:
-        return square_divisions(half, h), square_divisions(half, h)
-    return lattice_divisions(half, half, h, theta_deg)
+        return square_divisions(half_x, h), square_divisions(half_y, h)
+    return lattice_divisions(half_x, half_y, h, theta_deg)
 
 
 def quarter_triangles(P: int, Q: int, theta_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """The quarter's lattice (integer vertex coordinates, triangles) with the cut of
     :func:`quarter_blank`."""
     if theta_deg == 0.0:
-        return square_triangles(P)
+        return square_triangles(P, Q)
     return lattice_triangles(P, Q, lambda p, q: p > q)
 
 
 def quarter_blank(
-    half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
+    half_x: float, half_y: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
 ) -> Specimen:
-    """The quarter [0, half]² of a square blank meshed along its fibres.
+    """The quarter [0, half_x] × [0, half_y] of a rectangular blank meshed along its fibres.
 
     Fibres at ±θ (0 < θ < 90°): the rhombic lattice above, each rhombus centred at (p, q) cut
     along x where p > q and along y where p < q; at θ = 45° the mesh is then its own mirror
     image in the diagonal, so a set-up symmetric about the diagonal has a discrete solution that
-    is symmetric to round-off. θ = 0, fibres along the sides (0°/90°): a square grid of cell
-    ≈ h cut along the diagonal parallel to x = y, its own mirror image in that diagonal.
+    is symmetric to round-off. θ = 0, fibres along the sides (0°/90°): a grid of cells ≈ h cut
+    along the diagonals parallel to x = y, its own mirror image in that diagonal on a square.
+    A rectangle at ±θ takes the lattice whose cells' diagonals are within
+    ANGLE_TOLERANCE_DEG of the fibres (ValueError when none is near h).
     """
-    P, Q = quarter_divisions(half, h, theta_deg)
+    P, Q = quarter_divisions(half_x, half_y, h, theta_deg)
     if comm.rank == 0:
         verts, tri = quarter_triangles(P, Q, theta_deg)
-        x = np.column_stack([verts[:, 0] * half / P, verts[:, 1] * half / Q])
+        x = np.column_stack([verts[:, 0] * half_x / P, verts[:, 1] * half_y / Q])
     else:
         x, tri = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
     msh = distributed_mesh(comm, x, tri)
-    ft = tag_rectangle_edges(msh, half, half)
+    ft = tag_rectangle_edges(msh, half_x, half_y)
     msh.topology.create_connectivity(1, 2)
     return Specimen(
         msh,
         ft,
-        float(half),
-        float(half),
-        points=corner_points(half, half),
+        float(half_x),
+        float(half_y),
+        points=corner_points(half_x, half_y),
         kind="aligned",
-        h=math.hypot(half / P, half / Q) if theta_deg else half / P,
+        h=math.hypot(half_x / P, half_y / Q) if theta_deg else max(half_x / P, half_y / Q),
     )

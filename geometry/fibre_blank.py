@@ -216,12 +216,13 @@ def fibre_blank(
 
 
 def mirrored_quarter(
-    half: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
+    half_x: float, half_y: float, h: float, theta_deg: float, comm: MPI.Comm = MPI.COMM_WORLD
 ) -> Specimen:
-    """The square [−half, half]² as the four mirror images of
-    geometry.aligned.quarter_blank(half, h, θ): the quarter's own mesh, unfolded (to check the
-    full blank against the quarter with mirror conditions on the same discretisation)."""
-    P, Q = quarter_divisions(half, h, theta_deg)
+    """The rectangle [−half_x, half_x] × [−half_y, half_y] as the four mirror images of
+    geometry.aligned.quarter_blank(half_x, half_y, h, θ): the quarter's own mesh, unfolded (to
+    check the full blank against the quarter with mirror conditions on the same
+    discretisation)."""
+    P, Q = quarter_divisions(half_x, half_y, h, theta_deg)
     if comm.rank == 0:
         verts, tri = quarter_triangles(P, Q, theta_deg)
         ts, key = [], {}
@@ -239,7 +240,7 @@ def mirrored_quarter(
                     )
                 )
         ij = np.array(list(key), dtype=float)
-        x = np.column_stack([ij[:, 0] * half / P, ij[:, 1] * half / Q])
+        x = np.column_stack([ij[:, 0] * half_x / P, ij[:, 1] * half_y / Q])
         tri = np.concatenate(ts).astype(np.int64)
     else:
         x, tri = np.zeros((0, 2)), np.zeros((0, 3), np.int64)
@@ -248,11 +249,11 @@ def mirrored_quarter(
     return Specimen(
         msh,
         ft,
-        2.0 * half,
-        2.0 * half,
+        2.0 * half_x,
+        2.0 * half_y,
         edge_tags=dict(EDGE_TAGS),
         points={"pole": (0, 0)},
         kind="aligned",
-        h=math.hypot(half / P, half / Q) if theta_deg else half / P,
+        h=math.hypot(half_x / P, half_y / Q) if theta_deg else max(half_x / P, half_y / Q),
         note="the aligned quarter's mesh mirrored into the four quadrants",
     )

@@ -13,7 +13,8 @@ motions removed (experiments/forming/blank.py) on a fibre lattice clipped to the
   mesh locked: the 72 mm square at K = 10⁵ N/mm stopped at 9.73 mm of a 12 mm stroke
   (docs/forming.md, "Blanks");
 * bad input refused before any computation, naming key and value;
-* the full blank of the symmetric square against the quarter with mirror conditions, on the
+* the full blank of the symmetric square (and of two rectangles, at ±45° and 0/90) against
+  the quarter with mirror conditions, on the
   quarter's own mesh unfolded (geometry.fibre_blank.mirrored_quarter), frictionless, at the
   set-up of tests/test_hemisphere.py (its compiled forms: the full blank keeps the quarter's
   mirror terms on edges it does not have). The two differ only in how the mirror lines' slope
@@ -223,8 +224,10 @@ def test_bad_blanks_refused_before_computing():
         HemispherePlugin.check_specimen(setup("circle", size=(60.0, 50.0)), "t")
     with pytest.raises(DataError, match=r"fibre_angles_deg = \[30.0, 50.0\].* 20° apart"):
         HemispherePlugin(setup("circle", (30.0, 50.0)), model(), H, COMM)
-    with pytest.raises(DataError, match=r"blank_domain = 'quarter' needs a square"):
+    with pytest.raises(DataError, match=r"'quarter': a square with fibre_angles_deg = \[30\.0"):
         HemispherePlugin(setup("square", (30.0, 120.0), blank_domain="quarter"), model(), H, COMM)
+    with pytest.raises(DataError, match=r"'quarter': no fibre-aligned lattice of a 36 × 29\.1"):
+        forming_blank.domain(setup("rectangle", size=(72.0, 58.2), blank_domain="quarter"), H)
     with pytest.raises(DataError, match=r"h = 12 mm is more than 0.5 of the punch radius"):
         forming_blank.check_mesh(setup("circle"), 12.0, False)
     narrow = setup("rectangle", (30.0, 120.0), (80.0, 50.0))
@@ -234,12 +237,19 @@ def test_bad_blanks_refused_before_computing():
 
 
 def test_domain_choice():
-    assert forming_blank.domain(setup()) == "quarter"
-    assert forming_blank.domain(setup(angles=(0.0, 90.0))) == "quarter"
-    assert forming_blank.domain(setup(angles=(30.0, 120.0))) == "full"
-    assert forming_blank.domain(setup(angles=(40.0, -50.0))) == "full"
-    assert forming_blank.domain(setup("circle")) == "full"
-    assert forming_blank.domain(setup(blank_domain="full")) == "full"
+    """The quarter wherever an aligned quarter mesh exists at h: squares and rectangles with
+    fibres at ±θ or 0/90, a rectangle at ±θ only when its sides fit a lattice at that angle
+    (36 × 30 at ±45°: 12 × 10 cells of 3 mm; 36 × 29.1: none within 0.05° near h = 4 mm)."""
+    domain = forming_blank.domain
+    assert domain(setup(), H) == "quarter"
+    assert domain(setup(angles=(0.0, 90.0)), H) == "quarter"
+    assert domain(setup("rectangle", size=(72.0, 60.0)), H) == "quarter"
+    assert domain(setup("rectangle", (0.0, 90.0), (72.0, 58.2)), H) == "quarter"
+    assert domain(setup("rectangle", size=(72.0, 58.2)), H) == "full"
+    assert domain(setup(angles=(30.0, 120.0)), H) == "full"
+    assert domain(setup(angles=(40.0, -50.0)), H) == "full"
+    assert domain(setup("circle"), H) == "full"
+    assert domain(setup(blank_domain="full"), H) == "full"
     assert forming_blank.bisector_deg((30.0, 120.0)) == -15.0  # (the other one: 75)
     assert forming_blank.bisector_deg((20.0, -50.0)) == -15.0
 
@@ -261,10 +271,18 @@ def formed(
     "a rank-independent identity of two discretisations; the full blank on 2 ranks "
     "is exercised by test_circle_rotated_pair_against_drapes (CI budget)"
 )
-def test_full_square_matches_quarter():
-    quarter, q = formed(setup(), model(), STROKE, STEPS)
+@pytest.mark.parametrize(
+    "blank, angles, size",
+    [
+        ("square", (45.0, -45.0), (BLANK, BLANK)),
+        ("rectangle", (45.0, -45.0), (72.0, 60.0)),
+        ("rectangle", (0.0, 90.0), (72.0, 64.0)),
+    ],
+)
+def test_full_blank_matches_quarter(blank, angles, size):
+    quarter, q = formed(setup(blank, angles, size), model(), STROKE, STEPS)
     quarter.close()
-    full, f = formed(setup(blank_domain="full"), model(), STROKE, STEPS)
+    full, f = formed(setup(blank, angles, size, blank_domain="full"), model(), STROKE, STEPS)
     full.close()
     assert q["record"]["domain"] == "quarter" and f["record"]["domain"] == "full"
     assert f["record"]["cells"] == 4 * q["record"]["cells"]

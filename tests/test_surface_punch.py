@@ -230,7 +230,7 @@ def test_lopsided_punch_is_not_solved_on_the_quarter():
         opts = {**TOOLING, "punch_surface": analytic.Sphere(20.0, centre), "blank_domain": domain}
         return PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts)
 
-    assert forming_blank.domain(setup((0.0, 0.0, -20.0))) == "quarter"
-    assert forming_blank.domain(setup((0.5, 0.0, -20.0))) == "full"
+    assert forming_blank.domain(setup((0.0, 0.0, -20.0)), H) == "quarter"
+    assert forming_blank.domain(setup((0.5, 0.0, -20.0)), H) == "full"
     with pytest.raises(DataError, match=r"'quarter': sphere .* not mirror-symmetric about x = 0"):
-        forming_blank.domain(setup((0.5, 0.0, -20.0), "quarter"))
+        forming_blank.domain(setup((0.5, 0.0, -20.0), "quarter"), H)

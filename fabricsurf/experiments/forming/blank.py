@@ -6,11 +6,12 @@ before any computation, its mesh and the removal of the full blank's rigid motio
 ``[tooling] blank``: ``square`` (default; side ``length`` = ``width``), ``rectangle``
 (``length`` along x × ``width``) or ``circle`` (diameter ``length`` = ``width``), centred on
 the punch axis, fibres at ``fibre_angles_deg`` to x. ``[tooling] blank_domain``: ``auto``
-(default), ``quarter`` or ``full``. A square whose fibre pair each of its mid-lines maps onto
-itself (±θ, or 0/90) is solved on one quarter with mirror conditions (4× cheaper); every other
-set-up on the full blank with its rigid motions removed (hemisphere.py). ``full`` on such a
-square solves the full blank on the quarter's mesh unfolded (a check of the two against each
-other); ``quarter`` where the set-up has no such symmetry is refused. A punch given as a
+(default), ``quarter`` or ``full``. A square or rectangle whose fibre pair each of its
+mid-lines maps onto itself (±θ, or 0/90) is solved on one quarter with mirror conditions (4×
+cheaper) when an aligned lattice fits its quarter at h (:func:`unfit`); every other set-up on
+the full blank with its rigid motions removed (hemisphere.py). ``full`` on such a blank solves
+the full blank on the quarter's mesh unfolded (a check of the two against each other);
+``quarter`` where the set-up has no quarter is refused, saying why. A punch given as a
 surface must be its own mirror image in both mid-planes for the quarter (checked on its
 points), else ``auto`` solves the full blank.
 """
@@ -28,7 +29,12 @@ from fabricsurf.experiments.base import PluginSetup, choice_option
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import checks
 from fabricsurf.experiments.forming.surfaces.files import punch_surface
-from fabricsurf.geometry.aligned import blank_angle, canonical_angles, quarter_blank
+from fabricsurf.geometry.aligned import (
+    blank_angle,
+    canonical_angles,
+    quarter_blank,
+    quarter_divisions,
+)
 from fabricsurf.geometry.fibre_blank import fibre_blank, mirrored_quarter
 
 SHAPES = ("square", "rectangle", "circle")
@@ -36,8 +42,8 @@ DOMAINS = ("auto", "quarter", "full")
 KEYS = {
     "blank": "outline of the blank: square | rectangle | circle (default square; a circle's "
     "diameter is length = width)",
-    "blank_domain": "auto | quarter | full: the quarter with mirror conditions (squares "
-    "with fibres at ±θ or 0/90 only) or the full blank (default auto)",
+    "blank_domain": "auto | quarter | full: the quarter with mirror conditions (squares and "
+    "rectangles with fibres at ±θ or 0/90 only) or the full blank (default auto)",
 }
 MIN_FIBRE_ANGLE_DEG = 30.0
 """The fibre lines must be at least this far apart: the fibre lattice of edge h spaces the
@@ -84,17 +90,33 @@ def bisector_deg(angles: tuple[float, float]) -> float:
     return 0.5 * (a + b)
 
 
-def domain(setup: PluginSetup) -> str:
-    """``quarter`` or ``full`` (module docstring); a punch given as a surface must also be its
-    own mirror image in both mid-planes (checks.mirror_asymmetry) for the quarter."""
-    symmetric = shape(setup) == "square" and blank_angle(tuple(setup.fibre_angles_deg)) is not None
+def unfit(setup: PluginSetup, h: float) -> str | None:
+    """Why the blank has no aligned quarter at h (None: it has one): a circle, a fibre pair
+    that is not ±θ or 0/90, or a rectangle whose sides fit no lattice at ±θ near h."""
+    theta = blank_angle(tuple(setup.fibre_angles_deg))
+    if shape(setup) == "circle" or theta is None:
+        return (
+            f"a {shape(setup)} with fibre_angles_deg = {list(setup.fibre_angles_deg)} is not "
+            "mirror-symmetric about both mid-lines with an aligned mesh (a square or rectangle "
+            "with fibres at ±θ or [0, 90] is)"
+        )
+    try:
+        quarter_divisions(0.5 * setup.length, 0.5 * setup.width, h, theta)
+    except ValueError as e:
+        return str(e).removeprefix("geometry: ")
+    return None
+
+
+def domain(setup: PluginSetup, h: float) -> str:
+    """``quarter`` or ``full`` at mesh size h (module docstring); a punch given as a surface
+    must also be its own mirror image in both mid-planes (checks.mirror_asymmetry) for the
+    quarter."""
+    why = unfit(setup, h)
+    symmetric = why is None
     asked = setup.options.get("blank_domain", "auto")
     if asked == "quarter" and not symmetric:
         raise DataError(
-            f"hemisphere: [tooling] blank_domain = 'quarter' needs a square blank "
-            f"with fibres at ±θ or [0, 90] (mirror-symmetric about both mid-lines); "
-            f"this is a {shape(setup)} with fibre_angles_deg = "
-            f"{list(setup.fibre_angles_deg)}: use 'full' or 'auto'"
+            f"hemisphere: [tooling] blank_domain = 'quarter': {why}; use 'full' or 'auto'"
         )
     punch = punch_surface(setup.options) if symmetric and asked != "full" else None
     lopsided = None if punch is None else checks.mirror_asymmetry(punch)
@@ -153,7 +175,7 @@ def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
             f"radius ({R:g} mm): the mesh cannot follow the punch's cap; give "
             f"h ≤ {MAX_H_PER_R * R:g} mm (default R/6; R/10 resolves the tools)"
         )
-    if domain(setup) == "quarter":
+    if domain(setup, h) == "quarter":
         forming_options.check_mesh(setup, h, default)
         return
     sin_a = math.sin(math.radians(fibre_line_gap_deg(tuple(setup.fibre_angles_deg))))
@@ -197,15 +219,16 @@ def reach(setup: PluginSetup, direction_deg: float) -> float:
 
 def blank_mesh(setup: PluginSetup, domain_: str, theta: float | None, h: float, comm: MPI.Comm):
     """The quarter's aligned mesh (geometry.aligned.quarter_blank); for the full blank of a
-    symmetric square the quarter's unfolded (geometry.fibre_blank.mirrored_quarter); else the
-    fibre lattice clipped to the blank (geometry.fibre_blank.fibre_blank)."""
-    half = 0.5 * setup.length
+    blank that has one (:func:`unfit`) the quarter's unfolded
+    (geometry.fibre_blank.mirrored_quarter); else the fibre lattice clipped to the blank
+    (geometry.fibre_blank.fibre_blank)."""
+    a, b = 0.5 * setup.length, 0.5 * setup.width
     if domain_ == "quarter":
-        return quarter_blank(half, h, theta, comm)
-    if theta is not None and shape(setup) == "square":
-        return mirrored_quarter(half, h, theta, comm)
+        return quarter_blank(a, b, h, theta, comm)
+    if unfit(setup, h) is None:
+        return mirrored_quarter(a, b, h, theta, comm)
     outline = "circle" if shape(setup) == "circle" else "rectangle"
-    return fibre_blank(outline, half, 0.5 * setup.width, tuple(setup.fibre_angles_deg), h, comm)
+    return fibre_blank(outline, a, b, tuple(setup.fibre_angles_deg), h, comm)
 
 
 def pin_rigid_motions(p, R: float, rotation: bool) -> tuple[dict, tuple | None]:
