@@ -7,18 +7,24 @@ forming/tabulated_punch.py), its top at z = 0.
 The die and the holder: an opening 130 × 90 mm with corner radius 15 mm (a clearance of 5 mm all
 round) and a lip of 5 mm. A 240 mm square blank at ±45° (solved on the quarter), the fitted
 woven fabric with the forming demo's assumed bending and its holder (10 kPa, μ = 0.3), formed
-to 30 mm in 12 steps on meshes h = 5, 3.54 and 2.5 mm (``--h0``, ``--levels``). A punch whose top
+to 30 mm in 12 steps on meshes h = 5, 3.54 and 2.5 mm (``--h0``, ``--levels``); ``--locking``
+gives the fabric the forming demo's shear locking at that angle, ``--softening`` and
+``--stabilisation`` the punch's softened contact and the viscous drag; ``--width`` makes the
+blank a rectangle 240 mm × width and ``--domain`` chooses the solved domain (a rectangle at ±45°
+is solved on its quarter when its sides fit the fibre lattice). A punch whose top
 is flat over a large part of it is the hard case: the sheet lies on the flat with next to no
 pressure, and Newton's contact set flickers there (docs/tool_surfaces.md, "A box").
 
-Printed per mesh: cells of the quarter, unknowns, Newton iterations and cut steps of the
+Printed per mesh: the domain solved, its cells, unknowns, Newton iterations and cut steps of the
 converged steps, wall time, the last stroke reached, its punch force, the largest shear angle
-and the largest penetration into any tool (a run that stops says where and why); then, over
+and where it is (the reference position of its cell's midpoint), the largest penetration into
+any tool, the share of the punch's work the drag dissipated and the wrinkle indicator's area
+(a run that stops says where and why); then, over
 the runs that finished, the exponent of the time's growth with the cells and the differences
 of force and shear between meshes.
 
 Run: ``mpirun -n 2 python benchmarks/forming_box.py [--h0 5] [--levels 3] [--fillet 25]
-[--softening 0]``.
+[--softening 0] [--stabilisation 0] [--locking 0] [--width 240] [--domain auto]``.
 """
 
 import argparse
@@ -27,6 +33,8 @@ import math
 import time
 from itertools import pairwise
 
+import numpy as np
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepError
@@ -58,17 +66,29 @@ TOOLING = {
 }
 
 
-def run(h: float, fillet: float, softening: float) -> dict:
-    """One mesh's run; a run that stops (a step Newton cannot follow) reports where."""
-    tooling = {**TOOLING, "contact_softening": softening}
+def run(h: float, args: argparse.Namespace) -> dict:
+    """One mesh's run with the command line's options; a run that stops (a step Newton cannot
+    follow) reports where. ``args.locking``: the angle (deg) at which the fabric's shear locks
+    (k₄ = k_s/γ_lock², the forming demo's variant), 0: the fitted fabric without locking."""
+    tooling = {
+        **TOOLING,
+        "contact_softening": args.softening,
+        "stabilisation": args.stabilisation,
+        "blank": "square" if args.width == BLANK else "rectangle",
+        "blank_domain": args.domain,
+    }
     opts = HemispherePlugin.parse_options({"tooling": tooling}, 1.0, "box")
     params = parts.documented_fit()["params"]
     model = parts.forming_model(params, BENDING, BENDING)
-    opts = {**opts, "punch_surface": punch(fillet)}
-    setup = PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts)
+    opts = {**opts, "punch_surface": punch(args.fillet)}
+    setup = PluginSetup("hemisphere", BLANK, args.width, (45.0, -45.0), opts)
+    locking = args.locking
     t0 = time.perf_counter()
     with HemispherePlugin(setup, model, h, comm) as e:
-        parts.set_moduli(e, parts.fitted_values(params, BENDING))
+        values = parts.fitted_values(params, BENDING)
+        if locking:
+            values["shear_locking"] = {"k4": params["shear"]["k_s"] / math.radians(locking) ** 2}
+        parts.set_moduli(e, values)
         stopped = None
         try:
             e.run(STROKE, STEPS, label=f"h = {h:.3g}: ")
@@ -77,6 +97,7 @@ def run(h: float, fillet: float, softening: float) -> dict:
         totals = StrokeLog.totals(e.steps)
         return {
             "h": h,
+            "domain": e.domain,
             "cells": comm.allreduce(e.specimen.mesh.topology.index_map(2).size_local),
             "dofs": e.problem.V.dofmap.index_map.size_global * 3,
             "newton": totals["newton_iterations"],
@@ -85,9 +106,22 @@ def run(h: float, fillet: float, softening: float) -> dict:
             "stroke": e.stroke[-1],
             "force": e.force[-1],
             "max_shear": e.max_shear_deg(),
+            "where": most_sheared(e),
             "penetration": max(e.max_penetration(t) for t in ("punch", "die", "holder")),
+            "damped": e.damped() / float(np.trapz(e.force, e.stroke)),
+            "wrinkle": e.area_fractions()["wrinkle"],
             "stopped": stopped,
         }
+
+
+def most_sheared(e: HemispherePlugin) -> tuple[float, float]:
+    """The reference (X, Y) of the midpoint of the cell with the largest shear (mm)."""
+    msh = e.specimen.mesh
+    cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    gamma = np.abs(e._gamma_q.eval(cells)).max(axis=1)
+    k = int(np.argmax(gamma)) if len(cells) else 0
+    mine = (float(gamma[k]), *dmesh.compute_midpoints(msh, 2, cells[k : k + 1])[0][:2])
+    return max(comm.allgather(mine if len(cells) else (-1.0, 0.0, 0.0)))[1:]
 
 
 def main() -> None:
@@ -98,24 +132,34 @@ def main() -> None:
     parser.add_argument(
         "--softening", type=float, default=0.0, help="the punch's contact softening (mm)"
     )
+    parser.add_argument(
+        "--stabilisation", type=float, default=0.0, help="the viscous drag η (N/mm²)"
+    )
+    parser.add_argument(
+        "--locking", type=float, default=0.0, help="the fabric's locking angle (deg; 0: none)"
+    )
+    parser.add_argument(
+        "--width", type=float, default=BLANK, help="the blank's width along y (mm; a rectangle)"
+    )
+    parser.add_argument("--domain", default="auto", help="blank_domain: auto, quarter or full")
     args = parser.parse_args()
     configure()
-    rows = [
-        run(args.h0 / math.sqrt(2.0) ** k, args.fillet, args.softening) for k in range(args.levels)
-    ]
+    rows = [run(h, args) for h in (args.h0 / math.sqrt(2.0) ** k for k in range(args.levels))]
 
     def say(msg: str) -> None:
         rank0(logger, comm, msg)
 
     say(
-        "    h  cells   dofs  Newton cuts  wall (s)  stroke (mm)  force (N)  max shear (deg)  "
-        "penetration (mm)"
+        "    h  domain  cells   dofs  Newton cuts  wall (s)  stroke (mm)  force (N)  "
+        "max shear (deg)  at (X, Y) mm  penetration (mm)  drag's share of the work  wrinkle area"
     )
     for r in rows:
         say(
-            f"{r['h']:5.2f} {r['cells']:6d} {r['dofs']:6d} {r['newton']:7d} {r['cuts']:4d} "
+            f"{r['h']:5.2f} {r['domain']:>7} {r['cells']:6d} {r['dofs']:6d} {r['newton']:7d} "
+            f"{r['cuts']:4d} "
             f"{r['seconds']:9.1f} {r['stroke']:12.2f} {r['force']:10.4f} {r['max_shear']:16.2f} "
-            f"{r['penetration']:17.2e}"
+            f" ({r['where'][0]:5.1f}, {r['where'][1]:5.1f}) {r['penetration']:17.2e} "
+            f"{r['damped']:25.2%} {r['wrinkle']:13.2%}"
         )
         if r["stopped"]:
             say(f"  h = {r['h']:.3g} stopped: {r['stopped']}")

@@ -234,6 +234,26 @@ def test_step_log_lines(caplog):
     assert (total["newton_iterations"], total["cuts"], total["fallbacks"]) == (19, 1, 1)
 
 
+def test_step_log_names_a_collapsing_net(caplog):
+    """The largest shear enters each step's line and record; past COLLAPSE_DEG (80°: the
+    fibres within 10° of parallel) a warning says the net is near collapse, once."""
+    shears = iter([45.0, 85.0, 86.0])
+    caplog.set_level(logging.DEBUG, logger="fabricsurf")
+    book = StrokeLog(COMM, lambda: np.zeros(1), lambda: 0, "", lambda: next(shears))
+    for k in range(3):
+        book.step(k, 1.0 + k, 0.5, 5, 1, 3)
+    assert [r["max_shear_deg"] for r in book.records] == [45.0, 85.0, 86.0]
+    lines = [r.getMessage() for r in caplog.records if r.levelno == PROGRESS]
+    warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    if COMM.rank == 0:
+        assert "0 contact changes, largest shear 45.0°, " in lines[0]
+        assert len(warned) == 1  # the first step past it
+        assert warned[0].startswith("the largest shear angle reached 85.0°, past 80°")
+        assert "add shear_locking" in warned[0]
+    else:
+        assert lines == [] and warned == []
+
+
 def trapezoid(s, F, every: int) -> float:
     return float(np.trapz(F[::every], s[::every]))
 

@@ -1,21 +1,23 @@
 """Forming over a hemispherical punch (the woven-fabric hemisphere benchmark) as a 3D plug-in.
 
-A square blank of side B = ``length`` = ``width`` (mm), centred on the punch axis, with fibres
-at ±θ to its sides or along them (0°/90°), lies at z = 0 between a blank holder and a die with
+A blank (a square of side B = ``length`` = ``width`` mm by default; a rectangle or a circle:
+forming/blank.py), centred on the punch axis, with fibres at ±θ to its sides or along them
+(0°/90°) or any other pair, lies at z = 0 between a blank holder and a die with
 an opening of radius R_o = R + clearance (or a rectangle with rounded corners:
 forming/surfaces/opening.py); a rigid hemispherical punch of radius R (or any punch given as a
 surface: forming/tabulated_punch.py), its pole at z = s (the stroke, the load path, mm), pushes
 it up through the opening (forming/tools.py: signed distances, penalty contact, holder
 friction, the punch force as the work conjugate of the stroke).
 
-A set-up symmetric about the blank's mid-lines is solved on one quarter [0, B/2]² with mirror
-conditions, meshed along the fibres (geometry/aligned.py) so that stiff fibres do not lock;
-other blanks and fibre pairs on the full blank, its rigid motions pinned (forming/blank.py;
-which one: :attr:`discretisation`). Reported forces and energies are the whole blank's. The
-stroke is followed by forming/contact_newton.py; options are checked before any computation
-(forming/options.py); each converged step is logged (forming/stroke_log.py). Outputs: the shear
-angle, fibre directions and tensions, normal curvatures, contact pressure, the wrinkling
-indicator and the region beyond the locking angle (forming/indicators.py; docs/forming.md).
+A set-up symmetric about the blank's mid-lines is solved on one quarter [0, L/2] × [0, W/2]
+with mirror conditions, meshed along the fibres (geometry/aligned.py) so that stiff fibres do
+not lock; other blanks and fibre pairs on the full blank, its rigid motions pinned
+(forming/blank.py; which one: :attr:`discretisation`). Reported forces and energies are the
+whole blank's. The stroke is followed by forming/contact_newton.py; options are checked before
+any computation (forming/options.py); each converged step is logged (forming/stroke_log.py).
+Outputs: the shear angle, fibre directions and tensions, normal curvatures, contact pressure,
+the wrinkling indicator and the region beyond the locking angle (forming/indicators.py;
+docs/forming.md).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from mpi4py import MPI
 from fabricsurf.discretise.energy import placement
 from fabricsurf.discretise.evaluation import quadrature_expression
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
-from fabricsurf.discretise.stepping import LoadStepper
+from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
 from fabricsurf.experiments.forming import blank as forming_blank
@@ -39,7 +41,12 @@ from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.blank_outputs import BlankOutputs
 from fabricsurf.experiments.forming.contact_newton import FALLBACK, FULL_STEP_ITERATIONS
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
-from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.experiments.forming.stroke_log import (
+    COLLAPSE_DEG,
+    StrokeLog,
+    collapse_text,
+    stabilisation_share,
+)
 from fabricsurf.experiments.forming.tabulated_punch import checked_punch, die_check
 from fabricsurf.experiments.forming.tools import ContactProblem, Tools
 from fabricsurf.geometry.aligned import blank_angle
@@ -92,7 +99,7 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         self.R = o["punch_radius"]
         self.theta = blank_angle(tuple(setup.fibre_angles_deg))
         self.diagonal_deg = forming_blank.bisector_deg(tuple(setup.fibre_angles_deg))
-        self.domain = forming_blank.domain(setup)
+        self.domain = forming_blank.domain(setup, h)
         self.copies = 4.0 if self.domain == "quarter" else 1.0
         self.specimen = forming_blank.blank_mesh(setup, self.domain, self.theta, h, comm)
         msh = self.specimen.mesh
@@ -236,7 +243,9 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         if self.tools.softening:  # a softened punch presses the flat blank at s = 0 already
             self.solver.solve()
             self.force = [self.reaction()]
-        book = StrokeLog(self.comm, self.active_set, lambda: self.solver.fallbacks, label)
+        book = StrokeLog(
+            self.comm, self.active_set, lambda: self.solver.fallbacks, label, self.max_shear_deg
+        )
         self.steps = book.records
 
         def done(k: int, s: float, its: int) -> None:
@@ -248,7 +257,16 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
                 on_step(k, s)
 
         self.stepper = LoadStepper(self.solver, self.set_load, done, label=label)
-        return self.stepper.run(np.linspace(stroke / steps, stroke, steps))
+        try:
+            its = self.stepper.run(np.linspace(stroke / steps, stroke, steps))
+        except LoadStepError as err:
+            last = self.steps[-1]["max_shear_deg"] if self.steps else 0.0
+            if last <= COLLAPSE_DEG:
+                raise
+            raise err.carrying(f"{err}; at the last converged step {collapse_text(last)}") from err
+        if self.tools.stabilisation:
+            stabilisation_share(self.comm, self.stroke, self.force, self.damped(), label)
+        return its
 
     # -- observations of the compare/fit/diagnose loop (docs/forming.md, "In the loop") -----
     takes_shear = True

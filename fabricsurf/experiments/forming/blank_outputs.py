@@ -61,6 +61,11 @@ class BlankOutputs:
         (N·mm, whole blank): with it the work balance reads ∫ F ds = ΔΠ + D."""
         return self.copies * self.solver.dissipated
 
+    def damped(self) -> float:
+        """The energy dissipated by the viscous stabilisation since the start of :meth:`run`
+        (N·mm, whole blank; 0 when it is off): ∫ F ds = ΔΠ + D + D_v."""
+        return self.copies * self.solver.damped
+
     def area_fractions(self) -> dict[str, float]:
         """Fractions of the blank's reference area that wrinkle and that are beyond locking."""
         area = forming_blank.area(self.setup)

@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import Protocol
 
 import numpy as np
+import ufl
 from dolfinx import cpp as _cpp
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
@@ -51,7 +52,9 @@ class StrokeTools(Protocol):
     stroke: fem.Constant
     stroke_n: fem.Constant
     eps: fem.Constant
+    damping: fem.Constant
     slip_rate: float
+    stabilisation: float
     R: float
 
     def tool_friction(self) -> bool: ...
@@ -72,8 +75,11 @@ class ContactSolver(SNESSolver):
     damps the overshoot at the kinks of the contact residual) before the load stepper cuts the
     increment (docs/forming.md, measured); after :data:`FALLBACK_STREAK` such repeats in a row
     the fallback options go first. :attr:`fallbacks` counts the repeats. A converged
-    solve adds the friction work of its step (``dissipation``, one quarter of the blank) to
-    :attr:`dissipated`. ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
+    solve adds the friction work of its step (``dissipation``, the solved domain) to
+    :attr:`dissipated`, and the viscous stabilisation's (``damping``, a form, or None when
+    it is off; its coefficient η/Δs set from the step's stroke, :meth:`_drag_forms`) to
+    :attr:`damped`.
+    ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
     friction potentials are compiled when first needed and added to R and J only while
     Tools.tool_friction() holds (Dirichlet rows and columns left out, as in the main forms;
     their lifting vanishes, every iterate meeting the homogeneous mirror conditions)."""
@@ -84,6 +90,7 @@ class ContactSolver(SNESSolver):
         tools: StrokeTools,
         u_n: fem.Function,
         dissipation,
+        damping=None,
         tool_friction: tuple | None = None,
         fallback: dict | None = None,
         **kw,
@@ -91,6 +98,7 @@ class ContactSolver(SNESSolver):
         super().__init__(*args, **kw)
         self.tools, self.u_n = tools, u_n
         self._dissipation = fem.form(dissipation)
+        self._damping = None if damping is None else self._drag_forms(damping)
         self._tool_friction, self._friction_forms = tool_friction, None
         self._bf = self.b.duplicate()
         options = args[5] if len(args) > 5 else kw.get("options")
@@ -101,7 +109,9 @@ class ContactSolver(SNESSolver):
     def reset(self) -> None:
         """Back to the flat blank at s = 0: no displacement, dissipation or path history."""
         self.u.x.array[:] = 0.0
-        self.dissipated, self.s_n = 0.0, 0.0
+        self.dissipated, self.damped, self.s_n = 0.0, 0.0, 0.0
+        if self._damping is not None:
+            self._tau_n.x.array[:] = 0.0
         self.u_prev: np.ndarray | None = None
         self.s_prev = 0.0
         self.fallbacks = 0
@@ -110,6 +120,23 @@ class ContactSolver(SNESSolver):
     def _release(self) -> None:
         super()._release()
         self._bf.destroy()
+
+    def _drag_forms(self, damping) -> tuple:
+        """(∫ (η/Δs)|Δr|² dX, ∫ τ_n·Δr dX) of a step, τ_n the drag's traction at the end of the
+        last converged step (zero at rest): their mean is the step's dissipation by the
+        trapezoid rule, the rule the punch's work is summed with, so that the work balance
+        closes to O(Δs²) (forming/friction.py)."""
+        self._tau_n = fem.Function(self.u.function_space, name="drag_n")
+        lag = ufl.inner(self._tau_n, self.u - self.u_n) * ufl.dx(self.u.function_space.mesh)
+        return fem.form(damping), fem.form(lag)
+
+    def _drag_step(self) -> None:
+        """Add the converged step's dissipation by the drag to :attr:`damped`; τ_n ← its
+        traction (η/Δs)(u − u_n)."""
+        now, lag = (fem.assemble_scalar(f) for f in self._damping)
+        self.damped += 0.5 * self.comm.allreduce(now + lag, op=MPI.SUM)
+        rate = float(self.tools.damping.value)
+        self._tau_n.x.array[:] = rate * (self.u.x.array - self.u_n.x.array)
 
     def _friction(self) -> tuple | None:
         """The compiled (residual, Jacobian) of the tools' friction while it is on, else None."""
@@ -167,6 +194,8 @@ class ContactSolver(SNESSolver):
         self.tools.stroke_n.value = self.s_n
         s = float(self.tools.stroke.value)
         self.tools.eps.value = self.tools.slip_rate * max(abs(s - self.s_n), 1e-6 * self.tools.R)
+        ds = abs(s - self.s_n)  # no drag on a solve at the same stroke (the softened start)
+        self.tools.damping.value = self.tools.stabilisation / ds if ds > 0.0 else 0.0
         self._predict(s)
         predicted = self.u.x.array.copy()
         first = self._fallback if self.fallback_first else None
@@ -186,4 +215,6 @@ class ContactSolver(SNESSolver):
             self.dissipated += self.comm.allreduce(
                 fem.assemble_scalar(self._dissipation), op=MPI.SUM
             )
+            if self._damping is not None:
+                self._drag_step()
         return reason, its

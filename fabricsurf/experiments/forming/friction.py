@@ -37,6 +37,16 @@ potentials not depending on s): ∫ F ds = ΔΠ + D, D the sum of the steps' τ�
 ∂Π/∂s alone (without −τ_z) would miss the punch friction's work, and the balance would fail by
 the punch's share of D. The discrete balance errs by the trapezoid rule's O(Δs²) on F and the
 explicit pressure's lag, so it converges as the steps are refined (tests/test_tool_friction.py).
+
+**Viscous stabilisation** (``stabilisation`` η, N/mm², off by default). A drag τ_v = η ṙ on
+the sheet's motion per unit stroke, ṙ = dr/ds, as the incremental potential of the step
+Φ_v = ∫ ½ (η/Δs) |r − r_n|² dX: its traction (η/Δs)(r − r_n) is η times the step's mean rate,
+and the energy it dissipates in the step, (η/Δs)|r − r_n|², tends to ∫ η |ṙ|² ds as the steps
+are refined, whatever their number. Where the quasi-static path is smooth it moves the answer
+by O(η); where it snaps (a wrinkle forming, a fold through), Newton has no nearby equilibrium
+to converge to, and the drag (whose stiffness η/Δs grows as the load stepper cuts Δs) carries
+the sheet through at a dissipated energy the run reports (docs/tool_surfaces.md). Φ_v does not
+depend on s at fixed u, so the punch force is unchanged in form and ∫ F ds = ΔΠ + D + D_v.
 """
 
 from __future__ import annotations
@@ -111,3 +121,24 @@ def punch_force_density(tools, r, r_n):
     (N/mm², module docstring)."""
     limit, t = punch_slip(tools, r, r_n)
     return -limit * t[2] / ufl.sqrt(ufl.dot(t, t) + tools.eps**2)
+
+
+def viscous_potential_density(tools, r, r_n):
+    """½ (η/Δs) |r − r_n|² (N/mm per unit reference area): the viscous stabilisation's
+    potential of the step, ``tools.damping`` = η/Δs (module docstring)."""
+    step = r - r_n
+    return 0.5 * tools.damping * ufl.dot(step, step)
+
+
+def viscous_dissipation_density(tools, r, r_n):
+    """(η/Δs) |r − r_n|², the drag's traction times the step's motion: the energy the
+    stabilisation dissipates in the step (N/mm per unit reference area)."""
+    step = r - r_n
+    return tools.damping * ufl.dot(step, step)
+
+
+def step_dissipation(tools, r, r_n) -> tuple:
+    """(the friction's dissipation density of the step on every tool; the viscous
+    stabilisation's, None while it is off)."""
+    friction = holder_dissipation_density(tools, r, r_n) + dissipation_density(tools, r, r_n)
+    return friction, viscous_dissipation_density(tools, r, r_n) if tools.stabilisation else None

@@ -44,6 +44,8 @@ TOOL_KEYS = {
     "die_corner_radius": "its corner radius (mm, default half the shorter side: round ends)",
     "contact_softening": "softening ε of the punch's contact (mm, default 0: the plain "
     "penalty; a punch with a large flat top needs about 1e-3)",
+    "stabilisation": "viscous drag η on the sheet's motion per unit stroke (N/mm², default 0: "
+    "off; the run reports the energy it dissipated)",
     "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
     "experiment.toml; its pole at z = 0, moving up along z; default: the hemisphere of "
     "radius punch_radius)",
@@ -83,9 +85,10 @@ RANGES = {
     "die_friction": (0.0, 2.0, ""),
     "friction_slip_rate": (0.0, 1.0, "mm/mm"),
     "locking_angle_deg": (0.0, 90.0, "deg"),
+    "stabilisation": (0.0, 1.0, "N/mm²"),
 }
-"""(low, high, unit) of each option: low excluded (the Coulomb coefficients: included), high
-included; "R": in punch radii."""
+"""(low, high, unit) of each option: low excluded (the Coulomb coefficients and the
+stabilisation: included), high included; "R": in punch radii."""
 FRICTION_KEYS = ("friction", "punch_friction", "die_friction")
 """Coulomb coefficients (default 0: frictionless) of the flange under the holder (both faces),
 of the punch and of the die's lip (forming_tools, forming_friction)."""
@@ -103,7 +106,7 @@ def _ranged(out: dict, key: str, where: str, R: float) -> None:
     low, high, unit = RANGES[key]
     scale, shown = (R, f" (= {high:g} R = {high * R:g} mm)") if unit == "R" else (1.0, "")
     v = out[key]
-    closed = key in FRICTION_KEYS
+    closed = key in (*FRICTION_KEYS, "stabilisation")
     if v < low * scale or (v == low * scale and not closed) or v > high * scale:
         lo = f"{low:g} ≤" if closed else f"{low:g} <"
         raise DataError(
@@ -121,7 +124,7 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
         out[key] = number_option(tables, "tooling", key, where, default) * length_scale
     for key, default in PLAIN_DEFAULTS.items():
         out[key] = number_option(tables, "tooling", key, where, default)
-    for key in FRICTION_KEYS:
+    for key in (*FRICTION_KEYS, "stabilisation"):
         out[key] = number_option(tables, "tooling", key, where, 0.0, positive=False)
     for key in RANGES:
         _ranged(out, key, where, R)
@@ -227,14 +230,14 @@ def check_specimen(setup: PluginSetup, where: str) -> None:
 def check_mesh(setup: PluginSetup, h: float, default: bool) -> None:
     """Refuse an element size whose quarter mesh would exceed :data:`MAX_ELEMENTS` cells
     (estimated before meshing as 2 per h × h square)."""
-    n = 2 * math.ceil(0.5 * setup.length / h) ** 2
+    n = 2 * math.ceil(0.5 * setup.length / h) * math.ceil(0.5 * setup.width / h)
     if n > MAX_ELEMENTS:
         what = f"the default h = R/6 = {h:g} mm" if default else f"h = {h:g} mm"
         raise DataError(
-            f"hemisphere: {what} would mesh the quarter of the {setup.length:g} mm "
-            f"blank with about {n:,} cells, more than {MAX_ELEMENTS:,}: give a "
-            f"larger h (at least {setup.length / math.sqrt(2 * MAX_ELEMENTS):.3g} "
-            "mm)"
+            f"hemisphere: {what} would mesh the quarter of the {setup.length:g} × "
+            f"{setup.width:g} mm blank with about {n:,} cells, more than {MAX_ELEMENTS:,}: "
+            f"give a larger h (at least "
+            f"{math.sqrt(setup.length * setup.width / (2 * MAX_ELEMENTS)):.3g} mm)"
         )
 
 

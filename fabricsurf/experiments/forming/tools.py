@@ -20,24 +20,17 @@ with ``contact_softening`` ε > 0 the punch's ⟨−d⟩ is the softplus ε ln(1
 pressure begins just before touching (a sheet lying on a flat punch top then has a stiffness
 there, and Newton's contact set does not flicker: docs/tool_surfaces.md, "A box").
 
-Friction under the holder (Coulomb, coefficient μ, optional): without it nothing resists the
-flange's draw-in, the fibres carry no tension, and the sheet spans the punch as a tent held by
-its small shear and bending stiffnesses instead of wrapping it (a membrane presses on a curved
-tool with p = T κ; with T = 0 only bending presses, at a few points). The holder's pressure p_h
-acts on both faces of the flange (holder below, die above), so the friction traction opposes
-the in-plane slip with magnitude 2 μ p_h w. It enters as the incremental dissipation potential
-of a load step (the variational update of Ortiz & Stainier 1999):
-Φ = ∫ 2 μ p_h w(σ_n) (√(|Δr_t|² + ε²) − ε) dX, Δr_t the in-plane slip since the last converged
-state r_n, ε = v_ε Δs the regularising slip of a step of stroke Δs (v_ε a slip rate, mm of slip
-per mm of stroke, so that the regularisation is of the slip rate and does not grow as the steps
-shrink); w is taken at r_n, so that the normal pressure is explicit within a step. Friction on
-the punch (μ_p, ``punch_friction``) and over the die's lip (μ_d, ``die_friction``) are
-potentials of the same kind with the tools' own contact pressure at r_n and the slip relative
-to the tool (all three: experiments/forming/friction.py); the last two are compiled as forms of
-their own and assembled only when μ_p or μ_d is not zero. The punch force is the work conjugate
-of the stroke, F = ∂(Π + Φ)/∂s at fixed u = ∫ (p_c n_z − τ_z) dX (p_c the punch's contact
-pressure, n_z the vertical component of its outward normal, τ_z that of its friction
-traction), so that ∫ F ds = ΔΠ + D along equilibrium states (forming_friction.py derives it).
+Friction (Coulomb, optional) under the holder (μ, on both faces of the flange: without it
+nothing resists the draw-in, the fibres carry no tension and the sheet spans the punch as a
+tent), on the punch (μ_p) and over the die's lip (μ_d) enters as incremental dissipation
+potentials of a load step from the last converged state r_n (Ortiz & Stainier 1999;
+experiments/forming/friction.py), the punch's and the lip's compiled as forms of their own and
+assembled only when μ_p or μ_d is not zero. With ``stabilisation`` η > 0 a viscous potential
+½ (η/Δs) |r − r_n|² joins them: a drag on the sheet's motion per unit stroke that carries the
+path through a snap (friction.py). The punch force is the work conjugate of the stroke,
+F = ∂(Π + Φ)/∂s at fixed u = ∫ (p_c n_z − τ_z) dX (p_c the punch's contact pressure, n_z the
+vertical component of its outward normal, τ_z that of its friction traction), so that
+∫ F ds = ΔΠ + D along equilibrium states, D the dissipation of friction and stabilisation.
 """
 
 from __future__ import annotations
@@ -85,18 +78,21 @@ class Tools:
         die_friction: float = 0.0,
         punch_surface=None,
         contact_softening: float = 0.0,
+        stabilisation: float = 0.0,
     ) -> None:
         self.R = float(R)
         self.outline = opening if isinstance(opening, Opening) else Opening.circle(opening)
         self.opening = OpeningForm(msh, self.outline)
         self.radius, self.gap, self.lip = (fem.Constant(msh, float(v)) for v in (R, gap, lip))
-        self.softening = float(contact_softening)
+        self.softening, self.stabilisation = float(contact_softening), float(stabilisation)
         self.k_c, self.p_h, self.mu, self.weight, self.eps_c = (
             fem.Constant(msh, float(v))
             for v in (k_c, pressure, friction, weight, self.softening or 1.0)
         )
         self.slip_rate = float(slip_rate)
-        self.eps, self.stroke, self.stroke_n = (fem.Constant(msh, v) for v in (1.0, 0.0, 0.0))
+        self.eps, self.stroke, self.stroke_n, self.damping = (
+            fem.Constant(msh, v) for v in (1.0, 0.0, 0.0, 0.0)
+        )  # damping: η/Δs of the step, set by the solver
         self.mu_punch = fem.Constant(msh, float(punch_friction))
         self.mu_die = fem.Constant(msh, float(die_friction))
         self.r_n = None
@@ -122,6 +118,7 @@ class Tools:
             o.get("die_friction", 0.0),
             punch_surface(o),
             o.get("contact_softening", 0.0),
+            o.get("stabilisation", 0.0),
         )
 
     def tool_friction(self) -> bool:
@@ -253,9 +250,13 @@ class ContactProblem(FabricProblem):
         return self.tools.energy_density(placement(self.u)) * self.dx
 
     def friction_energy(self):
-        """Φ, the holder's friction potential of the step from u_n (forming_friction.py)."""
+        """Φ, the holder's friction potential of the step from u_n, with the viscous
+        stabilisation's when it is on (forming_friction.py)."""
         r, r_n = placement(self.u), placement(self.u_n)
-        return forming_friction.holder_potential_density(self.tools, r, r_n) * self.dx
+        phi = forming_friction.holder_potential_density(self.tools, r, r_n)
+        if self.tools.stabilisation:
+            phi = phi + forming_friction.viscous_potential_density(self.tools, r, r_n)
+        return phi * self.dx
 
     def mirror(self, edge: str, axis: int) -> None:
         """Mirror symmetry about a straight edge normal to the reference axis ``axis``: the
@@ -279,10 +280,7 @@ class ContactProblem(FabricProblem):
 
     def _new_solver(self, F, J, nodal_forces) -> SNESSolver:
         r, r_n = placement(self.u), placement(self.u_n)
-        dissipation = (
-            forming_friction.holder_dissipation_density(self.tools, r, r_n)
-            + forming_friction.dissipation_density(self.tools, r, r_n)
-        ) * self.dx
+        friction, viscous = forming_friction.step_dissipation(self.tools, r, r_n)
         return ContactSolver(
             F,
             J,
@@ -295,6 +293,7 @@ class ContactProblem(FabricProblem):
             tools=self.tools,
             fallback=self.fallback,
             u_n=self.u_n,
-            dissipation=dissipation,
+            dissipation=friction * self.dx,
+            damping=None if viscous is None else viscous * self.dx,
             tool_friction=self.tool_friction(),
         )
