@@ -11,8 +11,8 @@
 #
 # Run with `mpirun -n 2 python demos/demo_forming.py --out out/forming` (`--quick`: small).
 # Each forming run prints a line per stroke step as it converges (Newton iterations, cuts,
-# contact changes, seconds); a run that cannot follow a step ends the demo with where it
-# stopped (`failure.json`).
+# contact changes, the largest shear, seconds); a run that cannot follow a step ends the demo
+# with where it stopped (`failure.json`).
 #
 # The model fitted to the Cao et al. 2008 curve by `demo_woven_fabric.py` (its params file,
 # `--params`; without one, the fitted values recorded in docs/woven_fabric.md, written to
