@@ -239,13 +239,15 @@ def test_bad_blanks_refused_before_computing():
 def test_domain_choice():
     """The quarter wherever an aligned quarter mesh exists at h: squares and rectangles with
     fibres at ±θ or 0/90, a rectangle at ±θ only when its sides fit a lattice at that angle
-    (36 × 30 at ±45°: 12 × 10 cells of 3 mm; 36 × 29.1: none within 0.05° near h = 4 mm)."""
+    (36 × 30 at ±45°: 12 × 10 cells of 3 mm; 36 × 29.1: none within 0.05° near h = 4 mm, nor
+    the 60 mm square at ±30°, which stopped with that ValueError before)."""
     domain = forming_blank.domain
     assert domain(setup(), H) == "quarter"
     assert domain(setup(angles=(0.0, 90.0)), H) == "quarter"
     assert domain(setup("rectangle", size=(72.0, 60.0)), H) == "quarter"
     assert domain(setup("rectangle", (0.0, 90.0), (72.0, 58.2)), H) == "quarter"
     assert domain(setup("rectangle", size=(72.0, 58.2)), H) == "full"
+    assert domain(setup(angles=(30.0, -30.0)), H) == "full"  # none within 0.05° near 4 mm
     assert domain(setup(angles=(30.0, 120.0)), H) == "full"
     assert domain(setup(angles=(40.0, -50.0)), H) == "full"
     assert domain(setup("circle"), H) == "full"

@@ -18,6 +18,7 @@ points), else ``auto`` solves the full blank.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -36,6 +37,9 @@ from fabricsurf.geometry.aligned import (
     quarter_divisions,
 )
 from fabricsurf.geometry.fibre_blank import fibre_blank, mirrored_quarter
+from fabricsurf.log import rank0
+
+logger = logging.getLogger(__name__)
 
 SHAPES = ("square", "rectangle", "circle")
 DOMAINS = ("auto", "quarter", "full")
@@ -225,8 +229,11 @@ def blank_mesh(setup: PluginSetup, domain_: str, theta: float | None, h: float, 
     a, b = 0.5 * setup.length, 0.5 * setup.width
     if domain_ == "quarter":
         return quarter_blank(a, b, h, theta, comm)
-    if unfit(setup, h) is None:
+    why = unfit(setup, h)
+    if why is None:
         return mirrored_quarter(a, b, h, theta, comm)
+    if theta is not None and shape(setup) != "circle":  # mirror-symmetric, but no quarter at h
+        rank0(logger, comm, f"hemisphere: solved on the full blank, 4× the cells: {why}")
     outline = "circle" if shape(setup) == "circle" else "rectangle"
     return fibre_blank(outline, a, b, tuple(setup.fibre_angles_deg), h, comm)
 
