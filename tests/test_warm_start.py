@@ -25,7 +25,7 @@ from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.forward import warm_start
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
-from fabricsurf.model.terms import parse_terms
+from fabricsurf.model.terms import FibreStretch, Shear, parse_terms
 from fabricsurf.studies import woven as wv
 
 TRUTH = {
@@ -171,3 +171,34 @@ def test_a_warm_start_at_the_rounding_floor_ends_by_the_correction_test():
     assert max(its for _, its in warm) <= 5  # quadratic from 1 % of the moduli away (cold: 5-8)
     assert sum(its for _, its in warm) < 0.75 * sum(its for _, its in cold)  # 122 against 210
     assert np.max(np.abs(f_warm - f_cold)) <= 1e-8 * np.max(np.abs(f_cold))
+
+
+def test_a_forward_model_of_another_model_starts_from_the_carried_states():
+    """The search beyond the vocabulary builds a new forward model on the diagnosis's mesh,
+    its final terms with one more at zero: seeded with the final run's states
+    (warm_start.carry, seed: moduli mapped by name) its first run takes one Newton iteration a
+    step (the forced one) where a cold run takes more, and gives the same prediction. A
+    carried run whose model has a modulus the new one lacks that is not zero is not used."""
+    exp = sy.template(48.0, 24.0, [1.0, 2.0], sy.grid_points(48.0, 24.0, 8, 4))
+    sy.continuum_data(exp, full_model(list(TRUTH), TRUTH), h=4.0)
+    sy.add_noise(exp, 0.005, 0.005, 31)  # residuals of order one, in noise units
+    with ForwardModel(exp, full_model(list(TRUTH), TRUTH), h=4.0) as fm:
+        fm.run(sens=True)
+        carried = warm_start.carry(fm, fm.values())
+        lacking = warm_start.carry(fm, fm.values())
+    more = full_model([*TRUTH, "shear_gradient"], {**TRUTH, "shear_gradient": {"A_Gamma": 0.0}})
+    runs = {}
+    for name, seed in (("cold", None), ("seeded", carried)):
+        with ForwardModel(exp, more, h=4.0) as fm:
+            if seed is not None:
+                warm_start.seed(fm, seed)
+            pred = fm.run()
+            runs[name] = (pred.newton, fm.residuals(pred)[0])
+    fewer = [FibreStretch(**TRUTH["fibre_stretch"]), Shear(**TRUTH["shear"])]
+    with ForwardModel(exp, fewer, h=4.0) as fm:
+        warm_start.seed(fm, lacking)  # geodesic_bending.A_g = 12 in the carried run
+        assert not fm.__dict__.get("_warm_start") or not warm_start.of(fm).runs
+    diff = np.abs(runs["seeded"][1] - runs["cold"][1]).max()
+    print({k: v[0] for k, v in runs.items()}, diff, np.abs(runs["cold"][1]).max())
+    assert runs["seeded"][0] == 2 and runs["cold"][0] > 2  # one forced iteration per step
+    assert diff < 1e-7  # Newton's tolerance: 2e-7 of the noise level (module docstring)

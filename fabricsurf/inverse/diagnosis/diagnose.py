@@ -60,6 +60,7 @@ from fabricsurf.inverse.fitting.preconditions import (
 )
 from fabricsurf.inverse.forward.profile import ROUND, progress, timed
 from fabricsurf.inverse.forward.runs import ForwardSet
+from fabricsurf.inverse.forward.warm_start import carry
 from fabricsurf.log import rank0
 from fabricsurf.model.terms import EFFECTS, make_term
 
@@ -266,4 +267,5 @@ def diagnose(
             meshes=meshes,
             excess_location=where,
             implausible=implausible,
+            carried=carry(fs, cur.values),
         )

@@ -57,6 +57,9 @@ class Diagnosis:
     beyond: dict | None = None
     """The search beyond the vocabulary on the final mesh (:func:`~.beyond.search_beyond`);
     None when it was not asked for."""
+    carried: list | None = None
+    """The final fit's converged states per experiment (forward.warm_start.carry), from which
+    the search beyond the vocabulary starts its forward set; not written out."""
     excess_location: dict | None = None
     """Where the final model's field excess sits: at the grips and zone boundaries or spread
     (:func:`~.excess.excess_location`)."""

@@ -111,6 +111,39 @@ def latest(fm, p: np.ndarray) -> None:
         of(m).latest(p)
 
 
+def carry(fm, p: np.ndarray) -> list[dict | None]:
+    """Per forward model of ``fm`` (a model or a set), its stored run nearest the moduli ``p``
+    (within :data:`TRUST`) with the sensitivities to correct it and the names of its moduli
+    (None where no run is that near): what a forward set of another model on the same meshes
+    starts from (:func:`seed`)."""
+    out: list[dict | None] = []
+    for m in getattr(fm, "models", [fm]):
+        ws = m.__dict__.get("_warm_start")
+        near = None if ws is None else ws._nearest(np.asarray(p, dtype=float))
+        out.append(None if near is None else {"names": list(m.names), **near[0], "du": near[1]})
+    return out
+
+
+def seed(fm, carried: list[dict | None]) -> None:
+    """Store in each forward model of ``fm`` the run :func:`carry` took from the same
+    experiment's model in another forward set on the same mesh, its moduli and sensitivities
+    mapped by name (a modulus the carried model lacks at this model's value). Nothing is
+    stored for a model whose states differ in size from the carried ones, or where the carried
+    model has a modulus this one lacks that is not zero: its answer would not be this one's."""
+    for m, c in zip(getattr(fm, "models", [fm]), carried, strict=False):
+        if c is None or not c["u"] or len(c["u"][0]) != len(m.test.solver.u.x.array):
+            continue
+        names = list(m.names)
+        if any(c["p"][j] for j, n in enumerate(c["names"]) if n not in names):
+            continue
+        p = np.array(m.values(), dtype=float)
+        for j, n in enumerate(c["names"]):
+            if n in names:
+                p[names.index(n)] = c["p"][j]
+        du = {names.index(c["names"][j]): v for j, v in c["du"].items() if c["names"][j] in names}
+        adopt(m, [{"p": p, "u": c["u"], "du": du}])
+
+
 def _bytes(run: dict) -> int:
     return sum(a.nbytes for a in run["u"]) + sum(a.nbytes for v in run["du"].values() for a in v)
 

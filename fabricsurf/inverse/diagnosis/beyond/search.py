@@ -25,6 +25,7 @@ from fabricsurf.inverse.diagnosis.report import Diagnosis
 from fabricsurf.inverse.diagnosis.ties import find_tie
 from fabricsurf.inverse.fitting.fit import fit
 from fabricsurf.inverse.fitting.preconditions import visible_effects
+from fabricsurf.inverse.forward import warm_start
 from fabricsurf.inverse.forward.runs import ForwardSet
 from fabricsurf.log import rank0
 from fabricsurf.model.terms import EFFECTS, make_term
@@ -102,6 +103,7 @@ def search_beyond(
         ft.registered(specs) as classes,
         ForwardSet(exps, model + [c(k=0.0) for c in classes.values()], h=h, comm=comm) as fs,
     ):
+        warm_start.seed(fs, diagnosis.carried or [])  # the final fit's states: a warm start
         idx = {n: [i for i, (t, _) in enumerate(fs.params) if t.name == n] for n in classes}
         free = [fs.names.index(n) for n in free_names]
         cur = fit(fs, free, scale_start=False, space="linear")
