@@ -41,6 +41,7 @@ import weakref
 from collections.abc import Callable
 
 import numpy as np
+from mpi4py import MPI
 
 from fabricsurf.discretise.solver import SNESSolver
 
@@ -129,12 +130,17 @@ def seed(fm, carried: list[dict | None]) -> None:
     experiment's model in another forward set on the same mesh, its moduli and sensitivities
     mapped by name (a modulus the carried model lacks at this model's value). Nothing is
     stored for a model whose states differ in size from the carried ones, or where the carried
-    model has a modulus this one lacks that is not zero: its answer would not be this one's."""
+    model has a modulus this one lacks that is not zero: its answer would not be this one's.
+    Collective: the ranks store alike or not at all (they must go on alike)."""
     for m, c in zip(getattr(fm, "models", [fm]), carried, strict=False):
-        if c is None or not c["u"] or len(c["u"][0]) != len(m.test.solver.u.x.array):
-            continue
         names = list(m.names)
-        if any(c["p"][j] for j, n in enumerate(c["names"]) if n not in names):
+        ok = (
+            c is not None
+            and bool(c["u"])
+            and len(c["u"][0]) == len(m.test.solver.u.x.array)
+            and not any(c["p"][j] for j, n in enumerate(c["names"]) if n not in names)
+        )
+        if not m.comm.allreduce(ok, op=MPI.LAND):
             continue
         p = np.array(m.values(), dtype=float)
         for j, n in enumerate(c["names"]):
