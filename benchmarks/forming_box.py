@@ -34,7 +34,6 @@ import time
 from itertools import pairwise
 
 import numpy as np
-from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from fabricsurf.discretise.stepping import LoadStepError
@@ -106,22 +105,12 @@ def run(h: float, args: argparse.Namespace) -> dict:
             "stroke": e.stroke[-1],
             "force": e.force[-1],
             "max_shear": e.max_shear_deg(),
-            "where": most_sheared(e),
+            "where": e.most_sheared(),
             "penetration": max(e.max_penetration(t) for t in ("punch", "die", "holder")),
             "damped": e.damped() / float(np.trapz(e.force, e.stroke)),
             "wrinkle": e.area_fractions()["wrinkle"],
             "stopped": stopped,
         }
-
-
-def most_sheared(e: HemispherePlugin) -> tuple[float, float]:
-    """The reference (X, Y) of the midpoint of the cell with the largest shear (mm)."""
-    msh = e.specimen.mesh
-    cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
-    gamma = np.abs(e._gamma_q.eval(cells)).max(axis=1)
-    k = int(np.argmax(gamma)) if len(cells) else 0
-    mine = (float(gamma[k]), *dmesh.compute_midpoints(msh, 2, cells[k : k + 1])[0][:2])
-    return max(comm.allgather(mine if len(cells) else (-1.0, 0.0, 0.0)))[1:]
 
 
 def main() -> None:

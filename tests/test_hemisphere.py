@@ -53,11 +53,12 @@ from hemisphere_case import BLANK, FRICTION, TOOLING, H, R
 from mpi4py import MPI
 
 from fabricsurf.discretise.evaluation import eval_points
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.errors import DataError
 from fabricsurf.experiments import get_test
 from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.forming import options as forming_options
-from fabricsurf.experiments.forming.stroke_log import StrokeLog
+from fabricsurf.experiments.forming.stroke_log import StrokeLog, collapsed
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.log import PROGRESS
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
@@ -252,6 +253,11 @@ def test_step_log_names_a_collapsing_net(caplog):
         assert "add shear_locking" in warned[0]
     else:
         assert lines == [] and warned == []
+    err = LoadStepError("load step 4 (target 4) failed", 4, 4.0, 3.0)
+    text = str(collapsed(err, book.records, lambda: (105.9, 4.7)))
+    assert text.startswith("load step 4 (target 4) failed; at the last converged step the ")
+    assert "reached 86.0° at the reference point (105.9, 4.7) mm, past 80°" in text
+    assert str(collapsed(err, book.records[:1], lambda: (0.0, 0.0))) == str(err)
 
 
 def trapezoid(s, F, every: int) -> float:

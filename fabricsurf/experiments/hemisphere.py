@@ -42,9 +42,8 @@ from fabricsurf.experiments.forming.blank_outputs import BlankOutputs
 from fabricsurf.experiments.forming.contact_newton import FALLBACK, FULL_STEP_ITERATIONS
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
 from fabricsurf.experiments.forming.stroke_log import (
-    COLLAPSE_DEG,
     StrokeLog,
-    collapse_text,
+    collapsed,
     stabilisation_share,
 )
 from fabricsurf.experiments.forming.tabulated_punch import checked_punch, die_check
@@ -260,10 +259,7 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
         try:
             its = self.stepper.run(np.linspace(stroke / steps, stroke, steps))
         except LoadStepError as err:
-            last = self.steps[-1]["max_shear_deg"] if self.steps else 0.0
-            if last <= COLLAPSE_DEG:
-                raise
-            raise err.carrying(f"{err}; at the last converged step {collapse_text(last)}") from err
+            raise collapsed(err, self.steps, self.most_sheared) from err
         if self.tools.stabilisation:
             stabilisation_share(self.comm, self.stroke, self.force, self.damped(), label)
         return its

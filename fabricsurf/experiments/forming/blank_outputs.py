@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 from dolfinx import fem
+from dolfinx.mesh import compute_midpoints
 from mpi4py import MPI
 
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
@@ -83,6 +84,19 @@ class BlankOutputs:
     def max_shear_deg(self) -> float:
         """max |γ| over the quadrature points of all ranks (deg)."""
         return math.degrees(max_over_cells(self._gamma_q, self.specimen.mesh))
+
+    def most_sheared(self) -> tuple[float, float]:
+        """The reference (X, Y) of the midpoint of the cell with the largest |γ| (mm; the
+        same on every rank): where a net that shears too far does so."""
+        msh = self.specimen.mesh
+        cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+        mine = (-1.0, 0.0, 0.0)
+        if len(cells):
+            gamma = np.abs(self._gamma_q.eval(cells)).max(axis=1)
+            k = int(np.argmax(gamma))
+            X = compute_midpoints(msh, 2, cells[k : k + 1])[0]
+            mine = (float(gamma[k]), float(X[0]), float(X[1]))
+        return max(self.comm.allgather(mine))[1:]
 
     def active_set(self) -> np.ndarray:
         """Whether each quadrature point of the owned cells penetrates the punch (this rank's

@@ -92,6 +92,8 @@ stabilisation: included), high included; "R": in punch radii."""
 FRICTION_KEYS = ("friction", "punch_friction", "die_friction")
 """Coulomb coefficients (default 0: frictionless) of the flange under the holder (both faces),
 of the punch and of the die's lip (forming_tools, forming_friction)."""
+ZERO_ALLOWED = (*FRICTION_KEYS, "stabilisation")
+"""Options whose default is 0 (off) and whose range includes it."""
 MAX_BLANK_RATIO = 20.0
 """The blank's side at most this many punch radii (forming tests: 3 to 6)."""
 MAX_ELEMENTS = 400_000
@@ -106,7 +108,7 @@ def _ranged(out: dict, key: str, where: str, R: float) -> None:
     low, high, unit = RANGES[key]
     scale, shown = (R, f" (= {high:g} R = {high * R:g} mm)") if unit == "R" else (1.0, "")
     v = out[key]
-    closed = key in (*FRICTION_KEYS, "stabilisation")
+    closed = key in ZERO_ALLOWED
     if v < low * scale or (v == low * scale and not closed) or v > high * scale:
         lo = f"{low:g} ≤" if closed else f"{low:g} <"
         raise DataError(
@@ -124,7 +126,7 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
         out[key] = number_option(tables, "tooling", key, where, default) * length_scale
     for key, default in PLAIN_DEFAULTS.items():
         out[key] = number_option(tables, "tooling", key, where, default)
-    for key in (*FRICTION_KEYS, "stabilisation"):
+    for key in ZERO_ALLOWED:
         out[key] = number_option(tables, "tooling", key, where, 0.0, positive=False)
     for key in RANGES:
         _ranged(out, key, where, R)

@@ -21,6 +21,7 @@ from collections.abc import Callable
 import numpy as np
 from mpi4py import MPI
 
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.log import rank0, warn
 
 logger = logging.getLogger(__name__)
@@ -101,14 +102,29 @@ class StrokeLog:
         }
 
 
-def collapse_text(shear_deg: float) -> str:
-    """What a shear past :data:`COLLAPSE_DEG` means, and what to do."""
+def collapse_text(shear_deg: float, where: str = "") -> str:
+    """What a shear past :data:`COLLAPSE_DEG` means (``where``: at which point), and what to
+    do."""
     return (
-        f"the largest shear angle reached {shear_deg:.1f}°, past {COLLAPSE_DEG:g}°: the net is "
-        "near collapse there (its fibres nearly parallel), which no woven fabric reaches; the "
-        "fabric model does not lock (add shear_locking, or stiffen it) or the blank is drawn "
-        "where it should wrinkle"
+        f"the largest shear angle reached {shear_deg:.1f}°{where}, past {COLLAPSE_DEG:g}°: the "
+        "net is near collapse there (its fibres nearly parallel), which no woven fabric "
+        "reaches; the fabric model does not lock (add shear_locking, or stiffen it) or the "
+        "blank is drawn where it should wrinkle"
     )
+
+
+def collapsed(
+    err: LoadStepError, records: list[dict], where: Callable[[], tuple[float, float]]
+) -> LoadStepError:
+    """The failure ``err`` of a run whose step ``records`` hold the largest shear of each step:
+    when the last converged step's is past :data:`COLLAPSE_DEG`, its message adds so, and the
+    reference point ``where()`` of the largest shear (a collective call); else unchanged."""
+    last = (records[-1].get("max_shear_deg") or 0.0) if records else 0.0
+    if last <= COLLAPSE_DEG:
+        return err.carrying()
+    X, Y = where()
+    text = collapse_text(last, f" at the reference point ({X:.4g}, {Y:.4g}) mm")
+    return err.carrying(f"{err}; at the last converged step {text}")
 
 
 def stabilisation_share(
