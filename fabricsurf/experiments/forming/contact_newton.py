@@ -193,8 +193,9 @@ class ContactSolver(SNESSolver):
         self.u_n.x.array[:] = self.u.x.array
         self.tools.stroke_n.value = self.s_n
         s = float(self.tools.stroke.value)
-        self.tools.eps.value = self.tools.slip_rate * max(abs(s - self.s_n), 1e-6 * self.tools.R)
-        ds = abs(s - self.s_n)  # no drag on a solve at the same stroke (the softened start)
+        ds = abs(s - self.s_n)
+        self.tools.eps.value = self.tools.slip_rate * max(ds, 1e-6 * self.tools.R)
+        # no drag on a solve at the same stroke (the softened start)
         self.tools.damping.value = self.tools.stabilisation / ds if ds > 0.0 else 0.0
         self._predict(s)
         predicted = self.u.x.array.copy()

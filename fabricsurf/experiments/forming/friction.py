@@ -125,9 +125,9 @@ def punch_force_density(tools, r, r_n):
 
 def viscous_potential_density(tools, r, r_n):
     """½ (η/Δs) |r − r_n|² (N/mm per unit reference area): the viscous stabilisation's
-    potential of the step, ``tools.damping`` = η/Δs (module docstring)."""
-    step = r - r_n
-    return 0.5 * tools.damping * ufl.dot(step, step)
+    potential of the step, ``tools.damping`` = η/Δs (module docstring): half the step's
+    dissipation."""
+    return 0.5 * viscous_dissipation_density(tools, r, r_n)
 
 
 def viscous_dissipation_density(tools, r, r_n):
