@@ -3,7 +3,7 @@ a die whose opening is no circle, at a user's size, and its cost against the cel
 
 The punch: a box 120 × 80 mm with fillet radius 25 mm on every edge (``--fillet``;
 analytic.RoundedBox, given to the plug-in as a surface and so tabulated:
-forming/tabulated_punch.py), its top at z = 0.
+forming/tabulated_tools.py), its top at z = 0.
 The die and the holder: an opening 130 × 90 mm with corner radius 15 mm (a clearance of 5 mm all
 round) and a lip of 5 mm. A 240 mm square blank at ±45° (solved on the quarter), the fitted
 woven fabric with the forming demo's assumed bending and its holder (10 kPa, μ = 0.3), formed

@@ -37,7 +37,7 @@ from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 from fabricsurf.experiments.forming.surfaces.opening_form import OpeningForm
-from fabricsurf.experiments.forming.tabulated_punch import quadrature_points
+from fabricsurf.experiments.forming.tabulated_tools import quadrature_points
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 

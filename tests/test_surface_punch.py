@@ -1,5 +1,5 @@
 """The hemisphere forming plug-in with its punch given as a surface
-(fabricsurf/experiments/forming/tabulated_punch.py): the punch's distance and normal tabulated
+(fabricsurf/experiments/forming/tabulated_tools.py): the punch's distance and normal tabulated
 at the quadrature points from numpy, refreshed at every Newton iteration.
 
 Checks that can fail independently of each other:

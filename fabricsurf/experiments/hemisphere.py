@@ -5,7 +5,7 @@ forming/blank.py), centred on the punch axis, with fibres at ±θ to its sides o
 (0°/90°) or any other pair, lies at z = 0 between a blank holder and a die with
 an opening of radius R_o = R + clearance (or a rectangle with rounded corners:
 forming/surfaces/opening.py); a rigid hemispherical punch of radius R (or any punch given as a
-surface: forming/tabulated_punch.py), its pole at z = s (the stroke, the load path, mm), pushes
+surface: forming/tabulated_tools.py), its pole at z = s (the stroke, the load path, mm), pushes
 it up through the opening (forming/tools.py: signed distances, penalty contact, holder
 friction, the punch force as the work conjugate of the stroke).
 
@@ -46,7 +46,7 @@ from fabricsurf.experiments.forming.stroke_log import (
     collapsed,
     stabilisation_share,
 )
-from fabricsurf.experiments.forming.tabulated_punch import checked_punch, die_check
+from fabricsurf.experiments.forming.tabulated_tools import checked_punch, die_check
 from fabricsurf.experiments.forming.tools import ContactProblem, Tools
 from fabricsurf.geometry.aligned import blank_angle
 from fabricsurf.log import warn
@@ -210,7 +210,7 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
 
     def check_stroke(self, stroke: float) -> None:
         """Refuse a stroke beyond what the die and the blank allow (forming_options), or one
-        that drives a punch given as a surface into the die (tabulated_punch.die_check)."""
+        that drives a punch given as a surface into the die (tabulated_tools.die_check)."""
         forming_blank.check_stroke(self.setup, stroke)
         if self._die_check is not None:
             self._die_check(stroke)

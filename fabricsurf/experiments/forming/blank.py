@@ -29,7 +29,7 @@ from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, choice_option
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import checks
-from fabricsurf.experiments.forming.surfaces.files import punch_surface
+from fabricsurf.experiments.forming.surfaces.files import TOOLS, given_surface
 from fabricsurf.geometry.aligned import (
     blank_angle,
     canonical_angles,
@@ -112,9 +112,9 @@ def unfit(setup: PluginSetup, h: float) -> str | None:
 
 
 def domain(setup: PluginSetup, h: float) -> str:
-    """``quarter`` or ``full`` at mesh size h (module docstring); a punch given as a surface
-    must also be its own mirror image in both mid-planes (checks.mirror_asymmetry) for the
-    quarter."""
+    """``quarter`` or ``full`` at mesh size h (module docstring); a punch or a die given as a
+    surface must also be its own mirror image in both mid-planes (checks.mirror_asymmetry) for
+    the quarter."""
     why = unfit(setup, h)
     symmetric = why is None
     asked = setup.options.get("blank_domain", "auto")
@@ -122,8 +122,12 @@ def domain(setup: PluginSetup, h: float) -> str:
         raise DataError(
             f"hemisphere: [tooling] blank_domain = 'quarter': {why}; use 'full' or 'auto'"
         )
-    punch = punch_surface(setup.options) if symmetric and asked != "full" else None
-    lopsided = None if punch is None else checks.mirror_asymmetry(punch)
+    given = (
+        (given_surface(setup.options, t) for t in TOOLS) if symmetric and asked != "full" else ()
+    )
+    lopsided = next(
+        (why for t in given if t is not None and (why := checks.mirror_asymmetry(t))), None
+    )
     if asked == "quarter" and lopsided:
         raise DataError(f"hemisphere: [tooling] blank_domain = 'quarter': {lopsided}")
     return "quarter" if symmetric and asked != "full" and not lopsided else "full"

@@ -43,6 +43,8 @@ class BlankOutputs:
 
     # -- reduced scalars (whole blank) ---------------------------------------------------
     def _scalar(self, name: str) -> float:
+        for table in self.tools.tables:  # tools given as surfaces, at the state as it is now
+            table.refresh()
         return self.copies * float(
             self.comm.allreduce(fem.assemble_scalar(self._forms[name]), op=MPI.SUM)
         )

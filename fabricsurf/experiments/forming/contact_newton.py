@@ -147,10 +147,10 @@ class ContactSolver(SNESSolver):
         return self._friction_forms
 
     def _update_u(self, x: PETSc.Vec) -> None:
-        """u ← x, and a punch given as a surface re-tabulated there (tabulated_punch.py)."""
+        """u ← x, and the tools given as surfaces re-tabulated there (tabulated_tools.py)."""
         super()._update_u(x)
-        if getattr(self.tools, "tabulated", None) is not None:
-            self.tools.tabulated.refresh()
+        for table in getattr(self.tools, "tables", ()):
+            table.refresh()
 
     def _F(self, snes, x, b) -> None:
         super()._F(snes, x, b)

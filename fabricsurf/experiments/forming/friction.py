@@ -91,8 +91,20 @@ def punch_slip(tools, r, r_n):
 def lip_slip(tools, r, r_n):
     """(μ_d p_n, the limit traction over the die's lip; Δr_t, the slip in the lip's tangent
     plane at r_n)."""
-    penetration, n = tools.lip_contact(r_n)
+    penetration, n = lip_contact(tools, r_n)
     return tools.mu_die * tools.k_c * penetration, _tangential(r - r_n, n)
+
+
+def lip_contact(tools, r):
+    """(penetration into the die's lip, the tube about σ = r_d, where the die's nearest point is
+    on it, else 0; the lip's outward normal): the analytic die's (tools.py)."""
+    a = tools.opening.sigma(r) - tools.lip
+    b = r[2] - (-tools.p_h / tools.k_c + tools.lip)
+    dist = ufl.sqrt(a**2 + b**2)
+    g = tools.opening.gradient(r)
+    on_lip = ufl.conditional(ufl.lt(a, 0.0), 1.0, 0.0)
+    n = ufl.as_vector([a * g[0], a * g[1], b]) / dist
+    return on_lip * ufl.max_value(tools.lip - dist, 0.0), n
 
 
 def _slips(tools, r, r_n):

@@ -19,7 +19,7 @@ import math
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, number_option
 from fabricsurf.experiments.cantilever import areal_density_option
-from fabricsurf.experiments.forming.surfaces.files import punch_file_option
+from fabricsurf.experiments.forming.surfaces.files import FILE_KEYS, tool_file_options
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 
 TOOL_KEYS = {
@@ -46,11 +46,7 @@ TOOL_KEYS = {
     "penalty; a punch with a large flat top needs about 1e-3)",
     "stabilisation": "viscous drag η on the sheet's motion per unit stroke (N/mm², default 0: "
     "off; the run reports the energy it dissipated)",
-    "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
-    "experiment.toml; its pole at z = 0, moving up along z; default: the hemisphere of "
-    "radius punch_radius)",
-    "punch_units": "length unit of punch_file's coordinates (mm, cm, m or in; required "
-    "with punch_file)",
+    **FILE_KEYS,
 }
 """The tools' keys of the ``[tooling]`` table (the blank's: forming/blank.py)."""
 
@@ -155,7 +151,7 @@ def parse(tables: dict, length_scale: float, where: str) -> dict:
             f"0 ≤ contact_softening ≤ {SOFTENING_LIMIT:g} die_lip (= "
             f"{SOFTENING_LIMIT * out['die_lip']:g} mm)"
         )
-    out.update(punch_file_option(tables.get("tooling", {}), where))
+    out.update(tool_file_options(tables.get("tooling", {}), where))
     out["areal_density_g_m2"] = areal_density_option(tables, where, 0.0)
     out["wrinkle_curvature"] = (
         number_option(tables, "tooling", "wrinkle_curvature", where, 1.0 / R * length_scale)

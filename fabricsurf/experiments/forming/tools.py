@@ -4,7 +4,8 @@ experiments/hemisphere.py).
 
 The placement r is in a frame whose origin is the punch axis at the blank's reference plane.
 The punch is a hemisphere of radius R on a cylinder of the same radius, its pole at z = s (s
-the stroke), pushing the blank up into the die. The die (above the blank, face at z = −p_h/k_c,
+the stroke), pushing the blank up into the die (a punch or a die of any shape: given as a
+surface and tabulated, tabulated_tools.py). The die (above the blank, face at z = −p_h/k_c,
 so that the flat blank pressed into it is in equilibrium at s = 0 and the die's penalty is
 active there: at d = 0 its stiffness would vanish and leave the vertical motion free) and
 the blank holder (below it, face at z = −g, g the gap) are plates with an opening (a circle
@@ -47,10 +48,10 @@ from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming import friction as forming_friction
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.contact_newton import LINEAR_SOLVER, ContactSolver
-from fabricsurf.experiments.forming.surfaces.files import punch_surface
+from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 from fabricsurf.experiments.forming.surfaces.opening_form import OpeningForm
-from fabricsurf.experiments.forming.tabulated_punch import TabulatedPunch
+from fabricsurf.experiments.forming.tabulated_tools import tabulated_die, tabulated_punch
 from fabricsurf.model.terms import Term
 
 
@@ -79,6 +80,7 @@ class Tools:
         punch_surface=None,
         contact_softening: float = 0.0,
         stabilisation: float = 0.0,
+        die_table=None,
     ) -> None:
         self.R = float(R)
         self.outline = opening if isinstance(opening, Opening) else Opening.circle(opening)
@@ -97,8 +99,10 @@ class Tools:
         self.mu_die = fem.Constant(msh, float(die_friction))
         self.r_n = None
         self.tabulated = (
-            None if punch_surface is None else TabulatedPunch(msh, punch_surface, punch_friction)
+            None if punch_surface is None else tabulated_punch(msh, punch_surface, punch_friction)
         )
+        self.die_table = die_table
+        self.tables = [t for t in (self.tabulated, die_table) if t is not None]
 
     @classmethod
     def from_options(cls, msh, o: dict) -> Tools:
@@ -119,6 +123,7 @@ class Tools:
             punch_surface(o),
             o.get("contact_softening", 0.0),
             o.get("stabilisation", 0.0),
+            None if (die := given_surface(o, "die")) is None else tabulated_die(msh, die, o),
         )
 
     def tool_friction(self) -> bool:
@@ -132,7 +137,7 @@ class Tools:
     def punch(self, r, stroke=None):
         """(signed distance to the punch, the vertical component of its outward normal), the
         pole at ``stroke`` (default: the current stroke); a punch given as a surface from its
-        table (tabulated_punch.py)."""
+        table (tabulated_tools.py)."""
         if self.tabulated is not None:
             return self.tabulated.punch(r, self.stroke if stroke is None else stroke)
         dz, rho = r[2] - ((self.stroke if stroke is None else stroke) - self.radius), self._rho(r)
@@ -154,20 +159,12 @@ class Tools:
         side = ufl.as_vector([r[0] / rho, r[1] / rho, 0.0])
         return d, ufl.conditional(ufl.gt(dz, 0.0), cap, side)
 
-    def lip_contact(self, r):
-        """(penetration into the die's lip, the tube about σ = r_d, where the die's nearest point
-        is on it, else 0; the lip's outward normal)."""
-        a = self.opening.sigma(r) - self.lip
-        b = r[2] - (-self.p_h / self.k_c + self.lip)
-        dist = ufl.sqrt(a**2 + b**2)
-        g = self.opening.gradient(r)
-        on_lip = ufl.conditional(ufl.lt(a, 0.0), 1.0, 0.0)
-        n = ufl.as_vector([a * g[0], a * g[1], b]) / dist
-        return on_lip * ufl.max_value(self.lip - dist, 0.0), n
-
     def _plate(self, r, side: float):
         """Signed distance to the die (side = 1, above) or the holder (side = −1, below): the
-        lip's tube of radius r_d about σ = r_d and, beyond it, the flat face."""
+        lip's tube of radius r_d about σ = r_d and, beyond it, the flat face; a die given as a
+        surface from its table (tabulated_tools.py)."""
+        if side > 0 and self.die_table is not None:
+            return self.die_table.distance(r)
         a = self.opening.sigma(r) - self.lip
         face = -self.p_h / self.k_c if side > 0 else -self.gap
         torus = ufl.sqrt(a**2 + (r[2] - face - side * self.lip) ** 2) - self.lip
@@ -239,8 +236,8 @@ class ContactProblem(FabricProblem):
             "dx", domain=self.msh, metadata={"quadrature_degree": CELL_QUADRATURE_DEGREE}
         )
         tools.r_n = placement(self.u_n)
-        if tools.tabulated is not None:
-            tools.tabulated.attach(placement(self.u), tools.stroke)
+        for table in tools.tables:
+            table.attach(placement(self.u), tools.stroke)
 
     def _release(self) -> None:
         super()._release()

@@ -231,6 +231,13 @@ class Moved:
     def __init__(self, surface, offset) -> None:
         self.surface, self.offset = surface, np.asarray(offset, float)
         self.name, self.size = surface.name, surface.size
+        if getattr(surface, "near", None) is not None:
+            self.near = self._near
+
+    def _near(self, x: np.ndarray, cutoff: float):
+        """The moved surface's ``near`` (TriangulatedSurface.near), for a mesh."""
+        d, foot, n = self.surface.near(_rows(x) - self.offset, cutoff)
+        return d, foot + self.offset, n
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         b = self.surface.bounds()

@@ -25,7 +25,9 @@ from fabricsurf.experiments.forming.surfaces import ToolSurface
 
 SCALE_LIMIT = 50.0
 """Largest ratio of a tool's size to the blank's (either way) taken as the same units."""
-BISECTIONS = 50
+BISECTION_TOLERANCE = 1e-7
+"""The largest stroke's error in the stroke check's bisection, relative to the stroke (the
+message gives six digits)."""
 
 
 def check_scale(tool: ToolSurface, blank_size: float) -> None:
@@ -85,14 +87,24 @@ def _triangle_points(corners: np.ndarray, lower, upper, spacing: float) -> np.nd
 
 
 def check_stroke(
-    punch: ToolSurface, die: ToolSurface, points: np.ndarray, direction, stroke: float
+    punch: ToolSurface,
+    die: ToolSurface,
+    points: np.ndarray,
+    direction,
+    stroke: float,
+    near: float | None = None,
 ) -> None:
     """Refuse a stroke ``stroke`` (mm) along ``direction`` that takes the punch's surface
-    ``points`` (at the start, rows) into the die (module docstring)."""
+    ``points`` (at the start, rows) into the die (module docstring). With ``near`` (mm, more
+    than the points' spacing) a triangle mesh's distances are exact only within ``near`` of
+    it (TriangulatedSurface.near; the points far from the die cost nothing): a punch that
+    enters the die has points within their spacing of its surface, exact there."""
     e = np.asarray(direction, float) / np.linalg.norm(direction)
+    fast = near is not None and getattr(die, "near", None) is not None
 
     def depth(s: float) -> float:
-        return float(-die.signed_distance(points + s * e).min())
+        x = points + s * e
+        return float(-(die.near(x, near)[0] if fast else die.signed_distance(x)).min())
 
     if depth(0.0) > 0.0:
         raise InputError(f"{punch.name}: the punch starts inside the die {die.name}")
@@ -107,8 +119,10 @@ def check_stroke(
 
 
 def _bisect(depth, lo: float, hi: float) -> float:
-    """The stroke in [lo, hi] where the depth crosses 0 (depth(lo) ≤ 0 < depth(hi))."""
-    for _ in range(BISECTIONS):
+    """The stroke in [lo, hi] where the depth crosses 0 (depth(lo) ≤ 0 < depth(hi)), to
+    :data:`BISECTION_TOLERANCE` of the interval."""
+    tolerance = BISECTION_TOLERANCE * (hi - lo)
+    while hi - lo > tolerance:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if depth(mid) <= 0.0 else (lo, mid)
     return lo

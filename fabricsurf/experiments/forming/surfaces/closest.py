@@ -72,3 +72,47 @@ def _plane_coordinates(p, a, e0, e1) -> tuple[np.ndarray, np.ndarray, np.ndarray
     den = d00 * d11 - d01 * d01
     with np.errstate(divide="ignore", invalid="ignore"):
         return (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den, den
+
+
+PERCENTILE = 25
+"""Triangles larger than this percentile of them are cut for the search (search_points)."""
+
+
+def search_points(corners: np.ndarray, limit: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(points (s, 3), the triangle each belongs to (s,), reach) of triangles ``corners``
+    (f, 3, 3), for a nearest-point search: each triangle larger than a quarter of them is cut
+    by longest-edge bisection (Rivara 1984) into pieces no larger (centroid to corner) than
+    those, and the points are the pieces' centroids (at most about ``limit`` points, or one a
+    triangle: the size grows until they fit). Every point of a triangle then lies within
+    ``reach`` of one of its own search points, so a triangle whose points are all farther than
+    d + reach from x holds no point within d of x, however long it is (a CAD file's flat faces
+    are a few long slivers beside fillets of many small triangles)."""
+    spread = _spread(corners)
+    area = 0.5 * np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    size = max(float(np.percentile(spread, PERCENTILE)), float(np.sqrt(area.sum() / limit)), 1e-300)
+    points, owner, reach = [], [], 0.0
+    tri, own, count = corners, np.arange(len(corners)), 0
+    while len(tri):
+        s = _spread(tri)
+        done = s <= size
+        points.append(tri[done].mean(axis=1))
+        owner.append(own[done])
+        reach, count = max(reach, float(s[done].max(initial=0.0))), count + int(done.sum())
+        tri, own = tri[~done], own[~done]
+        if count + 2 * len(tri) > max(limit, len(corners)):
+            size *= 1.5
+            continue
+        k = np.argmax(np.linalg.norm(np.roll(tri, -1, axis=1) - tri, axis=2), axis=1)
+        rows = np.arange(len(tri))[:, None]
+        a, b, c = (tri[rows[:, 0], (k + j) % 3] for j in range(3))
+        m = 0.5 * (a + b)
+        tri = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
+        own = np.concatenate([own, own])
+    return np.vstack(points), np.concatenate(owner), reach
+
+
+def _spread(corners: np.ndarray) -> np.ndarray:
+    """The largest centroid-to-corner distance of each triangle (f, 3, 3)."""
+    return np.linalg.norm(corners - corners.mean(axis=1)[:, None], axis=2).max(axis=1)

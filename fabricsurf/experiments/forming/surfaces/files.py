@@ -8,8 +8,8 @@ read as binary, any other as ASCII (``solid`` … ``facet normal`` … ``vertex 
 normals written in an STL file are ignored: the orientation is the corners' order (right-hand
 rule), which is what the checks read. An OBJ file's ``v`` lines are the vertices and its ``f``
 lines the faces (1-based indices, negative ones counted from the end, ``i/t/n`` forms allowed);
-polygons are split into fans of triangles. The forming plug-in's ``punch_file`` and
-``punch_units`` options are checked and read here too (:func:`punch_file_option`).
+polygons are split into fans of triangles. The forming plug-in's ``punch_file``, ``die_file``
+and their units are checked and read here too (:func:`tool_file_options`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,21 @@ from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSur
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 """Length units a tool file may be in, and their size in mm."""
 PUNCH_FILES_KEPT = 2
-"""Punch files whose surfaces :func:`read_punch_file` keeps once read."""
+"""Tool files whose surfaces :func:`read_tool_file` keeps once read."""
+TOOLS = ("punch", "die")
+"""The tools a file may give."""
+FILE_KEYS = {
+    "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
+    "experiment.toml; its pole at z = 0, moving up along z; default: the hemisphere of "
+    "radius punch_radius)",
+    "punch_units": "length unit of punch_file's coordinates (mm, cm, m or in; required "
+    "with punch_file)",
+    "die_file": "the die as a closed surface, an STL or OBJ file (path relative to "
+    "experiment.toml; fixed, above the blank, its face where the holder presses the flange "
+    "at z = 0; default: the plate with the opening and lip of the keys above)",
+    "die_units": "length unit of die_file's coordinates (mm, cm, m or in; required with die_file)",
+}
+"""The ``[tooling]`` keys of tools given as files (:func:`tool_file_options`)."""
 _FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
@@ -123,41 +137,55 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None
     Path(path).write_text("\n".join([*lines, ""]))
 
 
-def punch_file_option(tooling: dict, where: str) -> dict:
-    """``punch_file`` and ``punch_units`` checked, the file read once (its surface's own checks:
-    closed, oriented, not degenerate, surfaces/topology.py) so that a bad file is refused with
-    the data; the plug-in's tools and checks then take the same surface (:func:`punch_surface`)."""
-    path, units = tooling.get("punch_file"), tooling.get("punch_units")
+def tool_file_options(tooling: dict, where: str) -> dict:
+    """The tools' file keys (:data:`FILE_KEYS`: ``punch_file``, ``die_file`` and their units)
+    checked, each file read once (its surface's own checks: closed, oriented, not degenerate,
+    surfaces/topology.py) so that a bad file is refused with the data; the plug-in's tools and
+    checks then take the same surfaces (:func:`given_surface`)."""
+    out = {}
+    for tool in TOOLS:
+        out.update(_file_option(tooling, where, tool))
+    return out
+
+
+def _file_option(tooling: dict, where: str, tool: str) -> dict:
+    """``{tool}_file`` and ``{tool}_units`` checked, the file read."""
+    key, unit_key = f"{tool}_file", f"{tool}_units"
+    path, units = tooling.get(key), tooling.get(unit_key)
     if path is None:
         if units is not None:
-            raise DataError(f"{where}: [tooling] punch_units = {units!r} without punch_file")
+            raise DataError(f"{where}: [tooling] {unit_key} = {units!r} without {key}")
         return {}
     if not isinstance(path, str) or not path.strip():
         raise DataError(
-            f"{where}: [tooling] punch_file = {path!r} must be a file name in quotes, "
-            'e.g. "punch.stl"'
+            f'{where}: [tooling] {key} = {path!r} must be a file name in quotes, e.g. "{tool}.stl"'
         )
     if units not in UNITS:
         raise DataError(
-            f"{where}: [tooling] punch_file = {path!r} needs punch_units, the unit of its "
+            f"{where}: [tooling] {key} = {path!r} needs {unit_key}, the unit of its "
             f"coordinates (one of {', '.join(UNITS)}; a file carries none), "
             + ("none given" if units is None else f"got {units!r}")
         )
     if not Path(path).is_file():
-        raise DataError(f"{where}: [tooling] punch_file: {path}: no such file")
-    read_punch_file(path, units)
-    return {"punch_file": str(path), "punch_units": units}
+        raise DataError(f"{where}: [tooling] {key}: {path}: no such file")
+    read_tool_file(path, units)
+    return {key: str(path), unit_key: units}
+
+
+def given_surface(o: dict, tool: str):
+    """The ``tool`` (punch or die) surface the options give: a surface object
+    (``{tool}_surface``, Python), the file's (``{tool}_file``), or None (the analytic tool)."""
+    if o.get(f"{tool}_surface") is not None or not o.get(f"{tool}_file"):
+        return o.get(f"{tool}_surface")
+    return read_tool_file(o[f"{tool}_file"], o[f"{tool}_units"])
 
 
 def punch_surface(o: dict):
-    """The punch surface of the options: a given one (``punch_surface``, Python), the file's
-    (``punch_file``), or None (the analytic hemisphere)."""
-    if o.get("punch_surface") is not None or not o.get("punch_file"):
-        return o.get("punch_surface")
-    return read_punch_file(o["punch_file"], o["punch_units"])
+    """The punch surface of the options (:func:`given_surface`), or None: the hemisphere."""
+    return given_surface(o, "punch")
 
 
-def read_punch_file(path: str | Path, units: str) -> TriangulatedSurface:
+def read_tool_file(path: str | Path, units: str) -> TriangulatedSurface:
     """:func:`read_surface`, once for a file as it stands (its resolved path, modification time
     and size): the options' check, the tools, the die and symmetry checks and the data's check
     all ask for the punch, and a file of 6·10⁶ triangles takes about a minute to read."""

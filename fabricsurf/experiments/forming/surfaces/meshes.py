@@ -12,6 +12,7 @@ quadrilateral are coplanar (the triangulated cylinder is a prism, itself develop
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 
@@ -116,6 +117,59 @@ def revolved(profile: np.ndarray, around: int) -> tuple[np.ndarray, np.ndarray]:
     if topology.enclosed_volume(verts, faces) < 0:
         faces = faces[:, ::-1]
     return verts, faces
+
+
+def revolved_loop(loop: np.ndarray, around: int) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of the closed ring-shaped surface swept by the closed meridian
+    ``loop`` (rows (ρ, z), ρ > 0, the last row joined to the first) about the z axis: a die
+    plate about its opening, say; ``around`` segments, faces outwards."""
+    loop = np.asarray(loop, float)
+    m = len(loop)
+    phi = 2.0 * math.pi * np.arange(around) / around
+    verts = np.vstack(
+        [
+            np.column_stack([rho * np.cos(phi), rho * np.sin(phi), np.full(around, z)])
+            for rho, z in loop
+        ]
+    )
+    i, k = np.meshgrid(np.arange(around), np.arange(m), indexing="ij")
+    p, q = k * around + i, k * around + (i + 1) % around
+    p2, q2 = (p + around) % (m * around), (q + around) % (m * around)
+    faces = np.vstack(
+        [
+            np.column_stack([p.ravel(), q.ravel(), q2.ravel()]),
+            np.column_stack([p.ravel(), q2.ravel(), p2.ravel()]),
+        ]
+    )
+    if topology.enclosed_volume(verts, faces) < 0:
+        faces = faces[:, ::-1]
+    return verts, faces
+
+
+def die_plate_mesh(
+    opening: float, lip: float, outer: float, thickness: float, h: float, around: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The forming plug-in's die plate (analytic.DiePlate about a circular opening of radius
+    ``opening``, its face at z = 0) as a closed annular plate of radius ``outer`` and
+    ``thickness``: the lip a quarter circle of radius ``lip`` in meridian edges about h long,
+    ``around`` segments, the straight parts of the meridian cut as long as a segment at the
+    opening (no long slivers)."""
+    m = max(2, math.ceil(0.5 * math.pi * lip / h))
+    t = 0.5 * math.pi * np.arange(m + 1) / m
+    arc = np.column_stack([opening + lip - lip * np.sin(t), lip - lip * np.cos(t)])
+    corners = [(opening, thickness), (outer, thickness), (outer, 0.0)]
+    step = 2.0 * math.pi * opening / around  # a segment's length at the opening
+    return revolved_loop(np.vstack([arc[:-1], cut_loop([arc[-1], *corners, arc[0]], step)]), around)
+
+
+def cut_loop(corners, step: float) -> np.ndarray:
+    """The polyline through ``corners`` (rows (ρ, z)) cut into pieces at most ``step`` long,
+    its last corner left out (a closed meridian for :func:`revolved_loop`)."""
+    out = []
+    for a, b in pairwise(np.asarray(corners, float)):
+        n = max(1, math.ceil(math.dist(a, b) / step))
+        out.append(a + np.outer(np.arange(n) / n, b - a))
+    return np.vstack(out)
 
 
 def hemisphere_punch_mesh(

@@ -2,13 +2,17 @@
 outward-oriented triangle mesh at any points.
 
 The distance is exact (to round-off) for the triangle mesh: the closest triangle is looked for
-among the k triangles whose centroids are nearest (scipy's cKDTree), and where that cannot be
-certain (the k-th centroid nearer than the best distance found plus the largest
-centroid-to-corner distance, the bound on how far a closer triangle's centroid can be) among all
-the triangles whose centroids lie within that bound. The sign is that of (x − c)·N, c the
-closest point and N the angle-weighted pseudo-normal of the feature that holds c (the face's
-normal, an edge's or a vertex's pseudo-normal): Bærentzen & Aanæs 2005 prove it is the sign of
-the inside/outside for a closed, consistently oriented mesh.
+among the triangles of the k search points nearest (scipy's cKDTree; the points are the
+centroids of the triangles, the larger ones cut into pieces first: closest.search_points), and
+where that cannot be certain (the k-th point nearer than the best distance found plus the
+reach, the largest distance from a point of a triangle to the nearest of its search points)
+among all the triangles whose bounding boxes come nearer than the best distance found. Cutting
+the large triangles keeps the reach near the size of the small ones, so the bound stays tight
+on a CAD file's mix of long flat facets and small fillets.
+The sign is that of (x − c)·N, c the closest point and N the angle-weighted pseudo-normal of
+the feature that holds c (the face's normal, an edge's or a vertex's pseudo-normal): Bærentzen
+& Aanæs 2005 prove it is the sign of the inside/outside for a closed, consistently oriented
+mesh.
 
 Two normals: :meth:`TriangulatedSurface.normal` is the gradient of the signed distance
 (±(x − c)/|x − c|, the pseudo-normal on the surface), the direction a penalty contact pushes
@@ -30,11 +34,20 @@ from fabricsurf.experiments.forming.surfaces.closest import (
     FACE,
     barycentric,
     closest_on_triangles,
+    search_points,
 )
 
 NEAREST = (8, 64, 512)
-"""Triangles examined per point, more for the points where fewer left the closest one
-uncertain (module docstring); the rest look at all the triangles within the bound."""
+"""Search points examined per point, more for the points where fewer left the closest triangle
+uncertain (module docstring); the rest look at the triangles whose bounding boxes are near
+enough (:data:`GROUP_WORK`)."""
+GROUP_WORK = 1_000_000
+"""Most point–triangle pairs examined at once for the points the nearest search points leave
+uncertain (a point at the centre of a ring, as on a die's axis, is as far from every triangle
+of the ring): they are taken in groups of neighbours, each triangle's bounding box giving a
+lower bound of its distance."""
+SEARCH_POINTS = 2_000_000
+"""Most search points of a mesh (closest.search_points), beyond one a triangle."""
 
 
 class TriangulatedSurface:
@@ -55,10 +68,12 @@ class TriangulatedSurface:
         self.face_normal, self.edge_normal, self.vertex_normal = topology.pseudo_normals(
             self.vertices, self.faces
         )
+        self.points, self.owner, self.reach = search_points(
+            self.vertices[self.faces], SEARCH_POINTS
+        )
+        self.tree = cKDTree(self.points)
         corners = self.vertices[self.faces]
-        self.centroid = corners.mean(axis=1)
-        self.reach = float(np.linalg.norm(corners - self.centroid[:, None], axis=2).max())
-        self.tree = cKDTree(self.centroid)
+        self.box = (corners.min(axis=1), corners.max(axis=1))
         lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
         self.size = float((hi - lo).max())
 
@@ -83,24 +98,23 @@ class TriangulatedSurface:
         kind, index = np.zeros(len(x), dtype=int), np.zeros(len(x), dtype=int)
         todo = np.arange(len(x))
         for k in NEAREST:
-            k = min(k, len(self.faces))
+            k = min(k, len(self.points))
             dist_c, cand = self.tree.query(x[todo], k=k)
-            cand, dist_c = cand.reshape(len(todo), k), dist_c.reshape(len(todo), k)
+            dist_c = dist_c.reshape(len(todo), k)
+            cand = _distinct(self.owner[cand.reshape(len(todo), k)])
             q, d2, kd, ix = self._closest_among(x[todo], cand)
             j = np.argmin(d2, axis=1)
             rows = np.arange(len(todo))
             point[todo], face[todo] = q[rows, j], cand[rows, j]
             kind[todo], index[todo] = kd[rows, j], ix[rows, j]
-            sure = (dist_c[:, -1] >= np.sqrt(d2[rows, j]) + self.reach) | (k == len(self.faces))
-            todo = todo[~sure]
+            sure = (dist_c[:, -1] >= np.sqrt(d2[rows, j]) + self.reach) | (k == len(self.points))
+            todo, nearest = todo[~sure], cand[~sure, 0]
             if len(todo) == 0:
                 break
-        for i in todo:
-            best = float(np.linalg.norm(x[i] - point[i]))
-            more = np.asarray(self.tree.query_ball_point(x[i], best + self.reach), dtype=int)
-            qi, di, ki, ii = self._closest_among(x[i : i + 1], more[None, :])
-            m = int(np.argmin(di[0]))
-            point[i], face[i], kind[i], index[i] = qi[0, m], more[m], ki[0, m], ii[0, m]
+        todo = todo[np.argsort(nearest)]  # neighbours together: they share candidates
+        step = max(1, GROUP_WORK // len(self.faces))
+        for start in range(0, len(todo), step):
+            self._settle(x, todo[start : start + step], point, face, kind, index)
         pseudo = np.where(
             (kind == FACE)[:, None],
             self.face_normal[face],
@@ -111,6 +125,23 @@ class TriangulatedSurface:
             ),
         )
         return point, face, pseudo
+
+    def _settle(self, x, group, point, face, kind, index) -> None:
+        """The closest triangle of the points ``group`` that the search points left uncertain,
+        in place: for each point, among the triangles whose bounding boxes come nearer than the
+        best found (a lower bound of each triangle's distance)."""
+        best2 = ((x[group] - point[group]) ** 2).sum(axis=1)
+        gap = np.maximum(self.box[0][None] - x[group, None], 0.0)
+        gap += np.maximum(x[group, None] - self.box[1][None], 0.0)
+        rows, cols = np.nonzero((gap**2).sum(axis=2) <= best2[:, None] * (1 + 1e-12))
+        counts = np.bincount(rows, minlength=len(group))
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        cand = np.repeat(cols[first][:, None], counts.max(), axis=1)  # padded with a repeat
+        cand[rows, np.arange(len(rows)) - first[rows]] = cols
+        q, d2, kd, ix = self._closest_among(x[group], cand)
+        j, r = np.argmin(d2, axis=1), np.arange(len(group))
+        point[group], face[group] = q[r, j], cand[r, j]
+        kind[group], index[group] = kd[r, j], ix[r, j]
 
     def frame(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(signed distance (m,), closest point (m, 3), normal (m, 3)) of points x (m, 3): the
@@ -136,13 +167,12 @@ class TriangulatedSurface:
 
     def near(self, x: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(signed distance, closest point, normal) of points x (m, 3), exact for the points
-        that may lie within ``cutoff`` of the surface; for the others (nearest centroid farther
-        than cutoff plus the largest centroid-to-corner distance) a lower bound of the distance
-        above ``cutoff``, along the direction from the nearest centroid (a contact needs no
-        more of them)."""
+        that may lie within ``cutoff`` of the surface; for the others (nearest search point
+        farther than cutoff plus the reach) a lower bound of the distance above ``cutoff``,
+        along the direction from the nearest search point (a contact needs no more of them)."""
         x = np.atleast_2d(np.asarray(x, float))
         dist, nearest = self.tree.query(x, k=1)
-        v = x - self.centroid[nearest]
+        v = x - self.points[nearest]
         n = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
         d = dist - self.reach
         foot = x - d[:, None] * n
@@ -160,3 +190,17 @@ class TriangulatedSurface:
         w = np.clip(barycentric(c, *corners), 0.0, 1.0)
         n = np.einsum("ik,ikj->ij", w, self.vertex_normal[self.faces[face]])
         return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def _distinct(cand: np.ndarray) -> np.ndarray:
+    """The distinct entries of each row of ``cand`` (m, k), padded with repeats of the row's
+    first to the most any row has (the pieces of a cut triangle share their owner)."""
+    cand = np.sort(cand, axis=1)
+    new = np.ones(cand.shape, dtype=bool)
+    new[:, 1:] = cand[:, 1:] != cand[:, :-1]
+    rows, cols = np.nonzero(new)
+    counts = new.sum(axis=1)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    out = np.repeat(cand[:, :1], counts.max(), axis=1)
+    out[rows, np.arange(len(rows)) - first[rows]] = cand[rows, cols]
+    return out

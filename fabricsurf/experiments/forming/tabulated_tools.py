@@ -1,5 +1,5 @@
-"""A punch of any shape in the forming problem: its signed distance and normal tabulated at
-the quadrature points from the current placement, for the penalty contact of
+"""A punch or a die of any shape in the forming problem: its signed distance and normal
+tabulated at the quadrature points from the current placement, for the penalty contact of
 experiments/forming/tools.py (docs/tool_surfaces.md).
 
 The analytic punch enters the energy as a UFL expression of the placement r. A punch given as a
@@ -27,6 +27,13 @@ Points farther from a triangle mesh than :data:`CUTOFF` times the punch's size a
 projected (TriangulatedSurface.near): they are out of contact. Friction on a tabulated punch
 is not modelled (its potential needs the distance at the last converged state, which the table
 holds only to first order).
+
+A die given as a surface (``die_file``: a plate with any opening, a matched die's cavity) is
+tabulated the same way, fixed: d(r) = n · (r − c). It is given with its face, where the
+holder presses the flange, at z = 0, and placed at −p_h/k_c as the analytic die's face is
+(Tools). Before computing it is checked (:func:`check_die_face`): its units, no node of the
+flat blank inside it, and its face at z = 0 wherever the holder presses; the holder and its
+pressure stay the plates about the opening of the options.
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
-from fabricsurf.experiments.forming.surfaces.files import punch_surface
+from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
 
 START_TOLERANCE = 1e-6
 """Depth of a blank node inside the punch at stroke 0 taken as touching, in punch sizes."""
@@ -49,29 +56,27 @@ CUTOFF = 0.05
 E_Z = np.array([0.0, 0.0, 1.0])
 DIE_SPACING = 0.25
 """Spacing of the points sampled near an analytic punch for the die check, in die lip radii."""
+FACE_TOLERANCE = 0.01
+"""How far a die given as a surface may leave z = 0 where the holder presses, in lip radii."""
 GRID_POINTS = 2_000_000
 """Most grid points sampled near an analytic punch for the die check (the spacing grows)."""
 
 
-class TabulatedPunch:
-    """The punch ``surface`` (at stroke 0, moving along +z with the stroke) tabulated at the
-    quadrature points of ``msh`` (module docstring); ``friction`` must be 0. :meth:`attach`
-    gives it the placement's expression; :meth:`refresh` re-tabulates."""
+class TabulatedTool:
+    """The tool ``surface`` (at stroke 0, placed at ``offset``; moving along +z with the stroke
+    if ``moving``, the punch, else fixed, the die) tabulated at the quadrature points of
+    ``msh`` (module docstring). :meth:`attach` gives it the placement's expression;
+    :meth:`refresh` re-tabulates."""
 
-    def __init__(self, msh, surface: ToolSurface, friction: float = 0.0) -> None:
-        if friction:
-            raise InputError(
-                f"{surface.name}: friction on a punch given as a surface is not modelled "
-                "(punch_friction = 0)"
-            )
-        self.surface, self.msh = surface, msh
-        check_against_blank(surface, msh)
+    def __init__(self, msh, surface: ToolSurface, moving: bool = True, offset=(0.0, 0.0, 0.0)):
+        self.surface, self.msh, self.moving = surface, msh, moving
+        self.offset = np.asarray(offset, float)
         element = ufl.VectorElement(
             "Quadrature", msh.ufl_cell(), CELL_QUADRATURE_DEGREE, quad_scheme="default", dim=3
         )
         Q = fem.FunctionSpace(msh, element)
-        self.foot = fem.Function(Q, name="punch_foot")
-        self.n = fem.Function(Q, name="punch_normal")
+        self.foot = fem.Function(Q, name="tool_foot")
+        self.n = fem.Function(Q, name="tool_normal")
         self.s_q = fem.Constant(msh, 0.0)
         imap = msh.topology.index_map(msh.topology.dim)
         self.cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
@@ -88,28 +93,46 @@ class TabulatedPunch:
 
     def refresh(self) -> None:
         """Closest points and normals at the current placement and stroke (module docstring)."""
-        s = float(self._stroke.value)
+        s = float(self._stroke.value) if self.moving else 0.0
         self.s_q.value = s
         if len(self.cells) == 0:
             return
-        x = self._r.eval(self.cells).reshape(-1, 3) - s * E_Z
+        shift = self.offset + s * E_Z
+        x = self._r.eval(self.cells).reshape(-1, 3) - shift
         near = getattr(self.surface, "near", None)
         if near is not None:
             _, foot, n = near(x, CUTOFF * self.surface.size)
         else:
             d, n = self.surface.signed_distance(x), self.surface.normal(x)
             foot = x - d[:, None] * n
-        self.foot.x.array[self._index] = (foot + s * E_Z).ravel()
+        self.foot.x.array[self._index] = (foot + shift).ravel()
         self.n.x.array[self._index] = n.ravel()
+
+    def distance(self, r, stroke=None):
+        """The signed distance at the placement r (a moving tool's at the stroke ``stroke``)."""
+        gap = r - self.foot
+        if self.moving:
+            gap = gap - (stroke - self.s_q) * ufl.as_vector(E_Z.tolist())
+        return ufl.dot(self.n, gap)
 
     def punch(self, r, stroke) -> tuple:
         """(signed distance, vertical component of the normal) at the stroke ``stroke``."""
-        d = ufl.dot(self.n, r - self.foot - (stroke - self.s_q) * ufl.as_vector(E_Z.tolist()))
-        return d, self.n[2]
+        return self.distance(r, stroke), self.n[2]
 
     def punch_normal(self, r, stroke) -> tuple:
         """(signed distance, outward normal)."""
-        return self.punch(r, stroke)[0], self.n
+        return self.distance(r, stroke), self.n
+
+
+def tabulated_punch(msh, surface: ToolSurface, friction: float = 0.0) -> TabulatedTool:
+    """The punch given as a surface, checked against the blank; ``friction`` must be 0."""
+    if friction:
+        raise InputError(
+            f"{surface.name}: friction on a punch given as a surface is not modelled "
+            "(punch_friction = 0)"
+        )
+    check_against_blank(surface, msh)
+    return TabulatedTool(msh, surface)
 
 
 def check_against_blank(surface: ToolSurface, msh) -> None:
@@ -117,15 +140,26 @@ def check_against_blank(surface: ToolSurface, msh) -> None:
     holds a node of the flat blank at stroke 0 (checks.check_outside); the same verdict on
     every rank."""
     X = msh.geometry.x
-    lo = np.min(msh.comm.allgather(X[:, :2].min(axis=0) if len(X) else np.full(2, np.inf)), 0)
-    hi = np.max(msh.comm.allgather(X[:, :2].max(axis=0) if len(X) else np.full(2, -np.inf)), 0)
     error = None
     try:
-        checks.check_scale(surface, float((hi - lo).max()))
+        checks.check_scale(surface, _blank_size(msh))
         flat = np.column_stack([X[:, 0], X[:, 1], np.zeros(len(X))])
         checks.check_outside(surface, flat, START_TOLERANCE * surface.size)
     except InputError as e:
         error = str(e)
+    _same_error(msh, error)
+
+
+def _blank_size(msh) -> float:
+    """The blank's largest extent in its plane over all ranks (mm)."""
+    X = msh.geometry.x
+    lo = np.min(msh.comm.allgather(X[:, :2].min(axis=0) if len(X) else np.full(2, np.inf)), 0)
+    hi = np.max(msh.comm.allgather(X[:, :2].max(axis=0) if len(X) else np.full(2, -np.inf)), 0)
+    return float((hi - lo).max())
+
+
+def _same_error(msh, error: str | None) -> None:
+    """Raise the first rank's error on every rank, if any rank has one."""
     errors = [m for m in msh.comm.allgather(error) if m]
     if errors:
         raise InputError(errors[0])
@@ -138,18 +172,65 @@ def quadrature_points(msh) -> np.ndarray:
     return basix.make_quadrature(cell, CELL_QUADRATURE_DEGREE)[0]
 
 
-def die_surface(o: dict) -> analytic.DiePlate:
-    """The plug-in's die (Tools: its opening, lip, face at −p_h/k_c) as a surface."""
+def die_surface(o: dict) -> ToolSurface:
+    """The plug-in's die as a surface, its face at −p_h/k_c (Tools): the one the options give
+    (``die_file``, ``die_surface``; its face at z = 0) moved there, else the plate with the
+    opening and lip of the options."""
     face = -o["holder_pressure"] / o["contact_stiffness"]
+    given = given_surface(o, "die")
+    if given is not None:
+        return analytic.Moved(given, (0.0, 0.0, face))
     return analytic.DiePlate(forming_options.opening(o), o["die_lip"], face)
+
+
+def tabulated_die(msh, surface: ToolSurface, o: dict) -> TabulatedTool:
+    """The die given as a surface (face at z = 0), checked against the blank
+    (:func:`check_die_face`), tabulated at its place, the face at −p_h/k_c; the lip's friction
+    (``die_friction``) must be 0."""
+    if o.get("die_friction", 0.0):
+        raise InputError(
+            f"{surface.name}: friction on a die given as a surface is not modelled "
+            "(die_friction = 0)"
+        )
+    check_die_face(surface, msh, o)
+    face = -o["holder_pressure"] / o["contact_stiffness"]
+    return TabulatedTool(msh, surface, moving=False, offset=(0.0, 0.0, face))
+
+
+def check_die_face(surface: ToolSurface, msh, o: dict) -> None:
+    """Refuse a die given as a surface whose size is far from the blank's (its units), that
+    holds a node of the flat blank, or whose face is not at z = 0 where the holder presses the
+    flange (σ ≥ 2 r_d: the pressure would lift the flange into nothing), within
+    :data:`FACE_TOLERANCE` lip radii; the same verdict on every rank."""
+    X = msh.geometry.x
+    flat = np.column_stack([X[:, 0], X[:, 1], np.zeros(len(X))])
+    tol = FACE_TOLERANCE * o["die_lip"]
+    error = None
+    try:
+        checks.check_scale(surface, _blank_size(msh))
+        checks.check_outside(surface, flat, tol)
+        held = forming_options.opening(o).evaluate(flat)[0] >= 2.0 * o["die_lip"]
+        gap = np.where(held, surface.signed_distance(flat), 0.0) if len(flat) else np.zeros(1)
+        k = int(np.argmax(gap))
+        if gap[k] > tol:
+            raise InputError(
+                f"{surface.name}: the die's face is {gap[k]:.3g} mm above the blank at "
+                f"{np.round(flat[k, :2], 6).tolist()}, where the holder presses the flange "
+                f"against it; the die's face must lie at z = 0 there (within {tol:.3g} mm) "
+                "and cover the flange"
+            )
+    except InputError as e:
+        error = str(e)
+    _same_error(msh, error)
 
 
 def checked_punch(o: dict) -> ToolSurface | None:
     """The punch to check against the die (:func:`die_check`): the one given as a surface, the
-    analytic hemisphere in an opening that is not the circle about it, else None (that circle
-    is wider than the punch by the clearance)."""
+    analytic hemisphere in an opening that is not the circle about it or under a die given as
+    a surface, else None (that circle is wider than the punch by the clearance)."""
     surface = punch_surface(o)
-    if surface is None and forming_options.opening(o).kind != "circle":
+    plate = forming_options.opening(o).kind == "circle" and given_surface(o, "die") is None
+    if surface is None and not plate:
         return analytic.HemispherePunch(o["punch_radius"])
     return surface
 
@@ -161,21 +242,25 @@ def die_check(surface: ToolSurface, o: dict, reach: float):
     The punch's points are sampled once (checks.surface_points), :data:`DIE_SPACING` lip radii
     apart: on a triangle mesh's triangles, or near an analytic punch on a grid (coarser if the
     box would hold more than :data:`GRID_POINTS`), in the layer of the punch that a stroke up
-    to ``reach`` brings to the die (from its face less ``reach`` to the top of its lip). The
-    first contact between samples is missed by at most about spacing² over the lip radius."""
+    to ``reach`` brings to the die (from its face less ``reach`` to the top of its lip, or of
+    a die given as a surface). The first contact between samples is missed by at most about
+    spacing² over the lip radius."""
     die = die_surface(o)
     bounds = getattr(surface, "bounds", lambda: None)()
     lo, hi = (-surface.size, surface.size) if bounds is None else (bounds[0], bounds[1])
     if getattr(surface, "vertices", None) is not None:
         lo, hi = -np.inf, np.inf  # every vertex in the layer, wherever the mesh lies
-    lower = np.array([*np.broadcast_to(lo, 3)[:2], die.face - reach])
-    upper = np.array([*np.broadcast_to(hi, 3)[:2], die.face + 2.0 * die.lip])
-    spacing = DIE_SPACING * die.lip
+    face, lip = -o["holder_pressure"] / o["contact_stiffness"], o["die_lip"]
+    top = getattr(die, "bounds", lambda: None)()
+    top = face + 2.0 * lip if top is None else top[1][2]
+    lower = np.array([*np.broadcast_to(lo, 3)[:2], face - reach])
+    upper = np.array([*np.broadcast_to(hi, 3)[:2], top])
+    spacing = DIE_SPACING * lip
     if np.isfinite(lower).all() and np.isfinite(upper).all():
         spacing = max(spacing, (np.prod(upper - lower) / GRID_POINTS) ** (1 / 3))
     points = checks.surface_points(surface, lower, upper, spacing)
 
     def check(stroke: float) -> None:
-        checks.check_stroke(surface, die, points, E_Z, stroke)
+        checks.check_stroke(surface, die, points, E_Z, stroke, near=2.0 * spacing)
 
     return check
