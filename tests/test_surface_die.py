@@ -160,7 +160,11 @@ def test_die_friction_refused():
 @pytest.mark.parametrize(
     "shift, scale, words",
     [
-        (0.0, 1000.0, r"die plate: the tool is .* times larger than the blank.*units"),
+        (
+            0.0,
+            1000.0,
+            r"die plate: .*1.5e\+03 times larger than the blank \(90000 mm against 60 mm\)",
+        ),
         (1.0, 1.0, r"the die's face is 1 mm above the blank at .* where the holder presses"),
         (-1.0, 1.0, r"the tool starts inside the blank: .* up to 1 mm deep"),
     ],

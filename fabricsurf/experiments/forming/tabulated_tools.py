@@ -42,6 +42,7 @@ import basix
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.errors import InputError
@@ -151,11 +152,11 @@ def check_against_blank(surface: ToolSurface, msh) -> None:
 
 
 def _blank_size(msh) -> float:
-    """The blank's largest extent in its plane over all ranks (mm)."""
+    """The blank's largest extent in its plane (mm): twice its reach from the punch axis, the
+    whole blank's whether the full blank or its quarter is meshed."""
     X = msh.geometry.x
-    lo = np.min(msh.comm.allgather(X[:, :2].min(axis=0) if len(X) else np.full(2, np.inf)), 0)
-    hi = np.max(msh.comm.allgather(X[:, :2].max(axis=0) if len(X) else np.full(2, -np.inf)), 0)
-    return float((hi - lo).max())
+    reach = float(np.abs(X[:, :2]).max()) if len(X) else 0.0
+    return 2.0 * msh.comm.allreduce(reach, op=MPI.MAX)
 
 
 def _same_error(msh, error: str | None) -> None:
