@@ -2,6 +2,8 @@
 punch and a 60 mm blank meshed at 4 mm, with the same tools, so the tests compile the same
 forms. A test changes a tool by ``TOOLING | {…}``."""
 
+import numpy as np
+
 R, BLANK, H = 20.0, 60.0, 4.0
 TOOLS = {
     "punch_radius": R,
@@ -28,3 +30,19 @@ PARAMS = {
     "twist": {"k_t": 0.1},
 }
 """The fabric the forming tests form (stiff yarns, soft shear, light bending and twist)."""
+
+
+def work_balance_errors(e, stroke: float, counts) -> tuple[list, float]:
+    """(∫ F ds − ΔΠ for each step count of ``counts``, ΔΠ of the last) of the plug-in ``e``
+    formed to ``stroke`` from the flat blank (set back by hand before each run): the
+    trapezoid rule's error of the punch work, which falls at rate 2 with the step where the
+    punch force is the work conjugate of the stroke."""
+    errors = []
+    for steps in counts:
+        e.set_load(0.0)
+        e.solver.u.x.array[:] = 0.0
+        start = sum(e.energies())
+        e.run(stroke, steps)
+        change = sum(e.energies()) - start
+        errors.append(float(np.trapz(e.force, e.stroke)) - change)
+    return errors, change

@@ -27,7 +27,7 @@ import re
 
 import numpy as np
 import pytest
-from hemisphere_case import BLANK, TOOLING, H, R
+from hemisphere_case import BLANK, TOOLING, H, R, work_balance_errors
 from mpi4py import MPI
 
 from fabricsurf.errors import InputError
@@ -130,15 +130,8 @@ def test_chamfered_die_work_balance():
         *meshes.revolved_loop(meshes.cut_loop(corners, step), 150), "chamfered die"
     )
     e = plugin(die)
-    errors = []
     try:
-        for steps in (4, 8, 16):
-            e.set_load(0.0)
-            e.solver.u.x.array[:] = 0.0
-            start = sum(e.energies())
-            e.run(STROKE, steps)
-            change = sum(e.energies()) - start
-            errors.append(float(np.trapz(e.force, e.stroke)) - change)
+        errors, change = work_balance_errors(e, STROKE, (4, 8, 16))
     finally:
         e.close()
     assert change > 0.5 and errors[0] > 0

@@ -28,7 +28,7 @@ against 19/13/14/12 analytic.
 import h5py
 import numpy as np
 import pytest
-from hemisphere_case import BLANK, TOOLING, H, R
+from hemisphere_case import BLANK, TOOLING, H, R, work_balance_errors
 from mpi4py import MPI
 
 from fabricsurf.errors import DataError, InputError
@@ -148,15 +148,8 @@ def test_flat_punch_work_balance():
     e = HemispherePlugin(
         PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model, H, COMM
     )
-    errors = []
     try:
-        for steps in (4, 8):
-            e.set_load(0.0)
-            e.solver.u.x.array[:] = 0.0
-            start = sum(e.energies())
-            e.run(STROKE, steps)
-            change = sum(e.energies()) - start
-            errors.append(float(np.trapz(e.force, e.stroke)) - change)
+        errors, change = work_balance_errors(e, STROKE, (4, 8))
     finally:
         e.close()
     assert change > 1.0 and errors[0] > 0
