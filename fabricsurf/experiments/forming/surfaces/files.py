@@ -26,7 +26,7 @@ from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSur
 
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 """Length units a tool file may be in, and their size in mm."""
-PUNCH_FILES_KEPT = 2
+TOOL_FILES_KEPT = 2
 """Tool files whose surfaces :func:`read_tool_file` keeps once read."""
 TOOLS = ("punch", "die")
 """The tools a file may give."""
@@ -188,13 +188,14 @@ def punch_surface(o: dict):
 def read_tool_file(path: str | Path, units: str) -> TriangulatedSurface:
     """:func:`read_surface`, once for a file as it stands (its resolved path, modification time
     and size): the options' check, the tools, the die and symmetry checks and the data's check
-    all ask for the punch, and a file of 6·10⁶ triangles takes about a minute to read."""
+    all ask for the punch and the die, and a file of 6·10⁶ triangles takes about a minute to
+    read."""
     resolved = Path(path).resolve()
     stat = resolved.stat()
     return _read_once(str(path), str(resolved), units, (stat.st_mtime_ns, stat.st_size))
 
 
-@functools.lru_cache(maxsize=PUNCH_FILES_KEPT)
+@functools.lru_cache(maxsize=TOOL_FILES_KEPT)
 def _read_once(path: str, resolved: str, units: str, stamp: tuple) -> TriangulatedSurface:
     """The file at ``path`` read (``resolved`` and ``stamp`` only tell files apart)."""
     return read_surface(path, units)
