@@ -97,7 +97,7 @@ class TriangulatedSurface:
         point, face = np.empty_like(x), np.zeros(len(x), dtype=np.int64)
         kind, index = np.zeros(len(x), dtype=int), np.zeros(len(x), dtype=int)
         todo = np.arange(len(x))
-        for k in NEAREST:
+        for k in NEAREST if len(x) else ():
             k = min(k, len(self.points))
             dist_c, cand = self.tree.query(x[todo], k=k)
             dist_c = dist_c.reshape(len(todo), k)
@@ -111,7 +111,8 @@ class TriangulatedSurface:
             todo, nearest = todo[~sure], cand[~sure, 0]
             if len(todo) == 0:
                 break
-        todo = todo[np.argsort(nearest)]  # neighbours together: they share candidates
+        if len(todo):  # neighbours together: they share candidates
+            todo = todo[np.argsort(nearest)]
         step = max(1, GROUP_WORK // len(self.faces))
         for start in range(0, len(todo), step):
             self._settle(x, todo[start : start + step], point, face, kind, index)
@@ -133,7 +134,8 @@ class TriangulatedSurface:
         best2 = ((x[group] - point[group]) ** 2).sum(axis=1)
         gap = np.maximum(self.box[0][None] - x[group, None], 0.0)
         gap += np.maximum(x[group, None] - self.box[1][None], 0.0)
-        rows, cols = np.nonzero((gap**2).sum(axis=2) <= best2[:, None] * (1 + 1e-12))
+        slack = (1e-12 * self.size) ** 2  # a point on a triangle may round off its box
+        rows, cols = np.nonzero((gap**2).sum(axis=2) <= best2[:, None] * (1 + 1e-12) + slack)
         counts = np.bincount(rows, minlength=len(group))
         first = np.concatenate([[0], np.cumsum(counts)[:-1]])
         cand = np.repeat(cols[first][:, None], counts.max(), axis=1)  # padded with a repeat
