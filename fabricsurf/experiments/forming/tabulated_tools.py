@@ -209,9 +209,10 @@ def check_die_face(surface: ToolSurface, msh, o: dict) -> None:
     error = None
     try:
         checks.check_scale(surface, _blank_size(msh))
-        checks.check_outside(surface, flat, tol)
+        d = surface.signed_distance(flat) if len(flat) else np.zeros(0)
+        checks.check_outside(surface, flat, tol, d)
         held = forming_options.opening(o).evaluate(flat)[0] >= 2.0 * o["die_lip"]
-        gap = np.where(held, surface.signed_distance(flat), 0.0) if len(flat) else np.zeros(1)
+        gap = np.where(held, d, 0.0) if len(flat) else np.zeros(1)
         k = int(np.argmax(gap))
         if gap[k] > tol:
             raise InputError(

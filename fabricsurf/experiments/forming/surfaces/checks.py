@@ -43,9 +43,12 @@ def check_scale(tool: ToolSurface, blank_size: float) -> None:
         )
 
 
-def check_outside(tool: ToolSurface, points: np.ndarray, tolerance: float = 0.0) -> None:
-    """Refuse a tool that holds points of the blank (rows, mm) deeper than ``tolerance``."""
-    d = tool.signed_distance(np.asarray(points, float))
+def check_outside(
+    tool: ToolSurface, points: np.ndarray, tolerance: float = 0.0, d: np.ndarray | None = None
+) -> None:
+    """Refuse a tool that holds points of the blank (rows, mm) deeper than ``tolerance``;
+    ``d``: their signed distances, if the caller has them."""
+    d = tool.signed_distance(np.asarray(points, float)) if d is None else d
     inside = d < -tolerance
     if inside.any():
         k = int(np.argmin(d))
