@@ -80,13 +80,13 @@ PERCENTILE = 25
 
 def search_points(corners: np.ndarray, limit: int) -> tuple[np.ndarray, np.ndarray, float]:
     """(points (s, 3), the triangle each belongs to (s,), reach) of triangles ``corners``
-    (f, 3, 3), for a nearest-point search: each triangle larger than a quarter of them is cut
-    by longest-edge bisection (Rivara 1984) into pieces no larger (centroid to corner) than
-    those, and the points are the pieces' centroids (at most about ``limit`` points, or one a
-    triangle: the size grows until they fit). Every point of a triangle then lies within
-    ``reach`` of one of its own search points, so a triangle whose points are all farther than
-    d + reach from x holds no point within d of x, however long it is (a CAD file's flat faces
-    are a few long slivers beside fillets of many small triangles)."""
+    (f, 3, 3), for a nearest-point search: each triangle larger than the smallest quarter of them
+    (:data:`PERCENTILE`) is cut by longest-edge bisection (Rivara 1984) into pieces no larger
+    (centroid to corner) than those, and the points are the pieces' centroids (at most about
+    ``limit`` points, or one a triangle: the size grows until they fit). Every point of a
+    triangle then lies within ``reach`` of one of its own search points, so a triangle whose
+    points are all farther than d + reach from x holds no point within d of x, however long it
+    is (a CAD file's flat faces are a few long slivers beside fillets of many small triangles)."""
     spread = _spread(corners)
     area = 0.5 * np.linalg.norm(
         np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
