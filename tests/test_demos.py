@@ -46,6 +46,7 @@ QUICK = {
     "demo_bending.py": ["--quick"],
     "demo_woven_fabric.py": ["--quick"],
     "demo_forming.py": ["--quick"],
+    "demo_double_dome.py": ["--quick"],
     "demo_dic.py": ["--quick"],
     "demo_new_effect.py": ["--quick"],
 }

@@ -147,6 +147,30 @@ def tangent_frame(surface: ToolSurface, seed: np.ndarray, e1) -> np.ndarray:
     return np.array([t1, np.cross(nrm, t1), nrm])
 
 
+def close_net(surface: ToolSurface, gen: np.ndarray, a: float) -> np.ndarray:
+    """Node (i, j), |i|, |j| ≤ n, of the net at ``x[i + n, j + n]``, closed cell by cell from its
+    four generator halves ``gen`` (4 × (n + 1) × 3: L forwards, L backwards, M forwards, M
+    backwards, each from the seed), every anti-diagonal of the four quadrants at once."""
+    n = gen.shape[1] - 1
+    signs = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
+    q = np.empty((4, n + 1, n + 1, 3))
+    for c, (si, sj) in enumerate(signs):
+        q[c, :, 0] = gen[0 if si > 0 else 1]
+        q[c, 0, :] = gen[2 if sj > 0 else 3]
+    for k in range(2, 2 * n + 1):
+        i = np.arange(max(1, k - n), min(n, k - 1) + 1)
+        j = k - i
+        shape = q[:, i, j].shape
+        o, p, r = (q[:, i - 1, j - 1], q[:, i, j - 1], q[:, i - 1, j])
+        x = close_cells(surface, o.reshape(-1, 3), p.reshape(-1, 3), r.reshape(-1, 3), a)
+        q[:, i, j] = x.reshape(shape)
+    x = np.empty((2 * n + 1, 2 * n + 1, 3))
+    k = np.arange(n + 1)
+    for c, (si, sj) in enumerate(signs):
+        x[np.ix_(n + si * k, n + sj * k)] = q[c]
+    return x
+
+
 def drape(
     surface: ToolSurface,
     seed,
@@ -173,23 +197,7 @@ def drape(
     frame = tangent_frame(surface, seed, direction)
     L, M = unit(angles_deg[0]), unit(angles_deg[1])
     t3 = np.array([s * (d @ frame[:2]) for d in (L, M) for s in (1.0, -1.0)])
-    gen = geodesic(surface, seed, t3, a, n)
-    signs = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
-    q = np.empty((4, n + 1, n + 1, 3))
-    for c, (si, sj) in enumerate(signs):
-        q[c, :, 0] = gen[0 if si > 0 else 1]
-        q[c, 0, :] = gen[2 if sj > 0 else 3]
-    for k in range(2, 2 * n + 1):
-        i = np.arange(max(1, k - n), min(n, k - 1) + 1)
-        j = k - i
-        shape = q[:, i, j].shape
-        o, p, r = (q[:, i - 1, j - 1], q[:, i, j - 1], q[:, i - 1, j])
-        x = close_cells(surface, o.reshape(-1, 3), p.reshape(-1, 3), r.reshape(-1, 3), a)
-        q[:, i, j] = x.reshape(shape)
-    x = np.empty((2 * n + 1, 2 * n + 1, 3))
-    k = np.arange(n + 1)
-    for c, (si, sj) in enumerate(signs):
-        x[np.ix_(n + si * k, n + sj * k)] = q[c]
+    x = close_net(surface, geodesic(surface, seed, t3, a, n), a)
     kk = np.arange(-n, n + 1)
     ref = a * (kk[:, None, None] * L + kk[None, :, None] * M)
     return SurfaceNet(a, n, tuple(angles_deg), seed, frame, x, ref, cell_shear(x, L, M))
