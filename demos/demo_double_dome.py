@@ -41,6 +41,7 @@
 # %%
 import csv
 import logging
+import sys
 import time
 from pathlib import Path
 
@@ -49,6 +50,7 @@ from mpi4py import MPI
 
 from fabricsurf.cli.demo import demo_parser, parse, verify
 from fabricsurf.discretise.output import on_rank0, write_json
+from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.experiments.forming.part_table import write_part_table
 from fabricsurf.log import rank0
 from fabricsurf.studies import double_dome as dd
@@ -87,7 +89,13 @@ for name, angles in BLANKS.items():
     model = parts.forming_model(params, K_BEND, K_BEND)
     with dd.experiment(R, surface, angles, H, model, comm) as e:
         rank0(logger, comm, f"{name}: solved on the {e.domain} blank, h = {H:g} mm")
-        runs[name] = dd.form(e, parts.fitted_values(params, K_BEND), STROKE, STEPS, f"{name}: ")
+        try:
+            runs[name] = dd.form(e, parts.fitted_values(params, K_BEND), STROKE, STEPS, f"{name}: ")
+        except LoadStepError as err:  # where it stopped, and the steps before it
+            report = {"blank": name, **err.as_dict(), "converged_steps": e.steps}
+            write_json(comm, out / "failure.json", report)
+            rank0(logger, comm, f"{name}: {err} (see failure.json)", level=logging.ERROR)
+            sys.exit(1)
         check = dd.drape_check(e, surface, R, a=0.5 * H)
         checks[name] = check
         profiles[name] = dd.lines(e, surface, check["seed"], R)
