@@ -26,7 +26,12 @@ from fabricsurf.discretise.evaluation import PointLocator, nodal_average
 from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.verification.drapes.drape_map import differences
 from fabricsurf.verification.drapes.fishnet import cell_shear, unit
-from fabricsurf.verification.drapes.surface_drape import SurfaceNet, close_net, node_shear
+from fabricsurf.verification.drapes.surface_drape import (
+    SurfaceNet,
+    close_net,
+    node_shear,
+    tangent_frame,
+)
 
 SAMPLES_PER_CHORD = 8
 """Points at which a fibre line is evaluated per chord of the net."""
@@ -167,7 +172,8 @@ def compare(e, surface, seed: np.ndarray, angles_deg, a: float, reach: float, to
     inside = np.isfinite(r).all(axis=1)
     d[inside] = surface.signed_distance(r[inside])
     valid = _reachable((np.abs(d) < touch).reshape(2 * n + 1, 2 * n + 1), n)[1:-1, 1:-1]
-    net = SurfaceNet(a, n, tuple(angles_deg), x[n, n], np.eye(3), x, ref, cell_shear(x, L, M))
+    frame = tangent_frame(surface, x[n, n], (1.0, 0.0, 0.0))
+    net = SurfaceNet(a, n, tuple(angles_deg), x[n, n], frame, x, ref, cell_shear(x, L, M))
     drape = np.degrees(node_shear(net))
     valid &= np.isfinite(drape)
     drape = drape[valid]
