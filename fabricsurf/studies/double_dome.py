@@ -28,8 +28,8 @@ from fabricsurf.studies import hemisphere_forming as parts
 from fabricsurf.verification.drapes import tool_drape
 
 TOOL = {"spacing": 1.75, "fillet": 0.3, "clearance": 0.125, "lip": 0.125, "tool_h": 0.075}
-"""The tool set in multiples of the domes' radius R: the domes' centres 1.75 R apart (the
-saddle between them 0.48 R below their tops before its fillet of 0.3 R), clearance to the die
+"""The tool set in multiples of the domes' radius R: the domes' centres 1.75 R apart (where
+the two spheres meet, 0.52 R below their tops, before the fillet of 0.3 R), clearance to the die
 and the die's lip R/8, the punch meshed with triangles of side 0.075 R at most."""
 BLANK = (7.0, 5.0)
 """The blank in multiples of R (length along the domes' axis × width): 280 × 200 mm at R = 40
