@@ -43,7 +43,6 @@ import csv
 import logging
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
@@ -59,12 +58,7 @@ from fabricsurf.studies import hemisphere_forming as parts
 comm = MPI.COMM_WORLD
 logger = logging.getLogger(__name__)
 ap = demo_parser("A fitted woven fabric formed over a double dome", "out/double_dome")
-ap.add_argument(
-    "--params",
-    type=Path,
-    default=Path("out/woven/woven_params.json"),
-    help="params file of demo_woven_fabric.py",
-)
+parts.add_params_option(ap)
 args = parse(ap)
 out = args.out
 t_start = time.perf_counter()

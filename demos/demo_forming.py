@@ -48,7 +48,6 @@ import csv
 import logging
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
@@ -67,12 +66,7 @@ from fabricsurf.verification.drapes.forming_map import compare_with_drapes
 comm = MPI.COMM_WORLD
 logger = logging.getLogger(__name__)
 ap = demo_parser("A fitted woven fabric formed over a hemisphere", "out/forming")
-ap.add_argument(
-    "--params",
-    type=Path,
-    default=Path("out/woven/woven_params.json"),
-    help="params file of demo_woven_fabric.py",
-)
+parts.add_params_option(ap)
 ap.add_argument(
     "--effects", action="store_true", help="run the bending and locking variants in quick mode too"
 )

@@ -48,6 +48,17 @@ def documented_fit() -> dict:
     return json.loads(woven_fit().read_text(encoding="utf-8"))
 
 
+def add_params_option(ap) -> None:
+    """The forming demos' ``--params``: the params file of demo_woven_fabric.py (read by
+    :func:`read_params`)."""
+    ap.add_argument(
+        "--params",
+        type=Path,
+        default=Path("out/woven/woven_params.json"),
+        help="params file of demo_woven_fabric.py",
+    )
+
+
 def read_params(path: Path | None, out: Path) -> tuple[dict, str]:
     """The params file of demo_woven_fabric.py, or else the documented fit shipped with the
     package (:func:`fabricsurf.datasets.woven_fit`), copied to
