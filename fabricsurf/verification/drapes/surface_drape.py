@@ -41,6 +41,8 @@ if TYPE_CHECKING:  # the protocol only: the drape itself needs numpy alone
 ROOT_TOL = 1e-12
 """Tolerance of the node's signed distance, relative to the size of the coordinates."""
 MAX_ITERATIONS = 100
+SIGNS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
+"""The net's quadrants: the senses of the L and M generator halves that bound each."""
 SEED_TOLERANCE = 1e-2
 """A seed farther from the surface than this times the cell side is refused; a nearer one is
 moved onto the surface along its normal."""
@@ -152,9 +154,8 @@ def close_net(surface: ToolSurface, gen: np.ndarray, a: float) -> np.ndarray:
     four generator halves ``gen`` (4 × (n + 1) × 3: L forwards, L backwards, M forwards, M
     backwards, each from the seed), every anti-diagonal of the four quadrants at once."""
     n = gen.shape[1] - 1
-    signs = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
     q = np.empty((4, n + 1, n + 1, 3))
-    for c, (si, sj) in enumerate(signs):
+    for c, (si, sj) in enumerate(SIGNS):
         q[c, :, 0] = gen[0 if si > 0 else 1]
         q[c, 0, :] = gen[2 if sj > 0 else 3]
     for k in range(2, 2 * n + 1):
@@ -166,7 +167,7 @@ def close_net(surface: ToolSurface, gen: np.ndarray, a: float) -> np.ndarray:
         q[:, i, j] = x.reshape(shape)
     x = np.empty((2 * n + 1, 2 * n + 1, 3))
     k = np.arange(n + 1)
-    for c, (si, sj) in enumerate(signs):
+    for c, (si, sj) in enumerate(SIGNS):
         x[np.ix_(n + si * k, n + sj * k)] = q[c]
     return x
 

@@ -27,6 +27,7 @@ from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.verification.drapes.drape_map import differences
 from fabricsurf.verification.drapes.fishnet import cell_shear, unit
 from fabricsurf.verification.drapes.surface_drape import (
+    SIGNS,
     SurfaceNet,
     close_net,
     node_shear,
@@ -35,8 +36,6 @@ from fabricsurf.verification.drapes.surface_drape import (
 
 SAMPLES_PER_CHORD = 8
 """Points at which a fibre line is evaluated per chord of the net."""
-SIGNS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
-"""The quadrants: the senses of the L and M generator halves."""
 
 
 class Continuum:
