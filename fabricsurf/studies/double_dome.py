@@ -20,7 +20,7 @@ from dolfinx import fem
 from fabricsurf.discretise.evaluation import eval_points
 from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.forming.stroke_log import StrokeLog
-from fabricsurf.experiments.forming.surfaces import topology
+from fabricsurf.experiments.forming.surfaces import meshes
 from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSurface
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.geometry.double_dome import double_dome_punch
@@ -47,9 +47,7 @@ def punch(R: float, comm) -> TriangulatedSurface:
         h=TOOL["tool_h"] * R,
         comm=comm,
     )
-    used, faces = np.unique(faces, return_inverse=True)
-    v, f = topology.weld(points[used], faces.reshape(-1, 3))
-    return TriangulatedSurface(v, topology.orient(f, v), "double-dome punch", True)
+    return meshes.welded(points, faces, "double-dome punch")
 
 
 def tooling(R: float) -> dict:

@@ -200,7 +200,15 @@ def from_gmsh(*, units: str, name: str = "gmsh model", closed: bool = True) -> T
     points = np.zeros((int(tags.max()) + 1, 3))
     points[tags.astype(int)] = coords.reshape(-1, 3)
     _, nodes = gmsh.model.mesh.getElementsByType(2)
-    faces = nodes.astype(int).reshape(-1, 3)
+    return welded(unit_scale(units, name) * points, nodes.astype(int).reshape(-1, 3), name, closed)
+
+
+def welded(
+    points: np.ndarray, faces: np.ndarray, name: str, closed: bool = True
+) -> TriangulatedSurface:
+    """The surface of the triangles ``faces`` (rows of indices into ``points``, mm): points no
+    face uses dropped, coincident ones welded, the faces oriented consistently, each closed
+    piece outwards (topology.orient)."""
     used, faces = np.unique(faces, return_inverse=True)
-    vertices, faces = topology.weld(unit_scale(units, name) * points[used], faces.reshape(-1, 3))
+    vertices, faces = topology.weld(points[used], faces.reshape(-1, 3))
     return TriangulatedSurface(vertices, topology.orient(faces, vertices), name, closed)
