@@ -23,6 +23,7 @@ from mpi4py import MPI
 from fabricsurf.log import configure, rank0
 from fabricsurf.studies import double_dome as dd
 from fabricsurf.studies import hemisphere_forming as parts
+from fabricsurf.verification.drapes import tool_drape
 
 logger = logging.getLogger(__name__)
 comm = MPI.COMM_WORLD
@@ -37,7 +38,7 @@ def run(R: float, surface, angles, h: float, args: argparse.Namespace) -> dict:
         t0 = time.perf_counter()
         res = dd.form(e, parts.fitted_values(params, K_BEND), 0.75 * R, args.steps, f"h={h:.3g}: ")
         seconds = time.perf_counter() - t0
-        check = dd.drape_check(e, surface, R, args.a)
+        check = dd.drape_check(tool_drape.Continuum(e), surface, R, args.a)
         return {
             "h": h,
             "cells": comm.allreduce(e.specimen.mesh.topology.index_map(2).size_local),

@@ -54,6 +54,7 @@ from fabricsurf.experiments.forming.part_table import write_part_table
 from fabricsurf.log import rank0
 from fabricsurf.studies import double_dome as dd
 from fabricsurf.studies import hemisphere_forming as parts
+from fabricsurf.verification.drapes import tool_drape
 
 comm = MPI.COMM_WORLD
 logger = logging.getLogger(__name__)
@@ -90,10 +91,11 @@ for name, angles in BLANKS.items():
             write_json(comm, out / "failure.json", report)
             rank0(logger, comm, f"{name}: {err} (see failure.json)", level=logging.ERROR)
             sys.exit(1)
-        check = dd.drape_check(e, surface, R, a=0.5 * H)
+        sheet = tool_drape.Continuum(e)  # the formed sheet, read by the check, lines and maps
+        check = dd.drape_check(sheet, surface, R, a=0.5 * H)
         checks[name] = check
-        profiles[name] = dd.lines(e, surface, check["seed"], R)
-        grids[name] = dd.grid(e)
+        profiles[name] = dd.lines(sheet, surface, check["seed"], R)
+        grids[name] = dd.grid(sheet)
         with e.writer(out / f"double_dome_{tag}.xdmf") as w:
             w.write(STROKE)
         files[name] = write_part_table(e, out / f"part_table_{tag}.csv")

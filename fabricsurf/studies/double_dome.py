@@ -94,14 +94,13 @@ def form(e: HemispherePlugin, values: dict, stroke: float, steps: int, label: st
     }
 
 
-def lines(e: HemispherePlugin, surface, seed: np.ndarray, R: float, n: int = 81) -> dict:
+def lines(sheet: tool_drape.Continuum, surface, seed: np.ndarray, R: float, n: int = 81) -> dict:
     """The shear along three measurement lines of the reference blank, each from the axis to
     the blank's edge: the domes' axis (Y = 0), the transverse line through the material point
     ``seed`` on the dome's top, and the transverse mid-line over the saddle (X = 0); with the
     formed position (the punch's frame), the distance from the punch and whether the sheet lies
     on it (:data:`TOUCH`). The same on every rank."""
-    sheet = tool_drape.Continuum(e)
-    half = 0.5 * np.array([e.setup.length, e.setup.width])
+    half = 0.5 * np.array([sheet.e.setup.length, sheet.e.setup.width])
     t = np.linspace(0.0, 1.0, n)
     paths = {
         "axis": np.column_stack([t * half[0], 0.0 * t]),
@@ -118,13 +117,14 @@ def lines(e: HemispherePlugin, surface, seed: np.ndarray, R: float, n: int = 81)
     return out
 
 
-def grid(e: HemispherePlugin, n: int = 61) -> dict:
+def grid(sheet: tool_drape.Continuum, n: int = 61) -> dict:
     """The shear (deg) and the wrinkling indicator's marks on an n × n grid of the reference
     quarter (X, Y ≥ 0), for the maps. The same on every rank."""
+    e = sheet.e
     half = 0.5 * np.array([e.setup.length, e.setup.width])
     X, Y = np.meshgrid(*(np.linspace(0.0, h, n) for h in half), indexing="xy")
     P = np.column_stack([X.ravel(), Y.ravel()])
-    _, shear = tool_drape.Continuum(e).at(P)
+    _, shear = sheet.at(P)
     V = fem.FunctionSpace(e.specimen.mesh, ("DG", 0))
     mark = fem.Function(V)
     mark.interpolate(fem.Expression(e.wrinkling.mark, V.element.interpolation_points()))
@@ -133,14 +133,14 @@ def grid(e: HemispherePlugin, n: int = 61) -> dict:
     return {"half": half, "shear_deg": shear.reshape(n, n), "wrinkle": marked.reshape(n, n)}
 
 
-def drape_check(e: HemispherePlugin, surface, R: float, a: float) -> dict:
+def drape_check(sheet: tool_drape.Continuum, surface, R: float, a: float) -> dict:
     """The sheet over the right-hand dome against the kinematic drape from its own generators
     (tool_drape.compare), seeded at the material point that lies on that dome's top."""
-    sheet = tool_drape.Continuum(e)
+    setup = sheet.e.setup
     top = 0.5 * TOOL["spacing"] * R
-    seed = tool_drape.seed_on_axis(sheet, top, 0.5 * e.setup.length)
+    seed = tool_drape.seed_on_axis(sheet, top, 0.5 * setup.length)
     reach = 0.5 * math.pi * R
-    out = tool_drape.compare(e, surface, seed, e.setup.fibre_angles_deg, a, reach, TOUCH * R)
+    out = tool_drape.compare(sheet, surface, seed, setup.fibre_angles_deg, a, reach, TOUCH * R)
     return {**out, "seed": seed}
 
 

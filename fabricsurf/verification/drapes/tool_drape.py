@@ -156,12 +156,13 @@ def seed_on_axis(sheet: Continuum, x: float, reach: float, samples: int = 400) -
     return np.array([float(np.interp(x, r[keep, 0], X[keep])), 0.0])
 
 
-def compare(e, surface, seed: np.ndarray, angles_deg, a: float, reach: float, touch: float) -> dict:
+def compare(
+    sheet: Continuum, surface, seed: np.ndarray, angles_deg, a: float, reach: float, touch: float
+) -> dict:
     """The continuum's shear against the net from its own generators through the material
     point ``seed`` (module docstring), at the net's interior nodes whose rectangle back to the
     seed lies on ``surface`` (the punch in its own frame) within ``touch``: the compared
     reference points, both shears (deg), max and RMS of the difference, the nodes left out."""
-    sheet = Continuum(e)
     x, n = net_from_continuum(sheet, surface, seed, angles_deg, a, reach, touch)
     L, M = unit(angles_deg[0]), unit(angles_deg[1])
     k = np.arange(-n, n + 1)
