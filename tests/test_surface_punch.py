@@ -15,8 +15,10 @@ Checks that can fail independently of each other:
   work equals the change of the energy, the trapezoid rule's error falling at rate 2;
 * 1 = 2 ranks: the triangulated punch's forces agree between serial and two ranks (the same
   file under ``mpirun -n 2``: the tabulation is cell by cell on each rank);
-* a punch in the wrong units, a punch that starts inside the blank and friction on a punch
-  given as a surface are refused before forming, with messages naming them.
+* friction on the punch through a second table of the punch at the step's start: the analytic
+  punch given through the tables forms as the UFL punch does with μ_p = 0.3;
+* a punch in the wrong units and a punch that starts inside the blank are refused before
+  forming, with messages naming them.
 
 Measured (R = 20 mm, 60 mm blank, h = 4 mm, stroke 4 mm in 4 steps, ±45°): final force
 0.946034 N analytic and tabulated (relative 6e-12); triangulated with meridian edges 2, 1,
@@ -28,7 +30,7 @@ against 19/13/14/12 analytic.
 import h5py
 import numpy as np
 import pytest
-from hemisphere_case import BLANK, TOOLING, H, R, work_balance_errors
+from hemisphere_case import BLANK, FRICTION, TOOLING, H, R, work_balance_errors
 from mpi4py import MPI
 
 from fabricsurf.errors import DataError, InputError
@@ -156,13 +158,44 @@ def test_flat_punch_work_balance():
     assert 1.9 < np.log2(errors[0] / errors[1]) < 2.1, errors
 
 
-def test_punch_friction_refused():
-    opts = {**TOOLING, "punch_surface": analytic.HemispherePunch(R), "punch_friction": 0.2}
-    model = [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0)]
-    with pytest.raises(InputError, match="friction on a punch given as a surface"):
-        HemispherePlugin(
-            PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model, H, COMM
-        )
+def formed_with_friction(surface, mus: tuple) -> list[dict]:
+    """Punch force and dissipation of forming with the holder's friction (10 kPa, μ = 0.3) and
+    each punch friction of ``mus`` in turn, on one experiment (the coefficient a fem.Constant)."""
+    opts = {**TOOLING, **FRICTION}
+    if surface is not None:
+        opts["punch_surface"] = surface
+    model = [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=1.0), NormalBending(k_b=0.1), Twist(k_t=0.1)]
+    e = HemispherePlugin(
+        PluginSetup("hemisphere", BLANK, BLANK, (45.0, -45.0), opts), model, H, COMM
+    )
+    runs = []
+    try:
+        for mu in mus:
+            e.tools.mu_punch.value = mu
+            e.set_load(0.0)
+            e.solver.u.x.array[:] = 0.0
+            e.run(STROKE, STEPS)
+            runs.append({"force": np.array(e.force), "dissipated": e.dissipated()})
+    finally:
+        e.close()
+    return runs
+
+
+def test_punch_friction_through_table():
+    """Coulomb friction on a punch given as a surface: its pressure and normal at the step's
+    start come from a second table of the punch, made at the last converged state, where the
+    tabulated distance is exact. Through the table the analytic hemisphere gives the UFL
+    punch's forces and dissipation with μ_p = 0.3, to the Newton tolerance, a hundred times
+    closer than the punch friction's own effect on them (its μ_p = 0 run on the same table)."""
+    (ufl_punch,) = formed_with_friction(None, (0.3,))
+    table, frictionless = formed_with_friction(analytic.HemispherePunch(R), (0.3, 0.0))
+    f = ufl_punch["force"]
+    effect = np.abs(table["force"] - frictionless["force"]).max()
+    gap = np.abs(table["force"] - f).max()
+    print(f"force {f[-1]:.8g} N; table against UFL {gap:.3g}; friction's effect {effect:.3g} N")
+    assert effect > 1e-5 * f[-1] and gap < 1e-2 * effect and gap < 1e-8 * f[-1]
+    d, d0 = ufl_punch["dissipated"], frictionless["dissipated"]
+    assert table["dissipated"] > d0 and abs(table["dissipated"] - d) < 1e-2 * (d - d0)
 
 
 def test_bad_punches_refused():

@@ -26,7 +26,7 @@ from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming.surfaces import analytic, checks, files, meshes
 from fabricsurf.experiments.forming.surfaces.closest import closest_on_triangles
 from fabricsurf.experiments.forming.surfaces.opening import Opening
-from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSurface
+from fabricsurf.experiments.forming.surfaces.triangulated import Tracked, TriangulatedSurface
 
 pytestmark = pytest.mark.serial("numpy only: nothing here depends on the ranks")
 RNG = np.random.default_rng(7)
@@ -96,6 +96,59 @@ def test_closest_triangle_is_exact():
     exact = analytic.Sphere(10.0).signed_distance(x)
     sure = np.abs(exact) > 0.2  # beyond the sagitta of the coarse mesh
     assert np.all(np.sign(d[sure]) == np.sign(exact[sure]))
+
+
+def near_points(surface, inner: float = 9.0):
+    """Points from ``inner`` (inside the 10 mm sphere) to 30 mm beyond it, half of them within
+    1 mm of the sphere, and some of the surface's vertices."""
+    u = RNG.normal(size=(3000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    radii = np.concatenate([RNG.uniform(inner, 11.0, 1500), RNG.uniform(11.0, 40.0, 1500)])
+    return np.vstack([u * radii[:, None], surface.vertices[:50]])
+
+
+def assert_near(surface, x, d, foot, n, cutoff):
+    """``near``'s contract: within ``cutoff`` of the mesh, inside or out, the exact signed
+    distance, foot and normal; farther outside a lower bound of the distance, positive, the
+    foot that far below the point along the normal."""
+    exact, c, normal = surface.frame(x)
+    within, outside = np.abs(exact) <= cutoff, exact > cutoff
+    assert within.sum() > 100 and outside.sum() > 1000
+    assert np.abs(d[within] - exact[within]).max() < 1e-12
+    assert np.abs(foot[within] - c[within]).max() < 1e-12
+    assert np.abs(n[within] - normal[within]).max() < 1e-12
+    assert np.all(d[outside] <= exact[outside] + 1e-12) and np.all(d[outside] > 0.0)
+    assert np.abs(np.einsum("ij,ij->i", n, x - foot) - d).max() < 1e-12
+
+
+@pytest.mark.parametrize("cutoff", [0.05, 1.0])
+def test_near_is_exact_within_its_cutoff(cutoff):
+    """What a contact table reads (TriangulatedSurface.near), from points inside the sphere to
+    far beyond it."""
+    surface = TriangulatedSurface(*meshes.icosphere(10.0, 3), name="ico")
+    x = near_points(surface)
+    assert_near(surface, x, *surface.near(x, cutoff), cutoff)
+
+
+def test_tracked_points_keep_nears_contract():
+    """Points that move between calls (triangulated.Tracked: a point is projected again only
+    where its distance at its last projection, less how far it moved since, is within the
+    cutoff): at every call ``near``'s contract at the cutoff, the points within it exact.
+    Twelve steps of 0.3 mm in random directions, a drift towards the sphere among them; after
+    the first call most points are not projected again (the call's cost)."""
+    surface = TriangulatedSurface(*meshes.icosphere(10.0, 3), name="ico")
+    x = near_points(surface, inner=9.8)
+    tracked = Tracked(surface, exact=0.1, bound=2.0)
+    projected = []
+    for step in range(12):
+        before = np.array(tracked._x, copy=True) if step else None
+        assert_near(surface, x, *tracked(x), 0.1)
+        if step:
+            projected.append(np.mean(np.any(tracked._x != before, axis=1)))
+        move = RNG.normal(size=x.shape)
+        x = x + 0.3 * move / np.linalg.norm(move, axis=1, keepdims=True) - 0.05 * x / 40.0
+    print(f"share projected again per call: {np.round(projected, 2)}")
+    assert max(projected) < 0.5
 
 
 def test_icosphere_converges_to_the_sphere():

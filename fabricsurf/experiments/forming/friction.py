@@ -82,7 +82,7 @@ def holder_dissipation_density(tools, r, r_n):
 def punch_slip(tools, r, r_n):
     """(μ_p p_n, the limit traction; Δr_t, the slip relative to the punch in its tangent plane
     at r_n) of the step from (r_n, s_n) to (r, s)."""
-    d_n, n = tools.punch_normal(r_n, tools.stroke_n)
+    d_n, n = tools.punch_at_last(r_n)
     rel = r - r_n - (tools.stroke - tools.stroke_n) * ufl.as_vector([0.0, 0.0, 1.0])
     limit = tools.mu_punch * tools.punch_pressure(d_n)
     return limit, _tangential(rel, n)

@@ -23,10 +23,18 @@ Before any computing the punch is checked against the blank (checks.py): a size 
 blank's (its units) and a punch that holds nodes of the flat blank at stroke 0 are refused; and
 against the die (:func:`die_check`): a punch wider than the die's opening, which a stroke would
 drive into the die, is refused at that stroke.
-Points farther from a triangle mesh than :data:`CUTOFF` times the punch's size are not
-projected (TriangulatedSurface.near): they are out of contact. Friction on a tabulated punch
-is not modelled (its potential needs the distance at the last converged state, which the table
-holds only to first order).
+A triangle mesh's table is exact within its cutoff of the tool (:data:`CUTOFF` times the
+tool's size, or :data:`SOFT_CUTOFF` contact softenings if more), where the penalty acts (the
+softened one is below e^(−40) ε beyond). Farther out a point carries a lower bound of its
+distance (triangulated.Tracked): the distance at its last projection less how far it moved
+since, while that stays beyond the cutoff, else it is projected again; points more than
+:data:`BOUND` times the size from every triangle are not projected (TriangulatedSurface.near).
+The table is refreshed at every evaluation, so nothing needs more of them, and the sheet far
+from the tool, or moving little over a Newton iteration, costs little.
+The punch's friction (experiments/forming/friction.py) needs its pressure and normal at the
+last converged state r_n, fixed over a step: a second table of the punch
+(:meth:`TabulatedTool.twin`), tabulated from r_n at the stroke s_n once per step, where
+d(r_n, s_n) = n · (r_n − c) is the exact distance (c the closest point of r_n itself).
 
 A die given as a surface (``die_file``: a plate with any opening, a matched die's cavity) is
 tabulated the same way, fixed: d(r) = n · (r − c). It is given with its face, where the
@@ -49,11 +57,18 @@ from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
 from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
+from fabricsurf.experiments.forming.surfaces.triangulated import Tracked
 
 START_TOLERANCE = 1e-6
 """Depth of a blank node inside the punch at stroke 0 taken as touching, in punch sizes."""
-CUTOFF = 0.05
-"""Distance beyond which a point is not projected onto a triangulated punch, in punch sizes."""
+CUTOFF = 1e-3
+"""Distance from a triangulated tool within which its table is exact, in tool sizes."""
+BOUND = 0.05
+"""Distance beyond which a point is not projected onto a triangulated tool, in tool sizes: a
+point deeper inside it than that would go unseen."""
+SOFT_CUTOFF = 40.0
+"""The same in the punch's contact softenings ε, where more: the softplus ε ln(1 + e^(−d/ε))
+is below e^(−40) ε beyond it."""
 E_Z = np.array([0.0, 0.0, 1.0])
 DIE_SPACING = 0.25
 """Spacing of the points sampled near an analytic punch for the die check, in die lip radii."""
@@ -69,9 +84,19 @@ class TabulatedTool:
     ``msh`` (module docstring). :meth:`attach` gives it the placement's expression;
     :meth:`refresh` re-tabulates."""
 
-    def __init__(self, msh, surface: ToolSurface, moving: bool = True, offset=(0.0, 0.0, 0.0)):
+    def __init__(
+        self,
+        msh,
+        surface: ToolSurface,
+        moving: bool = True,
+        offset=(0.0, 0.0, 0.0),
+        softening: float = 0.0,
+    ):
         self.surface, self.msh, self.moving = surface, msh, moving
-        self.offset = np.asarray(offset, float)
+        self.offset, self.softening = np.asarray(offset, float), float(softening)
+        cutoff = max(CUTOFF * surface.size, SOFT_CUTOFF * self.softening)
+        near = getattr(surface, "near", None) is not None
+        self._near = Tracked(surface, cutoff, BOUND * surface.size) if near else None
         element = ufl.VectorElement(
             "Quadrature", msh.ufl_cell(), CELL_QUADRATURE_DEGREE, quad_scheme="default", dim=3
         )
@@ -100,9 +125,8 @@ class TabulatedTool:
             return
         shift = self.offset + s * E_Z
         x = self._r.eval(self.cells).reshape(-1, 3) - shift
-        near = getattr(self.surface, "near", None)
-        if near is not None:
-            _, foot, n = near(x, CUTOFF * self.surface.size)
+        if self._near is not None:
+            _, foot, n = self._near(x)
         else:
             d, n = self.surface.signed_distance(x), self.surface.normal(x)
             foot = x - d[:, None] * n
@@ -116,6 +140,12 @@ class TabulatedTool:
             gap = gap - (stroke - self.s_q) * ufl.as_vector(E_Z.tolist())
         return ufl.dot(self.n, gap)
 
+    def twin(self) -> TabulatedTool:
+        """Another table of the same tool, to be attached elsewhere: the punch's at the last
+        converged placement r_n and stroke s_n, for its friction, refreshed once per step
+        (module docstring)."""
+        return TabulatedTool(self.msh, self.surface, self.moving, self.offset, self.softening)
+
     def punch(self, r, stroke) -> tuple:
         """(signed distance, vertical component of the normal) at the stroke ``stroke``."""
         return self.distance(r, stroke), self.n[2]
@@ -125,15 +155,10 @@ class TabulatedTool:
         return self.distance(r, stroke), self.n
 
 
-def tabulated_punch(msh, surface: ToolSurface, friction: float = 0.0) -> TabulatedTool:
-    """The punch given as a surface, checked against the blank; ``friction`` must be 0."""
-    if friction:
-        raise InputError(
-            f"{surface.name}: friction on a punch given as a surface is not modelled "
-            "(punch_friction = 0)"
-        )
+def tabulated_punch(msh, surface: ToolSurface, softening: float = 0.0) -> TabulatedTool:
+    """The punch given as a surface, checked against the blank; ``softening`` its contact's ε."""
     check_against_blank(surface, msh)
-    return TabulatedTool(msh, surface)
+    return TabulatedTool(msh, surface, softening=softening)
 
 
 def check_against_blank(surface: ToolSurface, msh) -> None:

@@ -169,16 +169,16 @@ class TriangulatedSurface:
 
     def near(self, x: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(signed distance, closest point, normal) of points x (m, 3), exact for the points
-        that may lie within ``cutoff`` of the surface; for the others (nearest search point
-        farther than cutoff plus the reach) a lower bound of the distance above ``cutoff``,
-        along the direction from the nearest search point (a contact needs no more of them)."""
+        within ``cutoff`` (> 0) of the surface, inside or out: those with a search point within
+        ``cutoff`` plus the reach are projected. The others carry the lower bound ``cutoff``
+        of their distance, with the normal e_z and the foot below them: a contact needs
+        nothing more of them, if none lies deeper than ``cutoff`` inside. Their tree search
+        stops at that bound, so points far from the tool cost little."""
         x = np.atleast_2d(np.asarray(x, float))
-        dist, nearest = self.tree.query(x, k=1)
-        v = x - self.points[nearest]
-        n = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
-        d = dist - self.reach
+        dist, _ = self.tree.query(x, k=1, distance_upper_bound=cutoff + self.reach)
+        d, n = np.full(len(x), float(cutoff)), np.tile([0.0, 0.0, 1.0], (len(x), 1))
         foot = x - d[:, None] * n
-        close = np.flatnonzero(dist <= cutoff + self.reach)
+        close = np.flatnonzero(np.isfinite(dist))
         if len(close):
             d[close], foot[close], n[close] = self.frame(x[close])
         return d, foot, n
@@ -206,3 +206,31 @@ def _distinct(cand: np.ndarray) -> np.ndarray:
     out = np.repeat(cand[:, :1], counts.max(), axis=1)
     out[rows, np.arange(len(rows)) - first[rows]] = cand[rows, cols]
     return out
+
+
+class Tracked:
+    """The frame (signed distance, foot, normal) of points that move a little between calls,
+    as a contact table needs it at every Newton iteration: exact within ``exact`` of the
+    surface ``surface`` (with ``near``), and at most as exact as ``near(x, bound)`` beyond.
+    The distance is 1-Lipschitz: a point that was d₀ from the surface when it was last
+    projected and has moved δ since is at least d₀ − δ outside. Where that bound exceeds
+    ``exact`` the point keeps its normal and takes the bound as its distance, without a search;
+    the others are projected again (``near`` with ``bound``)."""
+
+    def __init__(self, surface, exact: float, bound: float) -> None:
+        self.surface, self.exact, self.bound = surface, float(exact), float(bound)
+        self._x = self._d = self._n = None
+
+    def __call__(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        x = np.atleast_2d(np.asarray(x, float))
+        if self._x is None or len(self._x) != len(x):
+            self._x, self._d = np.full(x.shape, np.nan), np.zeros(len(x))
+            self._n = np.zeros(x.shape)
+        with np.errstate(invalid="ignore"):
+            d = self._d - np.linalg.norm(x - self._x, axis=1)
+            todo = np.flatnonzero(~(d > self.exact))  # never projected: NaN
+        n = self._n.copy()
+        if len(todo):
+            d[todo], _, n[todo] = self.surface.near(x[todo], self.bound)
+            self._x[todo], self._d[todo], self._n[todo] = x[todo], d[todo], n[todo]
+        return d, x - d[:, None] * n, n
