@@ -25,7 +25,8 @@
 #
 # The fabric is the one fitted to the Cao et al. 2008 bias-extension curve by
 # `demo_woven_fabric.py` (`--params`, else the fit recorded in docs/woven_fabric.md), with
-# assumed bending and twist k_b = k_t = 1 N·mm, the forming demo's holder (10 kPa, μ = 0.3).
+# assumed bending and twist k_b = k_t = 1 N·mm, the forming demo's holder (10 kPa, μ = 0.3)
+# and Coulomb friction μ_p = 0.3 on the punch.
 # Two blanks of 280 × 200 mm, one with its yarns at 0/90 and one at ±45° to the domes' axis,
 # each solved on its quarter, are formed to a stroke of 0.75 R.
 #
@@ -153,6 +154,7 @@ summary = {
     "params_source": source,
     "bending_assumed_N_mm": K_BEND,
     "holder": parts.HOLDER,
+    "punch_friction": dd.PUNCH_FRICTION,
     "blanks": {
         name: {
             **runs[name],

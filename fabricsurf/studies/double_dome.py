@@ -36,6 +36,9 @@ BLANK = (7.0, 5.0)
 mm. Its sides fit the ±45° fibre lattice, so that it is solved on its quarter."""
 TOUCH = 0.01
 """The sheet lies on the punch where its distance from it is below this times R."""
+PUNCH_FRICTION = 0.3
+"""Coulomb's coefficient between the fabric and the punch, as under the holder
+(hemisphere_forming.HOLDER)."""
 
 
 def punch(R: float, comm) -> TriangulatedSurface:
@@ -52,7 +55,7 @@ def punch(R: float, comm) -> TriangulatedSurface:
 
 def tooling(R: float) -> dict:
     """The ``[tooling]`` table: the slot about the punch's outline plus the clearance, the lip,
-    and the forming demo's holder (hemisphere_forming.HOLDER)."""
+    the forming demo's holder (hemisphere_forming.HOLDER) and :data:`PUNCH_FRICTION`."""
     c = TOOL["clearance"] * R
     return {
         "punch_radius": R,
@@ -62,6 +65,7 @@ def tooling(R: float) -> dict:
         "die_opening_width": 2.0 * (R + c),
         "holder_gap": 1.0,
         "blank": "rectangle",
+        "punch_friction": PUNCH_FRICTION,
         **parts.HOLDER,
     }
 
