@@ -192,8 +192,8 @@ class ContactSolver(SNESSolver):
     def solve(self) -> tuple[int, int]:
         self.u_n.x.array[:] = self.u.x.array
         self.tools.stroke_n.value = self.s_n
-        if getattr(self.tools, "tabulated_n", None) is not None:
-            self.tools.tabulated_n.refresh()  # the punch at (r_n, s_n), for its friction
+        for table in getattr(self.tools, "last_tables", ()):
+            table.refresh()  # the tools given as surfaces at (r_n, s_n), for their friction
         s = float(self.tools.stroke.value)
         ds = abs(s - self.s_n)
         self.tools.eps.value = self.tools.slip_rate * max(ds, 1e-6 * self.tools.R)

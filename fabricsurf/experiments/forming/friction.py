@@ -82,7 +82,8 @@ def holder_dissipation_density(tools, r, r_n):
 def punch_slip(tools, r, r_n):
     """(μ_p p_n, the limit traction; Δr_t, the slip relative to the punch in its tangent plane
     at r_n) of the step from (r_n, s_n) to (r, s)."""
-    d_n, n = tools.punch_at_last(r_n)
+    table = getattr(tools, "tabulated_n", None)  # a punch given as a surface: its table at r_n
+    d_n, n = (tools if table is None else table).punch_normal(r_n, tools.stroke_n)
     rel = r - r_n - (tools.stroke - tools.stroke_n) * ufl.as_vector([0.0, 0.0, 1.0])
     limit = tools.mu_punch * tools.punch_pressure(d_n)
     return limit, _tangential(rel, n)
@@ -90,9 +91,20 @@ def punch_slip(tools, r, r_n):
 
 def lip_slip(tools, r, r_n):
     """(μ_d p_n, the limit traction over the die's lip; Δr_t, the slip in the lip's tangent
-    plane at r_n)."""
-    penetration, n = lip_contact(tools, r_n)
+    plane at r_n); a die given as a surface from its table at r_n (:func:`table_lip_contact`)."""
+    table = getattr(tools, "die_table_n", None)
+    penetration, n = lip_contact(tools, r_n) if table is None else table_lip_contact(tools, r_n)
     return tools.mu_die * tools.k_c * penetration, _tangential(r - r_n, n)
+
+
+def table_lip_contact(tools, r_n):
+    """(penetration into a die given as a surface where the sheet is within one lip radius of
+    the opening's outline, σ(r_n) < r_d, else 0; the die's normal there), from the die's table
+    at r_n (tabulated_tools.py): the analytic die's lip where the die is that plate, the
+    cavity's walls and floor of a matched die; beyond, the holder's friction acts."""
+    table = tools.die_table_n
+    on_lip = ufl.conditional(ufl.lt(tools.opening.sigma(r_n), tools.lip), 1.0, 0.0)
+    return on_lip * ufl.max_value(-table.distance(r_n), 0.0), table.n
 
 
 def lip_contact(tools, r):

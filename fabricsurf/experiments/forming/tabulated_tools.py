@@ -31,10 +31,10 @@ since, while that stays beyond the cutoff, else it is projected again; points mo
 :data:`BOUND` times the size from every triangle are not projected (TriangulatedSurface.near).
 The table is refreshed at every evaluation, so nothing needs more of them, and the sheet far
 from the tool, or moving little over a Newton iteration, costs little.
-The punch's friction (experiments/forming/friction.py) needs its pressure and normal at the
-last converged state r_n, fixed over a step: a second table of the punch
-(:meth:`TabulatedTool.twin`), tabulated from r_n at the stroke s_n once per step, where
-d(r_n, s_n) = n · (r_n − c) is the exact distance (c the closest point of r_n itself).
+The friction of the punch and of the die's lip (experiments/forming/friction.py) needs the
+tool's pressure and normal at the last converged state r_n, fixed over a step: a second table
+of the tool (:meth:`TabulatedTool.twin`), tabulated from r_n at the stroke s_n once per step,
+where d(r_n, s_n) = n · (r_n − c) is the exact distance (c the closest point of r_n itself).
 
 A die given as a surface (``die_file``: a plate with any opening, a matched die's cavity) is
 tabulated the same way, fixed: d(r) = n · (r − c). It is given with its face, where the
@@ -141,7 +141,7 @@ class TabulatedTool:
         return ufl.dot(self.n, gap)
 
     def twin(self) -> TabulatedTool:
-        """Another table of the same tool, to be attached elsewhere: the punch's at the last
+        """Another table of the same tool, to be attached elsewhere: the tool's at the last
         converged placement r_n and stroke s_n, for its friction, refreshed once per step
         (module docstring)."""
         return TabulatedTool(self.msh, self.surface, self.moving, self.offset, self.softening)
@@ -211,13 +211,7 @@ def die_surface(o: dict) -> ToolSurface:
 
 def tabulated_die(msh, surface: ToolSurface, o: dict) -> TabulatedTool:
     """The die given as a surface (face at z = 0), checked against the blank
-    (:func:`check_die_face`), tabulated at its place, the face at −p_h/k_c; the lip's friction
-    (``die_friction``) must be 0."""
-    if o.get("die_friction", 0.0):
-        raise InputError(
-            f"{surface.name}: friction on a die given as a surface is not modelled "
-            "(die_friction = 0)"
-        )
+    (:func:`check_die_face`), tabulated at its place, the face at −p_h/k_c."""
     check_die_face(surface, msh, o)
     face = -o["holder_pressure"] / o["contact_stiffness"]
     return TabulatedTool(msh, surface, moving=False, offset=(0.0, 0.0, face))

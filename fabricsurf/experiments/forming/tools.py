@@ -100,9 +100,13 @@ class Tools:
         self.r_n = None
         given = punch_surface
         self.tabulated = None if given is None else tabulated_punch(msh, given, self.softening)
-        self.tabulated_n = None if self.tabulated is None else self.tabulated.twin()
         self.die_table = die_table
         self.tables = [t for t in (self.tabulated, die_table) if t is not None]
+        # the tables at the last converged state, for the friction (forming_friction.py)
+        self.tabulated_n, self.die_table_n = (
+            None if t is None else t.twin() for t in (self.tabulated, die_table)
+        )
+        self.last_tables = [t for t in (self.tabulated_n, self.die_table_n) if t is not None]
 
     @classmethod
     def from_options(cls, msh, o: dict) -> Tools:
@@ -158,14 +162,6 @@ class Tools:
         cap = ufl.as_vector([r[0], r[1], dz]) / ufl.sqrt(rho**2 + dz**2)
         side = ufl.as_vector([r[0] / rho, r[1] / rho, 0.0])
         return d, ufl.conditional(ufl.gt(dz, 0.0), cap, side)
-
-    def punch_at_last(self, r_n):
-        """(signed distance, outward normal) of the punch at the last converged placement
-        ``r_n`` and stroke s_n, the friction's (forming_friction.py); a punch given as a surface
-        from its table of that state (TabulatedTool.twin)."""
-        if self.tabulated_n is not None:
-            return self.tabulated_n.punch_normal(r_n, self.stroke_n)
-        return self.punch_normal(r_n, self.stroke_n)
 
     def _plate(self, r, side: float):
         """Signed distance to the die (side = 1, above) or the holder (side = −1, below): the
@@ -246,8 +242,8 @@ class ContactProblem(FabricProblem):
         tools.r_n = placement(self.u_n)
         for table in tools.tables:
             table.attach(placement(self.u), tools.stroke)
-        if tools.tabulated_n is not None:
-            tools.tabulated_n.attach(tools.r_n, tools.stroke_n)
+        for table in tools.last_tables:
+            table.attach(tools.r_n, tools.stroke_n)
 
     def _release(self) -> None:
         super()._release()
