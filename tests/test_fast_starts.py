@@ -8,6 +8,7 @@ answer; runs shared among the ranks leave every rank the same stored runs.
 Small on purpose (48 × 24 mm, h = 4 mm, one or two load steps): the fits take a few seconds."""
 
 import logging
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from fabricsurf.inverse.fitting.start import RHO_MIN, grid_start, linearised_sta
 from fabricsurf.inverse.forward import profile, ranks, tangent, warm_start
 from fabricsurf.inverse.forward.runs import ForwardModel
 from fabricsurf.inverse.synthetic import generate as sy
+from fabricsurf.log import PROGRESS
 
 COMM = MPI.COMM_WORLD
 TRUTH = {
@@ -225,3 +227,53 @@ def test_a_scout_built_inside_shared_refits_is_a_clear_error_on_every_rank():
         assert fm._coarse is None
         fm.coarse()  # outside: built on every rank
         assert ranks.spread(fm, list(range(COMM.size)), needs_scout) == list(range(COMM.size))
+
+
+class TwoWells:
+    """A one-modulus toy fit (θ = log k): on the fit's mesh χ² has its optimum at k = 1 and a
+    higher local well (χ² = ``c``) at k = ``wrong``; the scout mesh has only the wrong well,
+    as a scout whose discretisation error outweighs the data's noise ranks starts."""
+
+    names, comm, forward_runs, noise_known, experiments = ["a.k"], COMM, 0, True, []
+
+    def __init__(self, wrong: float, c: float, scout=None):
+        self.t2, self.c, self.scout = np.log(wrong), c, scout
+        self.v = np.array([2.0])
+        self.params = [(SimpleNamespace(name="a"), "k")]
+
+    def coarse(self, factor):
+        return self.scout
+
+    def values(self):
+        return self.v.copy()
+
+    def set_values(self, v):
+        self.v = np.array(v, float)
+
+    def run(self, sens=False):
+        self.forward_runs += 1
+        return self.v.copy()
+
+    def residuals(self, pred):
+        t, k = np.log(pred[0]), pred[0]
+        if self.scout is not None and t * t <= (t - self.t2) ** 2 + self.c:
+            return np.array([t, 0.0]), np.array([[1.0 / k], [0.0]])
+        return np.array([t - self.t2, np.sqrt(self.c)]), np.array([[1.0 / k], [0.0]])
+
+    def misfit(self, pred):
+        return {}
+
+
+def test_scanned_start_checked_on_the_fit_mesh(caplog):
+    """The decade scan ranks starts on the scout mesh; a scout that prefers a wrong well (a
+    forming run coarser than the die's lip prefers soft yarns: docs/forming.md) sends the fit
+    there unless the scanned start is checked against the given one on the fit's own mesh,
+    where the given start (k = 2) fits better than the scanned one (k = 0.002): the fit starts
+    from the given moduli, says so, and ends at the optimum k = 1, not in the wrong well."""
+    fm = TwoWells(1e-3, 5.0, scout=TwoWells(1e-3, 0.0))
+    caplog.set_level(PROGRESS, logger="fabricsurf")
+    res = fit(fm)
+    assert np.isclose(res.values[0], 1.0, rtol=1e-3), res.values
+    if COMM.rank == 0:
+        assert "start after the scale scan: a.k = 0.002" in caplog.text
+        assert "the given moduli fit better on this mesh than the scanned start" in caplog.text

@@ -75,6 +75,25 @@ def _start(fm: Forward, free: list[int], vals: np.ndarray, first=None):
     return pred, (r, Jr), float(r @ r)
 
 
+def _scan_checked(fm: Forward, free: list[int], scanned: tuple, given: np.ndarray) -> tuple:
+    """The scan's start (values, run, (r, J), χ²), unless the given moduli fit the data
+    better on the fit's own mesh: the scout mesh ranks starts wrongly where its discretisation
+    error outweighs theirs (a forming run on a mesh coarser than the die's lip, whose punch
+    force is not converged, prefers soft yarns). One run more, the given start's."""
+    pred, rj, chi2 = _try(fm, free, given)
+    if not chi2 < scanned[3]:
+        fm.set_values(scanned[0])
+        return scanned
+    rank0(
+        logger,
+        fm.comm,
+        f"  fit: the given moduli fit better on this mesh than the scanned start (chi2 "
+        f"{chi2:.6g} against {scanned[3]:.6g}: the scout mesh ranked them otherwise); "
+        "starting from the given moduli",
+    )
+    return given, pred, rj, chi2
+
+
 LAMBDA_START = 1e-3
 """Marquardt's damping at the first iteration (a nearly Gauss–Newton step)."""
 LAMBDA_DOWN, LAMBDA_UP = 5.0, 8.0
@@ -218,6 +237,8 @@ def _fit(
         )
         vals = given
         pred, rj, chi2 = _start(fm, free, vals)
+    if scale_start and not np.array_equal(vals, given):
+        vals, pred, rj, chi2 = _scan_checked(fm, free, (vals, pred, rj, chi2), given)
     r, Jr = rj
     lam, hist, it = LAMBDA_START, [], 0
     at_bound = np.zeros(len(free), bool)
