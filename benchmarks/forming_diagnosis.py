@@ -12,6 +12,10 @@ baseline without it. Cases (``--case``):
 * ``bending``: a shallow frictionless stroke (the sheet spans the punch, held by its shear and
   bending stiffness), normal bending hidden; the baseline holds fibre_stretch, shear, twist.
 * ``none``: the locking set-up with nothing hidden (the diagnosis must add nothing).
+* ``dd_locking``, ``dd_none``: the same over the double dome of demos/demo_double_dome.py
+  (fabricsurf/studies/double_dome.py) at the scale of the 60 mm blank, domes of radius 10 mm in
+  a slot with round ends, given to the plug-in as a triangle mesh, with Coulomb friction 0.3
+  on the punch as well; the shear points on a grid over the slot.
 
 The data are made on a mesh ``--data-h`` (default: the fit's h, so that the discretisation
 error stays out of the verdict; a finer one shows what it adds). Prints the data's sizes, the
@@ -32,6 +36,7 @@ from fabricsurf.inverse.diagnosis.diagnose import diagnose
 from fabricsurf.inverse.synthetic import formed_part as sf
 from fabricsurf.log import configure, detail, rank0
 from fabricsurf.model.terms import make_term
+from fabricsurf.studies import double_dome as dd
 
 logger = logging.getLogger(__name__)
 
@@ -76,18 +81,45 @@ CASES["none"] = dict(
     CASES["locking"],
     truth={k: v for k, v in CASES["locking"]["truth"].items() if k != "shear_locking"},
 )
+DD_R, DD_C = 10.0, 2.0
+"""The double dome's radius and its clearance to the die (mm)."""
+DD_TOOLS = {
+    "punch_radius": DD_R,
+    "die_opening_length": (2.0 + dd.TOOL["spacing"]) * DD_R + 2.0 * DD_C,
+    "die_opening_width": 2.0 * (DD_R + DD_C),
+    "punch_friction": dd.PUNCH_FRICTION,
+}
+for name in ("locking", "none"):
+    CASES[f"dd_{name}"] = dict(
+        CASES[name],
+        tools=CASES[name]["tools"] | DD_TOOLS,
+        stroke=0.75 * DD_R,
+        h=2.0,
+        double_dome=True,
+    )
+
+
+def slot_points(n: int) -> np.ndarray:
+    """An n × n grid over the double dome's slot, kept inside it, in the data's frame."""
+    a, b = 0.5 * DD_TOOLS["die_opening_length"], 0.5 * DD_TOOLS["die_opening_width"]
+    x, y = np.meshgrid(np.linspace(-a, a, n), np.linspace(-b, b, n))
+    beyond = np.maximum(np.abs(x) - (a - b), 0.0)
+    inside = np.hypot(beyond, y) < b
+    return np.column_stack([x[inside], y[inside]]) + 0.5 * BLANK
 
 
 def data(case: dict, h: float, force_noise: float, shear_noise: float, comm):
     """The synthetic experiment of ``case`` (noise: a fraction of the largest force, deg)."""
-    n = case["steps"]
+    n, double_dome = case["steps"], case.get("double_dome", False)
     exp = sf.hemisphere_template(
         BLANK,
         TOOLS | case["tools"],
         np.linspace(case["stroke"] / n, case["stroke"], n),
-        sf.part_points(BLANK, R, 8),
+        slot_points(8) if double_dome else sf.part_points(BLANK, R, 8),
         shear_steps=[n // 2, n],
     )
+    if double_dome:
+        exp.setup.options["punch_surface"] = dd.punch(DD_R, comm)
     truth = [make_term(k, **v) for k, v in case["truth"].items()]
     sf.forming_data(exp, truth, h, comm)
     return sf.add_forming_noise(
@@ -98,7 +130,7 @@ def data(case: dict, h: float, force_noise: float, shear_noise: float, comm):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", choices=sorted(CASES), default="locking")
-    ap.add_argument("--h", type=float, default=4.0, help="element size of the fit (mm)")
+    ap.add_argument("--h", type=float, default=None, help="element size of the fit (mm)")
     ap.add_argument("--data-h", type=float, default=None, help="element size of the data")
     ap.add_argument(
         "--force-noise",
@@ -119,6 +151,7 @@ def main() -> None:
     comm = MPI.COMM_WORLD
     say = lambda s: rank0(logger, comm, s)  # noqa: E731
     case = CASES[a.case]
+    a.h = a.h or case.get("h", 4.0)
     if a.k4 is not None and "shear_locking" in case["truth"]:
         case["truth"] = case["truth"] | {"shear_locking": {"k4": a.k4, "k6": 0.0}}
     t0 = MPI.Wtime()
