@@ -8,11 +8,11 @@ answer; runs shared among the ranks leave every rank the same stored runs.
 Small on purpose (48 × 24 mm, h = 4 mm, one or two load steps): the fits take a few seconds."""
 
 import logging
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from mpi4py import MPI
+from toy_forward import ToyForward
 
 from fabricsurf.inverse.diagnosis.diagnose import full_model
 from fabricsurf.inverse.diagnosis.ranking import gauss_newton_start, predicted_chi2
@@ -229,39 +229,21 @@ def test_a_scout_built_inside_shared_refits_is_a_clear_error_on_every_rank():
         assert ranks.spread(fm, list(range(COMM.size)), needs_scout) == list(range(COMM.size))
 
 
-class TwoWells:
-    """A one-modulus toy fit (θ = log k): on the fit's mesh χ² has its optimum at k = 1 and a
-    higher local well (χ² = ``c``) at k = ``wrong``; the scout mesh has only the wrong well,
-    as a scout whose discretisation error outweighs the data's noise ranks starts."""
-
-    names, comm, forward_runs, noise_known, experiments = ["a.k"], COMM, 0, True, []
+class TwoWells(ToyForward):
+    """A one-modulus toy fit (θ = log k, started at k = 2): on the fit's mesh χ² has its
+    optimum at k = 1 and a higher local well (χ² = ``c``) at k = ``wrong``; the scout mesh has
+    only the wrong well, as a scout whose discretisation error outweighs the data's noise
+    ranks starts."""
 
     def __init__(self, wrong: float, c: float, scout=None):
-        self.t2, self.c, self.scout = np.log(wrong), c, scout
-        self.v = np.array([2.0])
-        self.params = [(SimpleNamespace(name="a"), "k")]
-
-    def coarse(self, factor):
-        return self.scout
-
-    def values(self):
-        return self.v.copy()
-
-    def set_values(self, v):
-        self.v = np.array(v, float)
-
-    def run(self, sens=False):
-        self.forward_runs += 1
-        return self.v.copy()
+        super().__init__(["a.k"], [2.0], COMM, scout)
+        self.t2, self.c = np.log(wrong), c
 
     def residuals(self, pred):
         t, k = np.log(pred[0]), pred[0]
         if self.scout is not None and t * t <= (t - self.t2) ** 2 + self.c:
             return np.array([t, 0.0]), np.array([[1.0 / k], [0.0]])
         return np.array([t - self.t2, np.sqrt(self.c)]), np.array([[1.0 / k], [0.0]])
-
-    def misfit(self, pred):
-        return {}
 
 
 def test_scanned_start_checked_on_the_fit_mesh(caplog):

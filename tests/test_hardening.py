@@ -914,26 +914,15 @@ def test_scanned_start_that_breaks_the_model_falls_back(caplog):
     """The decade scan ranks starts on the scout mesh; when the scanned start
     does not follow the load path on the fit's mesh (a modulus the data hardly see, scanned
     down to where the model breaks), the fit says so and starts from the given moduli."""
-    from types import SimpleNamespace
+    from toy_forward import ToyForward
 
     from fabricsurf.discretise.stepping import LoadStepError
     from fabricsurf.inverse.fitting.fit import fit
 
-    class Membrane:  # chi2 = (log k - log best)^2; the fine model fails below k = 0.01
-        names, comm, forward_runs, noise_known, experiments = ["a.k"], COMM, 0, True, []
-
+    class Membrane(ToyForward):  # chi2 = (log k - log best)^2; the fine model fails below k = 0.01
         def __init__(self, best, floor):
-            self.best, self.floor, self.v = best, floor, np.array([1.0])
-            self.params = [(SimpleNamespace(name="a"), "k")]
-
-        def coarse(self, factor):
-            return self.scout
-
-        def values(self):
-            return self.v.copy()
-
-        def set_values(self, v):
-            self.v = np.array(v, float)
+            super().__init__(["a.k"], [1.0], COMM)
+            self.best, self.floor = best, floor
 
         def run(self, sens=False):
             if self.v[0] < self.floor:
@@ -943,13 +932,10 @@ def test_scanned_start_that_breaks_the_model_falls_back(caplog):
                     target=0.5,
                     experiment="strip45",
                 )
-            return self.v.copy()
+            return super().run(sens)
 
         def residuals(self, pred):
             return np.log(pred / self.best), np.array([[1.0 / pred[0]]])
-
-        def misfit(self, pred):
-            return {}
 
     fm = Membrane(best=0.05, floor=0.01)
     fm.scout = Membrane(best=1e-4, floor=0.0)  # the scout mesh carries (and prefers) 1e-4

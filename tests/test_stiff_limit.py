@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mpi4py import MPI
+from toy_forward import ToyForward
 
 from fabricsurf.inverse.diagnosis.result_text import result_lines
 from fabricsurf.inverse.fitting import stiff_limit as sl
@@ -20,32 +21,17 @@ B = 0.5 + np.sin(7 * X + 0.05) ** 2  # nearly A: the two stiffnesses trade in a 
 NOISE = SIGMA * np.random.default_rng(3).standard_normal(N)
 
 
-class Yarns:
+class Yarns(ToyForward):
     """u = s·x + a/k_l + b/k_m (a compliance per yarn family), data d; r = (u − d)/σ."""
 
-    names, comm, noise_known = ["fibre.k_l", "fibre.k_m", "shear.s"], MPI.COMM_SELF, True
-
     def __init__(self, d: np.ndarray, k0: float, s0: float = 1.0):
-        self.params = [(None, "k_l"), (None, "k_m"), (None, "s")]
-        self.v, self.d, self.forward_runs = np.array([k0, k0, s0]), d, 0
-
-    def values(self):
-        return self.v.copy()
-
-    def set_values(self, v):
-        self.v = np.array(v, float)
-
-    def run(self, sens=False):
-        self.forward_runs += 1
-        return self.v.copy()
+        super().__init__(["fibre.k_l", "fibre.k_m", "shear.s"], [k0, k0, s0], MPI.COMM_SELF)
+        self.d = d
 
     def residuals(self, pred):
         k_l, k_m, s = pred
         r = (s * X + A / k_l + B / k_m - self.d) / SIGMA
         return r, np.stack([-A / k_l**2, -B / k_m**2, X], axis=1) / SIGMA
-
-    def misfit(self, pred):
-        return {}
 
 
 def at_infinity(d: np.ndarray) -> tuple[float, float]:
