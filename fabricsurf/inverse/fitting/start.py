@@ -26,11 +26,11 @@ remedies:
 The scan and the grid rank their trials on a scout mesh :data:`SCOUT_FACTOR` times coarser
 than the fit's (:meth:`~.forward.ForwardSet.coarse`: same forms, a quarter of the unknowns in
 2D): they choose a start among values decades apart, which a coarse mesh usually ranks as well,
-and the fit itself then runs on the fine mesh. Where it does not (a forming run on a scout
-coarser than the die's lip, whose punch force is off by more than the data's noise, ranks soft
-yarns first), the fit keeps the given start if that fits better on the fine mesh
-(fit._scan_checked) (the candidate's trials shared among the ranks when
-the scout is solved rank-local: :func:`.local.spread`). The grid's chosen start is checked on
+and the fit itself then runs on the fine mesh (the candidate's trials shared among the ranks
+when the scout is solved rank-local: :func:`.local.spread`). Where the scout ranks wrongly (a
+forming run on a scout coarser than the die's lip, whose punch force is off by more than the
+data's noise, ranks soft yarns first), the fit keeps the given start if that fits better on
+the fine mesh (fit._scan_checked). The grid's chosen start is checked on
 the fine mesh against the fitted model itself, which keeps the guarantee above; the check is
 the refit's first run (docs/diagnosis.md gives the costs of the scout and the fine mesh;
 docs/speed.md what the linearised start saves).
