@@ -82,3 +82,42 @@ def test_fit_cli_saves_model_for_compare(tmp_path):
     comm.barrier()
     m = json.loads((root / "cmp" / "misfit.json").read_text())
     assert np.isclose(m["chi2"], saved["chi2"], rtol=1e-6)
+
+
+def test_fit_cli_holds_fixed_terms(tmp_path, capsys):
+    """``fit --fixed``: the yarns held at their --params moduli (as a tensile test gives them),
+    the other moduli fitted within three standard deviations of the truth; fit.json marks the
+    held ones ``fixed``, with no interval and a standard deviation of 0 (as the diagnosis
+    does). A --fixed term not in --terms, or one whose moduli --params does not give, is
+    refused before any solve, naming the option."""
+    comm = MPI.COMM_WORLD
+    exp = noisy(33)
+    root = Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None))
+    start = {
+        "fibre_stretch": TRUTH["fibre_stretch"],
+        "shear": {"k_s": 1.0},
+        "geodesic_bending": {"A_g": 3.0},
+    }
+    if comm.rank == 0:
+        write_experiment(root / "data", exp)
+        (root / "p.json").write_text(json.dumps(start))
+        (root / "s.json").write_text(json.dumps({"shear": {"k_s": 1.0}}))
+    comm.barrier()
+    terms = ["--terms", "fibre_stretch,shear,geodesic_bending", "--h", "4"]
+    args = [str(root / "data"), *terms, "--params", str(root / "p.json")]
+    assert main(["fit", *args, "--fixed", "fibre_stretch", "--out", str(root / "fit")]) == 0
+    comm.barrier()
+    saved = json.loads((root / "fit" / "fit.json").read_text())
+    for p in ("k_l", "k_m"):
+        held = saved["moduli"][f"fibre_stretch.{p}"]
+        assert held == {"value": 25.0, "fixed": True} and saved["std"][f"fibre_stretch.{p}"] == 0
+    for name, truth in (("shear.k_s", 0.4), ("geodesic_bending.A_g", 12.0)):
+        assert abs(saved["moduli"][name]["value"] - truth) < 3.0 * saved["std"][name], name
+    capsys.readouterr()
+    assert main(["fit", *args, "--fixed", "twist", "--out", str(root / "bad")]) == 2
+    out = capsys.readouterr().out
+    assert comm.rank > 0 or "--fixed twist: 'twist' is not a baseline term (--terms" in out
+    bad = [str(root / "data"), *terms, "--params", str(root / "s.json")]
+    assert main(["fit", *bad, "--fixed", "fibre_stretch", "--out", str(root / "bad")]) == 2
+    out = capsys.readouterr().out
+    assert comm.rank > 0 or "--fixed fibre_stretch: a fixed term is held at its moduli" in out

@@ -28,6 +28,7 @@ from fabricsurf.cli.options import (
     compare_moduli,
     enough_data,
     error_map_steps,
+    fixed_terms,
     input_paths,
     out_path,
     positive_start,
@@ -211,16 +212,18 @@ def cmd_fit(args) -> int:
     from fabricsurf.inverse.forward.runs import ForwardSet
     from fabricsurf.inverse.plots.outputs import write_comparison
 
-    exps, model, _ = checked_setup(args, refine=2)
+    exps, model, params = checked_setup(args, refine=2)
+    fixed = fixed_terms(args, model, params)
     positive_start(model, args, "fit")
     parse_plausible(args.plausible)
-    enough_data(exps, model)
+    enough_data(exps, model, fixed)
     od = OutputDir(
         args.out, COMM, files=("fit.json", "misfit.json"), inputs=input_paths(args, exps)
     )
     with od as stage, failure_report(od, stage, model, args, exps):
         with ForwardSet(exps, model, h=args.h, comm=COMM) as fs:
-            res = fit(fs, plausible=args.plausible or True)
+            free = [k for k, (t, _) in enumerate(fs.params) if t.name not in (fixed or ())]
+            res = fit(fs, free, plausible=args.plausible or True)
             res.check_mesh(fs)
             extra = _prov(model, args, [m.h for m in fs.models], records(fs))
         write_json(COMM, stage / "fit.json", res.as_dict() | extra)
@@ -258,6 +261,12 @@ def add_parsers(sub, formatter) -> None:
     )
     add_common(p)
     add_plausible(p)
+    p.add_argument(
+        "--fixed",
+        default=None,
+        help="comma-separated terms of --terms held at their --params moduli, e.g. "
+        "fibre_stretch from a tensile test (default: none, every modulus is fitted)",
+    )
     p.set_defaults(func=cmd_fit)
 
 

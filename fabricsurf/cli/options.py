@@ -74,6 +74,25 @@ def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None
     )
 
 
+def fixed_terms(args, model: list, params: dict) -> list[str] | None:
+    """``--fixed`` of fit: terms of --terms held at their --params moduli, checked as the
+    diagnosis checks its own (:func:`~fabricsurf.inverse.diagnosis.choices.check_fixed`)."""
+    from fabricsurf.inverse.diagnosis.choices import Labels, check_fixed, check_names
+
+    fixed = name_list(args.fixed)
+    terms = [t.name for t in model]
+    labels = Labels(
+        candidates="",
+        fixed=f"--fixed {args.fixed}",
+        baseline=f"--terms {','.join(terms)}",
+        params="--params",
+        params_where=(f"in --params {args.params}" if args.params else "(no --params file)"),
+    )
+    check_names(fixed, labels.fixed)
+    check_fixed(fixed, terms, params, labels)
+    return fixed
+
+
 def positive_start(model, args, command: str = "fit") -> None:
     """:func:`~fabricsurf.inverse.fitting.preconditions.positive_start` (and ``no_signed``)
     of every modulus of --terms, naming the options."""
