@@ -155,8 +155,13 @@ class TabulatedTool:
         return self.distance(r, stroke), self.n
 
 
-def tabulated_punch(msh, surface: ToolSurface, softening: float = 0.0) -> TabulatedTool:
-    """The punch given as a surface, checked against the blank; ``softening`` its contact's ε."""
+def tabulated_punch(
+    msh, surface: ToolSurface | None, softening: float = 0.0
+) -> TabulatedTool | None:
+    """The punch given as a surface, checked against the blank; ``softening`` its contact's ε;
+    None for none (the analytic punch)."""
+    if surface is None:
+        return None
     check_against_blank(surface, msh)
     return TabulatedTool(msh, surface, softening=softening)
 

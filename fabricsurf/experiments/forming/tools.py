@@ -98,12 +98,10 @@ class Tools:
         self.mu_punch = fem.Constant(msh, float(punch_friction))
         self.mu_die = fem.Constant(msh, float(die_friction))
         self.r_n = None
-        given = punch_surface
-        self.tabulated = None if given is None else tabulated_punch(msh, given, self.softening)
+        self.tabulated = tabulated_punch(msh, punch_surface, self.softening)
         self.die_table = die_table
         self.tables = [t for t in (self.tabulated, die_table) if t is not None]
-        # the tables at the last converged state, for the friction (forming_friction.py)
-        self.tabulated_n, self.die_table_n = (
+        self.tabulated_n, self.die_table_n = (  # at r_n, for the friction (friction.py)
             None if t is None else t.twin() for t in (self.tabulated, die_table)
         )
         self.last_tables = [t for t in (self.tabulated_n, self.die_table_n) if t is not None]

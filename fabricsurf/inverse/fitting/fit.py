@@ -33,7 +33,7 @@ import numpy as np
 from fabricsurf.discretise.stepping import LoadStepError
 from fabricsurf.inverse.fitting.optimum import optimum_result
 from fabricsurf.inverse.fitting.plausibility import check_moduli, parse_plausible
-from fabricsurf.inverse.fitting.preconditions import fit_preconditions, positive_moduli
+from fabricsurf.inverse.fitting.preconditions import forward_preconditions
 from fabricsurf.inverse.fitting.result import FitResult, Forward
 from fabricsurf.inverse.fitting.stability_check import fitted_tangent
 from fabricsurf.inverse.fitting.start import held_terms, scan_terms
@@ -136,26 +136,6 @@ def _moves(new: np.ndarray, old: np.ndarray, signed: np.ndarray) -> np.ndarray:
         return np.where(signed, rel, np.abs(np.log(np.where(signed, 1.0, new / old))))
 
 
-def _preconditions(fm: Forward, free: list[int]) -> None:
-    """:func:`~.preconditions.fit_preconditions` on the terms that take part: those with a
-    free modulus, and those held at a modulus > 0 (a diagnosis's candidates at 0 are absent);
-    for a forward model that does not tell its data, the free moduli's checks alone."""
-    exps = getattr(fm, "experiments", None)
-    if exps:
-        names = {fm.params[k][0].name for k in free}
-        model = list({id(t): t for t, _ in fm.params}.values())
-        active = [t for t in model if t.name in names or any(v > 0 for v in t.values().values())]
-        held = [t.name for t in active if t.name not in names]
-        fit_preconditions(
-            exps,
-            active,
-            held or None,  # a held signed modulus is fine
-            start=[t for t in active if t.name in names],
-        )
-    logs = [k for k, s in zip(free, _signed(fm, free)) if not s]  # signed: any start
-    positive_moduli([fm.names[k] for k in logs], fm.values()[logs], [])
-
-
 def fit(
     fm: Forward,
     free: list[int] | None = None,
@@ -174,7 +154,7 @@ def fit(
     free moduli by decades (:func:`~fabricsurf.inverse.fitting.start.scan_terms`). ``space``: the
     step variable, "log" (θ = log p, steps capped at ±``max_step``) or "linear" (module
     docstring). The inputs are checked first, before any solve (the command line's refusals,
-    :func:`~.preconditions.fit_preconditions`). Each iteration is logged at PROGRESS (at
+    :func:`~.preconditions.forward_preconditions`). Each iteration is logged at PROGRESS (at
     DEBUG inside :func:`fabricsurf.log.detail`). ``plausible``: also check the fitted moduli
     for values no fabric has (:func:`~.plausibility.check_moduli`, into ``implausible`` of the
     result and warned): True for the rules alone, ranges {"term.param": (low, high)} or
@@ -202,8 +182,8 @@ def _fit(
     if space not in ("log", "linear"):
         raise ValueError(f"fit: space = {space!r} is not 'log' or 'linear'")
     free = list(range(len(fm.params))) if free is None else list(free)
-    _preconditions(fm, free)  # zero starting moduli among them too
     signed = _signed(fm, free)
+    forward_preconditions(fm, free, signed)  # zero starting moduli among them too
     vals = fm.values()
     given = vals.copy()
     runs0 = fm.forward_runs - (0 if first is None else len(first) if isinstance(first, list) else 1)

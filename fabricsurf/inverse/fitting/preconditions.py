@@ -245,3 +245,24 @@ def check_unsigned(names: list[str]) -> None:
             "the diagnosis works with moduli ≥ 0, so signed effects can be "
             "compared but not diagnosed yet"
         )
+
+
+def forward_preconditions(fm, free: list[int], signed) -> None:
+    """:func:`fit_preconditions` on the terms of the forward model ``fm`` that take part in a
+    fit of the moduli ``free``: those with a free modulus, and those held at a modulus > 0 (a
+    diagnosis's candidates at 0 are absent); for a forward model that does not tell its data,
+    the free moduli's checks alone. ``signed``: which free moduli may be negative (any start)."""
+    exps = getattr(fm, "experiments", None)
+    if exps:
+        names = {fm.params[k][0].name for k in free}
+        model = list({id(t): t for t, _ in fm.params}.values())
+        active = [t for t in model if t.name in names or any(v > 0 for v in t.values().values())]
+        held = [t.name for t in active if t.name not in names]
+        fit_preconditions(
+            exps,
+            active,
+            held or None,  # a held signed modulus is fine
+            start=[t for t in active if t.name in names],
+        )
+    logs = [k for k, s in zip(free, signed) if not s]
+    positive_moduli([fm.names[k] for k in logs], fm.values()[logs], [])
