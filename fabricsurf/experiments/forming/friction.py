@@ -82,7 +82,7 @@ def holder_dissipation_density(tools, r, r_n):
 def punch_slip(tools, r, r_n):
     """(μ_p p_n, the limit traction; Δr_t, the slip relative to the punch in its tangent plane
     at r_n) of the step from (r_n, s_n) to (r, s)."""
-    table = getattr(tools, "tabulated_n", None)  # a punch given as a surface: its table at r_n
+    table = tools.tabulated_n  # a punch given as a surface: its table at r_n
     d_n, n = (tools if table is None else table).punch_normal(r_n, tools.stroke_n)
     rel = r - r_n - (tools.stroke - tools.stroke_n) * ufl.as_vector([0.0, 0.0, 1.0])
     limit = tools.mu_punch * tools.punch_pressure(d_n)
@@ -92,7 +92,7 @@ def punch_slip(tools, r, r_n):
 def lip_slip(tools, r, r_n):
     """(μ_d p_n, the limit traction over the die's lip; Δr_t, the slip in the lip's tangent
     plane at r_n); a die given as a surface from its table at r_n (:func:`table_lip_contact`)."""
-    table = getattr(tools, "die_table_n", None)
+    table = tools.die_table_n
     penetration, n = lip_contact(tools, r_n) if table is None else table_lip_contact(tools, r_n)
     return tools.mu_die * tools.k_c * penetration, _tangential(r - r_n, n)
 
