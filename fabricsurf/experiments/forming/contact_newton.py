@@ -192,8 +192,9 @@ class ContactSolver(SNESSolver):
     def solve(self) -> tuple[int, int]:
         self.u_n.x.array[:] = self.u.x.array
         self.tools.stroke_n.value = self.s_n
-        for table in getattr(self.tools, "last_tables", ()):
-            table.refresh()  # the tools given as surfaces at (r_n, s_n), for their friction
+        if self._friction() is not None:  # the tools given as surfaces at (r_n, s_n)
+            for table in getattr(self.tools, "last_tables", ()):
+                table.refresh()
         s = float(self.tools.stroke.value)
         ds = abs(s - self.s_n)
         self.tools.eps.value = self.tools.slip_rate * max(ds, 1e-6 * self.tools.R)
