@@ -2,25 +2,24 @@
 figures and prediction bands at its model, of 10⁵ residuals under an address-space limit;
 the linear algebra of the inverse layer raises instead of returning NaN.
 
-The limit (RLIMIT_AS, soft) is this process's own virtual size when the test starts plus
-:data:`BUDGET`, restored afterwards, so it bounds what the test adds whatever the session loaded
-before (a process that has imported dolfinx and run one small solve maps about 0.55 GB serial;
-PETSc, MPI and the JIT-compiled forms are already mapped by then). 10⁵ residuals in O(N·p)
-memory need a few tens of MB (a Jacobian of 10⁵ × 9 doubles is 7 MB); one N × N array needs
-80 GB, and an n × n block of one load step's 5 · 10⁴ rows 20 GB: both fail under the limit, as
-the full SVD of the former identifiability check did (it fails here, with or without the limit,
-by allocating the N × N factor U). The data are the 40 × 20 mm bias test of test_compare on its
-h = 5 mm mesh (the forms are compiled already): the continuum solution with geodesic bending
-at a 25 088-point grid per step over two steps, plus noise.
+The limit (RLIMIT_AS, soft; tests/address_space.py) is this process's own virtual size when the
+test starts plus 1 GiB, restored afterwards, so it bounds what the test adds whatever the
+session loaded before (a process that has imported dolfinx and run one small solve maps about
+0.55 GB serial; PETSc, MPI and the JIT-compiled forms are already mapped by then). 10⁵ residuals
+in O(N·p) memory need a few tens of MB (a Jacobian of 10⁵ × 9 doubles is 7 MB); one N × N array
+needs 80 GB, and an n × n block of one load step's 5 · 10⁴ rows 20 GB: both fail under the
+limit, as the full SVD of the former identifiability check did (it fails here, with or without
+the limit, by allocating the N × N factor U). The data are the 40 × 20 mm bias test of
+test_compare on its h = 5 mm mesh (the forms are compiled already): the continuum solution with
+geodesic bending at a 25 088-point grid per step over two steps, plus noise.
 """
 
-import contextlib
 import json
-import resource
 from pathlib import Path
 
 import numpy as np
 import pytest
+from address_space import address_space_limit
 from mpi4py import MPI
 
 from fabricsurf.cli import main
@@ -38,29 +37,7 @@ TRUTH = {
     "shear": {"k_s": 0.5},
     "geodesic_bending": {"A_g": 10.0},
 }
-BUDGET = 1 << 30
-"""Bytes of address space a test may add (module docstring)."""
 NOISE = 0.002
-
-
-def virtual_size() -> int:
-    """This process's virtual size in bytes (VmSize)."""
-    with open("/proc/self/status") as f:
-        return next(int(x.split()[1]) for x in f if x.startswith("VmSize:")) * 1024
-
-
-@contextlib.contextmanager
-def address_space_limit(budget: int = BUDGET):
-    """RLIMIT_AS (soft) at the current virtual size + ``budget`` inside the block."""
-    old = resource.getrlimit(resource.RLIMIT_AS)
-    soft = virtual_size() + budget
-    if old[1] != resource.RLIM_INFINITY:
-        soft = min(soft, old[1])
-    resource.setrlimit(resource.RLIMIT_AS, (soft, old[1]))
-    try:
-        yield
-    finally:
-        resource.setrlimit(resource.RLIMIT_AS, old)
 
 
 @pytest.fixture(scope="module")

@@ -26,25 +26,51 @@ DEGENERATE = 1e-12
 
 
 def weld(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, faces) with coincident points (within :data:`WELD` of the diagonal) merged."""
-    points = np.asarray(points, float)
+    """(vertices, faces) with coincident points (within :data:`WELD` of the diagonal) merged.
+    Points repeated exactly (an STL file's) are merged first, so that the search for near
+    pairs runs over the distinct points only."""
+    points = np.ascontiguousarray(points, dtype=float)
     diag = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
-    pairs = cKDTree(points).query_pairs(WELD * diag, output_type="ndarray")
-    n = len(points)
+    distinct, exact = _exact_repeats(points)
+    pairs = cKDTree(distinct).query_pairs(WELD * diag, output_type="ndarray")
+    n = len(distinct)
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
-    _, first = np.unique(label, return_index=True)
-    return points[first], label[np.asarray(faces)]
+    _, keep = np.unique(label, return_index=True)
+    return distinct[keep], label[exact][np.asarray(faces)]
+
+
+def _exact_repeats(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(points with exact repeats merged, the index of each point among them): equal rows are
+    neighbours once sorted by a hash of their bits. A hash shared by unequal rows can split a
+    repeat in two, which the search for near pairs then merges, so the result is exact."""
+    bits = points.view(np.uint64)
+    mix = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], np.uint64)
+    order = np.argsort(np.bitwise_xor.reduce(bits * mix, axis=1), kind="stable")
+    sorted_bits = bits[order]
+    new = np.r_[True, (sorted_bits[1:] != sorted_bits[:-1]).any(axis=1)]
+    index = np.empty(len(points), np.int64)
+    index[order] = np.cumsum(new) - 1
+    return points[order[new]], index
 
 
 def edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(unique undirected edges (m, 2) sorted, the edge of each face side (f, 3): side k from
     corner k to k + 1, how many face sides use each edge)."""
     sides = np.stack([faces, np.roll(faces, -1, axis=1)], axis=-1).reshape(-1, 2)
-    unique, inverse, counts = np.unique(
-        np.sort(sides, axis=1), axis=0, return_inverse=True, return_counts=True
+    n = int(faces.max()) + 1
+    keys, inverse, counts = np.unique(
+        sides.min(axis=1) * n + sides.max(axis=1), return_inverse=True, return_counts=True
     )
-    return unique, inverse.reshape(-1, 3), counts
+    return np.column_stack([keys // n, keys % n]), inverse.reshape(-1, 3), counts
+
+
+def repeated_directed_sides(faces: np.ndarray) -> int:
+    """How many directed edges (a → b) more than one face side traverses: 0 for a consistently
+    oriented mesh."""
+    n = int(faces.max()) + 1
+    keys = np.sort((faces * n + np.roll(faces, -1, axis=1)).ravel())
+    return int(np.count_nonzero(np.diff(keys) == 0))
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -62,10 +88,13 @@ def enclosed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("ij,ij", a, np.cross(b, c)) / 6.0)
 
 
-def check(vertices: np.ndarray, faces: np.ndarray, name: str, closed: bool = True) -> None:
+def check(
+    vertices: np.ndarray, faces: np.ndarray, name: str, closed: bool = True, table=None
+) -> None:
     """Raise InputError naming ``name`` if a triangle is degenerate, an edge has more than two
     triangles, two triangles on an edge are oriented alike, or (``closed``) an edge has one
-    triangle only or the enclosed volume is not positive (flipped normals)."""
+    triangle only or the enclosed volume is not positive (flipped normals). ``table``: the
+    faces' :func:`edges`, if known."""
     diag = float(np.linalg.norm(np.ptp(vertices, axis=0)))
     _, area2 = face_normals(vertices, faces)
     bad = np.flatnonzero(~(area2 > DEGENERATE * diag**2))
@@ -74,7 +103,7 @@ def check(vertices: np.ndarray, faces: np.ndarray, name: str, closed: bool = Tru
             f"{name}: {len(bad)} degenerate triangle(s) of zero area (first: triangle "
             f"{bad[0]}, vertices {vertices[faces[bad[0]]].round(6).tolist()}); remove them"
         )
-    unique, _, counts = edges(faces)
+    unique, _, counts = edges(faces) if table is None else table
     if (counts > 2).any():
         e = unique[np.argmax(counts > 2)]
         raise InputError(
@@ -88,11 +117,10 @@ def check(vertices: np.ndarray, faces: np.ndarray, name: str, closed: bool = Tru
             f"(first at {vertices[e[0]].round(6).tolist()}); a tool must be a closed surface "
             "(a watertight STL/OBJ), so that its inside is defined"
         )
-    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=-1).reshape(-1, 2)
-    _, dcounts = np.unique(directed, axis=0, return_counts=True)
-    if (dcounts > 1).any():
+    repeated = repeated_directed_sides(faces)
+    if repeated:
         raise InputError(
-            f"{name}: inconsistent normals: {int((dcounts > 1).sum())} edge(s) whose two "
+            f"{name}: inconsistent normals: {repeated} edge(s) whose two "
             "triangles are oriented alike (some triangles are flipped); orient all triangles "
             "the same way (outward normals, counter-clockwise seen from outside)"
         )
@@ -143,21 +171,25 @@ def orient(faces: np.ndarray, vertices: np.ndarray | None = None) -> np.ndarray:
 
 
 def pseudo_normals(
-    vertices: np.ndarray, faces: np.ndarray
+    vertices: np.ndarray, faces: np.ndarray, table=None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(face normals (f, 3); edge pseudo-normals per face side (f, 3, 3), the normalised sum
     of the normals of the triangles on the edge; angle-weighted vertex normals (v, 3), Σ α_f
-    n_f normalised, α_f the triangle's angle at the vertex)."""
+    n_f normalised, α_f the triangle's angle at the vertex). ``table``: as for :func:`check`."""
     nf, _ = face_normals(vertices, faces)
-    unique, side_edge, _ = edges(faces)
-    acc = np.zeros((len(unique), 3))
-    np.add.at(acc, side_edge.ravel(), np.repeat(nf, 3, axis=0))
+    unique, side_edge, _ = edges(faces) if table is None else table
+    acc = _summed(side_edge.ravel(), np.repeat(nf, 3, axis=0), len(unique))
     en = acc / np.linalg.norm(acc, axis=1, keepdims=True)
     vn = np.zeros_like(vertices)
     for k in range(3):
         p, q, r = (vertices[faces[:, (k + j) % 3]] for j in range(3))
         u, w = q - p, r - p
         cos = np.einsum("ij,ij->i", u, w) / (np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1))
-        np.add.at(vn, faces[:, k], np.arccos(np.clip(cos, -1.0, 1.0))[:, None] * nf)
+        vn += _summed(faces[:, k], np.arccos(np.clip(cos, -1.0, 1.0))[:, None] * nf, len(vn))
     vn /= np.linalg.norm(vn, axis=1, keepdims=True)
     return nf, en[side_edge], vn
+
+
+def _summed(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """Rows of ``values`` (m, 3) summed into n rows by ``index`` (np.add.at, by bincount)."""
+    return np.column_stack([np.bincount(index, values[:, j], minlength=n) for j in range(3)])

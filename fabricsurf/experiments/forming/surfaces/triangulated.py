@@ -46,6 +46,9 @@ GROUP_WORK = 1_000_000
 uncertain (a point at the centre of a ring, as on a die's axis, is as far from every triangle
 of the ring): they are taken in groups of neighbours, each triangle's bounding box giving a
 lower bound of its distance."""
+PAIRS = 1 << 17
+"""Most point–candidate pairs of the nearest search examined at once: the arrays of a stage
+are about this times 3 doubles each, whatever the number of points."""
 SEARCH_POINTS = 2_000_000
 """Most search points of a mesh (closest.search_points), beyond one a triangle."""
 
@@ -64,9 +67,10 @@ class TriangulatedSurface:
         self.name, self.closed = name, closed
         if self.faces.ndim != 2 or self.faces.shape[1] != 3 or len(self.faces) == 0:
             raise ValueError(f"{name}: need faces of shape (f, 3), got {self.faces.shape}")
-        topology.check(self.vertices, self.faces, name, closed)
+        table = topology.edges(self.faces)
+        topology.check(self.vertices, self.faces, name, closed, table)
         self.face_normal, self.edge_normal, self.vertex_normal = topology.pseudo_normals(
-            self.vertices, self.faces
+            self.vertices, self.faces, table
         )
         self.points, self.owner, self.reach = search_points(
             self.vertices[self.faces], SEARCH_POINTS
@@ -96,20 +100,14 @@ class TriangulatedSurface:
         x = np.atleast_2d(np.asarray(x, float))
         point, face = np.empty_like(x), np.zeros(len(x), dtype=np.int64)
         kind, index = np.zeros(len(x), dtype=int), np.zeros(len(x), dtype=int)
-        todo = np.arange(len(x))
+        todo, nearest = np.arange(len(x)), np.zeros(0, dtype=np.int64)
         for k in NEAREST if len(x) else ():
             k = min(k, len(self.points))
-            dist_c, cand = self.tree.query(x[todo], k=k)
-            dist_c = dist_c.reshape(len(todo), k)
-            cand = _distinct(self.owner[cand.reshape(len(todo), k)])
-            q, d2, kd, ix = self._closest_among(x[todo], cand)
-            j = np.argmin(d2, axis=1)
-            rows = np.arange(len(todo))
-            point[todo], face[todo] = q[rows, j], cand[rows, j]
-            kind[todo], index[todo] = kd[rows, j], ix[rows, j]
-            sure = (dist_c[:, -1] >= np.sqrt(d2[rows, j]) + self.reach) | (k == len(self.points))
-            todo, nearest = todo[~sure], cand[~sure, 0]
-            if len(todo) == 0:
+            parts = np.array_split(todo, -(-len(todo) * k // PAIRS))
+            left = [self._by_nearest(x, part, k, point, face, kind, index) for part in parts]
+            todo = np.concatenate([t for t, _ in left])
+            nearest = np.concatenate([n for _, n in left])
+            if len(todo) == 0 or k == len(self.points):
                 break
         if len(todo):  # neighbours together: they share candidates
             todo = todo[np.argsort(nearest)]
@@ -126,6 +124,20 @@ class TriangulatedSurface:
             ),
         )
         return point, face, pseudo
+
+    def _by_nearest(self, x, part, k, point, face, kind, index):
+        """The closest triangle of the points ``part`` among those of their k nearest search
+        points, in place; returns (the points it leaves uncertain, the nearest candidate of
+        each) (module docstring)."""
+        dist_c, cand = self.tree.query(x[part], k=k)
+        dist_c = dist_c.reshape(len(part), k)
+        cand = _distinct(self.owner[cand.reshape(len(part), k)])
+        q, d2, kd, ix = self._closest_among(x[part], cand)
+        j, rows = np.argmin(d2, axis=1), np.arange(len(part))
+        point[part], face[part] = q[rows, j], cand[rows, j]
+        kind[part], index[part] = kd[rows, j], ix[rows, j]
+        sure = (dist_c[:, -1] >= np.sqrt(d2[rows, j]) + self.reach) | (k == len(self.points))
+        return part[~sure], cand[~sure, 0]
 
     def _settle(self, x, group, point, face, kind, index) -> None:
         """The closest triangle of the points ``group`` that the search points left uncertain,
