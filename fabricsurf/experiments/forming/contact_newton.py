@@ -79,6 +79,9 @@ class ContactSolver(SNESSolver):
     :attr:`dissipated`, and the viscous stabilisation's (``damping``, a form, or None when
     it is off; its coefficient η/Δs set from the step's stroke, :meth:`_drag_forms`) to
     :attr:`damped`.
+    ``history``: the part of the residual that depends on u_n (the holder's friction and the
+    viscous drag, a UFL form) for :meth:`path_action`; :attr:`on_converged`, if set, is called
+    after every converged solve (the forward model's sensitivities along the path).
     ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
     friction potentials are compiled when first needed and added to R and J only while
     Tools.tool_friction() holds (Dirichlet rows and columns left out, as in the main forms;
@@ -93,10 +96,12 @@ class ContactSolver(SNESSolver):
         damping=None,
         tool_friction: tuple | None = None,
         fallback: dict | None = None,
+        history=None,
         **kw,
     ) -> None:
         super().__init__(*args, **kw)
         self.tools, self.u_n = tools, u_n
+        self._history, self._history_forms, self.on_converged = history, None, None
         self._dissipation = fem.form(dissipation)
         self._damping = None if damping is None else self._drag_forms(damping)
         self._tool_friction, self._friction_forms = tool_friction, None
@@ -145,6 +150,33 @@ class ContactSolver(SNESSolver):
         if self._friction_forms is None:
             self._friction_forms = tuple(fem.form(f) for f in self._tool_friction)
         return self._friction_forms
+
+    def path_dependent(self) -> bool:
+        """Whether the residual depends on the last converged state u_n: friction on any tool,
+        or the viscous drag."""
+        on = float(self.tools.mu.value) != 0.0 or self.tools.stabilisation != 0.0
+        return self._history is not None and (on or self.tools.tool_friction())
+
+    def path_action(self, s: fem.Function) -> PETSc.Vec:
+        """(∂R/∂u_n)·s at the current state, R the whole residual (the tools' friction while it
+        is on), without boundary conditions (owned entries complete; the caller destroys it):
+        how the step's residual moves with its start, for sensitivities along the path."""
+        if self._history_forms is None:
+            self._direction = fem.Function(self.u.function_space, name="du_n")
+            tool = [] if self._tool_friction is None else [self._tool_friction[0]]
+            parts = [self._history, *tool]
+            self._history_forms = [
+                fem.form(ufl.derivative(f, self.u_n, self._direction)) for f in parts
+            ]
+        self._direction.x.array[:] = s.x.array
+        b = self.b.duplicate()
+        with b.localForm() as local:
+            local.set(0.0)
+        forms = self._history_forms if self._friction() is not None else self._history_forms[:1]
+        for form in forms:
+            fem_petsc.assemble_vector(b, form)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return b
 
     def _update_u(self, x: PETSc.Vec) -> None:
         """u ← x, and the tools given as surfaces re-tabulated there (tabulated_tools.py)."""
@@ -221,4 +253,6 @@ class ContactSolver(SNESSolver):
             )
             if self._damping is not None:
                 self._drag_step()
+            if self.on_converged is not None:
+                self.on_converged()
         return reason, its

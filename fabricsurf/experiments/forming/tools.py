@@ -251,8 +251,7 @@ class ContactProblem(FabricProblem):
         return self.tools.energy_density(placement(self.u)) * self.dx
 
     def friction_energy(self):
-        """Φ, the holder's friction potential of the step from u_n, with the viscous
-        stabilisation's when it is on (forming_friction.py)."""
+        """Φ of the holder's friction and the viscous drag of the step from u_n (friction.py)."""
         r, r_n = placement(self.u), placement(self.u_n)
         phi = forming_friction.holder_potential_density(self.tools, r, r_n)
         if self.tools.stabilisation:
@@ -297,4 +296,5 @@ class ContactProblem(FabricProblem):
             dissipation=friction * self.dx,
             damping=None if viscous is None else viscous * self.dx,
             tool_friction=self.tool_friction(),
+            history=ufl.derivative(self.friction_energy(), self.u, ufl.TestFunction(self.V)),
         )

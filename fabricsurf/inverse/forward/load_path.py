@@ -8,13 +8,14 @@ is the run itself.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from fabricsurf.discretise.stepping import LoadStepError, LoadStepper
-from fabricsurf.inverse.forward import tangent, warm_start
+from fabricsurf.inverse.forward import path, tangent, warm_start
 
 
 @dataclass
@@ -54,6 +55,8 @@ def follow_path(fm, which: list[int]) -> Prediction:
     getattr(sol, "reset", lambda: None)()  # a path history (forming: friction, predictor)
     fm.test.set_load(0.0)
     ws = warm_start.of(fm)  # each step started from the last run's (warm_start.py)
+    weight = lambda: fm.test.reaction_weight() if with_force else None  # noqa: E731
+    history = path.PathSensitivities(fm, which, weight) if path.along_path(fm, which) else None
 
     def converged(k: int, t: float, its: int) -> None:
         rows, at = fm.step_points(k)
@@ -62,12 +65,13 @@ def follow_path(fm, which: list[int]) -> Prediction:
         srows = exp.shear_rows(exp.steps[k]) if shear is not None else []
         if len(srows):
             shear[srows] = obs.shear_values()[srows]
-        w = fm.test.reaction_weight() if with_force else None
+        w = weight()
         if w is not None:
             force[k] = sol.virtual_work(w)
         elif with_force and obs.reaction is not None:
             force[k] = obs.force()
-        sens = ws.sensitivities(which, tangent.sensitivities(fm, which, w))
+        sens = history.current if history else tangent.sensitivities(fm, which, w)
+        sens = ws.sensitivities(which, sens)
         for j, (duj, dfj) in enumerate(sens):
             if len(rows):
                 du[rows, :, j] = at(duj)[:, :c]
@@ -83,7 +87,8 @@ def follow_path(fm, which: list[int]) -> Prediction:
         predictor=ws.predictor(),
     )
     try:
-        iters = stepper.run(exp.path)
+        with history or contextlib.nullcontext():
+            iters = stepper.run(exp.path)
     except LoadStepError as e:
         done = len(stepper.iterations)
         if force is not None:

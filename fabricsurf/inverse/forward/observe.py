@@ -19,6 +19,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
+from ufl.algorithms import expand_derivatives
 
 from fabricsurf.discretise.evaluation import PointLocator
 from fabricsurf.discretise.resources import Owner, release_vectors
@@ -34,6 +35,9 @@ class Observers(Owner):
         form = test.reaction_form() if exp.has_force else None
         self.reaction = None if form is None else fem.form(form)
         self._dreaction = None if form is None else fem.form(ufl.derivative(form, u))
+        u_n = getattr(test.problem, "u_n", None)  # a path history (forming: friction)
+        history = None if form is None or u_n is None else _derivative(form, u_n)
+        self._dreaction_n = None if history is None else fem.form(history)
         self.shear = None
         if exp.has_shear:
             gamma = test.shear_angle()
@@ -65,6 +69,16 @@ class Observers(Owner):
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return b
 
+    def force_history_gradient(self) -> PETSc.Vec | None:
+        """∂F/∂u_n at the current state, u_n the last converged state of a solver with a path
+        history (the punch's friction traction in the hemisphere's force), or None where F
+        does not depend on it (the caller destroys it)."""
+        if self._dreaction_n is None:
+            return None
+        b = fem_petsc.assemble_vector(self._dreaction_n)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return b
+
     def shear_values(self) -> np.ndarray:
         """γ (deg) at every measured shear point (all steps' rows), the same on every rank."""
         self._g.interpolate(self._expr)
@@ -75,3 +89,9 @@ class Observers(Owner):
         self._w.x.array[:] = du.x.array
         self._dg.interpolate(self._dexpr)
         return self.shear(self._dg)[:, 0] * self._sign
+
+
+def _derivative(form, f):
+    """The derivative of ``form`` with respect to the Function ``f``, or None if it vanishes."""
+    d = expand_derivatives(ufl.derivative(form, f))
+    return None if d.empty() else d

@@ -76,9 +76,11 @@ def _lifted_weight(s, w) -> PETSc.Vec:
     return y
 
 
-def sensitivities(fm, which: list[int], w) -> list[tuple[fem.Function, float]]:
+def sensitivities(fm, which: list[int], w, start=None) -> list[tuple[fem.Function, float]]:
     """(du/dp_k, dF/dp_k) for k in ``which`` at the converged state of ``fm``: the reaction
-    R·w (``w``) or the test's reaction functional F (module docstring)."""
+    R·w (``w``) or the test's reaction functional F (module docstring). ``start``: du_n/dp_k
+    of the state the step started from, for a solver whose residual depends on it (path.py),
+    adding (∂R/∂u_n)·du_n/dp_k to ∂R/∂p_k and (∂F/∂u_n)·du_n/dp_k to dF/dp_k."""
     s, obs = fm.test.solver, fm.observers
     ksp = s.snes.getKSP()
     A_full = Kw = None
@@ -95,11 +97,18 @@ def sensitivities(fm, which: list[int], w) -> list[tuple[fem.Function, float]]:
     r0 = at_moduli(fm, zero, s.internal_force).copy() if affine else None
     dFdu = obs.force_gradient() if obs.reaction is not None and which else None
     F0 = at_moduli(fm, zero, obs.force) if dFdu is not None else 0.0
-    for k in which:
+    dFdu_n = obs.force_history_gradient() if dFdu is not None and start else None
+    for j, k in enumerate(which):
         b = dR_dp(fm, k)
         if r0 is not None:
             b.axpy(-1.0, r0)
+        if start:
+            h = s.path_action(start[j])
+            b.axpy(1.0, h)
+            destroy(h)
         dF = dot_function(b, w) if w is not None else 0.0
+        if dFdu_n is not None:
+            dF += dot_function(dFdu_n, start[j])
         b.scale(-1.0)
         with b.localForm() as loc:
             loc.array[fm.bc_dofs] = 0.0
@@ -114,5 +123,5 @@ def sensitivities(fm, which: list[int], w) -> list[tuple[fem.Function, float]]:
         du = fem.Function(fm.test.problem.V)
         copy_to_function(x, du)
         out.append((du, dF))
-    destroy(A_full, Kw, x, Kdu, r0, dFdu)
+    destroy(A_full, Kw, x, Kdu, r0, dFdu, dFdu_n)
     return out
