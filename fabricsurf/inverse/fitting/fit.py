@@ -12,6 +12,11 @@ along which a stiffness trades against another (reactions are linear in the modu
 in p but curved in θ. The same holds after the scale scan, which leaves every modulus within a
 decade of its optimum: the diagnosis fits its baseline in the moduli too (docs/diagnosis.md
 compares the two on a stiff-fibre lattice).
+In log-moduli a modulus whose optimum is at zero (or beyond it) asks for an ever larger step
+down (its column p ∂r/∂p vanishes with p), and the cap on the step then shrinks every other
+modulus's step with it: the fit crawls. A modulus that took the whole capped step down
+:data:`COLLAPSE` iterations running switches the fit to the moduli themselves, with the bound
+p ≥ 0, and says so.
 A small relative χ² change does not stop a step that was cut to ``max_step`` (a modulus far
 from its optimum, e.g. a candidate effect started near zero, changes χ² little per step); the
 fit stops when not even the Gauss–Newton step promises a relative decrease of ``tol`` (at the
@@ -84,9 +89,8 @@ def _scan_checked(fm: Forward, free: list[int], scanned: tuple, given: np.ndarra
     if not chi2 < scanned[3]:
         fm.set_values(scanned[0])
         return scanned
-    rank0(
-        logger,
-        fm.comm,
+    _say(
+        fm,
         f"  fit: the given moduli fit better on this mesh than the scanned start (chi2 "
         f"{chi2:.6g} against {scanned[3]:.6g}: the scout mesh ranked them otherwise); "
         "starting from the given moduli",
@@ -106,9 +110,15 @@ DIAG_FLOOR = 1e-12
 sensitivity still gets a bounded step)."""
 STALL = 1e-5
 """The fit stops when no modulus (off the bound) moves by more than this in log."""
+COLLAPSE = 3
+"""Iterations running in which one modulus took the capped log step down (module docstring)."""
 BOUND_CUT = 1e-3
 """Linear steps: a modulus the step would make ≤ 0 is cut by this factor instead (a few steps
 take it to where it no longer matters: the bound at zero)."""
+
+
+def _say(fm: Forward, text: str) -> None:
+    rank0(logger, fm.comm, text)
 
 
 def _steps(space: str, vals: np.ndarray, free: list[int], signed: np.ndarray):
@@ -191,15 +201,13 @@ def _fit(
         vals = scan_terms(fm, [k for k, s in zip(free, signed) if not s], vals)
         held = held_terms(fm, free)
         if held:
-            rank0(
-                logger,
-                fm.comm,
+            _say(
+                fm,
                 f"  fit: {', '.join(held)} held at the given moduli in the "
                 "scale scan (the experiments hardly see them)",
             )
-        rank0(
-            logger,
-            fm.comm,
+        _say(
+            fm,
             "  fit: start after the scale scan: "
             + "  ".join(f"{fm.names[k]} = {vals[k]:.4g}" for k in free),
         )
@@ -210,11 +218,7 @@ def _fit(
         # hardly see, e.g. a cantilever's membrane, scanned down): start from those given
         if not scale_start or np.array_equal(vals, given):
             raise
-        rank0(
-            logger,
-            fm.comm,
-            f"  fit: the scanned start fails ({e}); starting from the given moduli instead",
-        )
+        _say(fm, f"  fit: the scanned start fails ({e}); starting from the given moduli instead")
         vals = given
         pred, rj, chi2 = _start(fm, free, vals)
     if scale_start and not np.array_equal(vals, given):
@@ -223,7 +227,12 @@ def _fit(
     lam, hist, it = LAMBDA_START, [], 0
     at_bound = np.zeros(len(free), bool)
     watch, trial_run = StiffWatch(signed), partial(_try, fm, free)
+    falling = np.zeros(len(free), int)
     for it in range(1, max_iter + 1):
+        if space == "log" and falling.max() >= COLLAPSE:  # module docstring
+            space = "linear"
+            gone = ", ".join(fm.names[free[j]] for j in np.flatnonzero(falling >= COLLAPSE))
+            _say(fm, f"  fit: {gone} heading for zero, where log steps crawl: steps in moduli")
         q_scale, update = _steps(space, vals, free, signed)
         Jt = Jr * q_scale  # dr/dq
         g = Jt.T @ r
@@ -255,6 +264,8 @@ def _fit(
             break
         rel = (chi2 - chi2_new) / max(chi2, 1e-300)
         dlog = _moves(trial[free], vals[free], signed)
+        down = (space == "log") & ~signed & (step <= -max_step * (1 - 1e-9))
+        falling = np.where(down, falling + 1, 0)
         at_bound = (space == "linear") & ~signed & (~act | (vals[free] + step <= 0))
         ripe = watch.observe(vals[free], trial[free], rel)
         vals, pred, (r, Jr), chi2 = trial, p2, rj2, chi2_new
@@ -263,9 +274,8 @@ def _fit(
                 fm, free, watch, ripe, (vals, pred, r, Jr, chi2), trial_run
             )
         hist.append({"iteration": it, "chi2": chi2, "values": vals.tolist()})
-        rank0(
-            logger,
-            fm.comm,
+        _say(
+            fm,
             f"  fit iteration {it}: chi2 = {chi2:.6g}  "
             + "  ".join(f"{fm.names[k]} = {vals[k]:.5g}" for k in free),
         )
@@ -281,9 +291,8 @@ def _fit(
     if signed.any():  # a coupling's sign: is the fitted energy stable where the data go?
         res.stability = fitted_tangent(fm)
     if res.lost():
-        rank0(
-            logger,
-            fm.comm,
+        _say(
+            fm,
             "  fit: not determined by the data (standard deviation "
             f"undetermined, reported as null): {'; '.join(res.undetermined)}",
         )
