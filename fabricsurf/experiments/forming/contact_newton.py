@@ -47,8 +47,10 @@ converges; an option for such measurements, ``snes_options={"pc_type": "cholesky
 
 class StrokeTools(Protocol):
     """What the solver reads of the tools (:class:`~.tools.Tools`): the stroke now and at the
-    last converged step, the friction regularisation and whether tool friction is on."""
+    last converged step, the friction regularisation, the holder's friction coefficient and
+    whether tool friction is on."""
 
+    mu: fem.Constant
     stroke: fem.Constant
     stroke_n: fem.Constant
     eps: fem.Constant

@@ -70,7 +70,10 @@ def follow_path(fm, which: list[int]) -> Prediction:
             force[k] = sol.virtual_work(w)
         elif with_force and obs.reaction is not None:
             force[k] = obs.force()
-        sens = history.current if history else tangent.sensitivities(fm, which, w)
+        if history is not None and history.current is not None:
+            sens = history.current
+        else:  # no path history, or no solve yet (a step at load 0): per step is exact
+            sens = tangent.sensitivities(fm, which, w)
         sens = ws.sensitivities(which, sens)
         for j, (duj, dfj) in enumerate(sens):
             if len(rows):
