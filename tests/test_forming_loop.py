@@ -117,6 +117,24 @@ def test_sensitivities_follow_the_friction_path(surface):
     assert max(errors) <= PATH_TOL
 
 
+@pytest.mark.skipif(COMM.size == 1, reason="1 = 2 ranks: needs the 2-rank session")
+def test_path_sensitivities_one_rank_equals_two():
+    """The sensitivities along the friction's path (holder and punch friction, three strokes)
+    on the ranks' distributed mesh equal those of the same model solved on each rank alone,
+    to 1e-7 relative (the ghosted assembly of (∂R/∂u_n)·s and of ∂F/∂u_n)."""
+    tooling = TOOLING | FRICTION | {"punch_friction": 0.3}
+    pts = sf.part_points(BLANK, R, 6)
+    exp = sf.hemisphere_template(BLANK, tooling, [2.0, 4.0, 6.0], pts, shear_steps=[3])
+    terms = [FibreStretch(k_l=1e3, k_m=1e3), Shear(k_s=0.1), NormalBending(k_b=0.01)]
+    runs = []
+    for comm in (COMM, MPI.COMM_SELF):  # the ranks' mesh distributed (local=False), or whole
+        with ForwardModel(exp, [*terms, Twist(k_t=0.01)], H, comm, local=False) as fm:
+            runs.append(fm.run(sens=True))
+    (two, one) = runs
+    assert np.abs(two.dforce - one.dforce).max() <= 1e-7 * np.abs(one.dforce).max()
+    assert np.abs(two.dshear - one.dshear).max() <= 1e-7 * np.abs(one.dshear).max()
+
+
 def _plugin(angles, domain="quarter"):
     """The mapping needs the blank, its domain and the fibres only (no mesh)."""
     e = HemispherePlugin.__new__(HemispherePlugin)
