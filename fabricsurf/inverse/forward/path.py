@@ -8,9 +8,9 @@ a recursion over every converged solve from the flat blank (du_0/dp = 0), includ
 of cut increments between recorded steps; and a reaction functional F(u, u_n) (the punch force
 with the punch's friction traction) has dF/dp = ∂F/∂p + (∂F/∂u) du_i/dp + (∂F/∂u_n) du_{i−1}/dp.
 Each solve costs one back-substitution per modulus with the factorisation Newton left, as the
-per-step sensitivities do. Without it (the per-step sensitivities, before) the term in u_n
-was left out: 0.04 to 0.15 % off central differences at the hemisphere's later strokes with
-holder and punch friction (docs/forming.md "Path history").
+per-step sensitivities do. Per-step sensitivities, which hold u_n fixed, drift from the true
+ones as the strokes add up, by far more on a tool that the sheet slides over than on a
+hemisphere (docs/forming.md "Path history" has the measurements).
 
 The tools given as surfaces (tabulated_tools.py) enter through tables of closest points and
 normals fixed over a step; ∂/∂u_n moves the point along them and keeps the normal, which leaves
