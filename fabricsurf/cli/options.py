@@ -74,20 +74,28 @@ def enough_data(exps: list, model: list, fixed: list[str] | None = None) -> None
     )
 
 
-def fixed_terms(args, model: list, params: dict) -> list[str] | None:
-    """``--fixed`` of fit: terms of --terms held at their --params moduli, checked as the
-    diagnosis checks its own (:func:`~fabricsurf.inverse.diagnosis.choices.check_fixed`)."""
-    from fabricsurf.inverse.diagnosis.choices import Labels, check_fixed, check_names
+def option_labels(args, terms: list[str], **more):
+    """The choices' :class:`~fabricsurf.inverse.diagnosis.choices.Labels` named as the command
+    line's options: --fixed, --terms, --params, and ``more``."""
+    from fabricsurf.inverse.diagnosis.choices import Labels
 
-    fixed = name_list(args.fixed)
-    terms = [t.name for t in model]
-    labels = Labels(
-        candidates="",
+    return Labels(
         fixed=f"--fixed {args.fixed}",
         baseline=f"--terms {','.join(terms)}",
         params="--params",
         params_where=(f"in --params {args.params}" if args.params else "(no --params file)"),
+        **more,
     )
+
+
+def fixed_terms(args, model: list, params: dict) -> list[str] | None:
+    """``--fixed`` of fit: terms of --terms held at their --params moduli, checked as the
+    diagnosis checks its own (:func:`~fabricsurf.inverse.diagnosis.choices.check_fixed`)."""
+    from fabricsurf.inverse.diagnosis.choices import check_fixed, check_names
+
+    fixed = name_list(args.fixed)
+    terms = [t.name for t in model]
+    labels = option_labels(args, terms, candidates="")
     check_names(fixed, labels.fixed)
     check_fixed(fixed, terms, params, labels)
     return fixed
@@ -146,7 +154,7 @@ def diagnose_options(
     the vocabulary, the baseline (--terms), the data and --params
     (:mod:`~fabricsurf.inverse.diagnosis.choices`, the library's own checks, worded with the
     options' names)."""
-    from fabricsurf.inverse.diagnosis.choices import Labels, check_choices
+    from fabricsurf.inverse.diagnosis.choices import check_choices
     from fabricsurf.inverse.diagnosis.diagnose import check_unsigned, visible_effects
 
     if args.beyond_features < 0:
@@ -156,12 +164,10 @@ def diagnose_options(
         )
     baseline = [t.name for t in model]
     cands, fixed = name_list(args.candidates), name_list(args.fixed)
-    labels = Labels(
+    labels = option_labels(
+        args,
+        baseline,
         candidates=f"--candidates {args.candidates}",
-        fixed=f"--fixed {args.fixed}",
-        baseline=f"--terms {','.join(baseline)}",
-        params="--params",
-        params_where=(f"in --params {args.params}" if args.params else "(no --params file)"),
         confirm="--confirm",
         max_effects="--max-effects",
     )

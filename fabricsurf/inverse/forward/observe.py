@@ -36,8 +36,8 @@ class Observers(Owner):
         self.reaction = None if form is None else fem.form(form)
         self._dreaction = None if form is None else fem.form(ufl.derivative(form, u))
         u_n = getattr(test.problem, "u_n", None)  # a path history (forming: friction)
-        history = None if form is None or u_n is None else _derivative(form, u_n)
-        self._dreaction_n = None if history is None else fem.form(history)
+        self._reaction_n = None if form is None or u_n is None else (form, u_n)
+        self._dreaction_n = None  # compiled when first needed (force_history_gradient)
         self.shear = None
         if exp.has_shear:
             gamma = test.shear_angle()
@@ -73,6 +73,10 @@ class Observers(Owner):
         """∂F/∂u_n at the current state, u_n the last converged state of a solver with a path
         history (the punch's friction traction in the hemisphere's force), or None where F
         does not depend on it (the caller destroys it)."""
+        if self._reaction_n is not None:
+            history = _derivative(*self._reaction_n)
+            self._dreaction_n = None if history is None else fem.form(history)
+            self._reaction_n = None
         if self._dreaction_n is None:
             return None
         b = fem_petsc.assemble_vector(self._dreaction_n)
