@@ -11,6 +11,14 @@ not converge from it, the step is followed as without a predictor, from the last
 state. For a problem whose equilibrium at a load does not depend on the path taken to it
 (elastic, no friction or history), the converged state is the same up to Newton's tolerance.
 
+A solver whose equilibrium does depend on the path (friction: the forming plug-in) may take
+the cut increments as continuation only: if it has an attribute ``step_end``, the stepper sets
+it True for a solve at the requested load and False for the cut loads before it, and the
+solver solves every attempt from the state of the last requested load (the cut loads only give
+Newton its starting point). The answer at a requested load then does not depend on how often
+its increment was cut, so it does not jump where a neighbouring set of moduli needs one cut
+more or less (docs/forming.md, "Cuts that do not change the path").
+
 Each cut of an increment is logged at DEBUG (detail: the step's own line, at PROGRESS, is the
 caller's), on rank 0 of the solver's communicator.
 """
@@ -114,8 +122,14 @@ class LoadStepper:
         self.attempts: list[int] = []
         self.predicted: list[bool | None] = []
 
-    def _try(self, t: float, start: np.ndarray | None = None) -> tuple[bool, int, int]:
+    def _try(
+        self, t: float, start: np.ndarray | None = None, final: bool = True
+    ) -> tuple[bool, int, int]:
+        """One attempt at load ``t`` (``final``: the requested load itself, module docstring);
+        (converged, SNES reason, iterations), the state restored if it failed."""
         backup = self.solver.state()
+        if hasattr(self.solver, "step_end"):
+            self.solver.step_end = final
         self.set_load(t)
         if start is not None:
             self.solver.u.x.array[:] = start
@@ -136,7 +150,7 @@ class LoadStepper:
         dt, tried = span, []
         while abs(target - self.t) > 1e-14 * max(1.0, abs(target)):
             t_next = self.t + dt if abs(dt) < abs(target - self.t) else target
-            ok, reason, its = self._try(t_next)
+            ok, reason, its = self._try(t_next, final=t_next == target)
             total += its
             tried.append((t_next, reason))
             if ok:

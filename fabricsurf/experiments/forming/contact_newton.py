@@ -81,6 +81,11 @@ class ContactSolver(SNESSolver):
     :attr:`dissipated`, and the viscous stabilisation's (``damping``, a form, or None when
     it is off; its coefficient η/Δs set from the step's stroke, :meth:`_drag_forms`) to
     :attr:`damped`.
+    A cut of a stroke increment (the load stepper's ``step_end`` False, stepping.py) is
+    continuation only: its solves keep u_n, s_n and the path at the last requested step, and
+    the requested stroke is then solved from there, its Newton started on the line through
+    u_n and the cut's state; the friction's path, and so the answer, is that of the requested
+    steps however often they were cut (docs/forming.md, "Cuts that do not change the path").
     ``history``: the part of the residual that depends on u_n (the holder's friction and the
     viscous drag, a UFL form) for :meth:`path_action`; :attr:`on_converged`, if set, is called
     after every converged solve (the forward model's sensitivities along the path).
@@ -123,6 +128,7 @@ class ContactSolver(SNESSolver):
         self.s_prev = 0.0
         self.fallbacks = 0
         self.fallback_first, self._streak = False, 0
+        self.step_end, self._mid = True, None
 
     def _release(self) -> None:
         super()._release()
@@ -218,13 +224,18 @@ class ContactSolver(SNESSolver):
             self.set_options(self._options)
 
     def _predict(self, s: float) -> None:
-        """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s."""
-        if self.u_prev is not None and self.s_n != self.s_prev:
+        """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s; after a
+        cut, along the line through (s_n, u_n) and the cut's state (class docstring)."""
+        if self._mid is not None:
+            f = (s - self.s_n) / (self._mid - self.s_n)
+            self.u.x.array[:] = self.u_n.x.array + f * (self.u.x.array - self.u_n.x.array)
+        elif self.u_prev is not None and self.s_n != self.s_prev:
             f = (s - self.s_n) / (self.s_n - self.s_prev)
             self.u.x.array[:] += f * (self.u_n.x.array - self.u_prev)
 
     def solve(self) -> tuple[int, int]:
-        self.u_n.x.array[:] = self.u.x.array
+        if self._mid is None:  # u is the state of the last requested step (not a cut's)
+            self.u_n.x.array[:] = self.u.x.array
         self.tools.stroke_n.value = self.s_n
         if self._friction() is not None:  # the tools given as surfaces at (r_n, s_n)
             for table in getattr(self.tools, "last_tables", ()):
@@ -248,7 +259,10 @@ class ContactSolver(SNESSolver):
                 self.fallback_first = self._streak >= FALLBACK_STREAK
         elif first is None:
             self._streak = 0
-        if reason > 0:
+        if reason > 0 and not self.step_end:  # a cut's state: a start, not a step of the path
+            self._mid = s
+        elif reason > 0:
+            self._mid = None
             self.u_prev, self.s_prev, self.s_n = self.u_n.x.array.copy(), self.s_n, s
             self.dissipated += self.comm.allreduce(
                 fem.assemble_scalar(self._dissipation), op=MPI.SUM

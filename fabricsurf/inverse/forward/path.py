@@ -4,8 +4,9 @@ so the converged state of step i depends on the moduli through u_n as well:
 
     K_i du_i/dp = −∂R_i/∂p − (∂R_i/∂u_n) du_{i−1}/dp,
 
-a recursion over every converged solve from the flat blank (du_0/dp = 0), including the solves
-of cut increments between recorded steps; and a reaction functional F(u, u_n) (the punch force
+a recursion over the converged steps of the path from the flat blank (du_0/dp = 0): the
+recorded steps, not the solves of cut increments between them, which are continuation only
+(contact_newton.py); and a reaction functional F(u, u_n) (the punch force
 with the punch's friction traction) has dF/dp = ∂F/∂p + (∂F/∂u) du_i/dp + (∂F/∂u_n) du_{i−1}/dp.
 Each solve costs one back-substitution per modulus with the factorisation Newton left, as the
 per-step sensitivities do. Per-step sensitivities, which hold u_n fixed, drift from the true
@@ -23,9 +24,9 @@ from fabricsurf.inverse.forward import tangent
 
 
 class PathSensitivities:
-    """du/dp for the moduli ``which`` (indices into ``fm.params``) carried over every converged
-    solve of forward model ``fm``'s solver, whose ``on_converged`` it takes for the block
-    (a context manager); :attr:`current` holds the last solve's (du/dp, dF/dp) pairs, the
+    """du/dp for the moduli ``which`` (indices into ``fm.params``) carried over every step of
+    the path that forward model ``fm``'s solver converges, whose ``on_converged`` it takes for
+    the block (a context manager); :attr:`current` holds the last step's (du/dp, dF/dp), the
     reaction R·w with ``weight()`` (None: the test's reaction functional, if any)."""
 
     def __init__(self, fm, which: list[int], weight) -> None:
