@@ -88,7 +88,8 @@ class ContactSolver(SNESSolver):
     steps however often they were cut (docs/forming.md, "Cuts that do not change the path").
     ``history``: the part of the residual that depends on u_n (the holder's friction and the
     viscous drag, a UFL form) for :meth:`path_action`; :attr:`on_converged`, if set, is called
-    after every converged solve (the forward model's sensitivities along the path).
+    after every converged step of the path, not a cut's solves (the forward model's
+    sensitivities along the path).
     ``tool_friction`` (residual, Jacobian) of the punch's and the lip's
     friction potentials are compiled when first needed and added to R and J only while
     Tools.tool_friction() holds (Dirichlet rows and columns left out, as in the main forms;
