@@ -10,8 +10,8 @@ forming diagnosis's ``locking`` case (benchmarks/forming_diagnosis.py), a jump n
 sees.
 Now the cut loads only give Newton its start:
 
-* the stepper tells the solver which attempt is at the requested load (a stand-in solver
-  records what it was told);
+* the stepper tells the solver which attempt is at the requested load
+  (tests/test_load_stepping.py, ``test_stepper_says_which_attempt_ends_the_step``);
 * the hemisphere with friction under the holder, formed to two strokes with every increment cut
   once, gives the punch force and the dissipation of the uncut run to the Newton tolerance;
   the control, the cut solves taken as steps of the path (as before), differs by more than
@@ -21,12 +21,10 @@ Now the cut loads only give Newton its start:
 Runs serially and under ``mpirun -n 2 python -m mpi4py -m pytest``.
 """
 
-import numpy as np
 import pytest
 from hemisphere_case import BLANK, FRICTION, TOOLING, H
 from mpi4py import MPI
 
-from fabricsurf.discretise.stepping import LoadStepper
 from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
@@ -38,38 +36,6 @@ SAME = 1e-7
 carried into the force, with room for the different starts."""
 CONTROL = 1e-3
 """Smallest difference the old cuts must show for the check to mean anything."""
-
-
-class _Stand:
-    """A stand-in for a path-dependent solver: fails the first attempt at each requested load
-    and records every attempt's load and ``step_end``."""
-
-    def __init__(self) -> None:
-        self.u = type("U", (), {"x": type("X", (), {"array": np.zeros(1)})()})()
-        self.step_end, self.load, self.seen, self.tried = True, 0.0, [], set()
-
-    def state(self):
-        return [self.u.x.array.copy()]
-
-    def restore(self, state) -> None:
-        self.u.x.array[:] = state[0]
-
-    def solve(self) -> tuple[int, int]:
-        self.seen.append((self.load, self.step_end))
-        if self.step_end and self.load not in self.tried:
-            self.tried.add(self.load)
-            return -5, 3
-        return 2, 1
-
-
-def test_stepper_says_which_attempt_ends_the_step():
-    s = _Stand()
-    LoadStepper(s, lambda t: setattr(s, "load", t)).run([2.0, 4.0])
-    assert s.seen == [(2.0, True), (1.0, False), (2.0, True)] + [
-        (4.0, True),
-        (3.0, False),
-        (4.0, True),
-    ]
 
 
 def _formed(e: HemispherePlugin, loads: list[float], ends: list[bool]) -> tuple[float, float]:

@@ -41,6 +41,31 @@ class StubSolver:
         return -5, 25
 
 
+class PathStub(StubSolver):
+    """A StubSolver with a path (``step_end``, stepping.py): records each attempt's load and
+    whether the stepper said it ends a requested step."""
+
+    def __init__(self, max_inc):
+        super().__init__(max_inc)
+        self.step_end, self.seen = True, []
+
+    def solve(self):
+        self.seen.append((self.t_try, self.step_end))
+        return super().solve()
+
+
+def test_stepper_says_which_attempt_ends_the_step():
+    """Each requested load is cut once (increments of 1 at most): the cut's attempt is told it
+    does not end the step, the attempts at the requested loads that they do."""
+    s = PathStub(max_inc=1.0)
+    LoadStepper(s, s.set).run([2.0, 4.0])
+    assert s.seen == [(2.0, True), (1.0, False), (2.0, True)] + [
+        (4.0, True),
+        (3.0, False),
+        (4.0, True),
+    ]
+
+
 def test_cut_and_regrow():
     s = StubSolver(max_inc=0.3)
     done = []
