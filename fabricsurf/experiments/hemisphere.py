@@ -39,7 +39,11 @@ from fabricsurf.experiments.base import ExperimentPlugin, PluginSetup
 from fabricsurf.experiments.forming import blank as forming_blank
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.blank_outputs import BlankOutputs
-from fabricsurf.experiments.forming.contact_newton import FALLBACK, FULL_STEP_ITERATIONS
+from fabricsurf.experiments.forming.contact_newton import (
+    FALLBACK,
+    FULL_STEP_DIVERGENCE,
+    FULL_STEP_ITERATIONS,
+)
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
 from fabricsurf.experiments.forming.stroke_log import (
     StrokeLog,
@@ -116,6 +120,7 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
             fallback=FALLBACK,
             snes_options={
                 "snes_max_it": FULL_STEP_ITERATIONS,
+                "snes_divergence_tolerance": FULL_STEP_DIVERGENCE,
                 "snes_linesearch_type": "basic",
                 **(snes_options or {}),
             },

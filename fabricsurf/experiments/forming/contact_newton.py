@@ -15,14 +15,26 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabricsurf.discretise.snes import SOLVER_KEYS
+from fabricsurf.discretise.snes import SNES_DEFAULTS, SOLVER_KEYS
 from fabricsurf.discretise.solver import SNESSolver
 
 FULL_STEP_ITERATIONS = 40
 """Newton iterations of the full-step attempt: it converges in 7–24 from the extrapolated start
 and in about 30 in the first step (from the flat blank) of the demo's full size, where 25 were
 too few and the `l2` repeat from the flat blank failed too (docs/forming.md)."""
-FALLBACK = {"snes_linesearch_type": "l2", "snes_max_it": 50}
+FULL_STEP_DIVERGENCE = 1e3
+"""PETSc's divergence tolerance of the full-step attempt: it stops once the residual exceeds this
+multiple of the one it started from. A full-step attempt that fails does not wander: it
+diverges (the residual 10⁴–10⁸ times its start when its 40 iterations were up) and passes 10³
+after about ten iterations, where the attempts that converge rose at most 324 times above
+their start (all forming tests and the double dome, 404 converged attempts; docs/forming.md,
+"Which attempt first"). A converged attempt stopped by it would only be repeated by the
+fallback from the same start, so the answer cannot depend on it, only the time."""
+FALLBACK = {
+    "snes_linesearch_type": "l2",
+    "snes_max_it": 50,
+    "snes_divergence_tolerance": SNES_DEFAULTS["snes_divergence_tolerance"],
+}
 """Newton's options for the repeat of a failed full-step attempt (:class:`ContactSolver`);
 if it fails too, the load stepper cuts the stroke increment."""
 
