@@ -104,7 +104,7 @@ def table_lip_contact(tools, r_n):
     cavity's walls and floor of a matched die; beyond, the holder's friction acts."""
     table = tools.die_table_n
     on_lip = ufl.conditional(ufl.lt(tools.opening.sigma(r_n), tools.lip), 1.0, 0.0)
-    return on_lip * ufl.max_value(-table.distance(r_n), 0.0), table.n
+    return on_lip * ufl.max_value(-table.distance(r_n), 0.0), table.normal(r_n)
 
 
 def lip_contact(tools, r):

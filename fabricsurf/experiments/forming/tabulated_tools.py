@@ -12,12 +12,13 @@ the tabulation) and the outward normal n there (the distance's gradient) are sto
 
 the distance to the tangent plane at c moved with the stroke. The table is refreshed from the
 current placement before every residual and Jacobian evaluation (ContactSolver), so that the
-residual is the exact variation −k_c ⟨−d⟩ n of the penalty ½ k_c ⟨−d⟩² at the current state and
-the Jacobian k_c n ⊗ n H(−d) leaves out only the tool's curvature term k_c ⟨−d⟩ ∂n/∂r (of the
-order of the penetration over the tool's radius: Newton converges linearly at that rate where
-the punch is curved, quadratically on its flat parts; the classical closest-point-projection
-contact of Wriggers 2006, with the normal frozen over an iteration). The punch force
-k_c ⟨−d⟩ n_z is that of the analytic punch.
+residual is the exact variation −k_c ⟨−d⟩ n of the penalty ½ k_c ⟨−d⟩² at the current state.
+For an analytic shape the table also holds the placement r_q it was taken at and the
+distance's Hessian K = ∇n there (surfaces/curvature.py), and d gains ½ (r − r_q)·K (r − r_q):
+zero with its gradient at the tabulated state, it gives the Jacobian the tool's curvature
+term −k_c ⟨−d⟩ K beside k_c n ⊗ n H(−d), so the Jacobian is exact (the closest-point
+projection's tangent, Wriggers 2006). A triangle mesh's K vanishes on its faces and is left
+out. The punch force k_c ⟨−d⟩ n_z is that of the analytic punch.
 
 Before any computing the punch is checked against the blank (checks.py): a size far from the
 blank's (its units) and a punch that holds nodes of the flat blank at stroke 0 are refused; and
@@ -56,6 +57,7 @@ from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
+from fabricsurf.experiments.forming.surfaces.curvature import distance_hessian, has_curvature
 from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
 from fabricsurf.experiments.forming.surfaces.triangulated import Tracked
 
@@ -70,12 +72,8 @@ SOFT_CUTOFF = 40.0
 """The same in the punch's contact softenings ε, where more: the softplus ε ln(1 + e^(−d/ε))
 is below e^(−40) ε beyond it."""
 E_Z = np.array([0.0, 0.0, 1.0])
-DIE_SPACING = 0.25
-"""Spacing of the points sampled near an analytic punch for the die check, in die lip radii."""
 FACE_TOLERANCE = 0.01
 """How far a die given as a surface may leave z = 0 where the holder presses, in lip radii."""
-GRID_POINTS = 2_000_000
-"""Most grid points sampled near an analytic punch for the die check (the spacing grows)."""
 
 
 class TabulatedTool:
@@ -108,6 +106,11 @@ class TabulatedTool:
         self.cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
         dofs = Q.dofmap.list.array.reshape(-1, len(quadrature_points(msh)))[self.cells].ravel()
         self._index = (3 * dofs[:, None] + np.arange(3)).ravel()
+        self.K = self.r_q = None
+        if has_curvature(surface):  # K = ∇n and the placement it was taken at
+            Q9 = fem.FunctionSpace(msh, ufl.VectorElement(element.sub_elements()[0], dim=9))
+            self.K, self.r_q = fem.Function(Q9, name="tool_curvature"), fem.Function(Q)
+            self._index9 = (9 * dofs[:, None] + np.arange(9)).ravel()
         self._r = None
         self._stroke = None
 
@@ -132,13 +135,35 @@ class TabulatedTool:
             foot = x - d[:, None] * n
         self.foot.x.array[self._index] = (foot + shift).ravel()
         self.n.x.array[self._index] = n.ravel()
+        if self.K is not None:
+            self.r_q.x.array[self._index] = (x + shift).ravel()
+            self.K.x.array[self._index9] = distance_hessian(self.surface, x).ravel()
+
+    def _parts(self, r, stroke):
+        """(r less the foot, r less the tabulated placement or None without K), a moving
+        tool's both less its travel since the tabulation."""
+        gap, step = r - self.foot, r - self.r_q if self.K is not None else None
+        if self.moving:
+            lift = (stroke - self.s_q) * ufl.as_vector(E_Z.tolist())
+            gap, step = gap - lift, None if step is None else step - lift
+        return gap, step
+
+    def _curvature(self):
+        return ufl.as_matrix([[self.K[3 * i + j] for j in range(3)] for i in range(3)])
 
     def distance(self, r, stroke=None):
-        """The signed distance at the placement r (a moving tool's at the stroke ``stroke``)."""
-        gap = r - self.foot
-        if self.moving:
-            gap = gap - (stroke - self.s_q) * ufl.as_vector(E_Z.tolist())
-        return ufl.dot(self.n, gap)
+        """The signed distance at the placement r (a moving tool's at the stroke ``stroke``),
+        with the curvature's second-order term where the table holds K (module docstring)."""
+        gap, step = self._parts(r, stroke)
+        d = ufl.dot(self.n, gap)
+        return d if step is None else d + 0.5 * ufl.dot(step, self._curvature() * step)
+
+    def normal(self, r, stroke=None):
+        """The outward normal at r, the distance's gradient: n + K (r − r_q) where the table
+        holds K, n at the tabulated state with the derivative K there (the punch force's
+        sensitivities need it)."""
+        _, step = self._parts(r, stroke)
+        return self.n if step is None else self.n + self._curvature() * step
 
     def twin(self) -> TabulatedTool:
         """Another table of the same tool, to be attached elsewhere: the tool's at the last
@@ -148,11 +173,11 @@ class TabulatedTool:
 
     def punch(self, r, stroke) -> tuple:
         """(signed distance, vertical component of the normal) at the stroke ``stroke``."""
-        return self.distance(r, stroke), self.n[2]
+        return self.distance(r, stroke), self.normal(r, stroke)[2]
 
     def punch_normal(self, r, stroke) -> tuple:
         """(signed distance, outward normal)."""
-        return self.distance(r, stroke), self.n
+        return self.distance(r, stroke), self.normal(r, stroke)
 
 
 def tabulated_punch(
@@ -263,30 +288,6 @@ def checked_punch(o: dict) -> ToolSurface | None:
 
 def die_check(surface: ToolSurface, o: dict, reach: float):
     """A function of the stroke that refuses one driving the punch ``surface`` into the die
-    (checks.check_stroke against :func:`die_surface`), for strokes up to ``reach``.
-
-    The punch's points are sampled once (checks.surface_points), :data:`DIE_SPACING` lip radii
-    apart: on a triangle mesh's triangles, or near an analytic punch on a grid (coarser if the
-    box would hold more than :data:`GRID_POINTS`), in the layer of the punch that a stroke up
-    to ``reach`` brings to the die (from its face less ``reach`` to the top of its lip, or of
-    a die given as a surface). The first contact between samples is missed by at most about
-    spacing² over the lip radius."""
-    die = die_surface(o)
-    bounds = getattr(surface, "bounds", lambda: None)()
-    lo, hi = (-surface.size, surface.size) if bounds is None else (bounds[0], bounds[1])
-    if getattr(surface, "vertices", None) is not None:
-        lo, hi = -np.inf, np.inf  # every vertex in the layer, wherever the mesh lies
-    face, lip = -o["holder_pressure"] / o["contact_stiffness"], o["die_lip"]
-    top = getattr(die, "bounds", lambda: None)()
-    top = face + 2.0 * lip if top is None else top[1][2]
-    lower = np.array([*np.broadcast_to(lo, 3)[:2], face - reach])
-    upper = np.array([*np.broadcast_to(hi, 3)[:2], top])
-    spacing = DIE_SPACING * lip
-    if np.isfinite(lower).all() and np.isfinite(upper).all():
-        spacing = max(spacing, (np.prod(upper - lower) / GRID_POINTS) ** (1 / 3))
-    points = checks.surface_points(surface, lower, upper, spacing)
-
-    def check(stroke: float) -> None:
-        checks.check_stroke(surface, die, points, E_Z, stroke, near=2.0 * spacing)
-
-    return check
+    (:func:`die_surface`), for strokes up to ``reach`` (checks.stroke_check)."""
+    face = -o["holder_pressure"] / o["contact_stiffness"]
+    return checks.stroke_check(surface, die_surface(o), face, o["die_lip"], reach)

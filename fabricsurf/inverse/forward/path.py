@@ -14,8 +14,8 @@ ones as the strokes add up, by far more on a tool that the sheet slides over tha
 hemisphere (docs/forming.md "Path history" has the measurements).
 
 The tools given as surfaces (tabulated_tools.py) enter through tables of closest points and
-normals fixed over a step; ∂/∂u_n moves the point along them and keeps the normal, which leaves
-out the tool's curvature over the step's slip, as their Jacobian does.
+normals at r_n, fixed over a step; an analytic shape's tables also hold its curvature, and
+∂/∂u_n then turns the normal with it, as their Jacobian does (a triangle mesh's faces are flat).
 """
 
 from __future__ import annotations

@@ -121,6 +121,42 @@ def check_stroke(
     )
 
 
+DIE_SPACING = 0.25
+"""Spacing of the points sampled near an analytic punch for the die check, in die lip radii."""
+GRID_POINTS = 2_000_000
+"""Most grid points sampled near an analytic punch for the die check (the spacing grows)."""
+E_Z = np.array([0.0, 0.0, 1.0])
+
+
+def stroke_check(punch: ToolSurface, die: ToolSurface, face: float, lip: float, reach: float):
+    """A function of the stroke that refuses one driving ``punch`` into ``die`` (face at z =
+    ``face``, lip radius ``lip``; :func:`check_stroke`), for strokes up to ``reach``.
+
+    The punch's points are sampled once (:func:`surface_points`), :data:`DIE_SPACING` lip radii
+    apart: on a triangle mesh's triangles, or near an analytic punch on a grid (coarser if the
+    box would hold more than :data:`GRID_POINTS`), in the layer of the punch that a stroke up
+    to ``reach`` brings to the die (from its face less ``reach`` to the top of its lip, or of
+    a die given as a surface). The first contact between samples is missed by at most about
+    spacing² over the lip radius."""
+    bounds = getattr(punch, "bounds", lambda: None)()
+    lo, hi = (-punch.size, punch.size) if bounds is None else (bounds[0], bounds[1])
+    if getattr(punch, "vertices", None) is not None:
+        lo, hi = -np.inf, np.inf  # every vertex in the layer, wherever the mesh lies
+    top = getattr(die, "bounds", lambda: None)()
+    top = face + 2.0 * lip if top is None else top[1][2]
+    lower = np.array([*np.broadcast_to(lo, 3)[:2], face - reach])
+    upper = np.array([*np.broadcast_to(hi, 3)[:2], top])
+    spacing = DIE_SPACING * lip
+    if np.isfinite(lower).all() and np.isfinite(upper).all():
+        spacing = max(spacing, (np.prod(upper - lower) / GRID_POINTS) ** (1 / 3))
+    points = surface_points(punch, lower, upper, spacing)
+
+    def check(stroke: float) -> None:
+        check_stroke(punch, die, points, E_Z, stroke, near=2.0 * spacing)
+
+    return check
+
+
 def _bisect(depth, lo: float, hi: float) -> float:
     """The stroke in [lo, hi] where the depth crosses 0 (depth(lo) ≤ 0 < depth(hi)), to
     :data:`BISECTION_TOLERANCE` of the interval."""
