@@ -5,6 +5,7 @@ of each converged step (docs/forming.md)."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from typing import Protocol
 
 import numpy as np
@@ -41,20 +42,14 @@ if it fails too, the load stepper cuts the stroke increment."""
 FALLBACK_STREAK = 2
 """Consecutive steps whose full-step attempt failed and whose repeat converged, after which the
 repeat's options are tried first (:class:`ContactSolver`), until they fail where full steps
-converge. A single failed attempt is common and costs less than the ``l2`` line search's dearer
-iterations in the steps after it (the forming demo: one repeat in 12 steps); a run where every
-step needs the repeat (an unbalanced pair on a coarse mesh: 11 of 12 steps) spends its 40
-wasted iterations no more (docs/forming.md, "Which attempt first")."""
+converge. A single failed attempt is common (the forming demo: one repeat in 12 steps); a run
+where every step needs the repeat (an unbalanced pair on a coarse mesh: 11 of 12 steps) spends
+no more failed attempts (docs/forming.md, "Which attempt first")."""
 
 LINEAR_SOLVER: dict = {}
-"""Options of the linear solver beyond the SNES defaults (MUMPS LU). The Jacobian is the Hessian
-of one energy, symmetric, and MUMPS's LDLᵀ (``{"pc_type": "cholesky"}``) factors it with about
-a third fewer operations: measured on the 250 mm blank at h = R/5 with friction on all tools
-(benchmarks/forming.py), the same 193 Newton iterations, the punch force equal to 10⁻¹²
-relative, 11.7 s of CPU against 13.6 s with LU. It is not the default: in the forming demo's
-quick run from an installed wheel it failed at the first step (DIVERGED_LINEAR_SOLVE at every
-cut, on the flat blank, where the pivots of an indefinite LDLᵀ are least safe) where LU
-converges; an option for such measurements, ``snes_options={"pc_type": "cholesky"}``."""
+"""Options of the linear solver beyond the SNES defaults (MUMPS LU). MUMPS's LDLᵀ
+(``{"pc_type": "cholesky"}``) saves about a seventh of the CPU on the symmetric Jacobian but
+failed at the forming demo's first step where LU converges (docs/forming.md): an option."""
 
 
 class StrokeTools(Protocol):
@@ -235,6 +230,24 @@ class ContactSolver(SNESSolver):
             return super().solve()
         finally:
             self.set_options(self._options)
+
+    @contextmanager
+    def exact_tangent(self):
+        """The Jacobian at u with the curvature of the tools given as analytic surfaces, for the
+        sensitivities (factorised at their first solve); Newton's has the frozen normal."""
+        tables = [t for t in getattr(self.tools, "tables", ()) if t.K is not None]
+        for table in tables:
+            table.curved = True
+        try:
+            if tables:
+                with self.x.localForm() as x_local:
+                    x_local.array[:] = self.u.x.array
+                self.evaluate_jacobian(self.x)
+            yield
+        finally:
+            for table in tables:
+                table.curved = False
+                table.refresh()
 
     def _predict(self, s: float) -> None:
         """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s; after a

@@ -16,9 +16,12 @@ residual is the exact variation −k_c ⟨−d⟩ n of the penalty ½ k_c ⟨−
 For an analytic shape the table also holds the placement r_q it was taken at and the
 distance's Hessian K = ∇n there (surfaces/curvature.py), and d gains ½ (r − r_q)·K (r − r_q):
 zero with its gradient at the tabulated state, it gives the Jacobian the tool's curvature
-term −k_c ⟨−d⟩ K beside k_c n ⊗ n H(−d), so the Jacobian is exact (the closest-point
-projection's tangent, Wriggers 2006). A triangle mesh's K vanishes on its faces and is left
-out. The punch force k_c ⟨−d⟩ n_z is that of the analytic punch.
+term −k_c ⟨−d⟩ K beside k_c n ⊗ n H(−d): the exact tangent (the closest-point projection's,
+Wriggers 2006). Newton leaves K zero (:attr:`TabulatedTool.curved` False: the frozen normal,
+whose Jacobian stays semi-definite where an iterate dips deep into the tool); the
+sensitivities at a converged state take it (ContactSolver.exact_tangent). A triangle mesh's
+K vanishes on its faces and is left out. The punch force k_c ⟨−d⟩ n_z is that of the analytic
+punch.
 
 Before any computing the punch is checked against the blank (checks.py): a size far from the
 blank's (its units) and a punch that holds nodes of the flat blank at stroke 0 are refused; and
@@ -107,6 +110,7 @@ class TabulatedTool:
         dofs = Q.dofmap.list.array.reshape(-1, len(quadrature_points(msh)))[self.cells].ravel()
         self._index = (3 * dofs[:, None] + np.arange(3)).ravel()
         self.K = self.r_q = None
+        self.curved = False  # K left zero: the frozen normal's Jacobian, for Newton
         if has_curvature(surface):  # K = ∇n and the placement it was taken at
             Q9 = fem.FunctionSpace(msh, ufl.VectorElement(element.sub_elements()[0], dim=9))
             self.K, self.r_q = fem.Function(Q9, name="tool_curvature"), fem.Function(Q)
@@ -137,7 +141,8 @@ class TabulatedTool:
         self.n.x.array[self._index] = n.ravel()
         if self.K is not None:
             self.r_q.x.array[self._index] = (x + shift).ravel()
-            self.K.x.array[self._index9] = distance_hessian(self.surface, x).ravel()
+            K = distance_hessian(self.surface, x) if self.curved else 0.0
+            self.K.x.array[self._index9] = np.broadcast_to(K, (len(x), 3, 3)).ravel()
 
     def _parts(self, r, stroke):
         """(r less the foot, r less the tabulated placement or None without K), a moving
@@ -169,7 +174,9 @@ class TabulatedTool:
         """Another table of the same tool, to be attached elsewhere: the tool's at the last
         converged placement r_n and stroke s_n, for its friction, refreshed once per step
         (module docstring)."""
-        return TabulatedTool(self.msh, self.surface, self.moving, self.offset, self.softening)
+        twin = TabulatedTool(self.msh, self.surface, self.moving, self.offset, self.softening)
+        twin.curved = True  # its r_n is no unknown of Newton's: only ∂/∂u_n sees K
+        return twin
 
     def punch(self, r, stroke) -> tuple:
         """(signed distance, vertical component of the normal) at the stroke ``stroke``."""

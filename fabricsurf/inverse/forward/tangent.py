@@ -18,6 +18,8 @@ the full matrix.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
+
 import numpy as np
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
@@ -80,7 +82,15 @@ def sensitivities(fm, which: list[int], w, start=None) -> list[tuple[fem.Functio
     """(du/dp_k, dF/dp_k) for k in ``which`` at the converged state of ``fm``: the reaction
     R·w (``w``) or the test's reaction functional F (module docstring). ``start``: du_n/dp_k
     of the state the step started from, for a solver whose residual depends on it (path.py),
-    adding (∂R/∂u_n)·du_n/dp_k to ∂R/∂p_k and (∂F/∂u_n)·du_n/dp_k to dF/dp_k."""
+    adding (∂R/∂u_n)·du_n/dp_k to ∂R/∂p_k and (∂F/∂u_n)·du_n/dp_k to dF/dp_k. A solver whose
+    Newton Jacobian leaves a term out (the forming tools' curvature) gives the exact one here
+    (``exact_tangent``)."""
+    exact = getattr(fm.test.solver, "exact_tangent", None)
+    with exact() if exact is not None else nullcontext():
+        return _sensitivities(fm, which, w, start)
+
+
+def _sensitivities(fm, which: list[int], w, start) -> list[tuple[fem.Function, float]]:
     s, obs = fm.test.solver, fm.observers
     ksp = s.snes.getKSP()
     A_full = Kw = None
