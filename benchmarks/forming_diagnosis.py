@@ -22,6 +22,7 @@ error stays out of the verdict; a finer one shows what it adds). Prints the data
 baseline and final misfits, the ranking with every refit, the verdict and the time.
 
     .venv/bin/python benchmarks/forming_diagnosis.py --case locking [--k4 0.1] [--candidates a,b]
+        [--quiet]
 """
 
 from __future__ import annotations
@@ -146,6 +147,9 @@ def main() -> None:
         default=None,
         help="shear locking's k4 of the locking case (N/mm, default 1)",
     )
+    ap.add_argument(
+        "--quiet", action="store_true", help="no progress of the diagnosis, only its result"
+    )
     a = ap.parse_args()
     configure()  # the messages: on rank 0, at PROGRESS
     comm = MPI.COMM_WORLD
@@ -164,7 +168,7 @@ def main() -> None:
     )
     t1 = MPI.Wtime()
     cands = a.candidates.split(",") if a.candidates else None
-    with detail():
+    with detail(a.quiet):  # its progress: the double dome's takes the better part of an hour
         d = diagnose(
             [exp],
             case["baseline"],
