@@ -1,13 +1,14 @@
-"""The curvature of a tool given as a surface, for the Jacobian of its tabulated contact
-(experiments/forming/tabulated_tools.py; docs/tool_surfaces.md, "The tool's curvature").
+"""The curvature of a tool given as a surface, for the exact tangent of its tabulated contact
+that the sensitivities solve with (experiments/forming/tabulated_tools.py; Newton keeps the
+frozen normal; docs/tool_surfaces.md, "The tool's curvature").
 
 The penalty ½ k_c ⟨−d⟩² of the signed distance d has the Hessian
 k_c H(−d) n ⊗ n − k_c ⟨−d⟩ ∇∇d, and ∇∇d = ∇n, the derivative of the outward normal at the
 point (for a sphere of radius R seen from distance ρ to its centre, (I − n ⊗ n)/ρ). A table
-holds n at the current placement, so its Jacobian has the first term only; this module gives
-the second. For an analytic shape ∇n is taken by central differences of its normal, which
-is the exact gradient of its distance everywhere. A triangle mesh's normal is constant over
-each face, so its ∇n vanishes there: :func:`has_curvature` says which surfaces carry it.
+holding n at the current placement gives the first term only; this module gives the second.
+For an analytic shape ∇n is taken by central differences of its normal, which is the exact
+gradient of its distance everywhere. A triangle mesh's normal is constant over each face, so
+its ∇n vanishes there: :func:`has_curvature` says which surfaces carry it.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ relative to the curvature is (step / radius)², their rounding error 10⁻¹⁶ 
 KINK = 1e-2
 """Relative difference of the one-sided differences above which the normal field is taken to
 have a kink within the step (an edge, a seam where the curvature jumps, the medial surface
-inside the tool): ∇n is set to zero there, the frozen normal's Jacobian as before."""
+inside the tool): ∇n is set to zero there, the frozen normal's tangent."""
 
 
 def has_curvature(surface) -> bool:
