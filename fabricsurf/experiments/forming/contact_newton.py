@@ -247,7 +247,7 @@ class ContactSolver(SNESSolver):
         finally:
             for table in tables:
                 table.curved = False
-                table.refresh()
+                table.K.x.array[:] = 0.0
 
     def _predict(self, s: float) -> None:
         """Extrapolate u along the path through (s_prev, u_prev) and (s_n, u_n) to s; after a

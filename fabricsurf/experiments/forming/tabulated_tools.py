@@ -74,7 +74,6 @@ point deeper inside it than that would go unseen."""
 SOFT_CUTOFF = 40.0
 """The same in the punch's contact softenings ε, where more: the softplus ε ln(1 + e^(−d/ε))
 is below e^(−40) ε beyond it."""
-E_Z = np.array([0.0, 0.0, 1.0])
 FACE_TOLERANCE = 0.01
 """How far a die given as a surface may leave z = 0 where the holder presses, in lip radii."""
 
@@ -130,7 +129,7 @@ class TabulatedTool:
         self.s_q.value = s
         if len(self.cells) == 0:
             return
-        shift = self.offset + s * E_Z
+        shift = self.offset + s * checks.E_Z
         x = self._r.eval(self.cells).reshape(-1, 3) - shift
         if self._near is not None:
             _, foot, n = self._near(x)
@@ -139,17 +138,16 @@ class TabulatedTool:
             foot = x - d[:, None] * n
         self.foot.x.array[self._index] = (foot + shift).ravel()
         self.n.x.array[self._index] = n.ravel()
-        if self.K is not None:
+        if self.K is not None and self.curved:  # else K stays zero (Newton's tables)
             self.r_q.x.array[self._index] = (x + shift).ravel()
-            K = distance_hessian(self.surface, x) if self.curved else 0.0
-            self.K.x.array[self._index9] = np.broadcast_to(K, (len(x), 3, 3)).ravel()
+            self.K.x.array[self._index9] = distance_hessian(self.surface, x).ravel()
 
     def _parts(self, r, stroke):
         """(r less the foot, r less the tabulated placement or None without K), a moving
         tool's both less its travel since the tabulation."""
         gap, step = r - self.foot, r - self.r_q if self.K is not None else None
         if self.moving:
-            lift = (stroke - self.s_q) * ufl.as_vector(E_Z.tolist())
+            lift = (stroke - self.s_q) * ufl.as_vector(checks.E_Z.tolist())
             gap, step = gap - lift, None if step is None else step - lift
         return gap, step
 
