@@ -32,12 +32,12 @@ from matplotlib.path import Path as PolyPath
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
+from fabricsurf.discretise.quadrature import quadrature_points
 from fabricsurf.errors import DataError, InputError
 from fabricsurf.experiments.base import PluginSetup
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 from fabricsurf.experiments.forming.surfaces.opening_form import OpeningForm
-from fabricsurf.experiments.forming.tabulated_tools import quadrature_points
 from fabricsurf.experiments.hemisphere import HemispherePlugin
 from fabricsurf.model.terms import FibreStretch, NormalBending, Shear, Twist
 

@@ -62,7 +62,8 @@ def root(tmp_path_factory):
     exp = sf.add_forming_noise(sf.forming_data(exp, model(), H, COMM), 0.01, 0.05, 1)
     if COMM.rank == 0:
         v, f = meshes.hemisphere_punch_mesh(R, EDGE)
-        for name in ("data", "stl", "nounits", "absent", "open", "tenfold", "die", "dienounits"):
+        names = ("data", "stl", "nounits", "absent", "open", "tenfold", "die", "dienounits")
+        for name in (*names, "holder", "holdernounits"):
             write_experiment(base / name, exp, overwrite=True)
         files.write_stl(base / "stl" / "punch.stl", 0.1 * v, f)  # in cm
         with_tooling(base / "stl", 'punch_file = "punch.stl"\npunch_units = "cm"')
@@ -79,6 +80,13 @@ def root(tmp_path_factory):
         with_tooling(base / "die", 'die_file = "die.stl"\ndie_units = "mm"')
         files.write_stl(base / "dienounits" / "die.stl", *die)
         with_tooling(base / "dienounits", 'die_file = "die.stl"')
+        holder = meshes.holder_plate_mesh(
+            R + TOOLS["clearance"], TOOLS["die_lip"], 65.0, 8.0, 1.0, 160
+        )
+        files.write_stl(base / "holder" / "holder.stl", *holder)
+        with_tooling(base / "holder", 'holder_file = "holder.stl"\nholder_units = "mm"')
+        files.write_stl(base / "holdernounits" / "holder.stl", *holder)
+        with_tooling(base / "holdernounits", 'holder_file = "holder.stl"')
         (base / "p.json").write_text(json.dumps(PARAMS))
     COMM.barrier()
     return base
@@ -106,6 +114,26 @@ def test_tool_file_through_compare(root, case, key, tool):
     assert (out / "misfit.json").is_file()
 
 
+def test_holder_file_through_compare(root):
+    """The holder as the analytic one's plate (outline in 160 segments, lip edges 1 mm) in an
+    STL file: compare takes it from experiment.toml, and its forces are the analytic holder's
+    to the facets' error (below 1e-3 of the final force, as the ring's of
+    tests/test_surface_holder.py)."""
+    out = root / f"holder_out{COMM.size}"
+    argv = ["compare", str(root / "holder"), "--params", str(root / "p.json"), "--h", str(H)]
+    assert main([*argv, "--out", str(out)]) == 0
+    exp = load_experiment(root / "holder")
+    assert exp.setup.options["holder_file"] == str(root / "holder" / "holder.stl")
+    with ForwardModel(exp, model(), H, COMM) as fm:
+        tabulated = fm.run().force
+    with ForwardModel(load_experiment(root / "data"), model(), H, COMM) as fm:
+        analytic = fm.run().force
+    error = np.abs(tabulated - analytic).max() / analytic[-1]
+    print(f"holder file against the analytic holder: {error:.3g} of the final force")
+    assert error < 1e-3
+    assert (out / "misfit.json").is_file()
+
+
 @pytest.mark.parametrize(
     "case, words",
     [
@@ -113,6 +141,7 @@ def test_tool_file_through_compare(root, case, key, tool):
         ("absent", r"punch_file: .*nothere.stl: no such file"),
         ("open", r"punch.stl.*not closed"),
         ("dienounits", r"die_file = '.*/dienounits/die.stl' needs die_units.*none given"),
+        ("holdernounits", r"holder_file = '.*/holder.stl' needs holder_units.*none given"),
     ],
 )
 def test_bad_punch_files_refused_with_the_data(root, case, words):

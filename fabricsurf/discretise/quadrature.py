@@ -5,6 +5,7 @@ that keeps meshes whose edges do not follow the fibres from locking; docs/theory
 
 from __future__ import annotations
 
+import basix
 import numpy as np
 import ufl
 from dolfinx import mesh as dmesh
@@ -40,3 +41,11 @@ def reduced_measures(msh, degree: int) -> tuple[ufl.Measure, ufl.Measure]:
     tags = dmesh.meshtags(msh, tdim, cells, np.full(len(cells), FIBRE_CELLS, dtype=np.int32))
     dx = ufl.Measure("dx", domain=msh, subdomain_data=tags, metadata={"quadrature_degree": degree})
     return dx, dx(FIBRE_CELLS, metadata={"quadrature_degree": REDUCED_FIBRE_DEGREE})
+
+
+def quadrature_points(msh) -> np.ndarray:
+    """The reference points of the cell quadrature (degree CELL_QUADRATURE_DEGREE), in the
+    order of the quadrature space's degrees of freedom on a cell: where the tools given as
+    surfaces are tabulated (experiments/forming/tabulated_tools.py)."""
+    cell = basix.cell.string_to_type(msh.topology.cell_name())
+    return basix.make_quadrature(cell, CELL_QUADRATURE_DEGREE)[0]

@@ -44,13 +44,13 @@ from fabricsurf.experiments.forming.contact_newton import (
     FULL_STEP_DIVERGENCE,
     FULL_STEP_ITERATIONS,
 )
+from fabricsurf.experiments.forming.fixed_tools import checked_punch, die_check
 from fabricsurf.experiments.forming.indicators import Indicators, Wrinkling
 from fabricsurf.experiments.forming.stroke_log import (
     StrokeLog,
     collapsed,
     stabilisation_share,
 )
-from fabricsurf.experiments.forming.tabulated_tools import checked_punch, die_check
 from fabricsurf.experiments.forming.tools import ContactProblem, Tools
 from fabricsurf.geometry.aligned import blank_angle
 from fabricsurf.log import warn
@@ -215,7 +215,7 @@ class HemispherePlugin(BlankOutputs, ExperimentPlugin):
 
     def check_stroke(self, stroke: float) -> None:
         """Refuse a stroke beyond what the die and the blank allow (forming_options), or one
-        that drives a punch given as a surface into the die (tabulated_tools.die_check)."""
+        that drives a punch given as a surface into the die (fixed_tools.die_check)."""
         forming_blank.check_stroke(self.setup, stroke)
         if self._die_check is not None:
             self._die_check(stroke)

@@ -1,8 +1,10 @@
 """What the hemisphere plug-in (experiments/hemisphere.py) reads off the formed blank: the
 forces, energies, dissipation and area fractions of the whole blank (reduced over ranks, times
 the copies of the solved domain), the largest penetration and shear, the contact's active set,
-and the fields it writes and profiles along a ray. A mix-in: the plug-in builds the forms and
-fields; these methods only evaluate them, apart from its set-up and load path."""
+the fields it writes, profiles along a ray from the pole (the shear, with the arc length over
+the punch and the gap to it) and the element midpoints on the aligned quarter's diagonal. A
+mix-in: the plug-in builds the forms and fields; these methods only evaluate them, apart from
+its set-up and load path."""
 
 from __future__ import annotations
 
@@ -14,10 +16,16 @@ from dolfinx.mesh import compute_midpoints
 from mpi4py import MPI
 
 from fabricsurf.discretise.energy import CELL_QUADRATURE_DEGREE
-from fabricsurf.discretise.evaluation import max_over_cells, quadrature_expression
+from fabricsurf.discretise.evaluation import (
+    eval_points,
+    interpolate_expression,
+    max_over_cells,
+    nodal_average,
+    quadrature_expression,
+)
 from fabricsurf.discretise.output import FieldWriter
 from fabricsurf.experiments.forming import blank as forming_blank
-from fabricsurf.experiments.forming import profile as forming_profile
+from fabricsurf.geometry.aligned import lattice_divisions, square_divisions
 from fabricsurf.model.kinematics import l_dir, m_dir
 
 
@@ -135,11 +143,52 @@ class BlankOutputs:
         )
 
     def element_centres(self) -> np.ndarray:
-        """forming_profile.element_centres: the diagonal's element midpoints (mm)."""
-        return forming_profile.element_centres(self)
+        """Reference distances from the pole of the midpoints of the mesh edges on the diagonal
+        (the fibres' bisector, the ray at the plug-in's ``diagonal_deg``). With stiff fibres the
+        shear of the discrete sheet is nearly constant on each element of the aligned mesh (it
+        behaves as a pin-jointed net of cell size h) and jumps between elements: there an
+        element's value stands for its mean."""
+        if self.theta is None or forming_blank.shape(self.setup) != "square":
+            raise ValueError(
+                "element_centres: only on the aligned quarter's mesh (a square "
+                "blank with fibres at ±θ or 0/90)"
+            )
+        half = 0.5 * self.setup.length
+        if self.theta == 0.0:
+            d = half / square_divisions(half, self.h)
+            return np.arange(0.5 * d, half, d) * math.sqrt(2.0)
+        dx = half / lattice_divisions(half, half, self.h, self.theta)[0]
+        return np.arange(dx, half, 2.0 * dx)
 
     def profile(
         self, direction_deg: float, X: np.ndarray | None = None, n: int = 40
     ) -> dict[str, np.ndarray]:
-        """forming_profile.profile: the shear, arc and gap along a reference ray."""
-        return forming_profile.profile(self, direction_deg, X, n)
+        """Along the reference ray from the pole at ``direction_deg`` (``diagonal_deg``:
+        the fibres' bisector, the benchmarks' diagonal; a fibre's angle: that fibre), at
+        reference distances ``X`` (default n points to the blank's edge): X, the arc length
+        from the pole over the deformed sheet's polar angle about the punch centre, R·φ, the
+        shear angle γ (deg), the recovered shear angle (deg: its area-weighted nodal average,
+        evaluation.nodal_average, the continuous field a post-processor shows in place of the
+        per-element staircase of a stiff net), and the gap to the punch's cap (mm; negative:
+        penetration). The same on every rank."""
+        t = math.radians(direction_deg)
+        reach = forming_blank.reach(self.setup, direction_deg)
+        X = np.linspace(0.0, reach, n) if X is None else np.asarray(X, dtype=float)
+        n = len(X)
+        pts = np.column_stack([X * math.cos(t), X * math.sin(t)])
+        kin = self.problem.energy.kin
+        gam = interpolate_expression(kin.gamma * (180.0 / math.pi), self._S)
+        rec = nodal_average(
+            kin.gamma * (180.0 / math.pi), self.specimen.mesh, CELL_QUADRATURE_DEGREE
+        )
+        r = np.column_stack([pts, np.zeros(n)]) + eval_points(self.problem.u, pts)
+        r[:, 2] -= float(self.tools.stroke.value) - self.R
+        dist = np.linalg.norm(r, axis=1)
+        phi = np.arccos(np.clip(r[:, 2] / dist, -1.0, 1.0))
+        return {
+            "X": X,
+            "arc": self.R * phi,
+            "shear_deg": eval_points(gam, pts)[:, 0],
+            "shear_recovered_deg": eval_points(rec, pts)[:, 0],
+            "gap": np.where(r[:, 2] > 0, dist - self.R, np.inf),
+        }

@@ -62,7 +62,7 @@ def _tangential(v, n):
 def _holder_slip(tools, r, r_n):
     """(|Δr_t|², the in-plane slip squared since r_n; 2 μ p_h w(σ_n), the limit traction)."""
     slip = ufl.as_vector([r[0] - r_n[0], r[1] - r_n[1]])
-    return ufl.dot(slip, slip), 2.0 * tools.mu * tools.p_h * tools.holder_weight(r_n)
+    return ufl.dot(slip, slip), 2.0 * tools.mu * tools.p_h * tools.holder_weight(r_n, last=True)
 
 
 def holder_potential_density(tools, r, r_n):

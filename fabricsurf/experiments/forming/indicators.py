@@ -112,9 +112,9 @@ class Wrinkling(Owner):
     """Where the unheld flange buckles (docs/forming.md, "Wrinkling"): in the strip between the
     end of the die's lip and the holder's full pressure, at the current distance σ from the
     opening's outline r_d ≤ σ < r_d + b, b = 2 r_d (a circle's radii R_o + r_d ≤ ρ < R_o + 3 r_d;
-    forming_tools.Tools.holder_weight), the lesser principal
-    value of the smoothed membrane force is below −``factor`` N_cr, N_cr = 4π²D/b² the
-    plate-buckling force of the strip
+    forming_tools.Tools.holder_weight; under a holder given as a surface, from r_d to where its
+    pressure is full), the lesser principal value of the smoothed membrane force is below
+    −``factor`` N_cr, N_cr = 4π²D/b² the plate-buckling force of the strip
     (Timoshenko & Gere 1961, §9.2) with D the model's least bending stiffness (:func:`
     bending_stiffness`, at the model's current moduli).
 
@@ -151,7 +151,10 @@ class Wrinkling(Owner):
         self._ksp.setTolerances(rtol=1e-12, atol=1e-14, max_it=1000)
         self._filter_length = None  # the length the filter matrix was assembled with
         sigma = tools.opening.sigma(r)
-        strip = ufl.And(ufl.ge(sigma, tools.lip), ufl.lt(sigma, 3.0 * tools.lip))
+        short = ufl.lt(sigma, 3.0 * tools.lip) if tools.press is None else None
+        if short is None:  # a holder given as a surface: short of its full pressure
+            short = ufl.lt(tools.holder_weight(r), 1.0)
+        strip = ufl.And(ufl.ge(sigma, tools.lip), short)
         threshold = self.factor * self.buckling_force
         self.mark = ufl.conditional(ufl.And(strip, ufl.lt(self.smoothed, -threshold)), 1.0, 0.0)
 

@@ -19,7 +19,12 @@ import math
 from fabricsurf.errors import DataError
 from fabricsurf.experiments.base import PluginSetup, number_option
 from fabricsurf.experiments.cantilever import areal_density_option
-from fabricsurf.experiments.forming.surfaces.files import FILE_KEYS, tool_file_options
+from fabricsurf.experiments.forming.surfaces.files import (
+    FILE_KEYS,
+    given_surface,
+    tool_file_options,
+)
+from fabricsurf.experiments.forming.surfaces.holder import Footprint, unheld_by
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 
 TOOL_KEYS = {
@@ -248,6 +253,8 @@ def unheld_edge(o: dict, half_x: float, half_y: float, round_blank: bool = False
     demo blank of B/2 = 1.5 R (against 1.8 R) did, and Newton then followed the stroke only
     with many cut steps (docs/forming.md)."""
     op, lip = opening(o), o["die_lip"]
+    if (holder := given_surface(o, "holder")) is not None:
+        return unheld_by(Footprint(holder), lip, half_x, half_y, round_blank)
     full = (op.half_length + 3.0 * lip, op.half_width + 3.0 * lip)
     if round_blank:
         full = (op.outer_reach + 3.0 * lip,) * 2

@@ -40,28 +40,21 @@ tool's pressure and normal at the last converged state r_n, fixed over a step: a
 of the tool (:meth:`TabulatedTool.twin`), tabulated from r_n at the stroke s_n once per step,
 where d(r_n, s_n) = n · (r_n − c) is the exact distance (c the closest point of r_n itself).
 
-A die given as a surface (``die_file``: a plate with any opening, a matched die's cavity) is
-tabulated the same way, fixed: d(r) = n · (r − c). It is given with its face, where the
-holder presses the flange, at z = 0, and placed at −p_h/k_c as the analytic die's face is
-(Tools). Before computing it is checked (:func:`check_die_face`): its units, no node of the
-flat blank inside it, and its face at z = 0 wherever the holder presses; the holder and its
-pressure stay the plates about the opening of the options.
+A die and a holder given as surfaces are tabulated the same way, fixed: d(r) = n · (r − c)
+(their placing and checks: experiments/forming/fixed_tools.py).
 """
 
 from __future__ import annotations
 
-import basix
 import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE
+from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE, quadrature_points
 from fabricsurf.errors import InputError
-from fabricsurf.experiments.forming import options as forming_options
-from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
+from fabricsurf.experiments.forming.surfaces import ToolSurface, checks
 from fabricsurf.experiments.forming.surfaces.curvature import distance_hessian, has_curvature
-from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
 from fabricsurf.experiments.forming.surfaces.triangulated import Tracked
 
 START_TOLERANCE = 1e-6
@@ -74,8 +67,6 @@ point deeper inside it than that would go unseen."""
 SOFT_CUTOFF = 40.0
 """The same in the punch's contact softenings ε, where more: the softplus ε ln(1 + e^(−d/ε))
 is below e^(−40) ε beyond it."""
-FACE_TOLERANCE = 0.01
-"""How far a die given as a surface may leave z = 0 where the holder presses, in lip radii."""
 
 
 class TabulatedTool:
@@ -203,15 +194,15 @@ def check_against_blank(surface: ToolSurface, msh) -> None:
     X = msh.geometry.x
     error = None
     try:
-        checks.check_scale(surface, _blank_size(msh))
+        checks.check_scale(surface, blank_size(msh))
         flat = np.column_stack([X[:, 0], X[:, 1], np.zeros(len(X))])
         checks.check_outside(surface, flat, START_TOLERANCE * surface.size)
     except InputError as e:
         error = str(e)
-    _same_error(msh, error)
+    same_error(msh, error)
 
 
-def _blank_size(msh) -> float:
+def blank_size(msh) -> float:
     """The blank's largest extent in its plane (mm): twice its reach from the punch axis, the
     whole blank's whether the full blank or its quarter is meshed."""
     X = msh.geometry.x
@@ -219,80 +210,8 @@ def _blank_size(msh) -> float:
     return 2.0 * msh.comm.allreduce(reach, op=MPI.MAX)
 
 
-def _same_error(msh, error: str | None) -> None:
+def same_error(msh, error: str | None) -> None:
     """Raise the first rank's error on every rank, if any rank has one."""
     errors = [m for m in msh.comm.allgather(error) if m]
     if errors:
         raise InputError(errors[0])
-
-
-def quadrature_points(msh) -> np.ndarray:
-    """The reference points of the cell quadrature (degree CELL_QUADRATURE_DEGREE), in the
-    order of the quadrature space's degrees of freedom on a cell."""
-    cell = basix.cell.string_to_type(msh.topology.cell_name())
-    return basix.make_quadrature(cell, CELL_QUADRATURE_DEGREE)[0]
-
-
-def die_surface(o: dict) -> ToolSurface:
-    """The plug-in's die as a surface, its face at −p_h/k_c (Tools): the one the options give
-    (``die_file``, ``die_surface``; its face at z = 0) moved there, else the plate with the
-    opening and lip of the options."""
-    face = -o["holder_pressure"] / o["contact_stiffness"]
-    given = given_surface(o, "die")
-    if given is not None:
-        return analytic.Moved(given, (0.0, 0.0, face))
-    return analytic.DiePlate(forming_options.opening(o), o["die_lip"], face)
-
-
-def tabulated_die(msh, surface: ToolSurface, o: dict) -> TabulatedTool:
-    """The die given as a surface (face at z = 0), checked against the blank
-    (:func:`check_die_face`), tabulated at its place, the face at −p_h/k_c."""
-    check_die_face(surface, msh, o)
-    face = -o["holder_pressure"] / o["contact_stiffness"]
-    return TabulatedTool(msh, surface, moving=False, offset=(0.0, 0.0, face))
-
-
-def check_die_face(surface: ToolSurface, msh, o: dict) -> None:
-    """Refuse a die given as a surface whose size is far from the blank's (its units), that
-    holds a node of the flat blank, or whose face is not at z = 0 where the holder presses the
-    flange (σ ≥ 2 r_d: the pressure would lift the flange into nothing), within
-    :data:`FACE_TOLERANCE` lip radii; the same verdict on every rank."""
-    X = msh.geometry.x
-    flat = np.column_stack([X[:, 0], X[:, 1], np.zeros(len(X))])
-    tol = FACE_TOLERANCE * o["die_lip"]
-    error = None
-    try:
-        checks.check_scale(surface, _blank_size(msh))
-        d = surface.signed_distance(flat) if len(flat) else np.zeros(0)
-        checks.check_outside(surface, flat, tol, d)
-        held = forming_options.opening(o).evaluate(flat)[0] >= 2.0 * o["die_lip"]
-        gap = np.where(held, d, 0.0) if len(flat) else np.zeros(1)
-        k = int(np.argmax(gap))
-        if gap[k] > tol:
-            raise InputError(
-                f"{surface.name}: the die's face is {gap[k]:.3g} mm above the blank at "
-                f"{np.round(flat[k, :2], 6).tolist()}, where the holder presses the flange "
-                f"against it; the die's face must lie at z = 0 there (within {tol:.3g} mm) "
-                "and cover the flange"
-            )
-    except InputError as e:
-        error = str(e)
-    _same_error(msh, error)
-
-
-def checked_punch(o: dict) -> ToolSurface | None:
-    """The punch to check against the die (:func:`die_check`): the one given as a surface, the
-    analytic hemisphere in an opening that is not the circle about it or under a die given as
-    a surface, else None (that circle is wider than the punch by the clearance)."""
-    surface = punch_surface(o)
-    plate = forming_options.opening(o).kind == "circle" and given_surface(o, "die") is None
-    if surface is None and not plate:
-        return analytic.HemispherePunch(o["punch_radius"])
-    return surface
-
-
-def die_check(surface: ToolSurface, o: dict, reach: float):
-    """A function of the stroke that refuses one driving the punch ``surface`` into the die
-    (:func:`die_surface`), for strokes up to ``reach`` (checks.stroke_check)."""
-    face = -o["holder_pressure"] / o["contact_stiffness"]
-    return checks.stroke_check(surface, die_surface(o), face, o["die_lip"], reach)

@@ -4,34 +4,28 @@ experiments/hemisphere.py).
 
 The placement r is in a frame whose origin is the punch axis at the blank's reference plane.
 The punch is a hemisphere of radius R on a cylinder of the same radius, its pole at z = s (s
-the stroke), pushing the blank up into the die (a punch or a die of any shape: given as a
-surface and tabulated, tabulated_tools.py). The die (above the blank, face at z = −p_h/k_c,
-so that the flat blank pressed into it is in equilibrium at s = 0 and the die's penalty is
-active there: at d = 0 its stiffness would vanish and leave the vertical motion free) and
-the blank holder (below it, face at z = −g, g the gap) are plates with an opening (a circle
-of radius R_o, or a rectangle with rounded corners: surfaces/opening.py, σ the signed distance
-from its outline in the plate's plane) and a rounded lip of radius r_d. The holder also presses
-the flange against the die with a pressure p_h, the potential −∫ p_h w(σ) r_z dX, w rising
-smoothly (3t² − 2t³) from 0 one lip radius beyond the end of the lip (σ = 2 r_d; the die's face
-becomes flat at σ = r_d) to 1 one lip radius further: it fixes the blank's vertical position
-from the first step (a blank in a gap alone could float up with the punch).
-Self-weight, optional, is the potential ∫ q r_z dX (q = ρ_A g per unit reference area).
-Contact is the penalty energy ½ k_c ⟨−d⟩² per unit reference area for each tool's distance d;
-with ``contact_softening`` ε > 0 the punch's ⟨−d⟩ is the softplus ε ln(1 + e^(−d/ε)), whose
-pressure begins just before touching (a sheet lying on a flat punch top then has a stiffness
-there, and Newton's contact set does not flicker: docs/tool_surfaces.md, "A box").
+the stroke), pushing the blank up into the die (tools of any shape: given as surfaces and
+tabulated, tabulated_tools.py). The die (above the blank, face at z = −p_h/k_c: the flat blank
+pressed into it is in equilibrium at s = 0 with the die's penalty active, whose stiffness
+would vanish at d = 0) and the blank holder (below it, face at z = −g, g the gap) are plates
+with an opening (a circle of radius R_o, or a rectangle with rounded corners:
+surfaces/opening.py, σ the signed distance from its outline in the plate's plane) and a
+rounded lip of radius r_d. The holder presses the flange against the die with a pressure p_h,
+the potential −∫ p_h w(σ) r_z dX, w rising smoothly (3t² − 2t³) from 0 one lip radius beyond
+the end of the lip (σ = 2 r_d; the die's face is flat from σ = r_d) to 1 one lip radius
+further: it fixes the blank's vertical position (in a gap alone it could float up).
+Self-weight (optional) is the potential ∫ q r_z dX, q = ρ_A g per unit reference area.
+Contact is the penalty ½ k_c ⟨−d⟩² per unit reference area for each tool's distance d; with
+``contact_softening`` ε > 0 the punch's ⟨−d⟩ is the softplus ε ln(1 + e^(−d/ε)), whose pressure
+begins just before touching (docs/tool_surfaces.md, "A box").
 
-Friction (Coulomb, optional) under the holder (μ, on both faces of the flange: without it
-nothing resists the draw-in, the fibres carry no tension and the sheet spans the punch as a
-tent), on the punch (μ_p) and over the die's lip (μ_d) enters as incremental dissipation
-potentials of a load step from the last converged state r_n (Ortiz & Stainier 1999;
-experiments/forming/friction.py), the punch's and the lip's compiled as forms of their own and
-assembled only when μ_p or μ_d is not zero. With ``stabilisation`` η > 0 a viscous potential
-½ (η/Δs) |r − r_n|² joins them: a drag on the sheet's motion per unit stroke that carries the
-path through a snap (friction.py). The punch force is the work conjugate of the stroke,
-F = ∂(Π + Φ)/∂s at fixed u = ∫ (p_c n_z − τ_z) dX (p_c the punch's contact pressure, n_z the
-vertical component of its outward normal, τ_z that of its friction traction), so that
-∫ F ds = ΔΠ + D along equilibrium states, D the dissipation of friction and stabilisation.
+Friction (Coulomb, optional: under the holder μ, on the punch μ_p, over the die's lip μ_d) and
+a viscous drag (``stabilisation``) enter as incremental dissipation potentials of a load step
+from the last converged state r_n (Ortiz & Stainier 1999; experiments/forming/friction.py).
+The punch force is the work conjugate of the stroke, F = ∂(Π + Φ)/∂s at fixed u =
+∫ (p_c n_z − τ_z) dX (p_c the punch's contact pressure, n_z the vertical component of its
+outward normal, τ_z that of its friction traction), so that ∫ F ds = ΔΠ + D along equilibrium
+states, D the dissipation. A die or a holder given as a surface is tabulated (fixed_tools.py).
 """
 
 from __future__ import annotations
@@ -48,10 +42,12 @@ from fabricsurf.experiments.cantilever import weight_per_area
 from fabricsurf.experiments.forming import friction as forming_friction
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.contact_newton import LINEAR_SOLVER, ContactSolver
+from fabricsurf.experiments.forming.fixed_tools import tabulated_die, tabulated_holder
 from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
+from fabricsurf.experiments.forming.surfaces.holder import HolderPress, ramp
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 from fabricsurf.experiments.forming.surfaces.opening_form import OpeningForm
-from fabricsurf.experiments.forming.tabulated_tools import tabulated_die, tabulated_punch
+from fabricsurf.experiments.forming.tabulated_tools import tabulated_punch
 from fabricsurf.model.terms import Term
 
 
@@ -59,9 +55,8 @@ class Tools:
     """Punch, die and holder as UFL signed distances of the placement r (module docstring); the
     opening an Opening or a circle's radius. Sizes, stroke, penalty, pressure, friction and
     weight are fem.Constants (other sizes: the same compiled forms). ``friction``: the holder's
-    coefficient (both faces); ``punch_friction``, ``die_friction``: the punch's and the lip's
-    (forming_friction.py). :attr:`r_n` (the last converged placement) is set by the
-    ContactProblem that carries the tools (the punch's friction enters the punch force)."""
+    coefficient (both faces); ``punch_friction``, ``die_friction``: the punch's and the lip's.
+    :attr:`r_n` (the last converged placement) is set by the ContactProblem."""
 
     def __init__(
         self,
@@ -81,6 +76,7 @@ class Tools:
         contact_softening: float = 0.0,
         stabilisation: float = 0.0,
         die_table=None,
+        holder=None,
     ) -> None:
         self.R = float(R)
         self.outline = opening if isinstance(opening, Opening) else Opening.circle(opening)
@@ -100,11 +96,13 @@ class Tools:
         self.r_n = None
         self.tabulated = tabulated_punch(msh, punch_surface, self.softening)
         self.die_table = die_table
-        self.tables = [t for t in (self.tabulated, die_table) if t is not None]
-        self.tabulated_n, self.die_table_n = (  # at r_n, for the friction (friction.py)
-            None if t is None else t.twin() for t in (self.tabulated, die_table)
+        self.holder_table, footprint = (None, None) if holder is None else holder
+        self.press = None if footprint is None else HolderPress(msh, footprint, self.lip)
+        self.tables = [t for t in (self.tabulated, die_table, self.holder_table, self.press) if t]
+        self.tabulated_n, self.die_table_n, self.press_n = (  # at r_n, for friction.py
+            None if t is None else t.twin() for t in (self.tabulated, die_table, self.press)
         )
-        self.last_tables = [t for t in (self.tabulated_n, self.die_table_n) if t is not None]
+        self.last_tables = [t for t in (self.tabulated_n, self.die_table_n, self.press_n) if t]
 
     @classmethod
     def from_options(cls, msh, o: dict) -> Tools:
@@ -126,6 +124,7 @@ class Tools:
             o.get("contact_softening", 0.0),
             o.get("stabilisation", 0.0),
             None if (die := given_surface(o, "die")) is None else tabulated_die(msh, die, o),
+            tabulated_holder(msh, o),
         )
 
     def tool_friction(self) -> bool:
@@ -143,8 +142,7 @@ class Tools:
         if self.tabulated is not None:
             return self.tabulated.punch(r, self.stroke if stroke is None else stroke)
         dz, rho = r[2] - ((self.stroke if stroke is None else stroke) - self.radius), self._rho(r)
-        dist = ufl.sqrt(rho**2 + dz**2)
-        cap = ufl.gt(dz, 0.0)
+        dist, cap = ufl.sqrt(rho**2 + dz**2), ufl.gt(dz, 0.0)
         return (
             ufl.conditional(cap, dist - self.radius, rho - self.radius),
             ufl.conditional(cap, dz / dist, 0.0),
@@ -155,18 +153,18 @@ class Tools:
         if self.tabulated is not None:
             return self.tabulated.punch_normal(r, stroke)
         d, _ = self.punch(r, stroke)
-        dz = r[2] - (stroke - self.radius)
-        rho = self._rho(r)
+        dz, rho = r[2] - (stroke - self.radius), self._rho(r)
         cap = ufl.as_vector([r[0], r[1], dz]) / ufl.sqrt(rho**2 + dz**2)
         side = ufl.as_vector([r[0] / rho, r[1] / rho, 0.0])
         return d, ufl.conditional(ufl.gt(dz, 0.0), cap, side)
 
     def _plate(self, r, side: float):
         """Signed distance to the die (side = 1, above) or the holder (side = −1, below): the
-        lip's tube of radius r_d about σ = r_d and, beyond it, the flat face; a die given as a
-        surface from its table (tabulated_tools.py)."""
-        if side > 0 and self.die_table is not None:
-            return self.die_table.distance(r)
+        lip's tube of radius r_d about σ = r_d and, beyond it, the flat face; a die or a holder
+        given as a surface from its table (tabulated_tools.py)."""
+        table = self.die_table if side > 0 else self.holder_table
+        if table is not None:
+            return table.distance(r)
         a = self.opening.sigma(r) - self.lip
         face = -self.p_h / self.k_c if side > 0 else -self.gap
         torus = ufl.sqrt(a**2 + (r[2] - face - side * self.lip) ** 2) - self.lip
@@ -180,10 +178,12 @@ class Tools:
             "holder": ufl.max_value(-self._plate(r, -1.0), 0.0),
         }
 
-    def holder_weight(self, r):
-        """w(σ) of the holder pressure (module docstring)."""
-        t = ufl.min_value(ufl.max_value(self.opening.sigma(r) / self.lip - 2.0, 0.0), 1.0)
-        return t**2 * (3.0 - 2.0 * t)
+    def holder_weight(self, r, last: bool = False):
+        """w(σ) of the holder pressure (module docstring); a holder given as a surface's from its
+        table at r, or at r_n if ``last`` (surfaces/holder.py)."""
+        if self.press is not None:
+            return (self.press_n if last else self.press).weight(r)
+        return ramp(self.opening.sigma(r) / self.lip - 2.0)
 
     def energy_density(self, r):
         """½ k_c Σ ⟨−d⟩² − p_h w r_z + q r_z (N/mm per unit reference area; q the self-weight

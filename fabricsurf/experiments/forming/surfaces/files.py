@@ -8,8 +8,8 @@ read as binary, any other as ASCII (``solid`` … ``facet normal`` … ``vertex 
 normals written in an STL file are ignored: the orientation is the corners' order (right-hand
 rule), which is what the checks read. An OBJ file's ``v`` lines are the vertices and its ``f``
 lines the faces (1-based indices, negative ones counted from the end, ``i/t/n`` forms allowed);
-polygons are split into fans of triangles. The forming plug-in's ``punch_file``, ``die_file``
-and their units are checked and read here too (:func:`tool_file_options`).
+polygons are split into fans of triangles. The forming plug-in's ``punch_file``, ``die_file``,
+``holder_file`` and their units are checked and read here too (:func:`tool_file_options`).
 """
 
 from __future__ import annotations
@@ -26,9 +26,9 @@ from fabricsurf.experiments.forming.surfaces.triangulated import TriangulatedSur
 
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 """Length units a tool file may be in, and their size in mm."""
-TOOL_FILES_KEPT = 2
+TOOL_FILES_KEPT = 3
 """Tool files whose surfaces :func:`read_tool_file` keeps once read."""
-TOOLS = ("punch", "die")
+TOOLS = ("punch", "die", "holder")
 """The tools a file may give."""
 FILE_KEYS = {
     "punch_file": "the punch as a closed surface, an STL or OBJ file (path relative to "
@@ -40,6 +40,12 @@ FILE_KEYS = {
     "experiment.toml; fixed, above the blank, its face where the holder presses the flange "
     "at z = 0; default: the plate with the opening and lip of the keys above)",
     "die_units": "length unit of die_file's coordinates (mm, cm, m or in; required with die_file)",
+    "holder_file": "the blank holder as a closed surface, an STL or OBJ file (path relative to "
+    "experiment.toml; fixed, below the blank, its face where it presses the flange at z = 0, "
+    "placed holder_gap below; default: the plate about the opening, pressing from one lip "
+    "radius beyond the die's lip)",
+    "holder_units": "length unit of holder_file's coordinates (mm, cm, m or in; required with "
+    "holder_file)",
 }
 """The ``[tooling]`` keys of tools given as files (:func:`tool_file_options`)."""
 _FLOAT = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -138,7 +144,8 @@ def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None
 
 
 def tool_file_options(tooling: dict, where: str) -> dict:
-    """The tools' file keys (:data:`FILE_KEYS`: ``punch_file``, ``die_file`` and their units)
+    """The tools' file keys (:data:`FILE_KEYS`: ``punch_file``, ``die_file``, ``holder_file`` and
+    their units)
     checked, each file read once (its surface's own checks: closed, oriented, not degenerate,
     surfaces/topology.py) so that a bad file is refused with the data; the plug-in's tools and
     checks then take the same surfaces (:func:`given_surface`)."""
@@ -173,7 +180,7 @@ def _file_option(tooling: dict, where: str, tool: str) -> dict:
 
 
 def given_surface(o: dict, tool: str):
-    """The ``tool`` (punch or die) surface the options give: a surface object
+    """The ``tool`` (punch, die or holder) surface the options give: a surface object
     (``{tool}_surface``, Python), the file's (``{tool}_file``), or None (the analytic tool)."""
     if o.get(f"{tool}_surface") is not None or not o.get(f"{tool}_file"):
         return o.get(f"{tool}_surface")

@@ -162,6 +162,15 @@ def die_plate_mesh(
     return revolved_loop(np.vstack([arc[:-1], cut_loop([arc[-1], *corners, arc[0]], step)]), around)
 
 
+def holder_plate_mesh(
+    opening: float, lip: float, outer: float, thickness: float, h: float, around: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The analytic holder's plate (below the blank, its face at z = 0 facing up) about a
+    circular opening of radius ``opening``: :func:`die_plate_mesh` mirrored in z = 0."""
+    vertices, faces = die_plate_mesh(opening, lip, outer, thickness, h, around)
+    return vertices * np.array([1.0, 1.0, -1.0]), faces[:, ::-1].copy()
+
+
 def cut_loop(corners, step: float) -> np.ndarray:
     """The polyline through ``corners`` (rows (ρ, z)) cut into pieces at most ``step`` long,
     its last corner left out (a closed meridian for :func:`revolved_loop`)."""
