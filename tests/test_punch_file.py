@@ -84,7 +84,9 @@ def root(tmp_path_factory):
             R + TOOLS["clearance"], TOOLS["die_lip"], 65.0, 8.0, 1.0, 160
         )
         files.write_stl(base / "holder" / "holder.stl", *holder)
-        with_tooling(base / "holder", 'holder_file = "holder.stl"\nholder_units = "mm"')
+        files.write_stl(base / "holder" / "die.stl", *die)
+        both = 'die_file = "die.stl"\ndie_units = "mm"\nholder_file = "holder.stl"\n'
+        with_tooling(base / "holder", both + 'holder_units = "mm"')
         files.write_stl(base / "holdernounits" / "holder.stl", *holder)
         with_tooling(base / "holdernounits", 'holder_file = "holder.stl"')
         (base / "p.json").write_text(json.dumps(PARAMS))
@@ -116,9 +118,10 @@ def test_tool_file_through_compare(root, case, key, tool):
 
 def test_holder_file_through_compare(root):
     """The holder as the analytic one's plate (outline in 160 segments, lip edges 1 mm) in an
-    STL file: compare takes it from experiment.toml, and its forces are the analytic holder's
-    to the facets' error (below 1e-3 of the final force, as the ring's of
-    tests/test_surface_holder.py)."""
+    STL file, beside the die's (the ``die`` case's): compare takes both from experiment.toml,
+    and the forces are those under the same die and the analytic holder to the holder's facets'
+    error (below 1e-3 of the final force, as the ring's of tests/test_surface_holder.py, whose
+    forms these are: a die and a holder through tables)."""
     out = root / f"holder_out{COMM.size}"
     argv = ["compare", str(root / "holder"), "--params", str(root / "p.json"), "--h", str(H)]
     assert main([*argv, "--out", str(out)]) == 0
@@ -126,7 +129,7 @@ def test_holder_file_through_compare(root):
     assert exp.setup.options["holder_file"] == str(root / "holder" / "holder.stl")
     with ForwardModel(exp, model(), H, COMM) as fm:
         tabulated = fm.run().force
-    with ForwardModel(load_experiment(root / "data"), model(), H, COMM) as fm:
+    with ForwardModel(load_experiment(root / "die"), model(), H, COMM) as fm:
         analytic = fm.run().force
     error = np.abs(tabulated - analytic).max() / analytic[-1]
     print(f"holder file against the analytic holder: {error:.3g} of the final force")

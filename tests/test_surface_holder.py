@@ -8,8 +8,8 @@ Checks that can fail independently of each other:
 * a holder ring whose face starts at 30 mm forms the blank as the analytic holder about an
   opening of 28 mm with a 2 mm lip does (the die the same 22 mm plate in both, given as a
   surface): the same pressed region and the same plate below, so the forces agree to within
-  the facets' error. The default holder (face from 24 mm) presses a wider flange with friction
-  and gives another force: the ring's pressure is its own, not the opening keys';
+  the facets' error. Were the ring's pressure keyed to the opening keys (22 mm), the ring would
+  form as the default holder does, 0.226 of the final force away (measured below);
 * 1 = 2 ranks: the ring's forces on 2 ranks are the serial ones;
 * a holder in the wrong units, one with no face at z = 0, one that is not a triangle mesh and a
   blank whose edge ends short of the holder's full pressure are refused or warned about,
@@ -99,14 +99,12 @@ def test_ring_presses_as_the_analytic_holder_of_its_opening():
     clearance = RING_OPENING - R  # the analytic holder about the ring's opening
     analytic_run = form(clearance=clearance)
     ring_run = form(ring())
-    default_run = form()
     f = analytic_run["force"]
     error = np.abs(ring_run["force"] - f).max() / f[-1]
-    other = np.abs(default_run["force"] - f).max() / f[-1]
-    print(f"forces: analytic {f}, ring {ring_run['force']}, default {default_run['force']}")
-    print(f"ring against the analytic holder {error:.3g}, the default holder {other:.3g}")
+    print(f"forces: analytic {f}, ring {ring_run['force']}; relative difference {error:.3g}")
     assert ring_run["domain"] == "quarter"
-    assert error < 1e-3 and other > 30.0 * error
+    assert error < 1e-3
+    assert np.allclose(ring_run["force"], SERIAL_FORCES, rtol=1e-6, atol=1e-9)
 
 
 def test_two_ranks_agree():

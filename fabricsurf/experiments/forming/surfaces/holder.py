@@ -151,7 +151,7 @@ class HolderPress:
         self.cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
         dofs = Q.dofmap.list.array.reshape(-1, len(quadrature_points(msh)))[self.cells].ravel()
         self._index = (3 * dofs[:, None] + np.arange(3)).ravel()
-        self._r = None
+        self._r = self._xy = self._e = None  # the positions last tabulated, and e there
 
     def attach(self, r, stroke=None) -> None:
         """Tabulate from the placement r (a UFL expression of u); the stroke plays no part."""
@@ -159,13 +159,26 @@ class HolderPress:
         self.refresh()
 
     def refresh(self) -> None:
-        """e and ∇e at the current in-plane positions."""
+        """e and ∇e at the current in-plane positions of the points that need them: those in
+        the ramp's band r_d < e < 2 r_d, or that may have reached it, having moved farther
+        since their last tabulation than they were from it (e changes by at most the motion).
+        Elsewhere w is 0 or 1 with a zero derivative, and the old linearisation gives the
+        same: it too moves by at most the motion."""
         if len(self.cells) == 0:
             return
         xy = self._r.eval(self.cells).reshape(-1, 3)[:, :2]
-        e, grad = self.footprint(xy)
-        offset = e - np.einsum("nj,nj->n", grad, xy)
-        self.table.x.array[self._index] = np.column_stack([offset, grad]).ravel()
+        lip = float(self.lip.value)
+        if self._xy is None:
+            self._xy, self._e = np.full(xy.shape, np.nan), np.zeros(len(xy))
+        away = np.maximum(lip - self._e, self._e - 2.0 * lip)
+        need = ~(np.linalg.norm(xy - self._xy, axis=1) < away)  # NaN: never tabulated
+        if not need.any():
+            return
+        e, grad = self.footprint(xy[need])
+        self._xy[need], self._e[need] = xy[need], e
+        values = self.table.x.array.reshape(-1, 3)
+        rows = self._index.reshape(-1, 3)[need, 0] // 3
+        values[rows] = np.column_stack([e - np.einsum("nj,nj->n", grad, xy[need]), grad])
 
     def edge_distance(self, r):
         """e at the placement r, linear about the tabulated state."""
