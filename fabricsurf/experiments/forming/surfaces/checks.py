@@ -105,20 +105,44 @@ def check_stroke(
     e = np.asarray(direction, float) / np.linalg.norm(direction)
     fast = near is not None and getattr(die, "near", None) is not None
 
-    def depth(s: float) -> float:
-        x = points + s * e
-        return float(-(die.near(x, near)[0] if fast else die.signed_distance(x)).min())
+    def distances(s: float, rows) -> np.ndarray:
+        x = points[rows] + s * e
+        return die.near(x, near)[0] if fast else die.signed_distance(x)
 
-    if depth(0.0) > 0.0:
+    everyone = slice(None)
+    if -distances(0.0, everyone).min() > 0.0:
         raise InputError(f"{punch.name}: the punch starts inside the die {die.name}")
-    if depth(stroke) <= 0.0:
+    last = distances(stroke, everyone)
+    if -last.min() <= 0.0:
         return
-    limit = _bisect(depth, 0.0, stroke)
+    limit = _first_contact(distances, last, stroke)
     raise InputError(
         f"{punch.name}: the stroke of {stroke:.6g} mm passes through the die {die.name}: the "
-        f"punch would be {depth(stroke):.6g} mm inside it; the die stops it at a stroke of "
+        f"punch would be {-last.min():.6g} mm inside it; the die stops it at a stroke of "
         f"{limit:.6g} mm (less the blank's thickness)"
     )
+
+
+def _first_contact(distances, at_stroke: np.ndarray, stroke: float) -> float:
+    """The stroke in [0, ``stroke``] where the deepest point first reaches the die, by
+    bisection to :data:`BISECTION_TOLERANCE` of the interval (``distances(s, rows)``: the
+    points' distances at s, ``at_stroke`` all of them at ``stroke``, some inside). A point
+    moves by |s − s′| between strokes s and s′, so its distance does too: one that is farther
+    out at the interval's top than the interval is long stays out over all of it and is
+    dropped (the same signs, so the same answer, from fewer and fewer points)."""
+    rows, top = np.arange(len(at_stroke)), at_stroke
+    lo, hi = 0.0, stroke
+    tolerance = BISECTION_TOLERANCE * stroke
+    while hi - lo > tolerance:
+        keep = top <= hi - lo
+        rows, top = rows[keep], top[keep]
+        mid = 0.5 * (lo + hi)
+        d = distances(mid, rows)
+        if -d.min() <= 0.0:
+            lo = mid
+        else:
+            hi, top = mid, d
+    return lo
 
 
 DIE_SPACING = 0.25
@@ -155,16 +179,6 @@ def stroke_check(punch: ToolSurface, die: ToolSurface, face: float, lip: float, 
         check_stroke(punch, die, points, E_Z, stroke, near=2.0 * spacing)
 
     return check
-
-
-def _bisect(depth, lo: float, hi: float) -> float:
-    """The stroke in [lo, hi] where the depth crosses 0 (depth(lo) ≤ 0 < depth(hi)), to
-    :data:`BISECTION_TOLERANCE` of the interval."""
-    tolerance = BISECTION_TOLERANCE * (hi - lo)
-    while hi - lo > tolerance:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if depth(mid) <= 0.0 else (lo, mid)
-    return lo
 
 
 MIRROR_TOLERANCE = 1e-6
