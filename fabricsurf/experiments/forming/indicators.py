@@ -151,8 +151,9 @@ class Wrinkling(Owner):
         self._ksp.setTolerances(rtol=1e-12, atol=1e-14, max_it=1000)
         self._filter_length = None  # the length the filter matrix was assembled with
         sigma = tools.opening.sigma(r)
-        short = ufl.lt(sigma, 3.0 * tools.lip) if tools.press is None else None
-        if short is None:  # a holder given as a surface: short of its full pressure
+        if tools.press is None:
+            short = ufl.lt(sigma, 3.0 * tools.lip)
+        else:  # a holder given as a surface: short of its full pressure
             short = ufl.lt(tools.holder_weight(r), 1.0)
         strip = ufl.And(ufl.ge(sigma, tools.lip), short)
         threshold = self.factor * self.buckling_force
