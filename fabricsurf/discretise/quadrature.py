@@ -8,6 +8,7 @@ from __future__ import annotations
 import basix
 import numpy as np
 import ufl
+from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 CELL_QUADRATURE_DEGREE = 4
@@ -49,3 +50,17 @@ def quadrature_points(msh) -> np.ndarray:
     surfaces are tabulated (experiments/forming/tabulated_tools.py)."""
     cell = basix.cell.string_to_type(msh.topology.cell_name())
     return basix.make_quadrature(cell, CELL_QUADRATURE_DEGREE)[0]
+
+
+def quadrature_table(msh, dim: int) -> tuple[fem.FunctionSpace, np.ndarray, np.ndarray]:
+    """(the space of ``dim``-vectors at the cell quadrature points, the local and ghost cells,
+    the degree of freedom of each of their points in cell order): where a numpy function of the
+    placement is tabulated (experiments/forming/tabulated_tools.py, surfaces/holder.py)."""
+    element = ufl.VectorElement(
+        "Quadrature", msh.ufl_cell(), CELL_QUADRATURE_DEGREE, quad_scheme="default", dim=dim
+    )
+    Q = fem.FunctionSpace(msh, element)
+    imap = msh.topology.index_map(msh.topology.dim)
+    cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+    dofs = Q.dofmap.list.array.reshape(-1, len(quadrature_points(msh)))[cells].ravel()
+    return Q, cells, dofs

@@ -51,7 +51,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE, quadrature_points
+from fabricsurf.discretise.quadrature import quadrature_points, quadrature_table
 from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming.surfaces import ToolSurface, checks
 from fabricsurf.experiments.forming.surfaces.curvature import distance_hessian, has_curvature
@@ -88,21 +88,16 @@ class TabulatedTool:
         cutoff = max(CUTOFF * surface.size, SOFT_CUTOFF * self.softening)
         near = getattr(surface, "near", None) is not None
         self._near = Tracked(surface, cutoff, BOUND * surface.size) if near else None
-        element = ufl.VectorElement(
-            "Quadrature", msh.ufl_cell(), CELL_QUADRATURE_DEGREE, quad_scheme="default", dim=3
-        )
-        Q = fem.FunctionSpace(msh, element)
+        Q, self.cells, dofs = quadrature_table(msh, 3)
         self.foot = fem.Function(Q, name="tool_foot")
         self.n = fem.Function(Q, name="tool_normal")
         self.s_q = fem.Constant(msh, 0.0)
-        imap = msh.topology.index_map(msh.topology.dim)
-        self.cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
-        dofs = Q.dofmap.list.array.reshape(-1, len(quadrature_points(msh)))[self.cells].ravel()
         self._index = (3 * dofs[:, None] + np.arange(3)).ravel()
         self.K = self.r_q = None
         self.curved = False  # K left zero: the frozen normal's Jacobian, for Newton
         if has_curvature(surface):  # K = ∇n and the placement it was taken at
-            Q9 = fem.FunctionSpace(msh, ufl.VectorElement(element.sub_elements()[0], dim=9))
+            scalar = Q.ufl_element().sub_elements()[0]
+            Q9 = fem.FunctionSpace(msh, ufl.VectorElement(scalar, dim=9))
             self.K, self.r_q = fem.Function(Q9, name="tool_curvature"), fem.Function(Q)
             self._index9 = (9 * dofs[:, None] + np.arange(9)).ravel()
         self._r = None

@@ -24,7 +24,7 @@ import ufl
 from dolfinx import fem
 from scipy.spatial import cKDTree
 
-from fabricsurf.discretise.quadrature import CELL_QUADRATURE_DEGREE, quadrature_points
+from fabricsurf.discretise.quadrature import quadrature_points, quadrature_table
 from fabricsurf.errors import InputError
 
 UP = 1.0 - 1e-6
@@ -142,14 +142,8 @@ class HolderPress:
 
     def __init__(self, msh, footprint: Footprint, lip: fem.Constant) -> None:
         self.msh, self.footprint, self.lip = msh, footprint, lip
-        element = ufl.VectorElement(
-            "Quadrature", msh.ufl_cell(), CELL_QUADRATURE_DEGREE, quad_scheme="default", dim=3
-        )
-        Q = fem.FunctionSpace(msh, element)
+        Q, self.cells, dofs = quadrature_table(msh, 3)
         self.table = fem.Function(Q, name="holder_edge")  # (e − ∇e·r_q, ∂e/∂x, ∂e/∂y)
-        imap = msh.topology.index_map(msh.topology.dim)
-        self.cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
-        dofs = Q.dofmap.list.array.reshape(-1, len(quadrature_points(msh)))[self.cells].ravel()
         self._index = (3 * dofs[:, None] + np.arange(3)).ravel()
         self._r = self._xy = self._e = None  # the positions last tabulated, and e there
 
