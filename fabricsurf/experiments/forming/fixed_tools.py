@@ -24,7 +24,7 @@ from fabricsurf.errors import InputError
 from fabricsurf.experiments.forming import options as forming_options
 from fabricsurf.experiments.forming.surfaces import ToolSurface, analytic, checks
 from fabricsurf.experiments.forming.surfaces.files import given_surface, punch_surface
-from fabricsurf.experiments.forming.surfaces.holder import Footprint
+from fabricsurf.experiments.forming.surfaces.holder import Footprint, footprint_of
 from fabricsurf.experiments.forming.tabulated_tools import (
     START_TOLERANCE,
     TabulatedTool,
@@ -58,7 +58,7 @@ def tabulated_die(msh, surface: ToolSurface, o: dict) -> TabulatedTool:
 def holder_footprint(o: dict) -> Footprint | None:
     """The footprint of the holder given as a surface, or None (the analytic holder)."""
     surface = given_surface(o, "holder")
-    return None if surface is None else Footprint(surface)
+    return None if surface is None else footprint_of(surface)
 
 
 def pressed(o: dict, xy: np.ndarray) -> np.ndarray:
@@ -83,7 +83,7 @@ def tabulated_holder(msh, o: dict) -> tuple[TabulatedTool, Footprint] | None:
     footprint, error = None, None
     try:
         checks.check_scale(surface, blank_size(msh))
-        footprint = Footprint(surface)
+        footprint = footprint_of(surface)
         flat = np.column_stack([X[:, 0], X[:, 1], np.zeros(len(X))])
         placed = analytic.Moved(surface, offset)
         checks.check_outside(placed, flat, START_TOLERANCE * surface.size)

@@ -24,7 +24,7 @@ from fabricsurf.experiments.forming.surfaces.files import (
     given_surface,
     tool_file_options,
 )
-from fabricsurf.experiments.forming.surfaces.holder import Footprint, unheld_by
+from fabricsurf.experiments.forming.surfaces.holder import footprint_of, unheld_by
 from fabricsurf.experiments.forming.surfaces.opening import Opening
 
 TOOL_KEYS = {
@@ -254,7 +254,7 @@ def unheld_edge(o: dict, half_x: float, half_y: float, round_blank: bool = False
     with many cut steps (docs/forming.md)."""
     op, lip = opening(o), o["die_lip"]
     if (holder := given_surface(o, "holder")) is not None:
-        return unheld_by(Footprint(holder), lip, half_x, half_y, round_blank)
+        return unheld_by(footprint_of(holder), lip, half_x, half_y, round_blank)
     full = (op.half_length + 3.0 * lip, op.half_width + 3.0 * lip)
     if round_blank:
         full = (op.outer_reach + 3.0 * lip,) * 2

@@ -19,6 +19,8 @@ about that state, e_q + ∇e·(r − r_q): the value there, and its derivative.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -33,15 +35,21 @@ FACE_TOLERANCE = 1e-6
 """How far a face triangle's corners may leave z = 0, in the holder's sizes."""
 CANDIDATES = 8
 """Outline samples whose segments are measured exactly for each point."""
+FOOTPRINTS_KEPT = 2
+"""Holder footprints :func:`footprint_of` keeps."""
 
 
 def ramp(t):
-    """S(t) = 3t² − 2t³ of t clamped to [0, 1] (UFL or numpy)."""
-    if isinstance(t, np.ndarray):
-        t = np.clip(t, 0.0, 1.0)
-    else:
-        t = ufl.min_value(ufl.max_value(t, 0.0), 1.0)
+    """S(t) = 3t² − 2t³ of t clamped to [0, 1] (UFL)."""
+    t = ufl.min_value(ufl.max_value(t, 0.0), 1.0)
     return t**2 * (3.0 - 2.0 * t)
+
+
+@functools.lru_cache(maxsize=FOOTPRINTS_KEPT)
+def footprint_of(surface) -> Footprint:
+    """The :class:`Footprint` of a holder surface, built once for its users (the die's face
+    check, the unheld-edge warning, the tables): a large mesh's outline takes a while."""
+    return Footprint(surface)
 
 
 class Footprint:
